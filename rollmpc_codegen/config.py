@@ -1,0 +1,509 @@
+"""Stage 1 of the pipeline: YAML -> validated, frozen configuration dataclasses.
+
+Every problem is reported as a single :class:`ConfigError` whose text names the
+offending key (``modes[1].weights.P: must be a positive number``).  Nothing
+downstream re-validates raw YAML; the later stages (plant, mpc, observer) raise
+``ConfigError`` too when a *mathematical* property fails (an uncontrollable mode,
+an indefinite Hessian, ...), always naming the key that caused it.
+"""
+from __future__ import annotations
+
+import hashlib
+import math
+import re
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import yaml
+
+SOLVER_METHODS = ("hildreth", "hildreth_plus", "hildreth_plus_prime")
+PRECISIONS = ("double", "float")
+SCHEDULE_SOURCES = ("output_rate", "output")
+
+
+class ConfigError(ValueError):
+    """A configuration problem, reported as one line: ``<key>: <problem>``."""
+
+    def __init__(self, key: str, problem: str):
+        super().__init__(f"{key}: {problem}")
+        self.key = key
+        self.problem = problem
+
+
+# --------------------------------------------------------------------------- dataclasses
+@dataclass(frozen=True)
+class PlantConfig:
+    """A continuous or discrete LTI plant of one mode (before any realisation)."""
+
+    kind: str  # "transfer_function" | "state_space"
+    num: tuple[float, ...] = ()
+    den: tuple[float, ...] = ()
+    A: np.ndarray | None = None
+    B: np.ndarray | None = None
+    C: np.ndarray | None = None
+    D: np.ndarray | None = None
+    discrete: bool = False  # state space only: already sampled at sample_time
+    integrator: bool = False  # append 1/s to every output (eq. 1)
+
+
+@dataclass(frozen=True)
+class ModeConfig:
+    name: str
+    actuators: tuple[str, ...]
+    plant: PlantConfig
+    Q: np.ndarray  # ny x ny stage output weight
+    R: np.ndarray  # nu x nu input weight
+    P: np.ndarray  # ny x ny terminal output weight
+    u_min: np.ndarray
+    u_max: np.ndarray
+    y_min: np.ndarray  # -inf where unbounded
+    y_max: np.ndarray
+    observer_poles: tuple[complex, ...] | None  # None -> documented default
+
+
+@dataclass(frozen=True)
+class SchedulerConfig:
+    """Eq. (3): one band [lower, upper] with hysteresis margin epsilon."""
+
+    signal: str
+    lower: float
+    upper: float
+    epsilon: float
+    inside: int  # mode index active inside the band
+    outside: int  # mode index active outside the band
+    initial: int  # mode index at P_init
+
+
+@dataclass(frozen=True)
+class SolverConfig:
+    method: str = "hildreth_plus_prime"
+    omega: float = 1.2
+    sigma: float = 0.2
+    delta: float = 1e-13
+    max_iterations: int = 1000
+    warm_start: bool = True
+    polish: bool = True
+    polish_every: int = 10
+    polish_max: int = 8
+    feasibility_tol: float | None = None  # None -> precision default
+
+
+@dataclass(frozen=True)
+class SimulationConfig:
+    schedule_source: str = "output_rate"
+
+
+@dataclass(frozen=True)
+class ControllerConfig:
+    prefix: str
+    precision: str
+    sample_time: float
+    horizon: int
+    outputs: tuple[str, ...]
+    actuators: tuple[str, ...]
+    modes: tuple[ModeConfig, ...]
+    scheduler: SchedulerConfig | None
+    solver: SolverConfig
+    simulation: SimulationConfig
+    config_hash: str
+
+    @property
+    def n_outputs(self) -> int:
+        return len(self.outputs)
+
+    @property
+    def n_schedule(self) -> int:
+        return 0 if self.scheduler is None else 1
+
+
+# --------------------------------------------------------------------------- readers
+class _Reader:
+    """Typed access to one YAML mapping; every failure names its full key path."""
+
+    def __init__(self, data: Any, path: str):
+        if not isinstance(data, dict):
+            raise ConfigError(path or "<top>", "must be a mapping")
+        self.data = data
+        self.path = path
+        self.used: set[str] = set()
+
+    def key(self, name: str) -> str:
+        return f"{self.path}.{name}" if self.path else name
+
+    def has(self, name: str) -> bool:
+        return name in self.data
+
+    def raw(self, name: str, default: Any = ..., required: bool = True) -> Any:
+        self.used.add(name)
+        if name not in self.data or self.data[name] is None:
+            if default is not ...:
+                return default
+            raise ConfigError(self.key(name), "missing required key")
+        return self.data[name]
+
+    def number(self, name: str, default: Any = ..., positive: bool = False,
+               nonnegative: bool = False) -> float:
+        value = self.raw(name, default)
+        return _number(value, self.key(name), positive=positive, nonnegative=nonnegative)
+
+    def integer(self, name: str, default: Any = ..., minimum: int | None = None) -> int:
+        value = self.raw(name, default)
+        if isinstance(value, bool) or not isinstance(value, int):
+            raise ConfigError(self.key(name), f"must be an integer, got {value!r}")
+        if minimum is not None and value < minimum:
+            raise ConfigError(self.key(name), f"must be >= {minimum}, got {value}")
+        return value
+
+    def boolean(self, name: str, default: Any = ...) -> bool:
+        value = self.raw(name, default)
+        if not isinstance(value, bool):
+            raise ConfigError(self.key(name), f"must be true or false, got {value!r}")
+        return value
+
+    def string(self, name: str, default: Any = ..., choices: tuple[str, ...] | None = None) -> str:
+        value = self.raw(name, default)
+        if not isinstance(value, str):
+            raise ConfigError(self.key(name), f"must be a string, got {value!r}")
+        if choices is not None and value not in choices:
+            raise ConfigError(self.key(name), f"must be one of {', '.join(choices)}; got {value!r}")
+        return value
+
+    def names(self, name: str) -> tuple[str, ...]:
+        value = self.raw(name)
+        if not isinstance(value, list) or not value:
+            raise ConfigError(self.key(name), "must be a non-empty list of names")
+        for i, item in enumerate(value):
+            if not isinstance(item, str) or not _IDENT.match(item):
+                raise ConfigError(f"{self.key(name)}[{i}]",
+                                  f"must be a C identifier-like name, got {item!r}")
+        if len(set(value)) != len(value):
+            raise ConfigError(self.key(name), "names must be unique")
+        return tuple(value)
+
+    def sub(self, name: str, default: Any = ...) -> "_Reader":
+        value = self.raw(name, default)
+        return _Reader(value, self.key(name))
+
+    def finish(self) -> None:
+        unknown = sorted(set(self.data) - self.used)
+        if unknown:
+            raise ConfigError(self.key(str(unknown[0])), "unknown key")
+
+
+_IDENT = re.compile(r"^[A-Za-z_][A-Za-z0-9_]*$")
+
+
+def _number(value: Any, key: str, positive: bool = False, nonnegative: bool = False) -> float:
+    if isinstance(value, str):
+        # PyYAML (YAML 1.1) reads 1.0e6 -- no sign in the exponent -- as a string
+        try:
+            value = float(value.strip())
+        except ValueError:
+            raise ConfigError(key, f"must be a number, got {value!r}") from None
+    if isinstance(value, bool) or not isinstance(value, (int, float)):
+        raise ConfigError(key, f"must be a number, got {value!r}")
+    value = float(value)
+    if not math.isfinite(value):
+        raise ConfigError(key, f"must be finite, got {value!r}")
+    if positive and value <= 0:
+        raise ConfigError(key, f"must be > 0, got {value!r}")
+    if nonnegative and value < 0:
+        raise ConfigError(key, f"must be >= 0, got {value!r}")
+    return value
+
+
+def _vector(value: Any, key: str, length: int | None = None, allow_inf: bool = False) -> np.ndarray:
+    """A scalar (broadcast to ``length``) or a list of numbers."""
+    items = value if isinstance(value, list) else [value]
+    if length is not None and not isinstance(value, list):
+        items = items * length
+    out = []
+    for i, item in enumerate(items):
+        k = f"{key}[{i}]" if isinstance(value, list) else key
+        if allow_inf and isinstance(item, str) and item.strip() in ("inf", "+inf", "-inf"):
+            out.append(float(item))
+            continue
+        if allow_inf and isinstance(item, float) and math.isinf(item):
+            out.append(item)
+            continue
+        out.append(_number(item, k))
+    if length is not None and len(out) != length:
+        raise ConfigError(key, f"must have {length} entries, got {len(out)}")
+    if not out:
+        raise ConfigError(key, "must not be empty")
+    return np.array(out, dtype=float)
+
+
+def _matrix(value: Any, key: str, shape: tuple[int, int] | None = None) -> np.ndarray:
+    """A matrix given as a list of rows; a scalar means scalar * identity (square shapes)."""
+    if shape is not None and not isinstance(value, list):
+        if shape[0] != shape[1]:
+            raise ConfigError(key, f"must be a {shape[0]}x{shape[1]} matrix")
+        return _number(value, key) * np.eye(shape[0])
+    if shape is not None and isinstance(value, list) and value and not isinstance(value[0], list):
+        # a flat list is a diagonal for square weights
+        if shape[0] == shape[1] and len(value) == shape[0]:
+            return np.diag(_vector(value, key))
+    if not isinstance(value, list) or not value or not all(isinstance(r, list) for r in value):
+        raise ConfigError(key, "must be a matrix given as a list of rows")
+    rows = [_vector(r, f"{key}[{i}]") for i, r in enumerate(value)]
+    if len({len(r) for r in rows}) != 1:
+        raise ConfigError(key, "rows must all have the same length")
+    mat = np.array(rows)
+    if shape is not None and mat.shape != shape:
+        raise ConfigError(key, f"must be {shape[0]}x{shape[1]}, got {mat.shape[0]}x{mat.shape[1]}")
+    return mat
+
+
+def _psd(mat: np.ndarray, key: str, strict: bool) -> np.ndarray:
+    if not np.allclose(mat, mat.T, rtol=0, atol=1e-12 * max(1.0, np.abs(mat).max())):
+        raise ConfigError(key, "must be symmetric")
+    eig = np.linalg.eigvalsh(mat)
+    if strict and eig.min() <= 0:
+        raise ConfigError(key, "must be positive definite")
+    if not strict and eig.min() < -1e-12 * max(1.0, eig.max()):
+        raise ConfigError(key, "must be positive semidefinite")
+    return mat
+
+
+# --------------------------------------------------------------------------- sections
+def _plant(r: _Reader) -> PlantConfig:
+    kinds = [k for k in ("transfer_function", "state_space") if r.has(k)]
+    if len(kinds) != 1:
+        raise ConfigError(r.key("transfer_function"),
+                          "give exactly one of transfer_function or state_space")
+    integrator = r.boolean("integrator", False)
+    if kinds[0] == "transfer_function":
+        tf = r.sub("transfer_function")
+        num = _vector(tf.raw("num"), tf.key("num"))
+        den = _vector(tf.raw("den"), tf.key("den"))
+        tf.finish()
+        num = np.trim_zeros(num, "f")
+        den = np.trim_zeros(den, "f")
+        if den.size == 0:
+            raise ConfigError(tf.key("den"), "must not be all zeros")
+        if num.size == 0:
+            raise ConfigError(tf.key("num"), "must not be all zeros")
+        if num.size > den.size:
+            raise ConfigError(tf.key("num"), "improper transfer function (deg num > deg den)")
+        if num.size == den.size and not integrator:
+            raise ConfigError(tf.key("num"), "transfer function has feedthrough; MPC needs a "
+                              "strictly proper plant (deg num < deg den) or integrator: true")
+        if den.size < 2 and not integrator:
+            raise ConfigError(tf.key("den"), "a static gain has no state; use integrator: true")
+        r.finish()
+        return PlantConfig(kind="transfer_function", num=tuple(num), den=tuple(den),
+                           integrator=integrator)
+    ss = r.sub("state_space")
+    A = _matrix(ss.raw("A"), ss.key("A"))
+    nx = A.shape[0]
+    if A.shape != (nx, nx):
+        raise ConfigError(ss.key("A"), "must be square")
+    B = _matrix(ss.raw("B"), ss.key("B"))
+    if B.shape[0] != nx:
+        raise ConfigError(ss.key("B"), f"must have {nx} rows (the size of A)")
+    C = _matrix(ss.raw("C"), ss.key("C"))
+    if C.shape[1] != nx:
+        raise ConfigError(ss.key("C"), f"must have {nx} columns (the size of A)")
+    D = _matrix(ss.raw("D", [[0.0] * B.shape[1]] * C.shape[0]), ss.key("D"),
+                shape=(C.shape[0], B.shape[1]))
+    if np.any(D != 0) and not integrator:
+        raise ConfigError(ss.key("D"), "must be zero: MPC needs a strictly proper plant "
+                          "(or integrator: true)")
+    discrete = ss.boolean("discrete", False)
+    ss.finish()
+    if discrete and integrator:
+        raise ConfigError(r.key("integrator"), "only for continuous plants")
+    r.finish()
+    return PlantConfig(kind="state_space", A=A, B=B, C=C, D=D, discrete=discrete,
+                       integrator=integrator)
+
+
+def _mode(r: _Reader, outputs: tuple[str, ...], actuators: tuple[str, ...]) -> ModeConfig:
+    name = r.string("name")
+    if not _IDENT.match(name):
+        raise ConfigError(r.key("name"), f"must be an identifier-like name, got {name!r}")
+    acts = r.names("actuators")
+    for i, a in enumerate(acts):
+        if a not in actuators:
+            raise ConfigError(f"{r.key('actuators')}[{i}]", f"unknown actuator {a!r}; "
+                              f"declared actuators are {', '.join(actuators)}")
+    plant = _plant(r.sub("plant"))
+    nu, ny = len(acts), len(outputs)
+    if plant.kind == "transfer_function" and (nu, ny) != (1, 1):
+        raise ConfigError(r.key("plant.transfer_function"),
+                          f"is SISO but the mode has {nu} actuators and {ny} outputs")
+    if plant.kind == "state_space":
+        if plant.B.shape[1] != nu:
+            raise ConfigError(r.key("plant.state_space.B"),
+                              f"must have {nu} columns (one per mode actuator)")
+        if plant.C.shape[0] != ny:
+            raise ConfigError(r.key("plant.state_space.C"),
+                              f"must have {ny} rows (one per output)")
+    w = r.sub("weights")
+    Q = _psd(_matrix(w.raw("Q"), w.key("Q"), (ny, ny)), w.key("Q"), strict=False)
+    R = _psd(_matrix(w.raw("R"), w.key("R"), (nu, nu)), w.key("R"), strict=True)
+    P = _psd(_matrix(w.raw("P", w.raw("Q")), w.key("P"), (ny, ny)), w.key("P"), strict=False)
+    w.finish()
+    b = r.sub("bounds")
+    u_min = _vector(b.raw("u_min"), b.key("u_min"), nu)
+    u_max = _vector(b.raw("u_max"), b.key("u_max"), nu)
+    for i in range(nu):
+        if not u_min[i] < u_max[i]:
+            raise ConfigError(b.key("u_min"), f"must be < u_max (entry {i}: "
+                              f"{u_min[i]} >= {u_max[i]})")
+        if not u_min[i] <= 0.0 <= u_max[i]:
+            raise ConfigError(b.key("u_min"), "the bounds must contain 0 (the inactive "
+                              "actuator command)")
+    y_min = _vector(b.raw("y_min", -math.inf), b.key("y_min"), ny, allow_inf=True)
+    y_max = _vector(b.raw("y_max", math.inf), b.key("y_max"), ny, allow_inf=True)
+    for i in range(ny):
+        if not y_min[i] < y_max[i]:
+            raise ConfigError(b.key("y_min"), f"must be < y_max (entry {i})")
+    b.finish()
+    poles = None
+    if r.has("observer"):
+        o = r.sub("observer")
+        if o.has("poles"):
+            raw = o.raw("poles")
+            if not isinstance(raw, list) or not raw:
+                raise ConfigError(o.key("poles"), "must be a non-empty list")
+            parsed = []
+            for i, p in enumerate(raw):
+                k = f"{o.key('poles')}[{i}]"
+                if isinstance(p, list) and len(p) == 2:
+                    parsed.append(complex(_number(p[0], k), _number(p[1], k)))
+                else:
+                    parsed.append(complex(_number(p, k), 0.0))
+                if abs(parsed[-1]) >= 1.0:
+                    raise ConfigError(k, f"observer pole {p!r} is not inside the unit circle")
+            poles = tuple(parsed)
+        o.finish()
+    r.finish()
+    return ModeConfig(name=name, actuators=acts, plant=plant, Q=Q, R=R, P=P,
+                      u_min=u_min, u_max=u_max, y_min=y_min, y_max=y_max,
+                      observer_poles=poles)
+
+
+def _scheduler(r: _Reader, modes: tuple[ModeConfig, ...]) -> SchedulerConfig:
+    names = [m.name for m in modes]
+
+    def mode_index(key: str) -> int:
+        name = r.string(key)
+        if name not in names:
+            raise ConfigError(r.key(key), f"unknown mode {name!r}; modes are {', '.join(names)}")
+        return names.index(name)
+
+    signal = r.string("signal")
+    lower = r.number("lower")
+    upper = r.number("upper")
+    if not lower < upper:
+        raise ConfigError(r.key("lower"), f"must be < upper ({lower} >= {upper})")
+    epsilon = r.number("epsilon", 0.5, nonnegative=True)
+    if 2 * epsilon >= upper - lower:
+        raise ConfigError(r.key("epsilon"), "the hysteresis margin leaves no inside band "
+                          "(need 2*epsilon < upper - lower)")
+    inside = mode_index("inside")
+    outside = mode_index("outside")
+    if inside == outside:
+        raise ConfigError(r.key("outside"), "must differ from inside")
+    initial = mode_index("initial") if r.has("initial") else inside
+    r.finish()
+    return SchedulerConfig(signal=signal, lower=lower, upper=upper, epsilon=epsilon,
+                           inside=inside, outside=outside, initial=initial)
+
+
+def _solver(r: _Reader) -> SolverConfig:
+    d = SolverConfig()
+    method = r.string("method", d.method, choices=SOLVER_METHODS)
+    omega = r.number("omega", d.omega)
+    if not 0.0 < omega < 2.0:
+        raise ConfigError(r.key("omega"), f"SOR needs 0 < omega < 2, got {omega}")
+    sigma = r.number("sigma", d.sigma, nonnegative=True)
+    delta = r.number("delta", d.delta, positive=True)
+    max_iterations = r.integer("max_iterations", d.max_iterations, minimum=1)
+    warm_start = r.boolean("warm_start", d.warm_start)
+    polish = r.boolean("polish", d.polish)
+    polish_every = r.integer("polish_every", d.polish_every, minimum=1)
+    polish_max = r.integer("polish_max", d.polish_max, minimum=1)
+    tol = r.number("feasibility_tol", None, positive=True) if r.has("feasibility_tol") else None
+    r.finish()
+    return SolverConfig(method=method, omega=omega, sigma=sigma, delta=delta,
+                        max_iterations=max_iterations, warm_start=warm_start, polish=polish,
+                        polish_every=polish_every, polish_max=polish_max,
+                        feasibility_tol=tol)
+
+
+def parse(data: Any, source_text: str = "") -> ControllerConfig:
+    """Validate a parsed YAML document into a :class:`ControllerConfig`."""
+    r = _Reader(data, "")
+    prefix = r.string("prefix", "rollmpc")
+    if not re.match(r"^[a-z][a-z0-9_]{0,30}$", prefix):
+        raise ConfigError("prefix", "must be a lower-case C identifier of at most 31 "
+                          f"characters, got {prefix!r}")
+    precision = r.string("precision", "double", choices=PRECISIONS)
+    sample_time = r.number("sample_time", positive=True)
+    horizon = r.integer("horizon", minimum=1)
+    outputs = r.names("outputs")
+    actuators = r.names("actuators")
+    raw_modes = r.raw("modes")
+    if not isinstance(raw_modes, list) or not raw_modes:
+        raise ConfigError("modes", "must be a non-empty list of modes")
+    modes = tuple(_mode(_Reader(m, f"modes[{i}]"), outputs, actuators)
+                  for i, m in enumerate(raw_modes))
+    names = [m.name for m in modes]
+    for i, n in enumerate(names):
+        if names.index(n) != i:
+            raise ConfigError(f"modes[{i}].name", f"duplicate mode name {n!r}")
+    if len(modes) == 1:
+        if r.has("scheduler"):
+            raise ConfigError("scheduler", "a single-mode controller has no scheduler")
+        scheduler = None
+    elif len(modes) == 2:
+        scheduler = _scheduler(r.sub("scheduler"), modes)
+    else:
+        raise ConfigError("modes", "more than two modes need band scheduling, "
+                          "which is not supported yet (see docs)")
+    solver = _solver(r.sub("solver", {}))
+    sim = r.sub("simulation", {})
+    simulation = SimulationConfig(
+        schedule_source=sim.string("schedule_source", "output_rate", choices=SCHEDULE_SOURCES))
+    sim.finish()
+    r.finish()
+    if simulation.schedule_source == "output_rate" and scheduler is not None:
+        for i, m in enumerate(modes):
+            if not m.plant.integrator:
+                raise ConfigError(f"modes[{i}].plant.integrator",
+                                  "simulation.schedule_source output_rate needs integrator: true")
+    digest = hashlib.sha256(source_text.encode()).hexdigest()[:16]
+    return ControllerConfig(prefix=prefix, precision=precision, sample_time=sample_time,
+                            horizon=horizon, outputs=outputs, actuators=actuators, modes=modes,
+                            scheduler=scheduler, solver=solver, simulation=simulation,
+                            config_hash=digest)
+
+
+def load(path: str | Path, precision: str | None = None) -> ControllerConfig:
+    """Read and validate a YAML file; ``precision`` overrides the file's setting."""
+    path = Path(path)
+    try:
+        text = path.read_text()
+    except OSError as exc:
+        raise ConfigError(str(path), f"cannot read: {exc.strerror}") from None
+    try:
+        data = yaml.safe_load(text)
+    except yaml.YAMLError as exc:
+        mark = getattr(exc, "problem_mark", None)
+        where = f"line {mark.line + 1}" if mark else "?"
+        raise ConfigError(f"<yaml {where}>", f"not valid YAML: "
+                          f"{getattr(exc, 'problem', exc)}") from None
+    if data is None:
+        raise ConfigError("<top>", "the file is empty")
+    if precision is not None:
+        if precision not in PRECISIONS:
+            raise ConfigError("precision", f"must be one of {', '.join(PRECISIONS)}")
+        if isinstance(data, dict):
+            data = dict(data, precision=precision)
+        text = text + f"\n# precision override: {precision}\n"
+    return parse(data, text)

@@ -1,0 +1,152 @@
+"""Stage 6: everything the templates see, as one plain dict (also written as JSON).
+
+``build_model`` runs stages 2-5 (plant -> mpc -> observer -> qp) for every mode;
+``build_context`` turns the result into the render context.  The context JSON is the
+contract between the maths and the C: the numbers in it are exactly the numbers the C
+is compiled with (already rounded to the storage precision).
+"""
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass
+
+import numpy as np
+
+from . import __version__
+from .config import ConfigError, ControllerConfig
+from .mpc import CondensedQP, condense
+from .observer import observer_gain
+from .plant import DiscretePlant, discretise
+from .qp import ModeData, dtype_of, mode_data
+
+# Sizes beyond which the int16 row tables of the C would overflow.
+MAX_ROWS = 32767
+
+
+@dataclass(frozen=True)
+class ModeModel:
+    plant: DiscretePlant
+    qp: CondensedQP
+    observer_gain: np.ndarray
+    observer_poles: tuple
+    data: ModeData
+
+
+@dataclass(frozen=True)
+class ControllerModel:
+    config: ControllerConfig
+    modes: tuple[ModeModel, ...]
+
+    @property
+    def dtype(self):
+        return dtype_of(self.config.precision)
+
+
+def build_model(cfg: ControllerConfig) -> ControllerModel:
+    """Offline maths for every mode, in double, then cast to the storage precision."""
+    modes = []
+    for j, mode in enumerate(cfg.modes):
+        key = f"modes[{j}]"
+        plant = discretise(mode, cfg.sample_time, key)
+        qp = condense(plant, mode, cfg.horizon, key)
+        if qp.m > MAX_ROWS or qp.n > MAX_ROWS:
+            raise ConfigError("horizon", f"the QP has {qp.m} rows; at most {MAX_ROWS} supported")
+        L, poles = observer_gain(plant, mode, key)
+        act_index = [cfg.actuators.index(a) for a in mode.actuators]
+        data = mode_data(mode.name, act_index, plant, L, qp, mode.u_min, mode.u_max,
+                         cfg.precision)
+        for field in ("Kx", "EinvGt", "Einv_p", "S_p", "L", "A", "B"):
+            arr = getattr(data, field)
+            if not np.all(np.isfinite(arr)):
+                raise ConfigError(f"{key}.weights", f"{field} is not finite in "
+                                  f"{cfg.precision} precision (the problem is too badly scaled)")
+        modes.append(ModeModel(plant=plant, qp=qp, observer_gain=L, observer_poles=poles,
+                               data=data))
+    return ControllerModel(config=cfg, modes=tuple(modes))
+
+
+def _solver_flags(method: str) -> dict:
+    """The paper's three variants as compile-time switches of one solver."""
+    return {
+        "hildreth": {"reduced": False, "warm": False, "sor": False},
+        "hildreth_plus": {"reduced": False, "warm": True, "sor": True},
+        "hildreth_plus_prime": {"reduced": True, "warm": True, "sor": True},
+    }[method]
+
+
+def default_feasibility_tol(precision: str) -> float:
+    """Relative primal feasibility tolerance: tol * max(1, |gamma_r|)."""
+    return 1e-9 if precision == "double" else 1e-4
+
+
+def _arr(a) -> list:
+    return np.asarray(a).tolist()
+
+
+def build_context(model: ControllerModel) -> dict:
+    cfg = model.config
+    s = cfg.solver
+    flags = _solver_flags(s.method)
+    modes = []
+    for mm in model.modes:
+        d = mm.data
+        modes.append({
+            "name": d.name, "nx": d.nx, "nu": d.nu, "ny": d.ny, "n": d.n, "m": d.m,
+            "nyq": d.n_yq, "has_output_rows": d.has_output_rows,
+            "actuator_index": _arr(d.actuator_index),
+            "observer_poles": [[p.real, p.imag] for p in mm.observer_poles],
+            "A": _arr(d.A), "B": _arr(d.B), "C": _arr(d.C), "L": _arr(d.L),
+            "Kx": _arr(d.Kx), "EinvGt": _arr(d.EinvGt), "Einv_p": _arr(d.Einv_p),
+            "S_p": _arr(d.S_p), "V": _arr(d.V), "P2inv": _arr(d.P2inv), "nt": d.nt,
+            "GEinvGt_p": _arr(d.GEinvGt_p), "Omega2": _arr(d.Omega2),
+            "Phi": _arr(d.Phi), "markov": _arr(d.markov), "row_q": _arr(d.row_q),
+            "row_sign": _arr(d.row_sign), "row_c": _arr(d.row_c),
+            "u_min": _arr(d.u_min), "u_max": _arr(d.u_max),
+            "cond_E": float(np.linalg.cond(mm.qp.E)),
+        })
+    sched = None
+    if cfg.scheduler is not None:
+        sc = cfg.scheduler
+        sched = {"signal": sc.signal, "lower": sc.lower, "upper": sc.upper,
+                 "epsilon": sc.epsilon, "inside": sc.inside, "outside": sc.outside,
+                 "initial": sc.initial}
+    n_max = max(m["n"] for m in modes)
+    return {
+        "generator": {"name": "rollmpc-codegen", "version": __version__},
+        "config_hash": cfg.config_hash,
+        "prefix": cfg.prefix,
+        "PREFIX": cfg.prefix.upper(),
+        "precision": cfg.precision,
+        "real": "double" if cfg.precision == "double" else "float",
+        "sample_time": cfg.sample_time,
+        "horizon": cfg.horizon,
+        "outputs": list(cfg.outputs),
+        "actuators": list(cfg.actuators),
+        "n_outputs": cfg.n_outputs,
+        "n_actuators": len(cfg.actuators),
+        "n_schedule": cfg.n_schedule,
+        "n_modes": len(modes),
+        "initial_mode": 0 if sched is None else sched["initial"],
+        "scheduler": sched,
+        "solver": {
+            "method": s.method, "reduced": flags["reduced"], "warm_start": flags["warm"]
+            and s.warm_start, "omega": s.omega if flags["sor"] else 1.0, "sigma": s.sigma,
+            "delta": s.delta, "max_iterations": s.max_iterations, "polish": s.polish,
+            "polish_every": s.polish_every, "polish_max": s.polish_max,
+            "feasibility_tol": s.feasibility_tol if s.feasibility_tol is not None
+            else default_feasibility_tol(cfg.precision),
+        },
+        "sizes": {
+            "nx_max": max(m["nx"] for m in modes), "nu_max": max(m["nu"] for m in modes),
+            "n_max": n_max, "m_max": max(m["m"] for m in modes),
+            "nyq_max": max(m["nyq"] for m in modes),
+            "nt_max": max(m["nt"] for m in modes),
+            "chol_max": n_max * (n_max + 1) // 2,
+        },
+        "modes": modes,
+    }
+
+
+def context_json(ctx: dict) -> str:
+    """Deterministic JSON (sorted keys; floats by repr, so they round-trip exactly)."""
+    return json.dumps(ctx, sort_keys=True, indent=1, allow_nan=False) + "\n"

@@ -1,0 +1,92 @@
+"""NumPy reference of the generated switched controller (``P_step``), op by op.
+
+Mirrors ``templates/controller.c.j2``: eq. (3) hysteresis scheduler, the predictor
+observers of every mode, the QP of the active mode (:class:`SolverRef`), first-move
+extraction and the inactive actuators at 0.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from .solver_ref import NONFINITE_INPUT, SolverRef, seqsum
+
+
+class ControllerRef:
+    def __init__(self, ctx: dict, mode_data: list):
+        self.ctx = ctx
+        self.md = mode_data
+        self.dt = mode_data[0].Kx.dtype.type
+        dt = self.dt
+        self.solvers = [SolverRef(md, ctx["solver"]) for md in mode_data]
+        sc = ctx["scheduler"]
+        if sc is not None:
+            # the C stores each threshold as one literal computed in double
+            self.thresholds = tuple(dt(v) for v in (
+                sc["lower"] - sc["epsilon"], sc["lower"] + sc["epsilon"],
+                sc["upper"] - sc["epsilon"], sc["upper"] + sc["epsilon"]))
+        self.reset()
+
+    def reset(self):
+        self.mode = self.ctx["initial_mode"]
+        self.xhat = [np.zeros(md.nx, md.Kx.dtype) for md in self.md]
+        for s in self.solvers:
+            s.lam[:] = 0
+        self.u_last = np.zeros(self.ctx["n_actuators"], self.md[0].Kx.dtype)
+        self.mode_switches = 0
+        self.last = {"status": 0, "iterations": 0, "polish_iterations": 0, "active": 0}
+
+    def _schedule(self, rho):
+        out_lo, in_lo, in_hi, out_hi = self.thresholds
+        sc = self.ctx["scheduler"]
+        if rho < out_lo or rho > out_hi:
+            return sc["outside"]
+        if in_lo < rho < in_hi:
+            return sc["inside"]
+        return self.mode
+
+    def _observe(self, md, x, y, u_phys, use_y):
+        innov = np.empty(md.ny, md.Kx.dtype)
+        for a in range(md.ny):
+            yh = seqsum(md.C[a] * x)
+            innov[a] = y[a] - yh if use_y else 0
+        xn = np.empty(md.nx, md.Kx.dtype)
+        u_mode = u_phys[md.actuator_index]
+        for i in range(md.nx):
+            prods = [md.A[i] * x, md.B[i] * u_mode]
+            if use_y:
+                prods.append(md.L[i] * innov)
+            xn[i] = seqsum(np.concatenate(prods))
+        x[:] = xn
+
+    def step(self, y, sched, r):
+        """Returns (status, u) exactly as ``P_step``."""
+        dt = self.md[0].Kx.dtype
+        y = np.asarray(y, dt)
+        sched = np.asarray(sched if sched is not None else [], dt)
+        r = np.asarray(r, dt)
+        if not (np.all(np.isfinite(y)) and np.all(np.isfinite(sched))
+                and np.all(np.isfinite(r))):
+            u = self.u_last.copy()
+            for j, md in enumerate(self.md):
+                self._observe(md, self.xhat[j], y, u, False)
+            self.last = {"status": NONFINITE_INPUT, "iterations": 0,
+                         "polish_iterations": self.last["polish_iterations"],
+                         "active": self.last["active"]}
+            return NONFINITE_INPUT, u
+        if self.ctx["scheduler"] is not None:
+            j = self._schedule(sched[0])
+            if j != self.mode:
+                self.solvers[j].lam[:] = 0
+                self.mode = j
+                self.mode_switches += 1
+        md = self.md[self.mode]
+        status, U, its, pits, active = self.solvers[self.mode].solve(self.xhat[self.mode], r)
+        self.U = U
+        self.last = {"status": status, "iterations": its, "polish_iterations": pits,
+                     "active": active}
+        u = np.zeros(self.ctx["n_actuators"], dt)
+        u[md.actuator_index] = U[:md.nu]
+        for j, mdj in enumerate(self.md):
+            self._observe(mdj, self.xhat[j], y, u, True)
+        self.u_last = u.copy()
+        return status, u

@@ -1,0 +1,164 @@
+"""Stage 3: the condensed MPC QP of eqs. (4)-(6) for one mode, in double precision.
+
+Everything the C needs is computed here once (one source of truth):
+
+* prediction ``Y = Phi x + Gamma U`` (eq. 4), weights Omega, Psi;
+* ``E = 2(Psi + Gamma' Omega Gamma)`` (the paper's G_j), ``E^-1``, ``F = 2 Gamma' Omega``;
+* unconstrained gains ``theta0 = Kx x + Kr R`` with ``Kr = E^-1 F``, ``Kx = -Kr Phi``
+  (precomputed in double: forming ``-E^-1 F(Phi x - R)`` on line is unusable in float);
+* the constraints ``L U <= c + W x`` of eq. (6), rows ordered by stage as in the paper,
+  with the rows on y_{0|k} dropped (they carry no decision variable);
+* the dual Hessian ``H = L E^-1 L'`` and its L/D/U split (for reference and tests; the C
+  reads H through its structure, see :mod:`rollmpc_codegen.qp`).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from .config import ConfigError, ModeConfig
+from .plant import DiscretePlant
+
+
+@dataclass(frozen=True)
+class CondensedQP:
+    N: int
+    nx: int
+    nu: int
+    ny: int
+    Phi: np.ndarray  # (N ny, nx)
+    Gamma: np.ndarray  # (N ny, N nu)
+    markov: np.ndarray  # (N, ny, nu): C A^i B, i = 0..N-1 (Gamma is block Toeplitz in these)
+    Omega: np.ndarray  # (N ny, N ny)
+    Psi: np.ndarray  # (N nu, N nu)
+    E: np.ndarray  # (n, n)
+    Einv: np.ndarray
+    F: np.ndarray  # (n, N ny)
+    Kx: np.ndarray  # (n, nx)
+    Kr: np.ndarray  # (n, N ny)
+    L: np.ndarray  # (m, n) eq. (6)
+    W: np.ndarray  # (m, nx)
+    c: np.ndarray  # (m,)
+    row_kind: np.ndarray  # (m,) 0 = input box row, 1 = output row
+    row_index: np.ndarray  # (m,) index into U (box) or into Y (output)
+    row_sign: np.ndarray  # (m,) -1 for a lower bound row, +1 for an upper bound row
+
+    @property
+    def n(self) -> int:
+        return self.E.shape[0]
+
+    @property
+    def m(self) -> int:
+        return self.L.shape[0]
+
+    def dual_hessian(self) -> np.ndarray:
+        """H = L E^-1 L' (dense; m x m)."""
+        return self.L @ self.Einv @ self.L.T
+
+    def ldu(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """The paper's split H = L + D + U (strictly lower, diagonal, strictly upper)."""
+        H = self.dual_hessian()
+        return np.tril(H, -1), np.diag(np.diag(H)), np.triu(H, 1)
+
+    def terminal_split(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(S, V, (2P)^-1) with E = S + V'(2P)V; V empty when P is not positive definite."""
+        ny, N = self.ny, self.N
+        P = self.Omega[-ny:, -ny:]
+        if np.linalg.eigvalsh(P).min() <= 0:
+            return self.E, np.zeros((0, self.n)), np.zeros((0, 0))
+        V = self.Gamma[-ny:]
+        S = 2.0 * (self.Psi + self.Gamma[:-ny].T @ self.Omega[:-ny, :-ny] @ self.Gamma[:-ny])
+        return 0.5 * (S + S.T), V.copy(), np.linalg.inv(2.0 * P)
+
+    def theta0(self, x: np.ndarray, R: np.ndarray) -> np.ndarray:
+        return self.Kx @ x + self.Kr @ R
+
+    def gamma(self, x: np.ndarray) -> np.ndarray:
+        """Right-hand side c + W x of eq. (6)."""
+        return self.c + self.W @ x
+
+
+def _block_diag(block: np.ndarray, count: int, last: np.ndarray | None = None) -> np.ndarray:
+    k = block.shape[0]
+    out = np.zeros((k * count, k * count))
+    for i in range(count):
+        out[i * k:(i + 1) * k, i * k:(i + 1) * k] = block
+    if last is not None:
+        out[-k:, -k:] = last
+    return out
+
+
+def condense(plant: DiscretePlant, mode: ModeConfig, N: int, key: str) -> CondensedQP:
+    """Build the condensed QP of one mode; ``key`` (e.g. ``modes[0]``) names it in errors."""
+    A, B, C = plant.A, plant.B, plant.C
+    nx, nu, ny = plant.nx, plant.nu, plant.ny
+    Phi = np.zeros((N * ny, nx))
+    markov = np.zeros((N, ny, nu))
+    Ak = np.eye(nx)
+    for i in range(N):
+        markov[i] = C @ Ak @ B  # C A^i B
+        Ak = Ak @ A
+        Phi[i * ny:(i + 1) * ny] = C @ Ak  # C A^{i+1}
+    Gamma = np.zeros((N * ny, N * nu))
+    for i in range(N):  # output step i+1
+        for k in range(i + 1):  # input step k
+            Gamma[i * ny:(i + 1) * ny, k * nu:(k + 1) * nu] = markov[i - k]
+    Omega = _block_diag(mode.Q, N, last=mode.P)
+    Psi = _block_diag(mode.R, N)
+    E = 2.0 * (Psi + Gamma.T @ Omega @ Gamma)
+    E = 0.5 * (E + E.T)
+    eig = np.linalg.eigvalsh(E)
+    if not np.all(np.isfinite(E)) or eig.min() <= 1e-12 * eig.max():
+        raise ConfigError(f"{key}.weights", "the QP Hessian E = 2(Psi + Gamma' Omega Gamma) "
+                          f"is not positive definite (min eigenvalue {eig.min():.3g})")
+    if eig.max() / eig.min() > 1e14:
+        raise ConfigError(f"{key}.weights", f"the QP Hessian is too ill-conditioned "
+                          f"(cond {eig.max() / eig.min():.3g} > 1e14)")
+    Einv = np.linalg.inv(E)
+    Einv = 0.5 * (Einv + Einv.T)
+    F = 2.0 * Gamma.T @ Omega
+    Kr = np.linalg.solve(E, F)
+    Kx = -Kr @ Phi
+    L, W, c, kind, index, sign = _constraints(mode, Phi, Gamma, N, nu, ny)
+    return CondensedQP(N=N, nx=nx, nu=nu, ny=ny, Phi=Phi, Gamma=Gamma, markov=markov,
+                       Omega=Omega, Psi=Psi, E=E, Einv=Einv, F=F, Kx=Kx, Kr=Kr,
+                       L=L, W=W, c=c, row_kind=kind, row_index=index, row_sign=sign)
+
+
+def _constraints(mode: ModeConfig, Phi, Gamma, N: int, nu: int, ny: int):
+    """Eq. (6) rows, stage by stage: [-u_i, +u_i, -y_i, +y_i], i = 0..N.
+
+    u exists for stages 0..N-1; y rows exist for stages 1..N (y_0 depends on x only, so
+    its rows are dropped) and only for finite bounds.
+    """
+    n = N * nu
+    rows_L, rows_W, rows_c, kind, index, sign = [], [], [], [], [], []
+
+    def add(L_row, W_row, c_val, k, idx, s):
+        rows_L.append(L_row)
+        rows_W.append(W_row)
+        rows_c.append(c_val)
+        kind.append(k)
+        index.append(idx)
+        sign.append(s)
+
+    nx = Phi.shape[1]
+    for stage in range(N + 1):
+        if stage < N:
+            for s, bounds in ((-1, mode.u_min), (1, mode.u_max)):
+                for j in range(nu):
+                    q = stage * nu + j
+                    e = np.zeros(n)
+                    e[q] = s
+                    add(e, np.zeros(nx), s * bounds[j], 0, q, s)
+        if stage >= 1:
+            for s, bounds in ((-1, mode.y_min), (1, mode.y_max)):
+                for j in range(ny):
+                    if not np.isfinite(bounds[j]):
+                        continue
+                    k = (stage - 1) * ny + j
+                    add(s * Gamma[k], -s * Phi[k], s * bounds[j], 1, k, s)
+    return (np.array(rows_L), np.array(rows_W), np.array(rows_c),
+            np.array(kind, dtype=np.int32), np.array(index, dtype=np.int32),
+            np.array(sign, dtype=np.int32))

@@ -1,0 +1,124 @@
+"""Stage 5: the structured QP data the C stores, cast once to the storage precision.
+
+The dual Hessian H = M E^-1 M' is never stored densely (1.28 MB per mode in double for
+the paper's problem).  Every constraint row r is ``sign_r * a(q_r)' U`` for a *quantity*
+q_r: an input U_i (box rows, q in [0, n)) or a predicted output (Gamma U)_k
+(output rows, q = n + k).  Hence ``H_rs = sign_r sign_s Hq[q_r, q_s]`` with
+
+    Hq = [[E^-1,         E^-1 Gamma'       ],
+          [Gamma E^-1,   Gamma E^-1 Gamma' ]]
+
+stored as E^-1 (packed lower), E^-1 Gamma' (dense) and Gamma E^-1 Gamma' (packed lower,
+only when output rows exist).  The L/D/U split of the paper is implicit: D = diag(H),
+U = L' by symmetry.
+
+The primal polish never touches E itself: with a heavy terminal weight (P2 = 1e9) the
+float entries of E (~3e5) cannot also carry its stage part (~20).  E is kept split as
+``E = S + V' (2P) V``: S = 2(Psi + Gamma_s' Omega_s Gamma_s) over the stages 1..N-1
+(well conditioned), V = the terminal rows of Gamma, and (2P)^-1, so the polish solves
+the augmented system [S_FF V_F'; V_F -(2P)^-1] with a small Schur complement.  When P
+is not positive definite, the terminal term stays inside S and V is empty.
+
+The unconstrained solution uses ``theta0 = Kx x + (E^-1 Gamma') (2 Omega R)``:
+``Kr = E^-1 F = (E^-1 Gamma')(2 Omega)``, so the reference gain needs no extra storage.
+
+Both the renderer and the NumPy reference read these arrays, so the numbers the C is
+compiled with and the numbers the reference computes with are the same by construction.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from .mpc import CondensedQP
+from .plant import DiscretePlant
+
+
+def dtype_of(precision: str):
+    return np.float64 if precision == "double" else np.float32
+
+
+def packed_lower(S: np.ndarray) -> np.ndarray:
+    """Row-major packed lower triangle: element (i, j), j <= i, at i(i+1)/2 + j."""
+    n = S.shape[0]
+    return np.concatenate([S[i, :i + 1] for i in range(n)]) if n else np.zeros(0)
+
+
+def unpack_lower(p: np.ndarray, n: int) -> np.ndarray:
+    """Symmetric matrix from its packed lower triangle (same dtype)."""
+    S = np.zeros((n, n), dtype=p.dtype)
+    idx = 0
+    for i in range(n):
+        S[i, :i + 1] = p[idx:idx + i + 1]
+        S[:i + 1, i] = p[idx:idx + i + 1]
+        idx += i + 1
+    return S
+
+
+@dataclass(frozen=True)
+class ModeData:
+    """One mode's arrays exactly as the C stores them (dtype = storage precision)."""
+
+    name: str
+    nx: int
+    nu: int
+    ny: int
+    N: int
+    n: int  # decision variables
+    m: int  # constraint rows
+    n_yq: int  # output quantities N*ny
+    actuator_index: np.ndarray  # (nu,) physical actuator of each mode input
+    A: np.ndarray
+    B: np.ndarray
+    C: np.ndarray
+    L: np.ndarray  # observer gain (nx, ny)
+    Kx: np.ndarray  # (n, nx)
+    EinvGt: np.ndarray  # (n, N ny)
+    Einv_p: np.ndarray  # packed lower, n(n+1)/2
+    S_p: np.ndarray  # packed lower stage Hessian (E without the terminal term when split)
+    V: np.ndarray  # (nt, n) terminal rows of Gamma (nt = ny when split, else 0)
+    P2inv: np.ndarray  # (nt, nt) (2P)^-1
+    GEinvGt_p: np.ndarray  # packed lower (N ny)(N ny + 1)/2, or empty without output rows
+    Omega2: np.ndarray  # (N, ny, ny): 2Q per stage, 2P at the last
+    Phi: np.ndarray  # (N ny, nx)
+    markov: np.ndarray  # (N, ny, nu)
+    row_q: np.ndarray  # (m,) quantity of each row
+    row_sign: np.ndarray  # (m,) +-1
+    row_c: np.ndarray  # (m,) constant part c of eq. (6)
+    u_min: np.ndarray  # (nu,)
+    u_max: np.ndarray
+
+    @property
+    def nt(self) -> int:
+        return self.V.shape[0]
+
+    @property
+    def has_output_rows(self) -> bool:
+        return bool(np.any(self.row_q >= self.n))
+
+
+def mode_data(name: str, actuator_index, plant: DiscretePlant, obs_gain: np.ndarray,
+              qp: CondensedQP, u_min, u_max, precision: str) -> ModeData:
+    dt = dtype_of(precision)
+    N, ny, nu = qp.N, qp.ny, qp.nu
+    EinvGt = qp.Einv @ qp.Gamma.T
+    has_out = bool(np.any(qp.row_kind == 1))
+    GEinvGt = qp.Gamma @ EinvGt if has_out else np.zeros((0, 0))
+    Omega2 = np.array([2.0 * qp.Omega[i * ny:(i + 1) * ny, i * ny:(i + 1) * ny]
+                       for i in range(N)])
+    S, V, P2inv = qp.terminal_split()
+    row_q = np.where(qp.row_kind == 0, qp.row_index, qp.n + qp.row_index).astype(np.int32)
+
+    def cast(a):
+        return np.ascontiguousarray(np.asarray(a, dtype=np.float64).astype(dt))
+
+    return ModeData(
+        name=name, nx=qp.nx, nu=nu, ny=ny, N=N, n=qp.n, m=qp.m, n_yq=N * ny,
+        actuator_index=np.asarray(actuator_index, dtype=np.int32),
+        A=cast(plant.A), B=cast(plant.B), C=cast(plant.C), L=cast(obs_gain),
+        Kx=cast(qp.Kx), EinvGt=cast(EinvGt), Einv_p=cast(packed_lower(qp.Einv)),
+        S_p=cast(packed_lower(S)), V=cast(V), P2inv=cast(P2inv), GEinvGt_p=cast(packed_lower(GEinvGt)),
+        Omega2=cast(Omega2), Phi=cast(qp.Phi), markov=cast(qp.markov),
+        row_q=row_q, row_sign=qp.row_sign.astype(np.int32), row_c=cast(qp.c),
+        u_min=cast(u_min), u_max=cast(u_max))

@@ -1,0 +1,344 @@
+"""NumPy reference of the generated QP solver, operation by operation.
+
+It mirrors ``templates/solver.c.j2`` and ``linalg.c.j2``: the same storage-precision
+numbers (from :mod:`rollmpc_codegen.qp`), the same loops in the same order, scalars of
+the storage dtype (float32 where the C uses float), and *sequential* sums (``seqsum``
+below, never BLAS or pairwise summation).  The C is compiled with
+``-ffp-contract=off`` so that it, too, rounds every product and every sum.
+Agreement is therefore bit for bit, which the tests check.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from .qp import ModeData, unpack_lower
+
+# Status codes of the generated C (api.h.j2).
+OPTIMAL, MAX_ITER, INACCURATE, INFEASIBLE, NONFINITE_INPUT, NUMERICAL, BAD_ARGUMENT = range(7)
+STATUS_NAMES = {OPTIMAL: "optimal", MAX_ITER: "max_iter", INACCURATE: "inaccurate",
+                INFEASIBLE: "infeasible", NONFINITE_INPUT: "nonfinite_input",
+                NUMERICAL: "numerical", BAD_ARGUMENT: "bad_argument"}
+
+
+def seqsum(products: np.ndarray, start=None) -> np.generic:
+    """``acc = start (default 0); for p in products: acc += p`` in the products' dtype."""
+    dt = products.dtype
+    head = np.zeros(1, dt) if start is None else np.array([start], dt)
+    return np.add.accumulate(np.concatenate((head, products)))[-1]
+
+
+def seqsum_rows(P: np.ndarray) -> np.ndarray:
+    """Row-wise :func:`seqsum` of a 2-D array of products (each row from 0)."""
+    head = np.zeros((P.shape[0], 1), P.dtype)
+    return np.add.accumulate(np.hstack((head, P)), axis=1)[:, -1]
+
+
+def cholesky_packed(a: np.ndarray, n: int) -> bool:
+    """Mirror of ``P_cholesky`` (in place on the packed array); False on a bad pivot."""
+    dt = a.dtype
+    tri = _tri_offsets(n)
+    for i in range(n):
+        ri = a[tri[i]:tri[i] + i + 1]
+        for j in range(i + 1):
+            rj = a[tri[j]:tri[j] + j + 1]
+            s = seqsum(-(ri[:j] * rj[:j]), start=ri[j]) if j else ri[j]
+            if i == j:
+                if not s > 0:
+                    return False
+                ri[i] = np.sqrt(dt.type(s))
+            else:
+                ri[j] = dt.type(s) / rj[j]
+    return True
+
+
+def chol_solve_packed(l: np.ndarray, n: int, b: np.ndarray) -> None:
+    """Mirror of ``P_chol_solve`` (in place on b)."""
+    tri = _tri_offsets(n)
+    for i in range(n):
+        s = seqsum(-(l[tri[i]:tri[i] + i] * b[:i]), start=b[i])
+        b[i] = s / l[tri[i] + i]
+    for i in range(n - 1, -1, -1):
+        col = l[tri[i + 1:n] + i] if i + 1 < n else np.zeros(0, l.dtype)
+        s = seqsum(-(col * b[i + 1:n]), start=b[i])
+        b[i] = s / l[tri[i] + i]
+
+
+def _tri_offsets(n: int) -> np.ndarray:
+    i = np.arange(n + 1)
+    return i * (i + 1) // 2
+
+
+class SolverRef:
+    """Reference of ``P_qp_solve`` for one mode; holds that mode's warm-start multipliers."""
+
+    def __init__(self, md: ModeData, solver_ctx: dict):
+        self.md = md
+        self.dt = md.Kx.dtype.type
+        dt = self.dt
+        s = solver_ctx
+        self.reduced, self.warm, self.polish_on = s["reduced"], s["warm_start"], s["polish"]
+        self.omega, self.sigma, self.delta = dt(s["omega"]), dt(s["sigma"]), dt(s["delta"])
+        self.tol = dt(s["feasibility_tol"])
+        self.max_iter, self.polish_every, self.polish_max = (
+            s["max_iterations"], s["polish_every"], s["polish_max"])
+        self.limit = dt(1e30)
+        n, nyq = md.n, md.n_yq
+        Einv = unpack_lower(md.Einv_p, n)
+        has_out = md.has_output_rows
+        GEG = unpack_lower(md.GEinvGt_p, nyq) if has_out else np.zeros((nyq, nyq), md.Kx.dtype)
+        Hq = np.block([[Einv, md.EinvGt], [md.EinvGt.T, GEG]])
+        q, sg = md.row_q, md.row_sign
+        same = sg[:, None] == sg[None, :]
+        Hrows = Hq[np.ix_(q, q)]
+        self.H = np.where(same, Hrows, -Hrows)  # H_rs, exactly as h_rows()
+        self.Hdiag = Hq[q, q]
+        EM = Hq[:n][:, q]
+        self.EM = np.where(sg[None, :] > 0, EM, -EM)  # (E^-1 M_s')_i, as em_col()
+        self.S = unpack_lower(md.S_p, n)
+        # Gamma in the storage dtype, rows restricted to their nonzero prefix in predict
+        N, ny, nu = md.N, md.ny, md.nu
+        self.Gam = np.zeros((nyq, n), md.Kx.dtype)
+        for k in range(nyq):
+            stage, a = divmod(k, ny)
+            for t in range(stage + 1):
+                self.Gam[k, t * nu:(t + 1) * nu] = md.markov[stage - t, a, :]
+        self.has_out = has_out
+        self.lam = np.zeros(md.m, md.Kx.dtype)
+        self.one, self.zero = dt(1.0), dt(0.0)
+
+    # -- pieces mirroring the static functions of solver.c.j2 ------------------------
+    def _unconstrained(self, x, r):
+        md, ny = self.md, self.md.ny
+        rr = r.reshape(md.N, ny)
+        w = np.empty(md.n_yq, md.Kx.dtype)
+        for k in range(md.n_yq):
+            stage, a = divmod(k, ny)
+            w[k] = seqsum(md.Omega2[stage, a, :] * rr[stage])
+        th0 = seqsum_rows(np.hstack((md.Kx * x[None, :], md.EinvGt * w[None, :])))
+        px = seqsum_rows(md.Phi * x[None, :]) if self.has_out else None
+        return th0, px
+
+    def _predict(self, th):
+        md = self.md
+        out = np.empty(md.n_yq, md.Kx.dtype)
+        for k in range(md.n_yq):
+            width = (k // md.ny + 1) * md.nu
+            out[k] = seqsum(self.Gam[k, :width] * th[:width])
+        return out
+
+    def _values(self, th, yv):
+        q, n = self.md.row_q, self.md.n
+        if yv is None:
+            return th[q]
+        return np.where(q < n, th[np.minimum(q, n - 1)], yv[np.maximum(q - n, 0)])
+
+    def _violated(self, th, gam):
+        yv = self._predict(th) if self.has_out else None
+        v = self._values(th, yv)
+        sg = self.md.row_sign
+        viol = np.where(sg > 0, v - gam, -v - gam)
+        ag = np.abs(gam)
+        tol = self.tol * np.where(ag > self.one, ag, self.one)
+        return viol > tol
+
+    def _correct(self, th0, rows, mult):
+        sel = mult > 0
+        rows, mult = rows[sel], mult[sel]
+        return th0 - seqsum_rows(self.EM[:, rows] * mult[None, :])
+
+    def _sweep(self, S, K, lam):
+        e2 = self.zero
+        diverged = False
+        om = self.omega
+        for r in S:
+            mask = (S != r) & (lam[S] > 0)
+            others = S[mask]
+            acc = seqsum(self.H[r, others] * lam[others])
+            t = -(K[r] + acc) / self.Hdiag[r]
+            wv = (self.one - om) * lam[r] + om * t
+            nl = wv if wv > 0 else self.zero
+            d = nl - lam[r]
+            e2 = e2 + d * d
+            lam[r] = nl
+            if not nl <= self.limit:
+                diverged = True
+        return e2, diverged
+
+    def _primal_solve(self, th0, W):
+        """Mirror of primal_solve() (split form E = S + V'(2P)V): (ok, th, z)."""
+        md = self.md
+        n, nt, dt = md.n, md.nt, md.Kx.dtype
+        th = np.zeros(n, dt)
+        bound = np.zeros(n, bool)
+        for r in W:
+            q = md.row_q[r]
+            bound[q] = True
+            th[q] = md.row_c[r] if md.row_sign[r] > 0 else -md.row_c[r]
+        F = np.flatnonzero(~bound)
+        B = np.flatnonzero(bound)
+        nf = F.size
+        dv = np.zeros(n, dt)
+        dv[B] = th[B] - th0[B]
+        rhs = np.empty(nf, dt)
+        for a, f in enumerate(F):
+            rhs[a] = -seqsum(self.S[f, B] * dv[B])
+        Y = np.ascontiguousarray(md.V[:, F]) if nt else np.zeros((0, nf), dt)
+        if nf:
+            chol = np.concatenate([self.S[F[a], F[:a + 1]] for a in range(nf)])
+            if not cholesky_packed(chol, nf):
+                return False, None, None
+            chol_solve_packed(chol, nf, rhs)
+            for o in range(nt):
+                chol_solve_packed(chol, nf, Y[o])
+        nu = np.zeros(nt, dt)
+        if nt:
+            small = np.empty(nt * (nt + 1) // 2, dt)
+            for o in range(nt):
+                for p in range(o + 1):
+                    small[o * (o + 1) // 2 + p] = (seqsum(md.V[o, F] * Y[p])
+                                                   + md.P2inv[o, p])
+                nu[o] = seqsum(np.concatenate((md.V[o, F] * rhs, md.V[o, B] * dv[B])))
+            if not cholesky_packed(small, nt):
+                return False, None, None
+            chol_solve_packed(small, nt, nu)
+        for a, f in enumerate(F):
+            dv[f] = seqsum(-(Y[:, a] * nu), start=rhs[a])
+            th[f] = th0[f] + dv[f]
+        qW = md.row_q[W]
+        g = seqsum_rows(np.hstack((self.S[qW] * dv[None, :], md.V[:, qW].T * nu[None, :])))
+        z = np.where(md.row_sign[W] > 0, -g, g)
+        return True, th, z
+
+    def _dual_solve(self, W, K):
+        """Mirror of dual_solve(): returns (ok, z)."""
+        nw = W.size
+        chol = np.concatenate([self.H[W[i], W[:i + 1]] for i in range(nw)])
+        if not cholesky_packed(chol, nw):
+            return False, None
+        z = -K[W]
+        chol_solve_packed(chol, nw, z)
+        return True, z
+
+    def _polish(self, S, lam, th0, K, gam):
+        """Mirror of polish(); returns (ok, th, active, iterations)."""
+        md = self.md
+        n = md.n
+        W = S[lam[S] > 0]
+        its = 0
+        if W.size == 0 or W.size > n:
+            return False, None, 0, its
+        for _ in range(self.polish_max):
+            its += 1
+            box_only = bool(np.all(md.row_q[W] < n))
+            if box_only:
+                ok, th, z = self._primal_solve(th0, W)
+            else:
+                ok, z = self._dual_solve(W, K)
+            if not ok:
+                return False, None, 0, its
+            keep = z >= 0
+            if not np.all(keep):
+                W, z = W[keep], z[keep]
+                if W.size == 0:
+                    return False, None, 0, its
+                continue
+            if not box_only:
+                th = self._correct(th0, W, z)
+            viol = self._violated(th, gam)
+            viol[W] = False
+            add = np.flatnonzero(viol)
+            if add.size == 0:
+                lam[:] = 0
+                lam[W] = z
+                return True, th, W.size, its
+            if add.size > n - W.size:
+                return False, None, 0, its
+            W = np.union1d(W, add).astype(W.dtype)
+        return False, None, 0, its
+
+    # -- the solve -------------------------------------------------------------------
+    def solve(self, x, r):
+        """Returns (status, U, iterations, polish_iterations, active)."""
+        md, dt = self.md, self.dt
+        x = np.asarray(x, md.Kx.dtype)
+        r = np.asarray(r, md.Kx.dtype)
+        lam = self.lam
+        th0, px = self._unconstrained(x, r)
+        yv0 = self._predict(th0) if self.has_out else None
+        v = self._values(th0, yv0)
+        q, sg, n = md.row_q, md.row_sign, md.n
+        gam = md.row_c.copy()
+        if self.has_out:
+            out = q >= n
+            pxr = px[np.maximum(q - n, 0)]
+            gam = np.where(out, np.where(sg > 0, gam - pxr, gam + pxr), gam)
+        K = np.where(sg > 0, gam - v, gam + v)
+        if not np.any(K < 0):
+            lam[:] = 0
+            return self._finish(th0, th0, OPTIMAL) + (0, 0, 0)
+        in_set = (K < self.sigma) if self.reduced else np.ones(md.m, bool)
+        if not self.warm:
+            lam[:] = 0
+        lam[~in_set] = 0
+        S = np.flatnonzero(in_set)
+        total, polish_its, active = 0, 0, 0
+        status = MAX_ITER
+        th = th0
+        while True:
+            converged = diverged = False
+            chunk = self.polish_every if self.polish_on else self.max_iter
+            t = 0
+            while t < chunk and total < self.max_iter:
+                e2, diverged = self._sweep(S, K, lam)
+                total += 1
+                t += 1
+                if diverged:
+                    break
+                if e2 < self.delta:
+                    converged = True
+                    break
+            if diverged:
+                status = INFEASIBLE
+                break
+            th = self._correct(th0, S, lam[S])
+            if self.polish_on:
+                ok, th_p, act, its = self._polish(S, lam, th0, K, gam)
+                polish_its += its
+                if ok:
+                    th, active, status = th_p, act, OPTIMAL
+                    break
+            viol = self._violated(th, gam)
+            nviol = int(np.count_nonzero(viol))
+            added = 0
+            if self.reduced and nviol:
+                new = viol & ~in_set
+                added = int(np.count_nonzero(new))
+                in_set |= new
+            if converged and nviol == 0:
+                status = OPTIMAL
+                break
+            if total >= self.max_iter:
+                status = MAX_ITER
+                break
+            if converged and added == 0:
+                status = INACCURATE
+                break
+            if added:
+                S = np.flatnonzero(in_set)
+        if active == 0:
+            active = int(np.count_nonzero(lam > 0))
+        status, U = self._finish(th, th0, status)
+        return status, U, total, polish_its, active
+
+    def _finish(self, th, th0, status):
+        md = self.md
+        src = th
+        if not np.all(np.isfinite(th)):
+            status = NUMERICAL
+            src = th0 if np.all(np.isfinite(th0)) else np.zeros_like(th0)
+        lo = np.tile(md.u_min, md.N)
+        hi = np.tile(md.u_max, md.N)
+        U = np.where(src < lo, lo, np.where(src > hi, hi, src))
+        if status != OPTIMAL:
+            self.lam[:] = 0
+        return status, U
