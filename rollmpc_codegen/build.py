@@ -127,3 +127,30 @@ class HostController:
 
     def status_message(self, status: int) -> str:
         return self.ffi.string(self._fn["status_message"](status)).decode()
+
+
+def default_build_root() -> Path:
+    """Scratch space for host builds outside the source tree (cached by content hash)."""
+    import tempfile
+
+    return Path(tempfile.gettempdir()) / "rollmpc-build"
+
+
+def build_host_controller(ctx: dict, build_root: Path | None = None, compiler: str = "gcc",
+                          opt: str = "-O2", extra: tuple[str, ...] = ()) -> HostController:
+    """Render ``ctx`` into a scratch directory, compile it and load it."""
+    from .render import render_sources
+
+    root = Path(build_root) if build_root is not None else default_build_root()
+    files = render_sources(ctx)
+    digest = hashlib.sha256("".join(files[k] for k in sorted(files)).encode()).hexdigest()[:16]
+    src = root / f"src-{ctx['prefix']}-{digest}"
+    if not src.exists():
+        tmp = src.with_name(src.name + ".tmp")
+        shutil.rmtree(tmp, ignore_errors=True)
+        tmp.mkdir(parents=True)
+        for name, text in files.items():
+            (tmp / name).write_text(text)
+        tmp.rename(src)
+    lib = compile_shared(ctx, src, root, compiler=compiler, opt=opt, extra=extra)
+    return HostController.load(ctx, lib)
