@@ -13,14 +13,11 @@ from dataclasses import dataclass
 import numpy as np
 
 from . import __version__
-from .config import ConfigError, ControllerConfig
+from .config import MAX_ROWS, ConfigError, ControllerConfig
 from .mpc import CondensedQP, condense
 from .observer import observer_gain
 from .plant import DiscretePlant, discretise
 from .qp import ModeData, dtype_of, mode_data
-
-# Sizes beyond which the int16 row tables of the C would overflow.
-MAX_ROWS = 32767
 
 
 @dataclass(frozen=True)
@@ -53,8 +50,11 @@ def build_model(cfg: ControllerConfig) -> ControllerModel:
             raise ConfigError("horizon", f"the QP has {qp.m} rows; at most {MAX_ROWS} supported")
         L, poles = observer_gain(plant, mode, key)
         act_index = [cfg.actuators.index(a) for a in mode.actuators]
-        data = mode_data(mode.name, act_index, plant, L, qp, mode.u_min, mode.u_max,
-                         cfg.precision)
+        # an overflow in the cast to float is reported just below, naming the key; numpy's
+        # own RuntimeWarning would only add a second, vaguer line on stderr
+        with np.errstate(over="ignore"):
+            data = mode_data(mode.name, act_index, plant, L, qp, mode.u_min, mode.u_max,
+                             cfg.precision)
         for field in ("Kx", "EinvGt", "Einv_p", "S_p", "L", "A", "B"):
             arr = getattr(data, field)
             if not np.all(np.isfinite(arr)):

@@ -31,7 +31,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .mpc import CondensedQP
+from .mpc import CondensedQP, solve_refined
 from .plant import DiscretePlant
 
 
@@ -102,9 +102,11 @@ def mode_data(name: str, actuator_index, plant: DiscretePlant, obs_gain: np.ndar
               qp: CondensedQP, u_min, u_max, precision: str) -> ModeData:
     dt = dtype_of(precision)
     N, ny, nu = qp.N, qp.ny, qp.nu
-    EinvGt = qp.Einv @ qp.Gamma.T
+    EinvGt = solve_refined(qp.E, qp.Gamma.T)  # full double accuracy (see solve_refined)
     has_out = bool(np.any(qp.row_kind == 1))
-    GEinvGt = qp.Gamma @ EinvGt if has_out else np.zeros((0, 0))
+    GEinvGt = ((qp.Gamma.astype(np.longdouble) @ EinvGt.astype(np.longdouble))
+               .astype(np.float64) if has_out else np.zeros((0, 0)))
+    GEinvGt = 0.5 * (GEinvGt + GEinvGt.T)
     Omega2 = np.array([2.0 * qp.Omega[i * ny:(i + 1) * ny, i * ny:(i + 1) * ny]
                        for i in range(N)])
     S, V, P2inv = qp.terminal_split()

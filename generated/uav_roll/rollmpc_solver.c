@@ -1,0 +1,568 @@
+/**
+ * @file rollmpc_solver.c
+ * @brief Hildreth-family dual QP solver (Lam et al., IFAC 2020, section 3.2) with an
+ *        exact active-set polish.
+ *
+ * Problem (eq. 5-6): min 1/2 U'EU + U'F s.t. M U <= gamma, with rows M_r = sign_r a(q_r)'
+ * on a quantity q_r (an input U_i, or a predicted output (Gamma U)_k). The dual Hessian
+ * H = M E^-1 M' is read through its structure (hq()), never stored densely.
+ *
+ * Variants are compile-time switches (rollmpc_config.h):
+ *  - REDUCED=0, WARM=0, omega=1: Hildreth (Alg. 1), Gauss-Seidel on all rows, cold start.
+ *  - REDUCED=0, WARM=1, omega>1: Hildreth+ (SOR, warm start, precomputed data).
+ *  - REDUCED=1: Hildreth+' (mini-Hildreth on rows with K < sigma), plus the correction
+ *    the paper lacks: after each solve every row is re-checked and violated rows join.
+ *  - POLISH=1: every POLISH_EVERY sweeps, the rows with positive multipliers are taken as
+ *    the working set and solved exactly -- in primal form (Cholesky of E_FF) when only
+ *    input bounds are in it, else in dual form (Cholesky of H_WW) -- then corrected by
+ *    dropping negative multipliers and adding violated rows until KKT holds.
+ *
+ * Every sum runs sequentially in a fixed order with no fused multiply-add, so the NumPy
+ * reference (rollmpc_codegen.solver_ref) reproduces every output bit for bit.
+ */
+#include <math.h>
+#include "rollmpc_internal.h"
+
+#define R_ ROLLMPC_R
+
+/* Element (a, b) of Hq = [[E^-1, E^-1 G'], [G E^-1, G E^-1 G']] (quantities a, b). */
+static rollmpc_real hq(const rollmpc_mode_data *md, int a, int b)
+{
+    const int n = md->n;
+    if (a < n) {
+        if (b < n) {
+            return (a >= b) ? md->Einv_p[ROLLMPC_TRI(a, b)] : md->Einv_p[ROLLMPC_TRI(b, a)];
+        }
+        return md->EinvGt[a * md->nyq + (b - n)];
+    }
+    if (b < n) {
+        return md->EinvGt[b * md->nyq + (a - n)];
+    }
+    a -= n;
+    b -= n;
+    return (a >= b) ? md->GEinvGt_p[ROLLMPC_TRI(a, b)] : md->GEinvGt_p[ROLLMPC_TRI(b, a)];
+}
+
+/* H_rs = sign_r sign_s Hq(q_r, q_s). */
+static rollmpc_real h_rows(const rollmpc_mode_data *md, int r, int s)
+{
+    const rollmpc_real h = hq(md, md->row_q[r], md->row_q[s]);
+    return (md->row_sign[r] == md->row_sign[s]) ? h : -h;
+}
+
+/* (E^-1 M_s')_i: input i's response to a unit multiplier on row s. */
+static rollmpc_real em_col(const rollmpc_mode_data *md, int i, int s)
+{
+    const rollmpc_real h = hq(md, i, md->row_q[s]);
+    return (md->row_sign[s] > 0) ? h : -h;
+}
+
+/* S(a, b) from the packed lower triangle. */
+static rollmpc_real s_at(const rollmpc_mode_data *md, int a, int b)
+{
+    return (a >= b) ? md->S_p[ROLLMPC_TRI(a, b)] : md->S_p[ROLLMPC_TRI(b, a)];
+}
+
+/* th0 = Kx x + E^-1 G' (2 Omega r); px = Phi x (output rows only). */
+static void unconstrained(rollmpc_work *ws, const rollmpc_mode_data *md,
+    const rollmpc_real *x, const rollmpc_real *r)
+{
+    const int ny = md->ny, nyq = md->nyq;
+    int i, k, l;
+    for (k = 0; k < nyq; ++k) {
+        const int stage = k / ny, a = k % ny;
+        rollmpc_real acc = R_(0.0);
+        for (l = 0; l < ny; ++l) {
+            acc += md->Omega2[(stage * ny + a) * ny + l] * r[stage * ny + l];
+        }
+        ws->w[k] = acc;
+    }
+    for (i = 0; i < md->n; ++i) {
+        rollmpc_real acc = R_(0.0);
+        for (l = 0; l < md->nx; ++l) {
+            acc += md->Kx[i * md->nx + l] * x[l];
+        }
+        for (k = 0; k < nyq; ++k) {
+            acc += md->EinvGt[i * nyq + k] * ws->w[k];
+        }
+        ws->th0[i] = acc;
+    }
+    if (md->GEinvGt_p != 0) {
+        for (k = 0; k < nyq; ++k) {
+            rollmpc_real acc = R_(0.0);
+            for (l = 0; l < md->nx; ++l) {
+                acc += md->Phi[k * md->nx + l] * x[l];
+            }
+            ws->px[k] = acc;
+        }
+    }
+}
+
+/* yv = Gamma th (block Toeplitz in the Markov parameters). */
+static void predict_outputs(rollmpc_work *ws, const rollmpc_mode_data *md,
+    const rollmpc_real *th)
+{
+    const int ny = md->ny, nu = md->nu;
+    int k, t, b;
+    for (k = 0; k < md->nyq; ++k) {
+        const int stage = k / ny, a = k % ny;
+        rollmpc_real acc = R_(0.0);
+        for (t = 0; t <= stage; ++t) {
+            for (b = 0; b < nu; ++b) {
+                acc += md->markov[((stage - t) * ny + a) * nu + b] * th[t * nu + b];
+            }
+        }
+        ws->yv[k] = acc;
+    }
+}
+
+/* Value of row r's quantity at th (yv must hold Gamma th). */
+static rollmpc_real row_value(const rollmpc_work *ws, const rollmpc_mode_data *md,
+    const rollmpc_real *th, int r)
+{
+    const int q = md->row_q[r];
+    return (q < md->n) ? th[q] : ws->yv[q - md->n];
+}
+
+/* gamma = c + W x and K = gamma - M th0 for every row; returns the number with K < 0. */
+static int slacks(rollmpc_work *ws, const rollmpc_mode_data *md)
+{
+    int r, count = 0;
+    if (md->GEinvGt_p != 0) {
+        predict_outputs(ws, md, ws->th0);
+    }
+    for (r = 0; r < md->m; ++r) {
+        const int q = md->row_q[r];
+        const rollmpc_real v = row_value(ws, md, ws->th0, r);
+        rollmpc_real g = md->row_c[r];
+        if (q >= md->n) {
+            g = (md->row_sign[r] > 0) ? g - ws->px[q - md->n] : g + ws->px[q - md->n];
+        }
+        ws->gam[r] = g;
+        ws->K[r] = (md->row_sign[r] > 0) ? g - v : g + v;
+        if (ws->K[r] < R_(0.0)) {
+            ++count;
+        }
+    }
+    return count;
+}
+
+/* Violation of row r at th (positive = violated) and its tolerance. */
+static int row_violated(const rollmpc_work *ws, const rollmpc_mode_data *md,
+    const rollmpc_real *th, int r)
+{
+    const rollmpc_real v = row_value(ws, md, th, r);
+    const rollmpc_real g = ws->gam[r];
+    const rollmpc_real viol = (md->row_sign[r] > 0) ? v - g : -v - g;
+    const rollmpc_real ag = ROLLMPC_FABS(g);
+    const rollmpc_real tol = ROLLMPC_SOLVER_FEAS_TOL * (ag > R_(1.0) ? ag : R_(1.0));
+    return viol > tol;
+}
+
+/* th = th0 - sum_j (E^-1 M_{list_j}') mult_j over positive multipliers. */
+static void correct(rollmpc_work *ws, const rollmpc_mode_data *md, const int16_t *list,
+    int count, const rollmpc_real *mult, int mult_by_row)
+{
+    int i, j;
+    for (i = 0; i < md->n; ++i) {
+        rollmpc_real acc = R_(0.0);
+        for (j = 0; j < count; ++j) {
+            const int s = list[j];
+            const rollmpc_real mu = mult_by_row ? mult[s] : mult[j];
+            if (mu > R_(0.0)) {
+                acc += em_col(md, i, s) * mu;
+            }
+        }
+        ws->th[i] = ws->th0[i] - acc;
+    }
+}
+
+/* Rebuild the sorted row list of the sweep set from the membership flags. */
+static int build_set(rollmpc_work *ws, const rollmpc_mode_data *md)
+{
+    int r, count = 0;
+    for (r = 0; r < md->m; ++r) {
+        if (ws->in_set[r]) {
+            ws->set[count++] = (int16_t)r;
+        }
+    }
+    return count;
+}
+
+/*
+ * One (SOR) Gauss-Seidel sweep of eq. (7) over the set. Returns the squared step
+ * norm; sets *diverged when a multiplier exceeds ROLLMPC_LAMBDA_LIMIT.
+ */
+static rollmpc_real sweep(rollmpc_work *ws, const rollmpc_mode_data *md,
+    rollmpc_real *lam, int count, int *diverged)
+{
+    const rollmpc_real omega = ROLLMPC_SOLVER_OMEGA;
+    rollmpc_real e2 = R_(0.0);
+    int jr, js;
+    for (jr = 0; jr < count; ++jr) {
+        const int r = ws->set[jr];
+        rollmpc_real acc = R_(0.0), t, wv, nl, d;
+        for (js = 0; js < count; ++js) {
+            const int s = ws->set[js];
+            if (s != r && lam[s] > R_(0.0)) {
+                acc += h_rows(md, r, s) * lam[s];
+            }
+        }
+        t = -(ws->K[r] + acc) / hq(md, md->row_q[r], md->row_q[r]);
+        wv = (R_(1.0) - omega) * lam[r] + omega * t;
+        nl = (wv > R_(0.0)) ? wv : R_(0.0);
+        d = nl - lam[r];
+        e2 += d * d;
+        lam[r] = nl;
+        if (!(nl <= ROLLMPC_LAMBDA_LIMIT)) {
+            *diverged = 1;
+        }
+    }
+    return e2;
+}
+
+/* Rows violated at th that are not in the sorted list, appended in row order to out. */
+static int violated_outside(rollmpc_work *ws, const rollmpc_mode_data *md,
+    const rollmpc_real *th, const int16_t *list, int count, int16_t *out, int cap)
+{
+    int r, p = 0, nout = 0;
+    if (md->GEinvGt_p != 0) {
+        predict_outputs(ws, md, th);
+    }
+    for (r = 0; r < md->m; ++r) {
+        while (p < count && list[p] < r) {
+            ++p;
+        }
+        if (p < count && list[p] == r) {
+            continue;
+        }
+        if (row_violated(ws, md, th, r)) {
+            if (nout == cap) {
+                return cap + 1;
+            }
+            out[nout++] = (int16_t)r;
+        }
+    }
+    return nout;
+}
+
+/*
+ * Primal solve on a working set of input-bound rows only (wset[0..nw)), in the split
+ * form E = S + V'(2P)V: with d = U - th0, d_B = bounds - th0_B and nu the terminal
+ * multiplier step,
+ *     S_FF d_F + V_F' nu = -S_FB d_B,    V d - (2P)^-1 nu = 0,
+ * solved by Cholesky of S_FF and an nt x nt Schur complement. Multipliers come from the
+ * gradient g = S d + V' nu as z_k = -sign_k g_{q_k}. Nothing here forms E, whose float
+ * entries cannot hold a heavy terminal weight and the stage weights at once.
+ * Writes ws->th and ws->z; returns -1 if a factorisation breaks down.
+ */
+static int primal_solve(rollmpc_work *ws, const rollmpc_mode_data *md, int nw)
+{
+    const int n = md->n, nt = md->nt;
+    int i, a, c, o, p, nf = 0;
+    for (i = 0; i < n; ++i) {
+        ws->is_bound[i] = 0;
+    }
+    for (i = 0; i < nw; ++i) {
+        const int r = ws->wset[i], q = md->row_q[r];
+        ws->is_bound[q] = 1;
+        ws->th[q] = (md->row_sign[r] > 0) ? md->row_c[r] : -md->row_c[r];
+    }
+    for (i = 0; i < n; ++i) {
+        if (!ws->is_bound[i]) {
+            ws->tmp[nf++] = (int16_t)i;
+        } else {
+            ws->dv[i] = ws->th[i] - ws->th0[i];
+        }
+    }
+    for (a = 0; a < nf; ++a) {
+        const int f = ws->tmp[a];
+        rollmpc_real acc = R_(0.0);
+        for (i = 0; i < n; ++i) {
+            if (ws->is_bound[i]) {
+                acc += s_at(md, f, i) * ws->dv[i];
+            }
+        }
+        ws->rhs[a] = -acc;
+        for (c = 0; c <= a; ++c) {
+            ws->chol[ROLLMPC_TRI(a, c)] = s_at(md, f, ws->tmp[c]);
+        }
+        for (o = 0; o < nt; ++o) {
+            ws->ycol[o * ROLLMPC_N_MAX + a] = md->V[o * n + f];
+        }
+    }
+    if (nf > 0) {
+        if (rollmpc_cholesky(ws->chol, nf) != 0) {
+            return -1;
+        }
+        rollmpc_chol_solve(ws->chol, nf, ws->rhs);
+        for (o = 0; o < nt; ++o) {
+            rollmpc_chol_solve(ws->chol, nf, &ws->ycol[o * ROLLMPC_N_MAX]);
+        }
+    }
+    if (nt > 0) {
+        for (o = 0; o < nt; ++o) {
+            rollmpc_real acc;
+            for (p = 0; p <= o; ++p) {
+                acc = R_(0.0);
+                for (a = 0; a < nf; ++a) {
+                    acc += md->V[o * n + ws->tmp[a]] * ws->ycol[p * ROLLMPC_N_MAX + a];
+                }
+                ws->tsmall[ROLLMPC_TRI(o, p)] = acc + md->P2inv[o * nt + p];
+            }
+            acc = R_(0.0);
+            for (a = 0; a < nf; ++a) {
+                acc += md->V[o * n + ws->tmp[a]] * ws->rhs[a];
+            }
+            for (i = 0; i < n; ++i) {
+                if (ws->is_bound[i]) {
+                    acc += md->V[o * n + i] * ws->dv[i];
+                }
+            }
+            ws->nu[o] = acc;
+        }
+        if (rollmpc_cholesky(ws->tsmall, nt) != 0) {
+            return -1;
+        }
+        rollmpc_chol_solve(ws->tsmall, nt, ws->nu);
+    }
+    for (a = 0; a < nf; ++a) {
+        const int f = ws->tmp[a];
+        rollmpc_real acc = ws->rhs[a];
+        for (o = 0; o < nt; ++o) {
+            acc -= ws->ycol[o * ROLLMPC_N_MAX + a] * ws->nu[o];
+        }
+        ws->dv[f] = acc;
+        ws->th[f] = ws->th0[f] + acc;
+    }
+    for (a = 0; a < nw; ++a) {
+        const int r = ws->wset[a], q = md->row_q[r];
+        rollmpc_real g = R_(0.0);
+        for (i = 0; i < n; ++i) {
+            g += s_at(md, q, i) * ws->dv[i];
+        }
+        for (o = 0; o < nt; ++o) {
+            g += md->V[o * n + q] * ws->nu[o];
+        }
+        ws->z[a] = (md->row_sign[r] > 0) ? -g : g;
+    }
+    return 0;
+}
+
+/* Dual solve on a general working set: z = -H_WW^-1 K_W, th = th0 - E^-1 M_W' z. */
+static int dual_solve(rollmpc_work *ws, const rollmpc_mode_data *md, int nw)
+{
+    int i, j;
+    for (i = 0; i < nw; ++i) {
+        for (j = 0; j <= i; ++j) {
+            ws->chol[ROLLMPC_TRI(i, j)] = h_rows(md, ws->wset[i], ws->wset[j]);
+        }
+        ws->z[i] = -ws->K[ws->wset[i]];
+    }
+    if (rollmpc_cholesky(ws->chol, nw) != 0) {
+        return -1;
+    }
+    rollmpc_chol_solve(ws->chol, nw, ws->z);
+    return 0;
+}
+
+/*
+ * Exact solve on the working set W = {rows of the sweep set with lam > 0}, primal when W
+ * holds only input bounds, dual otherwise; drop negative multipliers, add violated rows,
+ * repeat. Returns 0 with ws->th optimal and lam set to the exact multipliers, or -1.
+ */
+static int polish(rollmpc_work *ws, const rollmpc_mode_data *md, rollmpc_real *lam,
+    int count, int *iterations, int *active)
+{
+    const int n = md->n;
+    int i, j, it, nw = 0;
+    for (j = 0; j < count; ++j) {
+        const int r = ws->set[j];
+        if (lam[r] > R_(0.0)) {
+            if (nw == n) {
+                return -1;
+            }
+            ws->wset[nw++] = (int16_t)r;
+        }
+    }
+    if (nw == 0) {
+        return -1;
+    }
+    for (it = 0; it < ROLLMPC_SOLVER_POLISH_MAX; ++it) {
+        int keep = 0, nadd, p, q, total, box_only = 1;
+        ++*iterations;
+        for (i = 0; i < nw; ++i) {
+            box_only = box_only && md->row_q[ws->wset[i]] < n;
+        }
+        if ((box_only ? primal_solve(ws, md, nw) : dual_solve(ws, md, nw)) != 0) {
+            return -1;
+        }
+        for (i = 0; i < nw; ++i) {
+            if (ws->z[i] >= R_(0.0)) {
+                ws->wset[keep] = ws->wset[i];
+                ws->z[keep] = ws->z[i];
+                ++keep;
+            }
+        }
+        if (keep < nw) {
+            nw = keep;
+            if (nw == 0) {
+                return -1;
+            }
+            continue;
+        }
+        if (!box_only) {
+            correct(ws, md, ws->wset, nw, ws->z, 0);
+        }
+        nadd = violated_outside(ws, md, ws->th, ws->wset, nw, ws->tmp, n - nw);
+        if (nadd == 0) {
+            for (i = 0; i < md->m; ++i) {
+                lam[i] = R_(0.0);
+            }
+            for (i = 0; i < nw; ++i) {
+                lam[ws->wset[i]] = ws->z[i];
+            }
+            *active = nw;
+            return 0;
+        }
+        if (nadd > n - nw) {
+            return -1;
+        }
+        /* merge the sorted lists wset[0..nw) and tmp[0..nadd) into wset, back to front */
+        p = nw - 1;
+        q = nadd - 1;
+        total = nw + nadd;
+        for (i = total - 1; i >= 0; --i) {
+            if (q < 0 || (p >= 0 && ws->wset[p] > ws->tmp[q])) {
+                ws->wset[i] = ws->wset[p--];
+            } else {
+                ws->wset[i] = ws->tmp[q--];
+            }
+        }
+        nw = total;
+    }
+    return -1;
+}
+
+/* Clamp th into the input bounds (or fall back) and write U; returns the final status. */
+static int finish(rollmpc_work *ws, const rollmpc_mode_data *md, rollmpc_real *lam,
+    int status, rollmpc_real *U)
+{
+    const rollmpc_real *src = ws->th;
+    int i, th_ok = 1, th0_ok = 1;
+    for (i = 0; i < md->n; ++i) {
+        th_ok = th_ok && isfinite(ws->th[i]);
+        th0_ok = th0_ok && isfinite(ws->th0[i]);
+    }
+    if (!th_ok) {
+        status = ROLLMPC_NUMERICAL;
+        src = th0_ok ? ws->th0 : 0;
+    }
+    for (i = 0; i < md->n; ++i) {
+        const rollmpc_real lo = md->u_min[i % md->nu], hi = md->u_max[i % md->nu];
+        const rollmpc_real v = src ? src[i] : R_(0.0);
+        U[i] = (v < lo) ? lo : ((v > hi) ? hi : v);
+    }
+    if (status != ROLLMPC_OPTIMAL) {
+        for (i = 0; i < md->m; ++i) {
+            lam[i] = R_(0.0); /* no sticky warm start after a failed sample */
+        }
+    }
+    return status;
+}
+
+/**
+ * @brief Solve one mode's QP (internal; see rollmpc_solve_qp()).
+ * @param ws Work arrays.
+ * @param lam Warm-start multipliers of the mode [m], updated.
+ * @param md Mode data.
+ * @param x State estimate [nx].
+ * @param r Reference [N ny].
+ * @param U Out: input sequence [n].
+ * @param iterations Out: dual sweeps.
+ * @param polish_iterations Out: polish corrections.
+ * @param active Out: rows in the final active set.
+ * @return A rollmpc_status code.
+ */
+int rollmpc_qp_solve(rollmpc_work *ws, rollmpc_real *lam, const rollmpc_mode_data *md,
+    const rollmpc_real *x, const rollmpc_real *r, rollmpc_real *U, int *iterations,
+    int *polish_iterations, int *active)
+{
+    int i, count, total = 0, status = ROLLMPC_MAX_ITER;
+    *iterations = 0;
+    *polish_iterations = 0;
+    *active = 0;
+    unconstrained(ws, md, x, r);
+    for (i = 0; i < md->n; ++i) {
+        ws->th[i] = ws->th0[i];
+    }
+    if (slacks(ws, md) == 0) {
+        for (i = 0; i < md->m; ++i) {
+            lam[i] = R_(0.0);
+        }
+        return finish(ws, md, lam, ROLLMPC_OPTIMAL, U);
+    }
+    for (i = 0; i < md->m; ++i) {
+        ws->in_set[i] = (uint8_t)(ROLLMPC_SOLVER_REDUCED ? (ws->K[i] < ROLLMPC_SOLVER_SIGMA) : 1);
+        if (!ROLLMPC_SOLVER_WARM_START || !ws->in_set[i]) {
+            lam[i] = R_(0.0);
+        }
+    }
+    count = build_set(ws, md);
+    for (;;) {
+        int t, converged = 0, diverged = 0, nviol, added = 0;
+        const int chunk = ROLLMPC_SOLVER_POLISH ? ROLLMPC_SOLVER_POLISH_EVERY : ROLLMPC_SOLVER_MAX_ITER;
+        for (t = 0; t < chunk && total < ROLLMPC_SOLVER_MAX_ITER; ++t) {
+            const rollmpc_real e2 = sweep(ws, md, lam, count, &diverged);
+            ++total;
+            if (diverged) {
+                break;
+            }
+            if (e2 < ROLLMPC_SOLVER_DELTA) {
+                converged = 1;
+                break;
+            }
+        }
+        if (diverged) {
+            status = ROLLMPC_INFEASIBLE;
+            break;
+        }
+        correct(ws, md, ws->set, count, lam, 1);
+        if (polish(ws, md, lam, count, polish_iterations, active) == 0) {
+            status = ROLLMPC_OPTIMAL;
+            break;
+        }
+        correct(ws, md, ws->set, count, lam, 1);
+        nviol = violated_outside(ws, md, ws->th, ws->set, 0, ws->tmp, 0);
+        if (ROLLMPC_SOLVER_REDUCED && nviol != 0) {
+            for (i = 0; i < md->m; ++i) {
+                if (!ws->in_set[i] && row_violated(ws, md, ws->th, i)) {
+                    ws->in_set[i] = 1;
+                    ++added;
+                }
+            }
+        }
+        if (converged && nviol == 0) {
+            status = ROLLMPC_OPTIMAL;
+            break;
+        }
+        if (total >= ROLLMPC_SOLVER_MAX_ITER) {
+            status = ROLLMPC_MAX_ITER;
+            break;
+        }
+        if (converged && added == 0) {
+            status = ROLLMPC_INACCURATE;
+            break;
+        }
+        if (added != 0) {
+            count = build_set(ws, md);
+        }
+    }
+    if (*active == 0) {
+        for (i = 0; i < md->m; ++i) {
+            *active += (lam[i] > R_(0.0));
+        }
+    }
+    *iterations = total;
+    return finish(ws, md, lam, status, U);
+}

@@ -1,0 +1,110 @@
+"""The generated C compiles warning-free under strict and autopilot flag sets, uses only
+static memory, and the host C test program (no Python) passes bit for bit."""
+from __future__ import annotations
+
+import re
+import subprocess
+from pathlib import Path
+
+import pytest
+
+from conftest import UAV, require_tool
+from rollmpc_codegen.generate import generate
+
+STRICT = ["-std=c99", "-Wall", "-Wextra", "-Wpedantic", "-Wconversion", "-Wshadow",
+          "-Wdouble-promotion", "-Wvla", "-Werror"]
+# PX4's C flags and ArduPilot's frame limit (shared/design.md)
+AUTOPILOT = ["-Wfloat-equal", "-Wcast-align", "-Wstrict-prototypes", "-Wbad-function-cast",
+             "-Wnested-externs", "-fno-common", "-Wframe-larger-than=1300"]
+CLANG_HINT = "apt-get install -y --no-install-recommends clang"
+ARM_HINT = "apt-get install -y --no-install-recommends gcc-arm-none-eabi libnewlib-arm-none-eabi"
+
+
+@pytest.fixture(scope="module", params=["double", "float"])
+def sources(request, tmp_path_factory) -> Path:
+    out = tmp_path_factory.mktemp(f"gen_{request.param}") / "uav_roll"
+    generate(UAV, out, request.param)
+    return out
+
+
+def _compile(cc: str, src: Path, flags: list[str], out: Path) -> subprocess.CompletedProcess:
+    out.mkdir(parents=True, exist_ok=True)
+    objs = []
+    for c in sorted(src.glob("*.c")):
+        obj = out / (c.stem + ".o")
+        cmd = [cc, *flags, f"-I{src}", "-c", str(c), "-o", str(obj)]
+        proc = subprocess.run(cmd, capture_output=True, text=True)
+        if proc.returncode != 0 or proc.stderr.strip():
+            return proc
+        objs.append(obj)
+    return subprocess.CompletedProcess(args=[], returncode=0, stdout="", stderr="")
+
+
+@pytest.mark.parametrize("opt", ["-O0", "-O2", "-Os"])
+def test_gcc_strict_no_warnings(sources, tmp_path, opt):
+    proc = _compile("gcc", sources, [opt, *STRICT, *AUTOPILOT], tmp_path)
+    assert proc.returncode == 0 and proc.stderr == "", proc.stderr
+
+
+@pytest.mark.parametrize("opt", ["-O0", "-O2"])
+def test_clang_strict_no_warnings(sources, tmp_path, opt):
+    cc = require_tool("clang", CLANG_HINT)
+    proc = _compile(cc, sources, [opt, *STRICT, *AUTOPILOT], tmp_path)
+    assert proc.returncode == 0 and proc.stderr == "", proc.stderr
+
+
+def test_arm_cortex_m4f_no_warnings(sources, tmp_path):
+    cc = require_tool("arm-none-eabi-gcc", ARM_HINT)
+    flags = ["-mcpu=cortex-m4", "-mthumb", "-mfpu=fpv4-sp-d16", "-mfloat-abi=hard", "-O2",
+             "-ffreestanding", "-fno-math-errno", "-ffp-contract=off", *STRICT, *AUTOPILOT]
+    proc = _compile(cc, sources, flags, tmp_path)
+    assert proc.returncode == 0 and proc.stderr == "", proc.stderr
+
+
+def test_float_build_has_no_double_literals(tmp_path_factory):
+    out = tmp_path_factory.mktemp("f32") / "uav_roll_f32"
+    generate(UAV, out, "float")
+    for c in out.glob("*.c"):
+        text = re.sub(r"/\*.*?\*/", "", c.read_text(), flags=re.S)  # code, not comments
+        text = re.sub(r"\b(?:R_|[A-Z0-9_]+_R)\([^)]*\)", "", text)  # R_(x) pastes f on
+        # every floating literal in the float build carries the f suffix
+        bare = re.findall(r"(?<![\w.])\d+(?:\.\d*(?:[eE][-+]?\d+)?|[eE][-+]?\d+)(?![\w.])",
+                          text)
+        assert bare == [], f"{c.name}: {bare[:5]}"
+
+
+def test_static_memory_only(sources, tmp_path):
+    proc = _compile("gcc", sources, ["-O2", *STRICT], tmp_path)
+    assert proc.returncode == 0, proc.stderr
+    nm = require_tool("nm", "apt-get install -y binutils")
+    undefined, defined = set(), set()
+    for obj in tmp_path.glob("*.o"):
+        out = subprocess.run([nm, str(obj)], capture_output=True, text=True).stdout
+        for line in out.splitlines():
+            parts = line.split()
+            (undefined if parts[-2] == "U" else defined).add(parts[-1])
+    external = undefined - defined
+    heap = {"malloc", "calloc", "realloc", "free", "alloca", "__builtin_alloca"}
+    assert not (external & heap), external & heap
+    # only the square root, and the block moves GCC may emit for loops (which GCC needs
+    # from the C library even when freestanding), come from outside
+    assert external <= {"sqrt", "sqrtf", "memset", "memmove", "memcpy"}, external
+
+
+def test_host_c_test_program_passes(tmp_path):
+    """`rollmpc testvectors` + the C compiler alone: the make ctest path."""
+    from rollmpc_codegen.cli import main
+
+    for precision in ("double", "float"):
+        out = tmp_path / precision
+        assert main(["testvectors", str(UAV), "--precision", precision, "-o", str(out),
+                     "--steps", "2200"]) == 0
+        exe = out / "test_vectors"
+        cmd = ["gcc", "-O2", "-ffp-contract=off", *STRICT, f"-I{out}",
+               *map(str, sorted(out.glob("*.c"))), "-lm", "-o", str(exe)]
+        proc = subprocess.run(cmd, capture_output=True, text=True)
+        assert proc.returncode == 0, proc.stderr
+        run = subprocess.run([str(exe)], capture_output=True, text=True)
+        assert run.returncode == 0, run.stdout
+        m = re.search(r"^(\d+) passed, (\d+) failed$", run.stdout, re.M)
+        assert m and int(m.group(2)) == 0 and int(m.group(1)) >= 2200, run.stdout
