@@ -11,6 +11,7 @@ from __future__ import annotations
 import hashlib
 import math
 import re
+import sys
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -21,12 +22,18 @@ import yaml
 SOLVER_METHODS = ("hildreth", "hildreth_plus", "hildreth_plus_prime")
 PRECISIONS = ("double", "float")
 SCHEDULE_SOURCES = ("output_rate", "output")
+# The C indexes QP rows and variables with int16_t and counts iterations with int.
+MAX_ROWS = 32767
+MAX_C_INT = 2**31 - 1
+FLOAT_MAX = float(np.finfo(np.float32).max)
 
 
 class ConfigError(ValueError):
     """A configuration problem, reported as one line: ``<key>: <problem>``."""
 
     def __init__(self, key: str, problem: str):
+        # the CLI promises exactly one line on stderr, whatever the YAML text contained
+        key, problem = (" ".join(str(t).splitlines()) for t in (key, problem))
         super().__init__(f"{key}: {problem}")
         self.key = key
         self.problem = problem
@@ -133,7 +140,9 @@ class _Reader:
         return f"{self.path}.{name}" if self.path else name
 
     def has(self, name: str) -> bool:
-        return name in self.data
+        """Is an optional key given?  ``key:`` with no value counts as absent, as in raw()."""
+        self.used.add(name)
+        return self.data.get(name) is not None
 
     def raw(self, name: str, default: Any = ..., required: bool = True) -> Any:
         self.used.add(name)
@@ -148,12 +157,23 @@ class _Reader:
         value = self.raw(name, default)
         return _number(value, self.key(name), positive=positive, nonnegative=nonnegative)
 
-    def integer(self, name: str, default: Any = ..., minimum: int | None = None) -> int:
+    def integer(self, name: str, default: Any = ..., minimum: int | None = None,
+                maximum: int | None = None) -> int:
         value = self.raw(name, default)
+        if isinstance(value, float) or (isinstance(value, str) and "e" in value.lower()):
+            # whole numbers written as 1e6 / 1.0e6 (YAML 1.1 reads the latter as a string)
+            try:
+                as_float = float(value)
+            except ValueError:
+                as_float = math.nan
+            if math.isfinite(as_float) and as_float == int(as_float):
+                value = int(as_float)
         if isinstance(value, bool) or not isinstance(value, int):
             raise ConfigError(self.key(name), f"must be an integer, got {value!r}")
         if minimum is not None and value < minimum:
             raise ConfigError(self.key(name), f"must be >= {minimum}, got {value}")
+        if maximum is not None and value > maximum:
+            raise ConfigError(self.key(name), f"must be <= {maximum}, got {value}")
         return value
 
     def boolean(self, name: str, default: Any = ...) -> bool:
@@ -187,7 +207,8 @@ class _Reader:
         return _Reader(value, self.key(name))
 
     def finish(self) -> None:
-        unknown = sorted(set(self.data) - self.used)
+        # str(): YAML keys may be ints, bools or null, which do not sort with strings
+        unknown = sorted(set(self.data) - self.used, key=str)
         if unknown:
             raise ConfigError(self.key(str(unknown[0])), "unknown key")
 
@@ -204,7 +225,10 @@ def _number(value: Any, key: str, positive: bool = False, nonnegative: bool = Fa
             raise ConfigError(key, f"must be a number, got {value!r}") from None
     if isinstance(value, bool) or not isinstance(value, (int, float)):
         raise ConfigError(key, f"must be a number, got {value!r}")
-    value = float(value)
+    try:
+        value = float(value)
+    except OverflowError:  # an integer literal with hundreds of digits
+        raise ConfigError(key, "must be finite, got a number too large for a double") from None
     if not math.isfinite(value):
         raise ConfigError(key, f"must be finite, got {value!r}")
     if positive and value <= 0:
@@ -272,8 +296,7 @@ def _psd(mat: np.ndarray, key: str, strict: bool) -> np.ndarray:
 def _plant(r: _Reader) -> PlantConfig:
     kinds = [k for k in ("transfer_function", "state_space") if r.has(k)]
     if len(kinds) != 1:
-        raise ConfigError(r.key("transfer_function"),
-                          "give exactly one of transfer_function or state_space")
+        raise ConfigError(r.path, "give exactly one of transfer_function or state_space")
     integrator = r.boolean("integrator", False)
     if kinds[0] == "transfer_function":
         tf = r.sub("transfer_function")
@@ -354,9 +377,13 @@ def _mode(r: _Reader, outputs: tuple[str, ...], actuators: tuple[str, ...]) -> M
         if not u_min[i] < u_max[i]:
             raise ConfigError(b.key("u_min"), f"must be < u_max (entry {i}: "
                               f"{u_min[i]} >= {u_max[i]})")
-        if not u_min[i] <= 0.0 <= u_max[i]:
-            raise ConfigError(b.key("u_min"), "the bounds must contain 0 (the inactive "
-                              "actuator command)")
+        # name the bound that is on the wrong side of 0, not always u_min
+        if u_min[i] > 0.0:
+            raise ConfigError(b.key("u_min"), f"must be <= 0: the bounds must contain 0 "
+                              f"(the inactive actuator command), got {u_min[i]}")
+        if u_max[i] < 0.0:
+            raise ConfigError(b.key("u_max"), f"must be >= 0: the bounds must contain 0 "
+                              f"(the inactive actuator command), got {u_max[i]}")
     y_min = _vector(b.raw("y_min", -math.inf), b.key("y_min"), ny, allow_inf=True)
     y_max = _vector(b.raw("y_max", math.inf), b.key("y_max"), ny, allow_inf=True)
     for i in range(ny):
@@ -397,6 +424,8 @@ def _scheduler(r: _Reader, modes: tuple[ModeConfig, ...]) -> SchedulerConfig:
         return names.index(name)
 
     signal = r.string("signal")
+    if not _IDENT.match(signal):  # it is written into C comments of the generated code
+        raise ConfigError(r.key("signal"), f"must be an identifier-like name, got {signal!r}")
     lower = r.number("lower")
     upper = r.number("upper")
     if not lower < upper:
@@ -423,17 +452,59 @@ def _solver(r: _Reader) -> SolverConfig:
         raise ConfigError(r.key("omega"), f"SOR needs 0 < omega < 2, got {omega}")
     sigma = r.number("sigma", d.sigma, nonnegative=True)
     delta = r.number("delta", d.delta, positive=True)
-    max_iterations = r.integer("max_iterations", d.max_iterations, minimum=1)
+    max_iterations = r.integer("max_iterations", d.max_iterations, minimum=1, maximum=MAX_C_INT)
     warm_start = r.boolean("warm_start", d.warm_start)
     polish = r.boolean("polish", d.polish)
-    polish_every = r.integer("polish_every", d.polish_every, minimum=1)
-    polish_max = r.integer("polish_max", d.polish_max, minimum=1)
+    polish_every = r.integer("polish_every", d.polish_every, minimum=1, maximum=MAX_C_INT)
+    polish_max = r.integer("polish_max", d.polish_max, minimum=1, maximum=MAX_C_INT)
     tol = r.number("feasibility_tol", None, positive=True) if r.has("feasibility_tol") else None
     r.finish()
     return SolverConfig(method=method, omega=omega, sigma=sigma, delta=delta,
                         max_iterations=max_iterations, warm_start=warm_start, polish=polish,
                         polish_every=polish_every, polish_max=polish_max,
                         feasibility_tol=tol)
+
+
+def _check_horizon(horizon: int, modes: tuple[ModeConfig, ...]) -> None:
+    """Reject a horizon whose QP overflows the C's int16 row tables *before* building it.
+
+    The row count is that of mpc._constraints: 2 nu box rows per stage and one row per
+    finite output bound on stages 1..N.  Checking after condensing is too late: a typo
+    like ``horizon: 100000`` would first allocate and fill N^2-sized matrices for hours.
+    """
+    for i, m in enumerate(modes):
+        rows = horizon * (2 * len(m.actuators) + int(np.isfinite(m.y_min).sum())
+                          + int(np.isfinite(m.y_max).sum()))
+        if rows > MAX_ROWS:
+            raise ConfigError("horizon", f"too long: modes[{i}] would have {rows} QP rows; "
+                              f"at most {MAX_ROWS} supported")
+
+
+def _check_range(precision: str, modes: tuple[ModeConfig, ...],
+                 scheduler: SchedulerConfig | None, solver: SolverConfig) -> None:
+    """Every number the C stores as a literal must be finite in the storage precision.
+
+    Otherwise the failure surfaces much later, as a non-finite literal while rendering.
+    """
+    limit = FLOAT_MAX if precision == "float" else sys.float_info.max
+    values: list[tuple[str, Any]] = []
+    for i, m in enumerate(modes):
+        k = f"modes[{i}]"
+        values += [(f"{k}.weights.Q", m.Q), (f"{k}.weights.R", m.R), (f"{k}.weights.P", m.P),
+                   (f"{k}.bounds.u_min", m.u_min), (f"{k}.bounds.u_max", m.u_max),
+                   # infinite output bounds mean "unbounded" and are never written
+                   (f"{k}.bounds.y_min", m.y_min[np.isfinite(m.y_min)]),
+                   (f"{k}.bounds.y_max", m.y_max[np.isfinite(m.y_max)])]
+    if scheduler is not None:  # the C stores the thresholds lower/upper -/+ epsilon
+        values += [("scheduler.epsilon", scheduler.lower - scheduler.epsilon),
+                   ("scheduler.epsilon", scheduler.upper + scheduler.epsilon)]
+    values += [("solver.sigma", solver.sigma), ("solver.delta", solver.delta),
+               ("solver.feasibility_tol", solver.feasibility_tol or 0.0)]
+    for key, value in values:
+        arr = np.abs(np.asarray(value, dtype=float))
+        if arr.size and not arr.max() <= limit:
+            raise ConfigError(key, f"a value of magnitude {arr.max():.3g} does not fit in "
+                              f"{precision} precision (max {limit:.3g})")
 
 
 def parse(data: Any, source_text: str = "") -> ControllerConfig:
@@ -453,6 +524,7 @@ def parse(data: Any, source_text: str = "") -> ControllerConfig:
         raise ConfigError("modes", "must be a non-empty list of modes")
     modes = tuple(_mode(_Reader(m, f"modes[{i}]"), outputs, actuators)
                   for i, m in enumerate(raw_modes))
+    _check_horizon(horizon, modes)
     names = [m.name for m in modes]
     for i, n in enumerate(names):
         if names.index(n) != i:
@@ -472,6 +544,7 @@ def parse(data: Any, source_text: str = "") -> ControllerConfig:
         schedule_source=sim.string("schedule_source", "output_rate", choices=SCHEDULE_SOURCES))
     sim.finish()
     r.finish()
+    _check_range(precision, modes, scheduler, solver)
     if simulation.schedule_source == "output_rate" and scheduler is not None:
         for i, m in enumerate(modes):
             if not m.plant.integrator:
@@ -484,20 +557,32 @@ def parse(data: Any, source_text: str = "") -> ControllerConfig:
                             config_hash=digest)
 
 
+def _yaml_problem(exc: yaml.YAMLError) -> tuple[str, str]:
+    """(where, what) of a PyYAML error; its str() spans several lines, so not that."""
+    if isinstance(exc, yaml.reader.ReaderError):  # a control character; it has no mark
+        what = f"{exc.reason} (#x{exc.character:04x})"
+        return f"<yaml character {exc.position + 1}>", f"not valid YAML: {what}"
+    mark = getattr(exc, "problem_mark", None) or getattr(exc, "context_mark", None)
+    where = f"<yaml line {mark.line + 1}>" if mark else "<yaml>"
+    what = getattr(exc, "problem", None) or getattr(exc, "context", None) or type(exc).__name__
+    return where, f"not valid YAML: {what}"
+
+
 def load(path: str | Path, precision: str | None = None) -> ControllerConfig:
     """Read and validate a YAML file; ``precision`` overrides the file's setting."""
     path = Path(path)
     try:
-        text = path.read_text()
+        raw = path.read_bytes()
     except OSError as exc:
         raise ConfigError(str(path), f"cannot read: {exc.strerror}") from None
     try:
+        text = raw.decode("utf-8")
+    except UnicodeDecodeError as exc:
+        raise ConfigError(str(path), f"not UTF-8 text (byte {exc.start})") from None
+    try:
         data = yaml.safe_load(text)
     except yaml.YAMLError as exc:
-        mark = getattr(exc, "problem_mark", None)
-        where = f"line {mark.line + 1}" if mark else "?"
-        raise ConfigError(f"<yaml {where}>", f"not valid YAML: "
-                          f"{getattr(exc, 'problem', exc)}") from None
+        raise ConfigError(*_yaml_problem(exc)) from None
     if data is None:
         raise ConfigError("<top>", "the file is empty")
     if precision is not None:

@@ -103,6 +103,8 @@ def render_template(ctx: dict, template: str, **extra) -> str:
 def write_atomically(files: dict[str, str], out_dir: Path) -> None:
     """Write ``files`` as the whole content of ``out_dir``, replacing it only on success."""
     out_dir = Path(out_dir)
+    if out_dir.exists() and not out_dir.is_dir():
+        raise FileExistsError(f"{out_dir} exists and is not a directory")
     out_dir.parent.mkdir(parents=True, exist_ok=True)
     tmp = Path(tempfile.mkdtemp(prefix=f".{out_dir.name}.", dir=out_dir.parent))
     tmp.chmod(0o755)
