@@ -92,6 +92,7 @@ class SolverConfig:
     max_iterations: int = 1000
     warm_start: bool = True
     polish: bool = True
+    polish_first: bool = True
     polish_every: int = 10
     polish_max: int = 8
     feasibility_tol: float | None = None  # None -> precision default
@@ -455,12 +456,14 @@ def _solver(r: _Reader) -> SolverConfig:
     max_iterations = r.integer("max_iterations", d.max_iterations, minimum=1, maximum=MAX_C_INT)
     warm_start = r.boolean("warm_start", d.warm_start)
     polish = r.boolean("polish", d.polish)
+    polish_first = r.boolean("polish_first", d.polish_first)
     polish_every = r.integer("polish_every", d.polish_every, minimum=1, maximum=MAX_C_INT)
     polish_max = r.integer("polish_max", d.polish_max, minimum=1, maximum=MAX_C_INT)
     tol = r.number("feasibility_tol", None, positive=True) if r.has("feasibility_tol") else None
     r.finish()
     return SolverConfig(method=method, omega=omega, sigma=sigma, delta=delta,
                         max_iterations=max_iterations, warm_start=warm_start, polish=polish,
+                        polish_first=polish_first,
                         polish_every=polish_every, polish_max=polish_max,
                         feasibility_tol=tol)
 

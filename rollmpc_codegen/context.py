@@ -132,7 +132,7 @@ def build_context(model: ControllerModel) -> dict:
             "method": s.method, "reduced": flags["reduced"], "warm_start": flags["warm"]
             and s.warm_start, "omega": s.omega if flags["sor"] else 1.0, "sigma": s.sigma,
             "delta": s.delta, "max_iterations": s.max_iterations, "polish": s.polish,
-            "polish_every": s.polish_every, "polish_max": s.polish_max,
+            "polish_first": s.polish and s.polish_first, "polish_every": s.polish_every, "polish_max": s.polish_max,
             "feasibility_tol": s.feasibility_tol if s.feasibility_tol is not None
             else default_feasibility_tol(cfg.precision),
         },

@@ -77,6 +77,7 @@ class SolverRef:
         dt = self.dt
         s = solver_ctx
         self.reduced, self.warm, self.polish_on = s["reduced"], s["warm_start"], s["polish"]
+        self.polish_first = s.get("polish_first", False)
         self.omega, self.sigma, self.delta = dt(s["omega"]), dt(s["sigma"]), dt(s["delta"])
         self.tol = dt(s["feasibility_tol"])
         self.max_iter, self.polish_every, self.polish_max = (
@@ -219,11 +220,10 @@ class SolverRef:
         chol_solve_packed(chol, nw, z)
         return True, z
 
-    def _polish(self, S, lam, th0, K, gam):
-        """Mirror of polish(); returns (ok, th, active, iterations)."""
+    def _polish(self, W, lam, th0, K, gam):
+        """Mirror of polish() from working set W; returns (ok, th, active, iterations)."""
         md = self.md
         n = md.n
-        W = S[lam[S] > 0]
         its = 0
         if W.size == 0 or W.size > n:
             return False, None, 0, its
@@ -276,12 +276,21 @@ class SolverRef:
         if not np.any(K < 0):
             lam[:] = 0
             return self._finish(th0, th0, OPTIMAL) + (0, 0, 0)
+        total, polish_its, active = 0, 0, 0
+        if self.polish_on and self.polish_first:
+            W = np.flatnonzero(lam > 0) if self.warm else np.zeros(0, np.intp)
+            if W.size == 0:
+                W = np.flatnonzero(K < 0)
+            ok, th_p, act, its = self._polish(W, lam, th0, K, gam)
+            polish_its += its
+            if ok:
+                status, U = self._finish(th_p, th0, OPTIMAL)
+                return status, U, 0, polish_its, act
         in_set = (K < self.sigma) if self.reduced else np.ones(md.m, bool)
         if not self.warm:
             lam[:] = 0
         lam[~in_set] = 0
         S = np.flatnonzero(in_set)
-        total, polish_its, active = 0, 0, 0
         status = MAX_ITER
         th = th0
         while True:
@@ -302,7 +311,7 @@ class SolverRef:
                 break
             th = self._correct(th0, S, lam[S])
             if self.polish_on:
-                ok, th_p, act, its = self._polish(S, lam, th0, K, gam)
+                ok, th_p, act, its = self._polish(S[lam[S] > 0], lam, th0, K, gam)
                 polish_its += its
                 if ok:
                     th, active, status = th_p, act, OPTIMAL

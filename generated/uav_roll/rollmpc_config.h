@@ -32,10 +32,11 @@ typedef double rollmpc_real;
 #define ROLLMPC_NT_MAX 1
 #define ROLLMPC_CHOL_MAX 5050
 
-/* Solver: method hildreth_plus_prime + polish. */
+/* Solver: method hildreth_plus_prime + polish (polish first). */
 #define ROLLMPC_SOLVER_REDUCED 1
 #define ROLLMPC_SOLVER_WARM_START 1
 #define ROLLMPC_SOLVER_POLISH 1
+#define ROLLMPC_SOLVER_POLISH_FIRST 1
 #define ROLLMPC_SOLVER_OMEGA 1.2
 #define ROLLMPC_SOLVER_SIGMA 0.2
 #define ROLLMPC_SOLVER_DELTA 1e-13

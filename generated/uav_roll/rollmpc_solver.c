@@ -12,6 +12,8 @@
  *  - REDUCED=0, WARM=1, omega>1: Hildreth+ (SOR, warm start, precomputed data).
  *  - REDUCED=1: Hildreth+' (mini-Hildreth on rows with K < sigma), plus the correction
  *    the paper lacks: after each solve every row is re-checked and violated rows join.
+ *  - POLISH_FIRST=1: before any sweep, polish from the previous optimal active set (or
+ *    from the rows the unconstrained solution violates); sweep only if that fails.
  *  - POLISH=1: every POLISH_EVERY sweeps, the rows with positive multipliers are taken as
  *    the working set and solved exactly -- in primal form (Cholesky of E_FF) when only
  *    input bounds are in it, else in dual form (Cholesky of H_WW) -- then corrected by
@@ -366,26 +368,49 @@ static int dual_solve(rollmpc_work *ws, const rollmpc_mode_data *md, int nw)
     return 0;
 }
 
-/*
- * Exact solve on the working set W = {rows of the sweep set with lam > 0}, primal when W
- * holds only input bounds, dual otherwise; drop negative multipliers, add violated rows,
- * repeat. Returns 0 with ws->th optimal and lam set to the exact multipliers, or -1.
- */
-static int polish(rollmpc_work *ws, const rollmpc_mode_data *md, rollmpc_real *lam,
-    int count, int *iterations, int *active)
+/* Working set from the rows with positive multipliers among list[0..count); -1 if > n. */
+static int seed_from_multipliers(rollmpc_work *ws, const rollmpc_mode_data *md,
+    const rollmpc_real *lam, const int16_t *list, int count)
 {
-    const int n = md->n;
-    int i, j, it, nw = 0;
+    int j, nw = 0;
     for (j = 0; j < count; ++j) {
-        const int r = ws->set[j];
+        const int r = list ? list[j] : j;
         if (lam[r] > R_(0.0)) {
-            if (nw == n) {
+            if (nw == md->n) {
                 return -1;
             }
             ws->wset[nw++] = (int16_t)r;
         }
     }
-    if (nw == 0) {
+    return nw;
+}
+
+/* Working set from the rows violated by the unconstrained solution (K < 0); -1 if > n. */
+static int seed_from_violated(rollmpc_work *ws, const rollmpc_mode_data *md)
+{
+    int r, nw = 0;
+    for (r = 0; r < md->m; ++r) {
+        if (ws->K[r] < R_(0.0)) {
+            if (nw == md->n) {
+                return -1;
+            }
+            ws->wset[nw++] = (int16_t)r;
+        }
+    }
+    return nw;
+}
+
+/*
+ * Exact solve on the working set W = wset[0..nw), primal when W holds only input bounds,
+ * dual otherwise; drop negative multipliers, add violated rows, repeat. Returns 0 with
+ * ws->th optimal and lam set to the exact multipliers, or -1 (lam untouched).
+ */
+static int polish(rollmpc_work *ws, const rollmpc_mode_data *md, rollmpc_real *lam,
+    int nw, int *iterations, int *active)
+{
+    const int n = md->n;
+    int i, it;
+    if (nw <= 0 || nw > n) {
         return -1;
     }
     for (it = 0; it < ROLLMPC_SOLVER_POLISH_MAX; ++it) {
@@ -502,6 +527,17 @@ int rollmpc_qp_solve(rollmpc_work *ws, rollmpc_real *lam, const rollmpc_mode_dat
         }
         return finish(ws, md, lam, ROLLMPC_OPTIMAL, U);
     }
+    /* Polish first: the previous optimal active set (warm start), else the rows the
+     * unconstrained solution violates; the sweeps below run only if this fails. */
+    {
+        int nw = ROLLMPC_SOLVER_WARM_START ? seed_from_multipliers(ws, md, lam, 0, md->m) : 0;
+        if (nw == 0) {
+            nw = seed_from_violated(ws, md);
+        }
+        if (polish(ws, md, lam, nw, polish_iterations, active) == 0) {
+            return finish(ws, md, lam, ROLLMPC_OPTIMAL, U);
+        }
+    }
     for (i = 0; i < md->m; ++i) {
         ws->in_set[i] = (uint8_t)(ROLLMPC_SOLVER_REDUCED ? (ws->K[i] < ROLLMPC_SOLVER_SIGMA) : 1);
         if (!ROLLMPC_SOLVER_WARM_START || !ws->in_set[i]) {
@@ -528,7 +564,8 @@ int rollmpc_qp_solve(rollmpc_work *ws, rollmpc_real *lam, const rollmpc_mode_dat
             break;
         }
         correct(ws, md, ws->set, count, lam, 1);
-        if (polish(ws, md, lam, count, polish_iterations, active) == 0) {
+        if (polish(ws, md, lam, seed_from_multipliers(ws, md, lam, ws->set, count),
+                polish_iterations, active) == 0) {
             status = ROLLMPC_OPTIMAL;
             break;
         }
