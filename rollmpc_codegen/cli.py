@@ -80,7 +80,8 @@ def parser() -> argparse.ArgumentParser:
     t.add_argument("config")
     t.add_argument("-o", "--output", required=True, help="output directory")
     _add_precision(t)
-    t.add_argument("--steps", type=int, default=1500, help="closed-loop steps to record")
+    t.add_argument("--steps", type=int, default=6000,
+                   help="closed-loop steps to record (default: the whole scenario)")
     t.set_defaults(func=cmd_testvectors)
     return ap
 

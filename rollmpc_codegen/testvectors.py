@@ -39,7 +39,7 @@ def qp_cases_from_log(model, ctx, log, xs, count: int = 12) -> list[dict]:
 
 
 def write_test_vectors(config: str | Path, out_dir: Path, precision: str | None = None,
-                       steps: int = 2200) -> Path:
+                       steps: int = 6000) -> Path:
     model, ctx = load_model(config, precision)
     ref_ctrl = ControllerRef(ctx, [m.data for m in model.modes])
     xs = []
