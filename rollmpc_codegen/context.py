@@ -55,7 +55,7 @@ def build_model(cfg: ControllerConfig) -> ControllerModel:
         with np.errstate(over="ignore"):
             data = mode_data(mode.name, act_index, plant, L, qp, mode.u_min, mode.u_max,
                              cfg.precision)
-        for field in ("Kx", "EinvGt", "Einv_p", "S_p", "L", "A", "B"):
+        for field in ("Kx", "EinvGt", "Sinv_p", "S_p", "Ew", "L", "A", "B"):
             arr = getattr(data, field)
             if not np.all(np.isfinite(arr)):
                 raise ConfigError(f"{key}.weights", f"{field} is not finite in "
@@ -96,7 +96,7 @@ def build_context(model: ControllerModel) -> dict:
             "actuator_index": _arr(d.actuator_index),
             "observer_poles": [[p.real, p.imag] for p in mm.observer_poles],
             "A": _arr(d.A), "B": _arr(d.B), "C": _arr(d.C), "L": _arr(d.L),
-            "Kx": _arr(d.Kx), "EinvGt": _arr(d.EinvGt), "Einv_p": _arr(d.Einv_p),
+            "Kx": _arr(d.Kx), "EinvGt": _arr(d.EinvGt), "Sinv_p": _arr(d.Sinv_p), "Ew": _arr(d.Ew), "Uv": _arr(d.Uv), "T": _arr(d.T),
             "S_p": _arr(d.S_p), "V": _arr(d.V), "P2inv": _arr(d.P2inv), "nt": d.nt,
             "GEinvGt_p": _arr(d.GEinvGt_p), "Omega2": _arr(d.Omega2),
             "Phi": _arr(d.Phi), "markov": _arr(d.markov), "row_q": _arr(d.row_q),

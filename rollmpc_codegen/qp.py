@@ -8,9 +8,9 @@ q_r: an input U_i (box rows, q in [0, n)) or a predicted output (Gamma U)_k
     Hq = [[E^-1,         E^-1 Gamma'       ],
           [Gamma E^-1,   Gamma E^-1 Gamma' ]]
 
-stored as E^-1 (packed lower), E^-1 Gamma' (dense) and Gamma E^-1 Gamma' (packed lower,
-only when output rows exist).  The L/D/U split of the paper is implicit: D = diag(H),
-U = L' by symmetry.
+stored as E^-1 Gamma' (dense), Gamma E^-1 Gamma' (packed lower, only when output rows
+exist) and E^-1 itself in Woodbury form (below).  The L/D/U split of the paper is
+implicit: D = diag(H), U = L' by symmetry.
 
 The primal polish never touches E itself: with a heavy terminal weight (P2 = 1e9) the
 float entries of E (~3e5) cannot also carry its stage part (~20).  E is kept split as
@@ -18,6 +18,10 @@ float entries of E (~3e5) cannot also carry its stage part (~20).  E is kept spl
 (well conditioned), V = the terminal rows of Gamma, and (2P)^-1, so the polish solves
 the augmented system [S_FF V_F'; V_F -(2P)^-1] with a small Schur complement.  When P
 is not positive definite, the terminal term stays inside S and V is empty.
+
+With S^-1 (packed), Uv = V S^-1 and T = (2P)^-1 + V S^-1 V', Woodbury gives
+``E^-1 = S^-1 - Ew' Ew`` with ``Ew = chol(T)^-1 Uv`` (nt x n): E^-1 costs no storage of its
+own, and when few inputs are bound the polish solves with S^-1_BB instead of S_FF.
 
 The unconstrained solution uses ``theta0 = Kx x + (E^-1 Gamma') (2 Omega R)``:
 ``Kr = E^-1 F = (E^-1 Gamma')(2 Omega)``, so the reference gain needs no extra storage.
@@ -75,7 +79,10 @@ class ModeData:
     L: np.ndarray  # observer gain (nx, ny)
     Kx: np.ndarray  # (n, nx)
     EinvGt: np.ndarray  # (n, N ny)
-    Einv_p: np.ndarray  # packed lower, n(n+1)/2
+    Sinv_p: np.ndarray  # packed lower S^-1
+    Ew: np.ndarray  # (nt, n) E^-1 = S^-1 - Ew' Ew
+    Uv: np.ndarray  # (nt, n) V S^-1
+    T: np.ndarray  # (nt, nt) (2P)^-1 + V S^-1 V'
     S_p: np.ndarray  # packed lower stage Hessian (E without the terminal term when split)
     V: np.ndarray  # (nt, n) terminal rows of Gamma (nt = ny when split, else 0)
     P2inv: np.ndarray  # (nt, nt) (2P)^-1
@@ -110,6 +117,13 @@ def mode_data(name: str, actuator_index, plant: DiscretePlant, obs_gain: np.ndar
     Omega2 = np.array([2.0 * qp.Omega[i * ny:(i + 1) * ny, i * ny:(i + 1) * ny]
                        for i in range(N)])
     S, V, P2inv = qp.terminal_split()
+    Sinv = solve_refined(S, np.eye(qp.n))
+    Sinv = 0.5 * (Sinv + Sinv.T)
+    Uv = solve_refined(S, V.T).T if V.shape[0] else np.zeros((0, qp.n))
+    T = P2inv + V @ Uv.T
+    T = 0.5 * (T + T.T)
+    Ew = (np.linalg.solve(np.linalg.cholesky(T), Uv) if V.shape[0]
+          else np.zeros((0, qp.n)))
     row_q = np.where(qp.row_kind == 0, qp.row_index, qp.n + qp.row_index).astype(np.int32)
 
     def cast(a):
@@ -119,7 +133,7 @@ def mode_data(name: str, actuator_index, plant: DiscretePlant, obs_gain: np.ndar
         name=name, nx=qp.nx, nu=nu, ny=ny, N=N, n=qp.n, m=qp.m, n_yq=N * ny,
         actuator_index=np.asarray(actuator_index, dtype=np.int32),
         A=cast(plant.A), B=cast(plant.B), C=cast(plant.C), L=cast(obs_gain),
-        Kx=cast(qp.Kx), EinvGt=cast(EinvGt), Einv_p=cast(packed_lower(qp.Einv)),
+        Kx=cast(qp.Kx), EinvGt=cast(EinvGt), Sinv_p=cast(packed_lower(Sinv)), Ew=cast(Ew), Uv=cast(Uv), T=cast(T),
         S_p=cast(packed_lower(S)), V=cast(V), P2inv=cast(P2inv), GEinvGt_p=cast(packed_lower(GEinvGt)),
         Omega2=cast(Omega2), Phi=cast(qp.Phi), markov=cast(qp.markov),
         row_q=row_q, row_sign=qp.row_sign.astype(np.int32), row_c=cast(qp.c),

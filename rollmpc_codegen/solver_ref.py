@@ -84,7 +84,12 @@ class SolverRef:
             s["max_iterations"], s["polish_every"], s["polish_max"])
         self.limit = dt(1e30)
         n, nyq = md.n, md.n_yq
-        Einv = unpack_lower(md.Einv_p, n)
+        # E^-1 exactly as hq() forms it: S^-1(a, b) - sum_o Ew[o, a] Ew[o, b]
+        acc = np.zeros((n, n), md.Kx.dtype)
+        for o in range(md.nt):
+            acc = acc + np.outer(md.Ew[o], md.Ew[o])
+        self.Sinv = unpack_lower(md.Sinv_p, n)
+        Einv = self.Sinv - acc
         has_out = md.has_output_rows
         GEG = unpack_lower(md.GEinvGt_p, nyq) if has_out else np.zeros((nyq, nyq), md.Kx.dtype)
         Hq = np.block([[Einv, md.EinvGt], [md.EinvGt.T, GEG]])
@@ -166,20 +171,29 @@ class SolverRef:
         return e2, diverged
 
     def _primal_solve(self, th0, W):
-        """Mirror of primal_solve() (split form E = S + V'(2P)V): (ok, th, z)."""
+        """Mirror of primal_solve(): bounds, then the cheaper form; (ok, th, z)."""
         md = self.md
-        n, nt, dt = md.n, md.nt, md.Kx.dtype
+        n, dt = md.n, md.Kx.dtype
         th = np.zeros(n, dt)
+        dv = np.zeros(n, dt)
+        qW = md.row_q[W]
+        if np.unique(qW).size != qW.size:
+            return False, None, None
+        th[qW] = np.where(md.row_sign[W] > 0, md.row_c[W], -md.row_c[W])
+        dv[qW] = th[qW] - th0[qW]
         bound = np.zeros(n, bool)
-        for r in W:
-            q = md.row_q[r]
-            bound[q] = True
-            th[q] = md.row_c[r] if md.row_sign[r] > 0 else -md.row_c[r]
+        bound[qW] = True
+        if W.size < n - W.size:
+            return self._primal_bound(th0, W, qW, th, dv, bound)
+        return self._primal_free(th0, W, th, dv, bound)
+
+    def _primal_free(self, th0, W, th, dv, bound):
+        """Mirror of primal_solve_free()."""
+        md = self.md
+        nt, dt = md.nt, md.Kx.dtype
         F = np.flatnonzero(~bound)
         B = np.flatnonzero(bound)
         nf = F.size
-        dv = np.zeros(n, dt)
-        dv[B] = th[B] - th0[B]
         rhs = np.empty(nf, dt)
         for a, f in enumerate(F):
             rhs[a] = -seqsum(self.S[f, B] * dv[B])
@@ -208,6 +222,36 @@ class SolverRef:
         qW = md.row_q[W]
         g = seqsum_rows(np.hstack((self.S[qW] * dv[None, :], md.V[:, qW].T * nu[None, :])))
         z = np.where(md.row_sign[W] > 0, -g, g)
+        return True, th, z
+
+    def _primal_bound(self, th0, W, qW, th, dv, bound):
+        """Mirror of primal_solve_bound() (through S^-1; few bound inputs)."""
+        md = self.md
+        nt, dt, nb = md.nt, md.Kx.dtype, W.size
+        chol = np.concatenate([self.Sinv[qW[a], qW[:a + 1]] for a in range(nb)])
+        x1 = dv[qW].copy()
+        Y = np.ascontiguousarray(md.Uv[:, qW]) if nt else np.zeros((0, nb), dt)
+        if not cholesky_packed(chol, nb):
+            return False, None, None
+        chol_solve_packed(chol, nb, x1)
+        for o in range(nt):
+            chol_solve_packed(chol, nb, Y[o])
+        nu = np.zeros(nt, dt)
+        if nt:
+            small = np.empty(nt * (nt + 1) // 2, dt)
+            for o in range(nt):
+                for p in range(o + 1):
+                    small[o * (o + 1) // 2 + p] = md.T[o, p] - seqsum(md.Uv[o, qW] * Y[p])
+                nu[o] = seqsum(md.Uv[o, qW] * x1)
+            if not cholesky_packed(small, nt):
+                return False, None, None
+            chol_solve_packed(small, nt, nu)
+        beta = np.array([seqsum(Y[:, a] * nu, start=x1[a]) for a in range(nb)], dt)
+        z = np.where(md.row_sign[W] > 0, -beta, beta)
+        F = np.flatnonzero(~bound)
+        d = seqsum_rows(np.hstack((self.Sinv[np.ix_(F, qW)] * beta[None, :],
+                                   -(md.Uv[:, F].T * nu[None, :]))))
+        th[F] = th0[F] + d
         return True, th, z
 
     def _dual_solve(self, W, K):
@@ -278,14 +322,13 @@ class SolverRef:
             return self._finish(th0, th0, OPTIMAL) + (0, 0, 0)
         total, polish_its, active = 0, 0, 0
         if self.polish_on and self.polish_first:
-            W = np.flatnonzero(lam > 0) if self.warm else np.zeros(0, np.intp)
-            if W.size == 0:
-                W = np.flatnonzero(K < 0)
-            ok, th_p, act, its = self._polish(W, lam, th0, K, gam)
-            polish_its += its
-            if ok:
-                status, U = self._finish(th_p, th0, OPTIMAL)
-                return status, U, 0, polish_its, act
+            seeds = ([np.flatnonzero(lam > 0)] if self.warm else []) + [np.flatnonzero(K < 0)]
+            for W in seeds:
+                ok, th_p, act, its = self._polish(W, lam, th0, K, gam)
+                polish_its += its
+                if ok:
+                    status, U = self._finish(th_p, th0, OPTIMAL)
+                    return status, U, 0, polish_its, act
         in_set = (K < self.sigma) if self.reduced else np.ones(md.m, bool)
         if not self.warm:
             lam[:] = 0

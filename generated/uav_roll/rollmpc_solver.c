@@ -33,7 +33,14 @@ static rollmpc_real hq(const rollmpc_mode_data *md, int a, int b)
     const int n = md->n;
     if (a < n) {
         if (b < n) {
-            return (a >= b) ? md->Einv_p[ROLLMPC_TRI(a, b)] : md->Einv_p[ROLLMPC_TRI(b, a)];
+            /* Woodbury: E^-1 = S^-1 - Ew' Ew */
+            const rollmpc_real si = (a >= b) ? md->Sinv_p[ROLLMPC_TRI(a, b)] : md->Sinv_p[ROLLMPC_TRI(b, a)];
+            rollmpc_real acc = R_(0.0);
+            int o;
+            for (o = 0; o < md->nt; ++o) {
+                acc += md->Ew[o * n + a] * md->Ew[o * n + b];
+            }
+            return si - acc;
         }
         return md->EinvGt[a * md->nyq + (b - n)];
     }
@@ -249,34 +256,20 @@ static int violated_outside(rollmpc_work *ws, const rollmpc_mode_data *md,
 }
 
 /*
- * Primal solve on a working set of input-bound rows only (wset[0..nw)), in the split
- * form E = S + V'(2P)V: with d = U - th0, d_B = bounds - th0_B and nu the terminal
+ * Primal solve, free-variable form, in the split form E = S + V'(2P)V: with d = U - th0, d_B = bounds - th0_B and nu the terminal
  * multiplier step,
  *     S_FF d_F + V_F' nu = -S_FB d_B,    V d - (2P)^-1 nu = 0,
  * solved by Cholesky of S_FF and an nt x nt Schur complement. Multipliers come from the
  * gradient g = S d + V' nu as z_k = -sign_k g_{q_k}. Nothing here forms E, whose float
  * entries cannot hold a heavy terminal weight and the stage weights at once.
+ * Costs nf^3/6; primal_solve() picks it when at least half the inputs are bound.
  * Writes ws->th and ws->z; returns -1 if a factorisation breaks down.
  */
-static int primal_solve(rollmpc_work *ws, const rollmpc_mode_data *md, int nw)
+static int primal_solve_free(rollmpc_work *ws, const rollmpc_mode_data *md, int nw,
+    int nf)
 {
     const int n = md->n, nt = md->nt;
-    int i, a, c, o, p, nf = 0;
-    for (i = 0; i < n; ++i) {
-        ws->is_bound[i] = 0;
-    }
-    for (i = 0; i < nw; ++i) {
-        const int r = ws->wset[i], q = md->row_q[r];
-        ws->is_bound[q] = 1;
-        ws->th[q] = (md->row_sign[r] > 0) ? md->row_c[r] : -md->row_c[r];
-    }
-    for (i = 0; i < n; ++i) {
-        if (!ws->is_bound[i]) {
-            ws->tmp[nf++] = (int16_t)i;
-        } else {
-            ws->dv[i] = ws->th[i] - ws->th0[i];
-        }
-    }
+    int i, a, c, o, p;
     for (a = 0; a < nf; ++a) {
         const int f = ws->tmp[a];
         rollmpc_real acc = R_(0.0);
@@ -349,6 +342,115 @@ static int primal_solve(rollmpc_work *ws, const rollmpc_mode_data *md, int nw)
         ws->z[a] = (md->row_sign[r] > 0) ? -g : g;
     }
     return 0;
+}
+
+/*
+ * The same solve through S^-1 when few inputs are bound (nb < nf): with beta = g_B (the
+ * bound forces) and Uv = V S^-1, T = (2P)^-1 + V S^-1 V':
+ *     beta = S^-1_BB^-1 (d_B + Uv_B' nu),   (T - Uv_B S^-1_BB^-1 Uv_B') nu = Uv_B S^-1_BB^-1 d_B,
+ *     d = S^-1_{:,B} beta - Uv' nu,         z_k = -sign_k beta_k.
+ * Costs nb^3/6 + n nb instead of nf^3/6. ws->tmp holds the bound inputs (ascending).
+ */
+static int primal_solve_bound(rollmpc_work *ws, const rollmpc_mode_data *md, int nw)
+{
+    const int n = md->n, nt = md->nt;
+    int i, a, c, o, p;
+    for (a = 0; a < nw; ++a) {
+        const int qa = ws->tmp[a];
+        for (c = 0; c <= a; ++c) {
+            const int qc = ws->tmp[c];
+            ws->chol[ROLLMPC_TRI(a, c)] = md->Sinv_p[ROLLMPC_TRI(qa, qc)];
+        }
+        ws->rhs[a] = ws->dv[qa];
+        for (o = 0; o < nt; ++o) {
+            ws->ycol[o * ROLLMPC_N_MAX + a] = md->Uv[o * n + qa];
+        }
+    }
+    if (rollmpc_cholesky(ws->chol, nw) != 0) {
+        return -1;
+    }
+    rollmpc_chol_solve(ws->chol, nw, ws->rhs);
+    for (o = 0; o < nt; ++o) {
+        rollmpc_chol_solve(ws->chol, nw, &ws->ycol[o * ROLLMPC_N_MAX]);
+    }
+    if (nt > 0) {
+        for (o = 0; o < nt; ++o) {
+            rollmpc_real acc;
+            for (p = 0; p <= o; ++p) {
+                acc = R_(0.0);
+                for (a = 0; a < nw; ++a) {
+                    acc += md->Uv[o * n + ws->tmp[a]] * ws->ycol[p * ROLLMPC_N_MAX + a];
+                }
+                ws->tsmall[ROLLMPC_TRI(o, p)] = md->T[o * nt + p] - acc;
+            }
+            acc = R_(0.0);
+            for (a = 0; a < nw; ++a) {
+                acc += md->Uv[o * n + ws->tmp[a]] * ws->rhs[a];
+            }
+            ws->nu[o] = acc;
+        }
+        if (rollmpc_cholesky(ws->tsmall, nt) != 0) {
+            return -1;
+        }
+        rollmpc_chol_solve(ws->tsmall, nt, ws->nu);
+    }
+    for (a = 0; a < nw; ++a) { /* beta = x1 + Y nu, kept in rhs */
+        rollmpc_real acc = ws->rhs[a];
+        for (o = 0; o < nt; ++o) {
+            acc += ws->ycol[o * ROLLMPC_N_MAX + a] * ws->nu[o];
+        }
+        ws->rhs[a] = acc;
+        ws->z[a] = (md->row_sign[ws->wset[a]] > 0) ? -acc : acc;
+    }
+    for (i = 0; i < n; ++i) {
+        if (!ws->is_bound[i]) {
+            rollmpc_real acc = R_(0.0);
+            for (a = 0; a < nw; ++a) {
+                const int q = ws->tmp[a];
+                acc += ((i >= q) ? md->Sinv_p[ROLLMPC_TRI(i, q)] : md->Sinv_p[ROLLMPC_TRI(q, i)]) * ws->rhs[a];
+            }
+            for (o = 0; o < nt; ++o) {
+                acc -= md->Uv[o * n + i] * ws->nu[o];
+            }
+            ws->th[i] = ws->th0[i] + acc;
+        }
+    }
+    return 0;
+}
+
+/*
+ * Primal solve on a working set of input-bound rows only (wset[0..nw), at most one row
+ * per input): U_B at the bounds, d_B = U_B - th0_B, then the cheaper of the two forms.
+ * Writes ws->th and ws->z; returns -1 if a factorisation breaks down.
+ */
+static int primal_solve(rollmpc_work *ws, const rollmpc_mode_data *md, int nw)
+{
+    const int n = md->n;
+    int i, nf = 0;
+    for (i = 0; i < n; ++i) {
+        ws->is_bound[i] = 0;
+    }
+    for (i = 0; i < nw; ++i) {
+        const int r = ws->wset[i], q = md->row_q[r];
+        if (ws->is_bound[q]) {
+            return -1; /* both bounds of one input: not a valid working set */
+        }
+        ws->is_bound[q] = 1;
+        ws->th[q] = (md->row_sign[r] > 0) ? md->row_c[r] : -md->row_c[r];
+        ws->dv[q] = ws->th[q] - ws->th0[q];
+    }
+    if (nw < n - nw) {
+        for (i = 0; i < nw; ++i) {
+            ws->tmp[i] = md->row_q[ws->wset[i]];
+        }
+        return primal_solve_bound(ws, md, nw);
+    }
+    for (i = 0; i < n; ++i) {
+        if (!ws->is_bound[i]) {
+            ws->tmp[nf++] = (int16_t)i;
+        }
+    }
+    return primal_solve_free(ws, md, nw, nf);
 }
 
 /* Dual solve on a general working set: z = -H_WW^-1 K_W, th = th0 - E^-1 M_W' z. */
@@ -527,16 +629,15 @@ int rollmpc_qp_solve(rollmpc_work *ws, rollmpc_real *lam, const rollmpc_mode_dat
         }
         return finish(ws, md, lam, ROLLMPC_OPTIMAL, U);
     }
-    /* Polish first: the previous optimal active set (warm start), else the rows the
-     * unconstrained solution violates; the sweeps below run only if this fails. */
-    {
-        int nw = ROLLMPC_SOLVER_WARM_START ? seed_from_multipliers(ws, md, lam, 0, md->m) : 0;
-        if (nw == 0) {
-            nw = seed_from_violated(ws, md);
-        }
-        if (polish(ws, md, lam, nw, polish_iterations, active) == 0) {
-            return finish(ws, md, lam, ROLLMPC_OPTIMAL, U);
-        }
+    /* Polish first: from the previous optimal active set (warm start), then from the rows
+     * the unconstrained solution violates; the sweeps below run only if both fail. */
+    if (ROLLMPC_SOLVER_WARM_START
+        && polish(ws, md, lam, seed_from_multipliers(ws, md, lam, 0, md->m), polish_iterations,
+            active) == 0) {
+        return finish(ws, md, lam, ROLLMPC_OPTIMAL, U);
+    }
+    if (polish(ws, md, lam, seed_from_violated(ws, md), polish_iterations, active) == 0) {
+        return finish(ws, md, lam, ROLLMPC_OPTIMAL, U);
     }
     for (i = 0; i < md->m; ++i) {
         ws->in_set[i] = (uint8_t)(ROLLMPC_SOLVER_REDUCED ? (ws->K[i] < ROLLMPC_SOLVER_SIGMA) : 1);

@@ -14,7 +14,10 @@ typedef struct {
     const rollmpc_real *A, *B, *C, *L; /**< Discrete model and observer gain. */
     const rollmpc_real *Kx;      /**< [n][nx] unconstrained state gain. */
     const rollmpc_real *EinvGt;  /**< [n][nyq] E^-1 Gamma'. */
-    const rollmpc_real *Einv_p;  /**< E^-1, packed. */
+    const rollmpc_real *Sinv_p;  /**< S^-1, packed. */
+    const rollmpc_real *Ew;      /**< [nt][n]: E^-1 = S^-1 - Ew' Ew (Woodbury). */
+    const rollmpc_real *Uv;      /**< [nt][n] V S^-1. */
+    const rollmpc_real *T;       /**< [nt][nt] (2P)^-1 + V S^-1 V'. */
     const rollmpc_real *S_p;     /**< Stage Hessian S (E = S + V'(2P)V), packed. */
     const rollmpc_real *V;       /**< [nt][n] terminal rows of Gamma (nt = 0: none). */
     const rollmpc_real *P2inv;   /**< [nt][nt] (2P)^-1. */
