@@ -101,6 +101,8 @@ def build_context(model: ControllerModel) -> dict:
             "GEinvGt_p": _arr(d.GEinvGt_p), "Omega2": _arr(d.Omega2),
             "Phi": _arr(d.Phi), "markov": _arr(d.markov), "row_q": _arr(d.row_q),
             "row_sign": _arr(d.row_sign), "row_c": _arr(d.row_c),
+            "row_next": _arr(d.row_next), "colsum": _arr(d.colsum),
+            "out_bound": _arr(d.out_bound),
             "u_min": _arr(d.u_min), "u_max": _arr(d.u_max),
             "cond_E": float(np.linalg.cond(mm.qp.E)),
         })

@@ -23,8 +23,15 @@ With S^-1 (packed), Uv = V S^-1 and T = (2P)^-1 + V S^-1 V', Woodbury gives
 ``E^-1 = S^-1 - Ew' Ew`` with ``Ew = chol(T)^-1 Uv`` (nt x n): E^-1 costs no storage of its
 own, and when few inputs are bound the polish solves with S^-1_BB instead of S_FF.
 
-The unconstrained solution uses ``theta0 = Kx x + (E^-1 Gamma') (2 Omega R)``:
-``Kr = E^-1 F = (E^-1 Gamma')(2 Omega)``, so the reference gain needs no extra storage.
+The unconstrained solution uses ``theta0 = Kx x + (E^-1 Gamma') w`` with ``w = 2 Omega R``
+(``Kr = E^-1 F = (E^-1 Gamma')(2 Omega)``, so the reference gain needs no storage of its own).
+A held reference makes w constant over the stages 0..N-2, so the C sums the columns of
+E^-1 Gamma' per run of equal w and takes the longest run from the precomputed column sum
+``colsum`` (one n-vector per output): n (nx + ny) operations instead of n (nx + N ny).
+
+``out_bound`` (one value per predicted output) bounds ``|(Gamma th)_k| <= out_bound_k
+max_i |th_i|``; when that certifies every output row, the C skips the N^2/2 prediction.
+``row_next`` maps each row to the same constraint one stage later, for the shifted warm start.
 
 Both the renderer and the NumPy reference read these arrays, so the numbers the C is
 compiled with and the numbers the reference computes with are the same by construction.
@@ -93,6 +100,9 @@ class ModeData:
     row_q: np.ndarray  # (m,) quantity of each row
     row_sign: np.ndarray  # (m,) +-1
     row_c: np.ndarray  # (m,) constant part c of eq. (6)
+    row_next: np.ndarray  # (m,) the same constraint one stage later (itself at the last)
+    colsum: np.ndarray  # (ny, n) sum of the E^-1 Gamma' columns of the stages 0..N-2
+    out_bound: np.ndarray  # (N ny,) |(Gamma th)_k| <= out_bound_k max|th| (inflated)
     u_min: np.ndarray  # (nu,)
     u_max: np.ndarray
 
@@ -125,16 +135,46 @@ def mode_data(name: str, actuator_index, plant: DiscretePlant, obs_gain: np.ndar
     Ew = (np.linalg.solve(np.linalg.cholesky(T), Uv) if V.shape[0]
           else np.zeros((0, qp.n)))
     row_q = np.where(qp.row_kind == 0, qp.row_index, qp.n + qp.row_index).astype(np.int32)
+    colsum = (EinvGt.astype(np.longdouble)[:, :(N - 1) * ny].reshape(qp.n, N - 1, ny)
+              .sum(axis=1).T.astype(np.float64))
 
     def cast(a):
         return np.ascontiguousarray(np.asarray(a, dtype=np.float64).astype(dt))
 
+    markov = cast(qp.markov)
     return ModeData(
         name=name, nx=qp.nx, nu=nu, ny=ny, N=N, n=qp.n, m=qp.m, n_yq=N * ny,
         actuator_index=np.asarray(actuator_index, dtype=np.int32),
         A=cast(plant.A), B=cast(plant.B), C=cast(plant.C), L=cast(obs_gain),
-        Kx=cast(qp.Kx), EinvGt=cast(EinvGt), Sinv_p=cast(packed_lower(Sinv)), Ew=cast(Ew), Uv=cast(Uv), T=cast(T),
-        S_p=cast(packed_lower(S)), V=cast(V), P2inv=cast(P2inv), GEinvGt_p=cast(packed_lower(GEinvGt)),
-        Omega2=cast(Omega2), Phi=cast(qp.Phi), markov=cast(qp.markov),
-        row_q=row_q, row_sign=qp.row_sign.astype(np.int32), row_c=cast(qp.c),
+        Kx=cast(qp.Kx), EinvGt=cast(EinvGt), Sinv_p=cast(packed_lower(Sinv)), Ew=cast(Ew),
+        Uv=cast(Uv), T=cast(T), S_p=cast(packed_lower(S)), V=cast(V), P2inv=cast(P2inv),
+        GEinvGt_p=cast(packed_lower(GEinvGt)), Omega2=cast(Omega2), Phi=cast(qp.Phi),
+        markov=markov, row_q=row_q, row_sign=qp.row_sign.astype(np.int32), row_c=cast(qp.c),
+        row_next=next_stage_rows(row_q, qp.row_sign, qp.n, nu, ny),
+        colsum=cast(colsum), out_bound=cast(output_bound(markov, dt)),
         u_min=cast(u_min), u_max=cast(u_max))
+
+
+def next_stage_rows(row_q: np.ndarray, row_sign: np.ndarray, n: int, nu: int,
+                    ny: int) -> np.ndarray:
+    """Row of the same constraint one stage later (a row of the last stage maps to itself)."""
+    where = {(int(q), int(s)): r for r, (q, s) in enumerate(zip(row_q, row_sign))}
+    out = np.empty(row_q.size, dtype=np.int32)
+    for r, (q, s) in enumerate(zip(row_q, row_sign)):
+        step = nu if q < n else ny
+        out[r] = where.get((int(q) + step, int(s)), r)
+    return out
+
+
+def output_bound(markov: np.ndarray, dt) -> np.ndarray:
+    """g_k with |(Gamma th)_k| <= g_k max|th| for the stored (rounded) Markov parameters.
+
+    g_k = sum of |C A^l B| over the lags of output k's row of Gamma, inflated by
+    (1 + 8 N eps) so that the on-line product g_k * max|th| (one rounding) and the
+    rounding of the exact prediction (N ny nu terms) cannot defeat the certificate.
+    """
+    N, ny, nu = markov.shape
+    per_lag = np.abs(markov.astype(np.float64)).sum(axis=2)  # (N, ny)
+    g = np.cumsum(per_lag, axis=0).reshape(N * ny)
+    eps = float(np.finfo(dt).eps)
+    return g * (1.0 + 8.0 * N * max(nu, 1) * eps)

@@ -6,6 +6,10 @@ the storage dtype (float32 where the C uses float), and *sequential* sums (``seq
 below, never BLAS or pairwise summation).  The C is compiled with
 ``-ffp-contract=off`` so that it, too, rounds every product and every sum.
 Agreement is therefore bit for bit, which the tests check.
+
+Where the C skips work that cannot change a result (the output prediction when
+``outputs_certified()`` proves no output row can be violated), the reference does the
+work anyway: an unsound certificate would then show up as a bit-exactness failure.
 """
 from __future__ import annotations
 
@@ -114,15 +118,33 @@ class SolverRef:
 
     # -- pieces mirroring the static functions of solver.c.j2 ------------------------
     def _unconstrained(self, x, r):
+        """Mirror of unconstrained(): th0 summed per run of equal w (see reference_runs())."""
         md, ny = self.md, self.md.ny
         rr = r.reshape(md.N, ny)
         w = np.empty(md.n_yq, md.Kx.dtype)
         for k in range(md.n_yq):
             stage, a = divmod(k, ny)
             w[k] = seqsum(md.Omega2[stage, a, :] * rr[stage])
-        th0 = seqsum_rows(np.hstack((md.Kx * x[None, :], md.EinvGt * w[None, :])))
+        W = w.reshape(md.N, ny)
+        last = md.N - 1
+        starts = [st for st in range(last) if st == 0 or np.any(W[st] != W[st - 1])]
+        bounds = list(zip(starts, starts[1:] + [last]))
+        lengths = [e - b for b, e in bounds]
+        longest = int(np.argmax(lengths)) if lengths else -1
+        G = md.EinvGt.reshape(md.n, md.N, ny)
+        acc = seqsum_rows(md.Kx * x[None, :])
+        for a in range(ny):
+            other = np.zeros(md.n, md.Kx.dtype)
+            for j, (b, e) in enumerate(bounds):
+                if j != longest:
+                    s = seqsum_rows(G[:, b:e, a])
+                    acc = acc + W[b, a] * s
+                    other = other + s
+            if longest >= 0:
+                acc = acc + W[bounds[longest][0], a] * (md.colsum[a] - other)
+            acc = acc + G[:, last, a] * W[last, a]
         px = seqsum_rows(md.Phi * x[None, :]) if self.has_out else None
-        return th0, px
+        return acc, px
 
     def _predict(self, th):
         md = self.md
@@ -322,7 +344,8 @@ class SolverRef:
             return self._finish(th0, th0, OPTIMAL) + (0, 0, 0)
         total, polish_its, active = 0, 0, 0
         if self.polish_on and self.polish_first:
-            seeds = ([np.flatnonzero(lam > 0)] if self.warm else []) + [np.flatnonzero(K < 0)]
+            shifted = np.flatnonzero(lam[md.row_next] > 0)
+            seeds = ([shifted] if self.warm else []) + [np.flatnonzero(K < 0)]
             for W in seeds:
                 ok, th_p, act, its = self._polish(W, lam, th0, K, gam)
                 polish_its += its

@@ -63,11 +63,13 @@ typedef struct {
     rollmpc_real nu[ROLLMPC_NT_MAX];     /**< Terminal multiplier step. */
     rollmpc_real xn[ROLLMPC_NX_MAX];    /**< Observer: next state. */
     rollmpc_real innov[ROLLMPC_N_OUTPUTS]; /**< Observer: innovation. */
+    int16_t run[ROLLMPC_HORIZON + 1];       /**< First stages of the runs of equal reference. */
     int16_t set[ROLLMPC_M_MAX];              /**< Rows of the sweep set. */
     int16_t wset[ROLLMPC_N_MAX];             /**< Rows of the polish working set. */
     int16_t tmp[ROLLMPC_N_MAX];              /**< Scratch index list. */
     uint8_t in_set[ROLLMPC_M_MAX];           /**< Membership flags of the sweep set. */
     uint8_t is_bound[ROLLMPC_N_MAX];         /**< Primal polish: input fixed at a bound. */
+    int out_slacks_ok;                            /**< K of the output rows is computed. */
 } rollmpc_work;
 
 /** Controller instance. Complete here so firmware can allocate it statically. */

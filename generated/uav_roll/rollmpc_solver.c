@@ -72,27 +72,96 @@ static rollmpc_real s_at(const rollmpc_mode_data *md, int a, int b)
     return (a >= b) ? md->S_p[ROLLMPC_TRI(a, b)] : md->S_p[ROLLMPC_TRI(b, a)];
 }
 
-/* th0 = Kx x + E^-1 G' (2 Omega r); px = Phi x (output rows only). */
+/*
+ * sum_i S(q, i) v_i over i = 0..n-1 in index order: row q of the packed triangle up to the
+ * diagonal, then column q below it.
+ */
+static rollmpc_real s_row_dot(const rollmpc_mode_data *md, int q, const rollmpc_real *v)
+{
+    const rollmpc_real *row = &md->S_p[ROLLMPC_TRI(q, 0)];
+    rollmpc_real acc = R_(0.0);
+    int i, off = ROLLMPC_TRI(q + 1, q);
+    for (i = 0; i <= q; ++i) {
+        acc += row[i] * v[i];
+    }
+    for (i = q + 1; i < md->n; ++i) {
+        acc += md->S_p[off] * v[i];
+        off += i + 1;
+    }
+    return acc;
+}
+
+/*
+ * Runs of equal w over the stages 0..N-2: ws->run[0..count) are their first stages and
+ * ws->run[count] = N-1. Returns count; *longest is the first longest run (-1 if none).
+ */
+static int reference_runs(rollmpc_work *ws, const rollmpc_mode_data *md, int *longest)
+{
+    const int ny = md->ny, last = md->nyq / md->ny - 1;
+    int stage, a, j, count = 0, best = -1, best_len = 0;
+    for (stage = 0; stage < last; ++stage) {
+        int differs = (stage == 0);
+        for (a = 0; a < ny && !differs; ++a) {
+            const rollmpc_real p = ws->w[(stage - 1) * ny + a], q = ws->w[stage * ny + a];
+            differs = (p < q) || (p > q);
+        }
+        if (differs) {
+            ws->run[count++] = (int16_t)stage;
+        }
+    }
+    ws->run[count] = (int16_t)last;
+    for (j = 0; j < count; ++j) {
+        const int len = ws->run[j + 1] - ws->run[j];
+        if (len > best_len) {
+            best_len = len;
+            best = j;
+        }
+    }
+    *longest = best;
+    return count;
+}
+
+/*
+ * th0 = Kx x + E^-1 G' w with w = 2 Omega r; px = Phi x (output rows only).
+ * The columns of E^-1 G' are summed per run of equal w; the longest run's sum comes from
+ * colsum minus the others, so a held reference costs n (nx + 2 ny) instead of n (nx + N ny).
+ */
 static void unconstrained(rollmpc_work *ws, const rollmpc_mode_data *md,
     const rollmpc_real *x, const rollmpc_real *r)
 {
-    const int ny = md->ny, nyq = md->nyq;
-    int i, k, l;
+    const int n = md->n, ny = md->ny, nyq = md->nyq, last = md->nyq / md->ny - 1;
+    int i, j, k, l, a, stage, nruns, longest;
     for (k = 0; k < nyq; ++k) {
-        const int stage = k / ny, a = k % ny;
+        const int st = k / ny, b = k % ny;
         rollmpc_real acc = R_(0.0);
         for (l = 0; l < ny; ++l) {
-            acc += md->Omega2[(stage * ny + a) * ny + l] * r[stage * ny + l];
+            acc += md->Omega2[(st * ny + b) * ny + l] * r[st * ny + l];
         }
         ws->w[k] = acc;
     }
-    for (i = 0; i < md->n; ++i) {
+    nruns = reference_runs(ws, md, &longest);
+    for (i = 0; i < n; ++i) {
+        const rollmpc_real *row = &md->EinvGt[i * nyq];
         rollmpc_real acc = R_(0.0);
         for (l = 0; l < md->nx; ++l) {
             acc += md->Kx[i * md->nx + l] * x[l];
         }
-        for (k = 0; k < nyq; ++k) {
-            acc += md->EinvGt[i * nyq + k] * ws->w[k];
+        for (a = 0; a < ny; ++a) {
+            rollmpc_real other = R_(0.0);
+            for (j = 0; j < nruns; ++j) {
+                if (j != longest) {
+                    rollmpc_real sum = R_(0.0);
+                    for (stage = ws->run[j]; stage < ws->run[j + 1]; ++stage) {
+                        sum += row[stage * ny + a];
+                    }
+                    acc += ws->w[ws->run[j] * ny + a] * sum;
+                    other += sum;
+                }
+            }
+            if (longest >= 0) {
+                acc += ws->w[ws->run[longest] * ny + a] * (md->colsum[a * n + i] - other);
+            }
+            acc += row[last * ny + a] * ws->w[last * ny + a];
         }
         ws->th0[i] = acc;
     }
@@ -133,24 +202,70 @@ static rollmpc_real row_value(const rollmpc_work *ws, const rollmpc_mode_data *m
     return (q < md->n) ? th[q] : ws->yv[q - md->n];
 }
 
-/* gamma = c + W x and K = gamma - M th0 for every row; returns the number with K < 0. */
-static int slacks(rollmpc_work *ws, const rollmpc_mode_data *md)
+/*
+ * 1 if no output row can be violated at th: |(Gamma th)_k| <= out_bound_k max|th| <= gamma_r
+ * (out_bound carries the rounding margin), so the N^2/2 prediction can be skipped.
+ */
+static int outputs_certified(const rollmpc_work *ws, const rollmpc_mode_data *md,
+    const rollmpc_real *th)
 {
-    int r, count = 0;
-    if (md->GEinvGt_p != 0) {
-        predict_outputs(ws, md, ws->th0);
+    rollmpc_real thmax = R_(0.0);
+    int i, r;
+    for (i = 0; i < md->n; ++i) {
+        const rollmpc_real v = ROLLMPC_FABS(th[i]);
+        thmax = (v > thmax) ? v : thmax;
     }
     for (r = 0; r < md->m; ++r) {
         const int q = md->row_q[r];
-        const rollmpc_real v = row_value(ws, md, ws->th0, r);
+        if (q >= md->n && !(md->out_bound[q - md->n] * thmax <= ws->gam[r])) {
+            return 0;
+        }
+    }
+    return 1;
+}
+
+/* K = gamma - M th0 of the output rows (needs the N^2/2 prediction of th0). */
+static void output_slacks(rollmpc_work *ws, const rollmpc_mode_data *md)
+{
+    int r;
+    if (ws->out_slacks_ok) {
+        return;
+    }
+    predict_outputs(ws, md, ws->th0);
+    for (r = 0; r < md->m; ++r) {
+        const int q = md->row_q[r];
+        if (q >= md->n) {
+            const rollmpc_real v = ws->yv[q - md->n];
+            ws->K[r] = (md->row_sign[r] > 0) ? ws->gam[r] - v : ws->gam[r] + v;
+        }
+    }
+    ws->out_slacks_ok = 1;
+}
+
+/*
+ * gamma = c + W x for every row and K = gamma - M th0; returns the number with K < 0.
+ * When the outputs are certified at th0, their K (all >= 0) is left to output_slacks(),
+ * which whatever needs it calls first.
+ */
+static int slacks(rollmpc_work *ws, const rollmpc_mode_data *md)
+{
+    int r, count = 0;
+    for (r = 0; r < md->m; ++r) {
+        const int q = md->row_q[r];
         rollmpc_real g = md->row_c[r];
         if (q >= md->n) {
             g = (md->row_sign[r] > 0) ? g - ws->px[q - md->n] : g + ws->px[q - md->n];
+        } else {
+            ws->K[r] = (md->row_sign[r] > 0) ? g - ws->th0[q] : g + ws->th0[q];
+            count += (ws->K[r] < R_(0.0));
         }
         ws->gam[r] = g;
-        ws->K[r] = (md->row_sign[r] > 0) ? g - v : g + v;
-        if (ws->K[r] < R_(0.0)) {
-            ++count;
+    }
+    ws->out_slacks_ok = md->GEinvGt_p == 0;
+    if (!ws->out_slacks_ok && !outputs_certified(ws, md, ws->th0)) {
+        output_slacks(ws, md);
+        for (r = 0; r < md->m; ++r) {
+            count += (md->row_q[r] >= md->n && ws->K[r] < R_(0.0));
         }
     }
     return count;
@@ -235,7 +350,8 @@ static int violated_outside(rollmpc_work *ws, const rollmpc_mode_data *md,
     const rollmpc_real *th, const int16_t *list, int count, int16_t *out, int cap)
 {
     int r, p = 0, nout = 0;
-    if (md->GEinvGt_p != 0) {
+    const int outputs = md->GEinvGt_p != 0 && !outputs_certified(ws, md, th);
+    if (outputs) {
         predict_outputs(ws, md, th);
     }
     for (r = 0; r < md->m; ++r) {
@@ -245,7 +361,7 @@ static int violated_outside(rollmpc_work *ws, const rollmpc_mode_data *md,
         if (p < count && list[p] == r) {
             continue;
         }
-        if (row_violated(ws, md, th, r)) {
+        if ((outputs || md->row_q[r] < md->n) && row_violated(ws, md, th, r)) {
             if (nout == cap) {
                 return cap + 1;
             }
@@ -272,13 +388,7 @@ static int primal_solve_free(rollmpc_work *ws, const rollmpc_mode_data *md, int 
     int i, a, c, o, p;
     for (a = 0; a < nf; ++a) {
         const int f = ws->tmp[a];
-        rollmpc_real acc = R_(0.0);
-        for (i = 0; i < n; ++i) {
-            if (ws->is_bound[i]) {
-                acc += s_at(md, f, i) * ws->dv[i];
-            }
-        }
-        ws->rhs[a] = -acc;
+        ws->rhs[a] = -s_row_dot(md, f, ws->dv); /* dv is 0 on the free inputs here */
         for (c = 0; c <= a; ++c) {
             ws->chol[ROLLMPC_TRI(a, c)] = s_at(md, f, ws->tmp[c]);
         }
@@ -332,10 +442,7 @@ static int primal_solve_free(rollmpc_work *ws, const rollmpc_mode_data *md, int 
     }
     for (a = 0; a < nw; ++a) {
         const int r = ws->wset[a], q = md->row_q[r];
-        rollmpc_real g = R_(0.0);
-        for (i = 0; i < n; ++i) {
-            g += s_at(md, q, i) * ws->dv[i];
-        }
+        rollmpc_real g = s_row_dot(md, q, ws->dv);
         for (o = 0; o < nt; ++o) {
             g += md->V[o * n + q] * ws->nu[o];
         }
@@ -429,6 +536,7 @@ static int primal_solve(rollmpc_work *ws, const rollmpc_mode_data *md, int nw)
     int i, nf = 0;
     for (i = 0; i < n; ++i) {
         ws->is_bound[i] = 0;
+        ws->dv[i] = R_(0.0);
     }
     for (i = 0; i < nw; ++i) {
         const int r = ws->wset[i], q = md->row_q[r];
@@ -457,6 +565,7 @@ static int primal_solve(rollmpc_work *ws, const rollmpc_mode_data *md, int nw)
 static int dual_solve(rollmpc_work *ws, const rollmpc_mode_data *md, int nw)
 {
     int i, j;
+    output_slacks(ws, md);
     for (i = 0; i < nw; ++i) {
         for (j = 0; j <= i; ++j) {
             ws->chol[ROLLMPC_TRI(i, j)] = h_rows(md, ws->wset[i], ws->wset[j]);
@@ -487,12 +596,31 @@ static int seed_from_multipliers(rollmpc_work *ws, const rollmpc_mode_data *md,
     return nw;
 }
 
+/*
+ * Working set from the previous optimal active set shifted one stage along the horizon
+ * (row r joins when its next-stage row was active): the receding-horizon guess.
+ */
+static int seed_shifted(rollmpc_work *ws, const rollmpc_mode_data *md,
+    const rollmpc_real *lam)
+{
+    int r, nw = 0;
+    for (r = 0; r < md->m; ++r) {
+        if (lam[md->row_next[r]] > R_(0.0)) {
+            if (nw == md->n) {
+                return -1;
+            }
+            ws->wset[nw++] = (int16_t)r;
+        }
+    }
+    return nw;
+}
+
 /* Working set from the rows violated by the unconstrained solution (K < 0); -1 if > n. */
 static int seed_from_violated(rollmpc_work *ws, const rollmpc_mode_data *md)
 {
     int r, nw = 0;
     for (r = 0; r < md->m; ++r) {
-        if (ws->K[r] < R_(0.0)) {
+        if ((ws->out_slacks_ok || md->row_q[r] < md->n) && ws->K[r] < R_(0.0)) {
             if (nw == md->n) {
                 return -1;
             }
@@ -632,13 +760,13 @@ int rollmpc_qp_solve(rollmpc_work *ws, rollmpc_real *lam, const rollmpc_mode_dat
     /* Polish first: from the previous optimal active set (warm start), then from the rows
      * the unconstrained solution violates; the sweeps below run only if both fail. */
     if (ROLLMPC_SOLVER_WARM_START
-        && polish(ws, md, lam, seed_from_multipliers(ws, md, lam, 0, md->m), polish_iterations,
-            active) == 0) {
+        && polish(ws, md, lam, seed_shifted(ws, md, lam), polish_iterations, active) == 0) {
         return finish(ws, md, lam, ROLLMPC_OPTIMAL, U);
     }
     if (polish(ws, md, lam, seed_from_violated(ws, md), polish_iterations, active) == 0) {
         return finish(ws, md, lam, ROLLMPC_OPTIMAL, U);
     }
+    output_slacks(ws, md);
     for (i = 0; i < md->m; ++i) {
         ws->in_set[i] = (uint8_t)(ROLLMPC_SOLVER_REDUCED ? (ws->K[i] < ROLLMPC_SOLVER_SIGMA) : 1);
         if (!ROLLMPC_SOLVER_WARM_START || !ws->in_set[i]) {
@@ -673,8 +801,11 @@ int rollmpc_qp_solve(rollmpc_work *ws, rollmpc_real *lam, const rollmpc_mode_dat
         correct(ws, md, ws->set, count, lam, 1);
         nviol = violated_outside(ws, md, ws->th, ws->set, 0, ws->tmp, 0);
         if (ROLLMPC_SOLVER_REDUCED && nviol != 0) {
+            /* ws->yv holds Gamma th unless the outputs were certified (then none is violated) */
+            const int outputs = md->GEinvGt_p != 0 && !outputs_certified(ws, md, ws->th);
             for (i = 0; i < md->m; ++i) {
-                if (!ws->in_set[i] && row_violated(ws, md, ws->th, i)) {
+                if (!ws->in_set[i] && (outputs || md->row_q[i] < md->n)
+                    && row_violated(ws, md, ws->th, i)) {
                     ws->in_set[i] = 1;
                     ++added;
                 }

@@ -28,6 +28,9 @@ typedef struct {
     const int16_t *row_q;             /**< [m] quantity of each row (U index, or n + Y index). */
     const int8_t *row_sign;           /**< [m] -1 lower / +1 upper bound row. */
     const rollmpc_real *row_c;   /**< [m] constant right-hand side c. */
+    const int16_t *row_next;          /**< [m] same constraint one stage later (shifted warm start). */
+    const rollmpc_real *colsum;  /**< [ny][n] sum of the E^-1 Gamma' columns of stages 0..N-2. */
+    const rollmpc_real *out_bound; /**< [nyq] |(Gamma th)_k| <= out_bound[k] max|th|. */
     const rollmpc_real *u_min, *u_max; /**< [nu] input bounds. */
 } rollmpc_mode_data;
 
