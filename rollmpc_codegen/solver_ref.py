@@ -37,6 +37,26 @@ def seqsum_rows(P: np.ndarray) -> np.ndarray:
     return np.add.accumulate(np.hstack((head, P)), axis=1)[:, -1]
 
 
+def dot4_rows(P: np.ndarray) -> np.ndarray:
+    """Row-wise mirror of the C ``dot4``: lanes i mod 4, the tail into lane 0,
+    combined as (s0 + s1) + (s2 + s3)."""
+    rows, length = P.shape
+    main = length - length % 4
+    lanes = [seqsum_rows(P[:, j:main:4]) for j in range(4)]
+    s0 = np.add.accumulate(np.hstack((lanes[0][:, None], P[:, main:])), axis=1)[:, -1]
+    return (s0 + lanes[1]) + (lanes[2] + lanes[3])
+
+
+def s_row_dots(S: np.ndarray, rows, v: np.ndarray) -> np.ndarray:
+    """Mirror of ``s_row_dot`` for each q in ``rows``: dot4 up to the diagonal, dot4 below."""
+    out = np.empty(len(rows), S.dtype)
+    for j, q in enumerate(rows):
+        head = dot4_rows((S[q, :q + 1] * v[:q + 1])[None, :])[0]
+        tail = dot4_rows((S[q, q + 1:] * v[q + 1:])[None, :])[0]
+        out[j] = head + tail
+    return out
+
+
 def cholesky_packed(a: np.ndarray, n: int) -> bool:
     """Mirror of ``P_cholesky`` (in place on the packed array); False on a bad pivot."""
     dt = a.dtype
@@ -218,7 +238,7 @@ class SolverRef:
         nf = F.size
         rhs = np.empty(nf, dt)
         for a, f in enumerate(F):
-            rhs[a] = -seqsum(self.S[f, B] * dv[B])
+            rhs[a] = -s_row_dots(self.S, [f], dv)[0]  # dv is 0 on the free inputs here
         Y = np.ascontiguousarray(md.V[:, F]) if nt else np.zeros((0, nf), dt)
         if nf:
             chol = np.concatenate([self.S[F[a], F[:a + 1]] for a in range(nf)])
@@ -242,7 +262,8 @@ class SolverRef:
             dv[f] = seqsum(-(Y[:, a] * nu), start=rhs[a])
             th[f] = th0[f] + dv[f]
         qW = md.row_q[W]
-        g = seqsum_rows(np.hstack((self.S[qW] * dv[None, :], md.V[:, qW].T * nu[None, :])))
+        g = s_row_dots(self.S, qW, dv)
+        g = np.add.accumulate(np.hstack((g[:, None], md.V[:, qW].T * nu[None, :])), axis=1)[:, -1]
         z = np.where(md.row_sign[W] > 0, -g, g)
         return True, th, z
 

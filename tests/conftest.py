@@ -1,10 +1,16 @@
 """Shared fixtures: the paper's controller in both precisions, built once per session."""
 from __future__ import annotations
 
+import os
 import shutil
 from pathlib import Path
 
 import pytest
+
+# one BLAS thread (as `make test` sets): the QPs are small and threaded OpenBLAS is ~10x
+# slower on the 2-core machines under load; effective when numpy is not imported yet
+os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
+os.environ.setdefault("OMP_NUM_THREADS", "1")
 
 ROOT = Path(__file__).resolve().parents[1]
 UAV = ROOT / "examples" / "uav_roll.yaml"
@@ -76,5 +82,16 @@ def variant_config(tmp_path: Path, name: str = "variant", **solver) -> Path:
     data = yaml.safe_load(UAV.read_text())
     data["solver"] = {**data.get("solver", {}), **solver}
     path = tmp_path / f"{name}.yaml"
+    path.write_text(yaml.safe_dump(data, sort_keys=False))
+    return path
+
+
+def short_uav_config(tmp_path: Path, horizon: int = 20, name: str = "uav_short", **solver) -> Path:
+    """The UAV config with a shorter horizon: same plants and templates, small data (fast builds)."""
+    import yaml
+
+    path = variant_config(tmp_path, name, **solver)
+    data = yaml.safe_load(path.read_text())
+    data["horizon"] = horizon
     path.write_text(yaml.safe_dump(data, sort_keys=False))
     return path

@@ -73,22 +73,51 @@ static rollmpc_real s_at(const rollmpc_mode_data *md, int a, int b)
 }
 
 /*
- * sum_i S(q, i) v_i over i = 0..n-1 in index order: row q of the packed triangle up to the
- * diagonal, then column q below it.
+ * sum_i a_i b_i in four interleaved partial sums (lane i mod 4, the tail into lane 0),
+ * combined as (s0 + s1) + (s2 + s3): the same rounding as the reference, and four
+ * independent add chains instead of one.
+ */
+static rollmpc_real dot4(const rollmpc_real *a, const rollmpc_real *b, int len)
+{
+    rollmpc_real s0 = R_(0.0), s1 = R_(0.0), s2 = R_(0.0), s3 = R_(0.0);
+    int i;
+    for (i = 0; i + 3 < len; i += 4) {
+        s0 += a[i] * b[i];
+        s1 += a[i + 1] * b[i + 1];
+        s2 += a[i + 2] * b[i + 2];
+        s3 += a[i + 3] * b[i + 3];
+    }
+    for (; i < len; ++i) {
+        s0 += a[i] * b[i];
+    }
+    return (s0 + s1) + (s2 + s3);
+}
+
+/*
+ * sum_i S(q, i) v_i: dot4 over row q of the packed triangle up to the diagonal, plus the
+ * same four-lane sum down column q below it.
  */
 static rollmpc_real s_row_dot(const rollmpc_mode_data *md, int q, const rollmpc_real *v)
 {
-    const rollmpc_real *row = &md->S_p[ROLLMPC_TRI(q, 0)];
-    rollmpc_real acc = R_(0.0);
-    int i, off = ROLLMPC_TRI(q + 1, q);
-    for (i = 0; i <= q; ++i) {
-        acc += row[i] * v[i];
+    const rollmpc_real *sp = md->S_p;
+    const rollmpc_real head = dot4(&sp[ROLLMPC_TRI(q, 0)], v, q + 1);
+    rollmpc_real s0 = R_(0.0), s1 = R_(0.0), s2 = R_(0.0), s3 = R_(0.0);
+    int i = q + 1, off = ROLLMPC_TRI(q + 1, q);
+    for (; i + 3 < md->n; i += 4) {
+        s0 += sp[off] * v[i];
+        off += i + 1;
+        s1 += sp[off] * v[i + 1];
+        off += i + 2;
+        s2 += sp[off] * v[i + 2];
+        off += i + 3;
+        s3 += sp[off] * v[i + 3];
+        off += i + 4;
     }
-    for (i = q + 1; i < md->n; ++i) {
-        acc += md->S_p[off] * v[i];
+    for (; i < md->n; ++i) {
+        s0 += sp[off] * v[i];
         off += i + 1;
     }
-    return acc;
+    return head + ((s0 + s1) + (s2 + s3));
 }
 
 /*
