@@ -189,6 +189,14 @@ class SolverRef:
         tol = self.tol * np.where(ag > self.one, ag, self.one)
         return viol > tol
 
+    def _violated_outside(self, th, gam, W):
+        """Mirror of violated_outside(): violated input rows first, output rows only if none."""
+        viol = self._violated(th, gam)
+        viol[W] = False
+        box = self.md.row_q < self.md.n
+        first = np.flatnonzero(viol & box)
+        return first if first.size else np.flatnonzero(viol)
+
     def _correct(self, th0, rows, mult):
         sel = mult > 0
         rows, mult = rows[sel], mult[sel]
@@ -213,7 +221,7 @@ class SolverRef:
         return e2, diverged
 
     def _primal_solve(self, th0, W):
-        """Mirror of primal_solve(): bounds, then the cheaper form; (ok, th, z)."""
+        """Mirror of primal_solve(): bounds, then the cheaper form; (ok, th, z or None)."""
         md = self.md
         n, dt = md.n, md.Kx.dtype
         th = np.zeros(n, dt)
@@ -261,11 +269,17 @@ class SolverRef:
         for a, f in enumerate(F):
             dv[f] = seqsum(-(Y[:, a] * nu), start=rhs[a])
             th[f] = th0[f] + dv[f]
+        self._free_state = (dv, nu)
+        return True, th, None
+
+    def _free_multipliers(self, W):
+        """Mirror of free_multipliers() for the last free-form solve."""
+        md = self.md
+        dv, nu = self._free_state
         qW = md.row_q[W]
         g = s_row_dots(self.S, qW, dv)
         g = np.add.accumulate(np.hstack((g[:, None], md.V[:, qW].T * nu[None, :])), axis=1)[:, -1]
-        z = np.where(md.row_sign[W] > 0, -g, g)
-        return True, th, z
+        return np.where(md.row_sign[W] > 0, -g, g)
 
     def _primal_bound(self, th0, W, qW, th, dv, bound):
         """Mirror of primal_solve_bound() (through S^-1; few bound inputs)."""
@@ -319,25 +333,37 @@ class SolverRef:
             box_only = bool(np.all(md.row_q[W] < n))
             if box_only:
                 ok, th, z = self._primal_solve(th0, W)
+                if not ok:
+                    return False, None, 0, its
+                add = self._violated_outside(th, gam, W)
+                if add.size == 0:
+                    if z is None:
+                        z = self._free_multipliers(W)
+                    keep = z >= 0
+                    if not np.all(keep):
+                        W = W[keep]
+                        if W.size == 0:
+                            return False, None, 0, its
+                        continue
+                    lam[:] = 0
+                    lam[W] = z
+                    return True, th, W.size, its
             else:
                 ok, z = self._dual_solve(W, K)
-            if not ok:
-                return False, None, 0, its
-            keep = z >= 0
-            if not np.all(keep):
-                W, z = W[keep], z[keep]
-                if W.size == 0:
+                if not ok:
                     return False, None, 0, its
-                continue
-            if not box_only:
+                keep = z >= 0
+                if not np.all(keep):
+                    W = W[keep]
+                    if W.size == 0:
+                        return False, None, 0, its
+                    continue
                 th = self._correct(th0, W, z)
-            viol = self._violated(th, gam)
-            viol[W] = False
-            add = np.flatnonzero(viol)
-            if add.size == 0:
-                lam[:] = 0
-                lam[W] = z
-                return True, th, W.size, its
+                add = self._violated_outside(th, gam, W)
+                if add.size == 0:
+                    lam[:] = 0
+                    lam[W] = z
+                    return True, th, W.size, its
             if add.size > n - W.size:
                 return False, None, 0, its
             W = np.union1d(W, add).astype(W.dtype)

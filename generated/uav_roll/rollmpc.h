@@ -69,6 +69,7 @@ typedef struct {
     int16_t tmp[ROLLMPC_N_MAX];              /**< Scratch index list. */
     uint8_t in_set[ROLLMPC_M_MAX];           /**< Membership flags of the sweep set. */
     uint8_t is_bound[ROLLMPC_N_MAX];         /**< Primal polish: input fixed at a bound. */
+    rollmpc_real gam_out_min;                /**< Smallest right-hand side of an output row. */
     int out_slacks_ok;                            /**< K of the output rows is computed. */
 } rollmpc_work;
 

@@ -238,11 +238,17 @@ static rollmpc_real row_value(const rollmpc_work *ws, const rollmpc_mode_data *m
 static int outputs_certified(const rollmpc_work *ws, const rollmpc_mode_data *md,
     const rollmpc_real *th)
 {
-    rollmpc_real thmax = R_(0.0);
+    rollmpc_real thmax = R_(0.0), bmax = R_(0.0);
     int i, r;
     for (i = 0; i < md->n; ++i) {
         const rollmpc_real v = ROLLMPC_FABS(th[i]);
         thmax = (v > thmax) ? v : thmax;
+    }
+    for (i = md->nyq - md->ny; i < md->nyq; ++i) { /* out_bound grows along the horizon */
+        bmax = (md->out_bound[i] > bmax) ? md->out_bound[i] : bmax;
+    }
+    if (bmax * thmax <= ws->gam_out_min) {
+        return 1; /* the largest bound against the tightest output row */
     }
     for (r = 0; r < md->m; ++r) {
         const int q = md->row_q[r];
@@ -279,11 +285,13 @@ static void output_slacks(rollmpc_work *ws, const rollmpc_mode_data *md)
 static int slacks(rollmpc_work *ws, const rollmpc_mode_data *md)
 {
     int r, count = 0;
+    ws->gam_out_min = ROLLMPC_LAMBDA_LIMIT;
     for (r = 0; r < md->m; ++r) {
         const int q = md->row_q[r];
         rollmpc_real g = md->row_c[r];
         if (q >= md->n) {
             g = (md->row_sign[r] > 0) ? g - ws->px[q - md->n] : g + ws->px[q - md->n];
+            ws->gam_out_min = (g < ws->gam_out_min) ? g : ws->gam_out_min;
         } else {
             ws->K[r] = (md->row_sign[r] > 0) ? g - ws->th0[q] : g + ws->th0[q];
             count += (ws->K[r] < R_(0.0));
@@ -374,23 +382,22 @@ static rollmpc_real sweep(rollmpc_work *ws, const rollmpc_mode_data *md,
     return e2;
 }
 
-/* Rows violated at th that are not in the sorted list, appended in row order to out. */
-static int violated_outside(rollmpc_work *ws, const rollmpc_mode_data *md,
-    const rollmpc_real *th, const int16_t *list, int count, int16_t *out, int cap)
+/*
+ * Rows of one kind (outputs = 0: input rows, 1: output rows) violated at th and not in
+ * the sorted list, appended in row order to out; cap + 1 when more than cap.
+ */
+static int violated_kind(rollmpc_work *ws, const rollmpc_mode_data *md,
+    const rollmpc_real *th, const int16_t *list, int count, int16_t *out, int cap, int outputs)
 {
     int r, p = 0, nout = 0;
-    const int outputs = md->GEinvGt_p != 0 && !outputs_certified(ws, md, th);
-    if (outputs) {
-        predict_outputs(ws, md, th);
-    }
     for (r = 0; r < md->m; ++r) {
         while (p < count && list[p] < r) {
             ++p;
         }
-        if (p < count && list[p] == r) {
+        if ((p < count && list[p] == r) || (md->row_q[r] >= md->n) != outputs) {
             continue;
         }
-        if ((outputs || md->row_q[r] < md->n) && row_violated(ws, md, th, r)) {
+        if (row_violated(ws, md, th, r)) {
             if (nout == cap) {
                 return cap + 1;
             }
@@ -401,6 +408,22 @@ static int violated_outside(rollmpc_work *ws, const rollmpc_mode_data *md,
 }
 
 /*
+ * Violated rows at th outside the sorted list (see violated_kind()): the input rows
+ * first; only when none is violated, the output rows (predicted unless certified), so an
+ * intermediate point far outside the input box costs no output prediction.
+ */
+static int violated_outside(rollmpc_work *ws, const rollmpc_mode_data *md,
+    const rollmpc_real *th, const int16_t *list, int count, int16_t *out, int cap)
+{
+    const int nbox = violated_kind(ws, md, th, list, count, out, cap, 0);
+    if (nbox != 0 || md->GEinvGt_p == 0 || outputs_certified(ws, md, th)) {
+        return nbox;
+    }
+    predict_outputs(ws, md, th);
+    return violated_kind(ws, md, th, list, count, out, cap, 1);
+}
+
+/*
  * Primal solve, free-variable form, in the split form E = S + V'(2P)V: with d = U - th0, d_B = bounds - th0_B and nu the terminal
  * multiplier step,
  *     S_FF d_F + V_F' nu = -S_FB d_B,    V d - (2P)^-1 nu = 0,
@@ -408,10 +431,10 @@ static int violated_outside(rollmpc_work *ws, const rollmpc_mode_data *md,
  * gradient g = S d + V' nu as z_k = -sign_k g_{q_k}. Nothing here forms E, whose float
  * entries cannot hold a heavy terminal weight and the stage weights at once.
  * Costs nf^3/6; primal_solve() picks it when at least half the inputs are bound.
- * Writes ws->th and ws->z; returns -1 if a factorisation breaks down.
+ * Writes ws->th (free_multipliers() then gives ws->z); returns -1 if a factorisation
+ * breaks down.
  */
-static int primal_solve_free(rollmpc_work *ws, const rollmpc_mode_data *md, int nw,
-    int nf)
+static int primal_solve_free(rollmpc_work *ws, const rollmpc_mode_data *md, int nf)
 {
     const int n = md->n, nt = md->nt;
     int i, a, c, o, p;
@@ -469,15 +492,25 @@ static int primal_solve_free(rollmpc_work *ws, const rollmpc_mode_data *md, int 
         ws->dv[f] = acc;
         ws->th[f] = ws->th0[f] + acc;
     }
+    return 0;
+}
+
+/*
+ * Multipliers of the free-form solution, z_k = -sign_k g_{q_k} with g = S d + V' nu: the
+ * nw x n part of a polish step, so polish() computes them only once the bound inputs make
+ * the point feasible.
+ */
+static void free_multipliers(rollmpc_work *ws, const rollmpc_mode_data *md, int nw)
+{
+    int a, o;
     for (a = 0; a < nw; ++a) {
         const int r = ws->wset[a], q = md->row_q[r];
         rollmpc_real g = s_row_dot(md, q, ws->dv);
-        for (o = 0; o < nt; ++o) {
-            g += md->V[o * n + q] * ws->nu[o];
+        for (o = 0; o < md->nt; ++o) {
+            g += md->V[o * md->n + q] * ws->nu[o];
         }
         ws->z[a] = (md->row_sign[r] > 0) ? -g : g;
     }
-    return 0;
 }
 
 /*
@@ -557,7 +590,8 @@ static int primal_solve_bound(rollmpc_work *ws, const rollmpc_mode_data *md, int
 /*
  * Primal solve on a working set of input-bound rows only (wset[0..nw), at most one row
  * per input): U_B at the bounds, d_B = U_B - th0_B, then the cheaper of the two forms.
- * Writes ws->th and ws->z; returns -1 if a factorisation breaks down.
+ * Writes ws->th; returns 1 when ws->z is written too (bound form), 0 when it is left to
+ * free_multipliers() (free form), -1 if a factorisation breaks down.
  */
 static int primal_solve(rollmpc_work *ws, const rollmpc_mode_data *md, int nw)
 {
@@ -580,14 +614,14 @@ static int primal_solve(rollmpc_work *ws, const rollmpc_mode_data *md, int nw)
         for (i = 0; i < nw; ++i) {
             ws->tmp[i] = md->row_q[ws->wset[i]];
         }
-        return primal_solve_bound(ws, md, nw);
+        return (primal_solve_bound(ws, md, nw) == 0) ? 1 : -1;
     }
     for (i = 0; i < n; ++i) {
         if (!ws->is_bound[i]) {
             ws->tmp[nf++] = (int16_t)i;
         }
     }
-    return primal_solve_free(ws, md, nw, nf);
+    return primal_solve_free(ws, md, nf);
 }
 
 /* Dual solve on a general working set: z = -H_WW^-1 K_W, th = th0 - E^-1 M_W' z. */
@@ -659,10 +693,42 @@ static int seed_from_violated(rollmpc_work *ws, const rollmpc_mode_data *md)
     return nw;
 }
 
+/* Drop the working-set rows with negative multipliers; returns how many left. */
+static int drop_negative(rollmpc_work *ws, int *nw)
+{
+    int i, keep = 0;
+    for (i = 0; i < *nw; ++i) {
+        if (ws->z[i] >= R_(0.0)) {
+            ws->wset[keep] = ws->wset[i];
+            ws->z[keep] = ws->z[i];
+            ++keep;
+        }
+    }
+    i = *nw - keep;
+    *nw = keep;
+    return i;
+}
+
+/* The polish converged: the working set and its multipliers become the warm start. */
+static int accept(rollmpc_work *ws, const rollmpc_mode_data *md, rollmpc_real *lam,
+    int nw, int *active)
+{
+    int i;
+    for (i = 0; i < md->m; ++i) {
+        lam[i] = R_(0.0);
+    }
+    for (i = 0; i < nw; ++i) {
+        lam[ws->wset[i]] = ws->z[i];
+    }
+    *active = nw;
+    return 0;
+}
+
 /*
  * Exact solve on the working set W = wset[0..nw), primal when W holds only input bounds,
- * dual otherwise; drop negative multipliers, add violated rows, repeat. Returns 0 with
- * ws->th optimal and lam set to the exact multipliers, or -1 (lam untouched).
+ * dual otherwise; violated rows join, rows with negative multipliers leave, repeat (the
+ * primal form adds violated rows before it computes multipliers). Returns 0 with ws->th
+ * optimal and lam set to the exact multipliers, or -1 (lam untouched).
  */
 static int polish(rollmpc_work *ws, const rollmpc_mode_data *md, rollmpc_real *lam,
     int nw, int *iterations, int *active)
@@ -673,41 +739,45 @@ static int polish(rollmpc_work *ws, const rollmpc_mode_data *md, rollmpc_real *l
         return -1;
     }
     for (it = 0; it < ROLLMPC_SOLVER_POLISH_MAX; ++it) {
-        int keep = 0, nadd, p, q, total, box_only = 1;
+        int nadd, p, q, total, box_only = 1, solved;
         ++*iterations;
         for (i = 0; i < nw; ++i) {
             box_only = box_only && md->row_q[ws->wset[i]] < n;
         }
-        if ((box_only ? primal_solve(ws, md, nw) : dual_solve(ws, md, nw)) != 0) {
-            return -1;
-        }
-        for (i = 0; i < nw; ++i) {
-            if (ws->z[i] >= R_(0.0)) {
-                ws->wset[keep] = ws->wset[i];
-                ws->z[keep] = ws->z[i];
-                ++keep;
-            }
-        }
-        if (keep < nw) {
-            nw = keep;
-            if (nw == 0) {
+        if (box_only) {
+            /* primal: bound rows first; the multipliers only at a feasible point */
+            solved = primal_solve(ws, md, nw);
+            if (solved < 0) {
                 return -1;
             }
-            continue;
-        }
-        if (!box_only) {
+            nadd = violated_outside(ws, md, ws->th, ws->wset, nw, ws->tmp, n - nw);
+            if (nadd == 0) {
+                if (solved == 0) {
+                    free_multipliers(ws, md, nw);
+                }
+                if (drop_negative(ws, &nw) != 0) {
+                    if (nw == 0) {
+                        return -1;
+                    }
+                    continue;
+                }
+                return accept(ws, md, lam, nw, active);
+            }
+        } else {
+            if (dual_solve(ws, md, nw) != 0) {
+                return -1;
+            }
+            if (drop_negative(ws, &nw) != 0) {
+                if (nw == 0) {
+                    return -1;
+                }
+                continue;
+            }
             correct(ws, md, ws->wset, nw, ws->z, 0);
-        }
-        nadd = violated_outside(ws, md, ws->th, ws->wset, nw, ws->tmp, n - nw);
-        if (nadd == 0) {
-            for (i = 0; i < md->m; ++i) {
-                lam[i] = R_(0.0);
+            nadd = violated_outside(ws, md, ws->th, ws->wset, nw, ws->tmp, n - nw);
+            if (nadd == 0) {
+                return accept(ws, md, lam, nw, active);
             }
-            for (i = 0; i < nw; ++i) {
-                lam[ws->wset[i]] = ws->z[i];
-            }
-            *active = nw;
-            return 0;
         }
         if (nadd > n - nw) {
             return -1;
@@ -830,8 +900,11 @@ int rollmpc_qp_solve(rollmpc_work *ws, rollmpc_real *lam, const rollmpc_mode_dat
         correct(ws, md, ws->set, count, lam, 1);
         nviol = violated_outside(ws, md, ws->th, ws->set, 0, ws->tmp, 0);
         if (ROLLMPC_SOLVER_REDUCED && nviol != 0) {
-            /* ws->yv holds Gamma th unless the outputs were certified (then none is violated) */
+            /* every violated row joins: predict the outputs unless certified */
             const int outputs = md->GEinvGt_p != 0 && !outputs_certified(ws, md, ws->th);
+            if (outputs) {
+                predict_outputs(ws, md, ws->th);
+            }
             for (i = 0; i < md->m; ++i) {
                 if (!ws->in_set[i] && (outputs || md->row_q[i] < md->n)
                     && row_violated(ws, md, ws->th, i)) {
