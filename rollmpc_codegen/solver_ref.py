@@ -321,7 +321,7 @@ class SolverRef:
         chol_solve_packed(chol, nw, z)
         return True, z
 
-    def _polish(self, W, lam, th0, K, gam):
+    def _polish(self, W, lam, th0, K, gam, guess=False):
         """Mirror of polish() from working set W; returns (ok, th, active, iterations)."""
         md = self.md
         n = md.n
@@ -341,8 +341,8 @@ class SolverRef:
                         z = self._free_multipliers(W)
                     keep = z >= 0
                     if not np.all(keep):
-                        W = W[keep]
-                        if W.size == 0:
+                        total, W = W.size, W[keep]
+                        if W.size == 0 or (guess and 2 * W.size < total):
                             return False, None, 0, its
                         continue
                     lam[:] = 0
@@ -354,8 +354,8 @@ class SolverRef:
                     return False, None, 0, its
                 keep = z >= 0
                 if not np.all(keep):
-                    W = W[keep]
-                    if W.size == 0:
+                    total, W = W.size, W[keep]
+                    if W.size == 0 or (guess and 2 * W.size < total):
                         return False, None, 0, its
                     continue
                 th = self._correct(th0, W, z)
@@ -392,9 +392,9 @@ class SolverRef:
         total, polish_its, active = 0, 0, 0
         if self.polish_on and self.polish_first:
             shifted = np.flatnonzero(lam[md.row_next] > 0)
-            seeds = ([shifted] if self.warm else []) + [np.flatnonzero(K < 0)]
-            for W in seeds:
-                ok, th_p, act, its = self._polish(W, lam, th0, K, gam)
+            seeds = ([(shifted, True)] if self.warm else []) + [(np.flatnonzero(K < 0), False)]
+            for W, guess in seeds:
+                ok, th_p, act, its = self._polish(W, lam, th0, K, gam, guess)
                 polish_its += its
                 if ok:
                     status, U = self._finish(th_p, th0, OPTIMAL)

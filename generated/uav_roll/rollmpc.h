@@ -49,9 +49,8 @@ typedef struct {
 typedef struct {
     rollmpc_real th0[ROLLMPC_N_MAX];    /**< Unconstrained solution. */
     rollmpc_real th[ROLLMPC_N_MAX];     /**< Current solution estimate. */
-    rollmpc_real w[ROLLMPC_NYQ_MAX];    /**< 2 Omega R. */
     rollmpc_real px[ROLLMPC_NYQ_MAX];   /**< Phi x. */
-    rollmpc_real yv[ROLLMPC_NYQ_MAX];   /**< Gamma th. */
+    rollmpc_real yv[ROLLMPC_NYQ_MAX];   /**< Gamma th; 2 Omega R while th0 is formed. */
     rollmpc_real gam[ROLLMPC_M_MAX];    /**< Right-hand side c + W x. */
     rollmpc_real K[ROLLMPC_M_MAX];      /**< gamma - M th0. */
     rollmpc_real z[ROLLMPC_N_MAX];      /**< Polish multipliers / primal step. */

@@ -18,18 +18,20 @@ int rollmpc_cholesky(rollmpc_real *a, int n)
 {
     int i, j, k;
     for (i = 0; i < n; ++i) {
+        rollmpc_real *ri = &a[ROLLMPC_TRI(i, 0)];
         for (j = 0; j <= i; ++j) {
-            rollmpc_real s = a[ROLLMPC_TRI(i, j)];
+            const rollmpc_real *rj = &a[ROLLMPC_TRI(j, 0)];
+            rollmpc_real s = ri[j];
             for (k = 0; k < j; ++k) {
-                s -= a[ROLLMPC_TRI(i, k)] * a[ROLLMPC_TRI(j, k)];
+                s -= ri[k] * rj[k];
             }
             if (i == j) {
                 if (!(s > ROLLMPC_R(0.0))) {
                     return -1;
                 }
-                a[ROLLMPC_TRI(i, i)] = ROLLMPC_SQRT(s);
+                ri[i] = ROLLMPC_SQRT(s);
             } else {
-                a[ROLLMPC_TRI(i, j)] = s / a[ROLLMPC_TRI(j, j)];
+                ri[j] = s / rj[j];
             }
         }
     }
@@ -44,18 +46,21 @@ int rollmpc_cholesky(rollmpc_real *a, int n)
  */
 void rollmpc_chol_solve(const rollmpc_real *l, int n, rollmpc_real *b)
 {
-    int i, k;
+    int i, k, off;
     for (i = 0; i < n; ++i) {
+        const rollmpc_real *li = &l[ROLLMPC_TRI(i, 0)];
         rollmpc_real s = b[i];
         for (k = 0; k < i; ++k) {
-            s -= l[ROLLMPC_TRI(i, k)] * b[k];
+            s -= li[k] * b[k];
         }
-        b[i] = s / l[ROLLMPC_TRI(i, i)];
+        b[i] = s / li[i];
     }
     for (i = n - 1; i >= 0; --i) {
         rollmpc_real s = b[i];
+        off = ROLLMPC_TRI(i + 1, i); /* column i below the diagonal: stride k + 1 */
         for (k = i + 1; k < n; ++k) {
-            s -= l[ROLLMPC_TRI(k, i)] * b[k];
+            s -= l[off] * b[k];
+            off += k + 1;
         }
         b[i] = s / l[ROLLMPC_TRI(i, i)];
     }

@@ -131,7 +131,7 @@ static int reference_runs(rollmpc_work *ws, const rollmpc_mode_data *md, int *lo
     for (stage = 0; stage < last; ++stage) {
         int differs = (stage == 0);
         for (a = 0; a < ny && !differs; ++a) {
-            const rollmpc_real p = ws->w[(stage - 1) * ny + a], q = ws->w[stage * ny + a];
+            const rollmpc_real p = ws->yv[(stage - 1) * ny + a], q = ws->yv[stage * ny + a];
             differs = (p < q) || (p > q);
         }
         if (differs) {
@@ -151,7 +151,8 @@ static int reference_runs(rollmpc_work *ws, const rollmpc_mode_data *md, int *lo
 }
 
 /*
- * th0 = Kx x + E^-1 G' w with w = 2 Omega r; px = Phi x (output rows only).
+ * th0 = Kx x + E^-1 G' w with w = 2 Omega r (kept in ws->yv, free until the outputs are
+ * predicted); px = Phi x (output rows only).
  * The columns of E^-1 G' are summed per run of equal w; the longest run's sum comes from
  * colsum minus the others, so a held reference costs n (nx + 2 ny) instead of n (nx + N ny).
  */
@@ -166,7 +167,7 @@ static void unconstrained(rollmpc_work *ws, const rollmpc_mode_data *md,
         for (l = 0; l < ny; ++l) {
             acc += md->Omega2[(st * ny + b) * ny + l] * r[st * ny + l];
         }
-        ws->w[k] = acc;
+        ws->yv[k] = acc;
     }
     nruns = reference_runs(ws, md, &longest);
     for (i = 0; i < n; ++i) {
@@ -183,14 +184,14 @@ static void unconstrained(rollmpc_work *ws, const rollmpc_mode_data *md,
                     for (stage = ws->run[j]; stage < ws->run[j + 1]; ++stage) {
                         sum += row[stage * ny + a];
                     }
-                    acc += ws->w[ws->run[j] * ny + a] * sum;
+                    acc += ws->yv[ws->run[j] * ny + a] * sum;
                     other += sum;
                 }
             }
             if (longest >= 0) {
-                acc += ws->w[ws->run[longest] * ny + a] * (md->colsum[a * n + i] - other);
+                acc += ws->yv[ws->run[longest] * ny + a] * (md->colsum[a * n + i] - other);
             }
-            acc += row[last * ny + a] * ws->w[last * ny + a];
+            acc += row[last * ny + a] * ws->yv[last * ny + a];
         }
         ws->th0[i] = acc;
     }
@@ -389,15 +390,29 @@ static rollmpc_real sweep(rollmpc_work *ws, const rollmpc_mode_data *md,
 static int violated_kind(rollmpc_work *ws, const rollmpc_mode_data *md,
     const rollmpc_real *th, const int16_t *list, int count, int16_t *out, int cap, int outputs)
 {
+    const int n = md->n;
     int r, p = 0, nout = 0;
     for (r = 0; r < md->m; ++r) {
+        const int q = md->row_q[r];
+        rollmpc_real v, g, viol, ag;
+        if ((q >= n) != outputs) {
+            continue;
+        }
         while (p < count && list[p] < r) {
             ++p;
         }
-        if ((p < count && list[p] == r) || (md->row_q[r] >= md->n) != outputs) {
+        if (p < count && list[p] == r) {
             continue;
         }
-        if (row_violated(ws, md, th, r)) {
+        /* row_violated() inline: the tolerance is at least FEAS_TOL, so reject early */
+        v = (q < n) ? th[q] : ws->yv[q - n];
+        g = ws->gam[r];
+        viol = (md->row_sign[r] > 0) ? v - g : -v - g;
+        if (!(viol > ROLLMPC_SOLVER_FEAS_TOL)) {
+            continue;
+        }
+        ag = ROLLMPC_FABS(g);
+        if (viol > ROLLMPC_SOLVER_FEAS_TOL * (ag > R_(1.0) ? ag : R_(1.0))) {
             if (nout == cap) {
                 return cap + 1;
             }
@@ -727,11 +742,14 @@ static int accept(rollmpc_work *ws, const rollmpc_mode_data *md, rollmpc_real *l
 /*
  * Exact solve on the working set W = wset[0..nw), primal when W holds only input bounds,
  * dual otherwise; violated rows join, rows with negative multipliers leave, repeat (the
- * primal form adds violated rows before it computes multipliers). Returns 0 with ws->th
- * optimal and lam set to the exact multipliers, or -1 (lam untouched).
+ * primal form adds violated rows before it computes multipliers). A guessed working set
+ * (guess = 1: the shifted warm start) is abandoned as soon as more than half of it has
+ * negative multipliers: the operating point moved, and the caller's next seed is cheaper
+ * than unwinding it row block by row block. Returns 0 with ws->th optimal and lam set to
+ * the exact multipliers, or -1 (lam untouched).
  */
 static int polish(rollmpc_work *ws, const rollmpc_mode_data *md, rollmpc_real *lam,
-    int nw, int *iterations, int *active)
+    int nw, int guess, int *iterations, int *active)
 {
     const int n = md->n;
     int i, it;
@@ -739,7 +757,7 @@ static int polish(rollmpc_work *ws, const rollmpc_mode_data *md, rollmpc_real *l
         return -1;
     }
     for (it = 0; it < ROLLMPC_SOLVER_POLISH_MAX; ++it) {
-        int nadd, p, q, total, box_only = 1, solved;
+        int nadd, p, q, total, before, box_only = 1, solved;
         ++*iterations;
         for (i = 0; i < nw; ++i) {
             box_only = box_only && md->row_q[ws->wset[i]] < n;
@@ -755,8 +773,9 @@ static int polish(rollmpc_work *ws, const rollmpc_mode_data *md, rollmpc_real *l
                 if (solved == 0) {
                     free_multipliers(ws, md, nw);
                 }
+                before = nw;
                 if (drop_negative(ws, &nw) != 0) {
-                    if (nw == 0) {
+                    if (nw == 0 || (guess && 2 * nw < before)) {
                         return -1;
                     }
                     continue;
@@ -767,8 +786,9 @@ static int polish(rollmpc_work *ws, const rollmpc_mode_data *md, rollmpc_real *l
             if (dual_solve(ws, md, nw) != 0) {
                 return -1;
             }
+            before = nw;
             if (drop_negative(ws, &nw) != 0) {
-                if (nw == 0) {
+                if (nw == 0 || (guess && 2 * nw < before)) {
                     return -1;
                 }
                 continue;
@@ -859,10 +879,10 @@ int rollmpc_qp_solve(rollmpc_work *ws, rollmpc_real *lam, const rollmpc_mode_dat
     /* Polish first: from the previous optimal active set (warm start), then from the rows
      * the unconstrained solution violates; the sweeps below run only if both fail. */
     if (ROLLMPC_SOLVER_WARM_START
-        && polish(ws, md, lam, seed_shifted(ws, md, lam), polish_iterations, active) == 0) {
+        && polish(ws, md, lam, seed_shifted(ws, md, lam), 1, polish_iterations, active) == 0) {
         return finish(ws, md, lam, ROLLMPC_OPTIMAL, U);
     }
-    if (polish(ws, md, lam, seed_from_violated(ws, md), polish_iterations, active) == 0) {
+    if (polish(ws, md, lam, seed_from_violated(ws, md), 0, polish_iterations, active) == 0) {
         return finish(ws, md, lam, ROLLMPC_OPTIMAL, U);
     }
     output_slacks(ws, md);
@@ -892,7 +912,7 @@ int rollmpc_qp_solve(rollmpc_work *ws, rollmpc_real *lam, const rollmpc_mode_dat
             break;
         }
         correct(ws, md, ws->set, count, lam, 1);
-        if (polish(ws, md, lam, seed_from_multipliers(ws, md, lam, ws->set, count),
+        if (polish(ws, md, lam, seed_from_multipliers(ws, md, lam, ws->set, count), 0,
                 polish_iterations, active) == 0) {
             status = ROLLMPC_OPTIMAL;
             break;
