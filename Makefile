@@ -2,6 +2,10 @@
 #   make demo    generate the UAV controller and simulate it (the main job)
 #   make test    all tests (pytest, including the host C tests)
 PYTHON ?= python3
+# one BLAS thread: the QPs are small and the machines have 2 cores (threaded OpenBLAS runs
+# the extended-precision reference solves ~10x slower under load)
+export OPENBLAS_NUM_THREADS ?= 1
+export OMP_NUM_THREADS ?= 1
 VENV ?= .venv
 PY := $(VENV)/bin/python
 ROLLMPC := $(VENV)/bin/rollmpc
@@ -10,7 +14,8 @@ CC ?= gcc
 CSTRICT := -std=c99 -O2 -ffp-contract=off -Wall -Wextra -Wpedantic -Wconversion -Wshadow \
            -Wdouble-promotion -Werror
 
-.PHONY: all venv demo generate test ctest check-long clean
+.PHONY: all venv demo generate test ctest check-long clean firmware size report figures \
+        reliability
 
 all: test
 
@@ -49,9 +54,44 @@ ctest: venv
 	    echo "ctest $$ex $$prec:"; ./$$out/test_vectors || exit 1; \
 	done; done
 
+## firmware: cross-compile firmware_stub + generated/uav_roll_f32 for a Cortex-M4F
+##   (build/firmware/rollctl_m4f.elf; needs arm-none-eabi-gcc, see firmware_stub/README.md)
+firmware:
+	$(MAKE) -f firmware_stub/firmware.mk firmware
+
+## size: flash and static RAM of the firmware image
+size:
+	$(MAKE) --no-print-directory -f firmware_stub/firmware.mk size
+
+## report: flash, RAM, stack and cycles on an emulated Cortex-M4F (build/report/)
+report: venv
+	@mkdir -p build/report
+	$(ROLLMPC) report examples/uav_roll.yaml --precision float --json build/report/uav_roll_f32.json
+
+## figures: the paper reproduction (docs/paper-reproduction.md): Fig. 2 in both precisions,
+##   Table 2 on 2000 of the scenario's 5968 QPs (BENCH_ARGS= for all of them: ~12 CPU-min)
+##   and our default against DAQP on every QP -> docs/figures/*.png, build/figures/
+BENCH_ARGS ?= --max-qps 2000
+figures: venv
+	@mkdir -p docs/figures build/figures
+	$(ROLLMPC) simulate examples/uav_roll.yaml --baseline lqr --plot docs/figures/fig2_closed_loop.png \
+	    --json build/figures/fig2_double.json --csv build/figures/fig2_double.csv
+	$(ROLLMPC) simulate examples/uav_roll.yaml --precision float --baseline lqr \
+	    --plot build/figures/fig2_closed_loop_f32.png --json build/figures/fig2_float.json
+	$(ROLLMPC) bench examples/uav_roll.yaml $(BENCH_ARGS) --json build/figures/table2.json \
+	    --plot docs/figures/fig3_solve_times.png > build/figures/table2.md
+	@cat build/figures/table2.md
+	$(ROLLMPC) bench examples/uav_roll.yaml --variants default,daqp --repeat 5 \
+	    --json build/figures/default_vs_daqp.json > build/figures/default_vs_daqp.md
+	@cat build/figures/default_vs_daqp.md
+
 ## check-long: long runs (sanitizer soak, large fuzz budgets)
 check-long: venv
 	$(PY) -m pytest -q -m slow --runslow
+
+## reliability: measure the figures of docs/reliability.md into build/reliability/*.json
+reliability: venv
+	$(PY) -m rollmpc_codegen.reliability --out build/reliability
 
 clean:
 	rm -rf build

@@ -36,6 +36,12 @@ def cmd_simulate(args) -> int:
     return simulate_command(args)
 
 
+def cmd_report(args) -> int:
+    from .report import report_command
+
+    return report_command(args)
+
+
 def cmd_testvectors(args) -> int:
     from .testvectors import write_test_vectors
 
@@ -44,13 +50,32 @@ def cmd_testvectors(args) -> int:
     return 0
 
 
+class OneLineArgumentParser(argparse.ArgumentParser):
+    """Bad arguments: one line ``rollmpc: error: ...`` and exit 2 (no usage block)."""
+
+    def error(self, message: str):
+        self.exit(EXIT_BAD_INPUT, f"rollmpc: error: {' '.join(message.split())}\n")
+
+
+def cmd_bench(args) -> int:
+    from .bench import bench_command
+
+    return bench_command(args)
+
+
+def _add_build_dir(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--build-dir", default=None,
+                   help="scratch directory for the host C builds (default: "
+                   "$TMPDIR/rollmpc-build, cached by content hash)")
+
+
 def _add_precision(p: argparse.ArgumentParser) -> None:
     p.add_argument("--precision", choices=PRECISIONS, default=None,
                    help="override the config's precision")
 
 
 def parser() -> argparse.ArgumentParser:
-    ap = argparse.ArgumentParser(prog="rollmpc", description=__doc__.splitlines()[0])
+    ap = OneLineArgumentParser(prog="rollmpc", description=__doc__.splitlines()[0])
     sub = ap.add_subparsers(dest="command", required=True)
 
     g = sub.add_parser("generate", help="render the C controller for a YAML config")
@@ -74,7 +99,57 @@ def parser() -> argparse.ArgumentParser:
     s.add_argument("--seed", type=int, default=0)
     s.add_argument("--steps", type=int, default=None, help="samples (default: whole scenario)")
     s.add_argument("--quiet", action="store_true", help="no progress bar")
+    _add_build_dir(s)
     s.set_defaults(func=cmd_simulate)
+
+    b = sub.add_parser("bench", help="Table 2: replay the scenario's QPs through the "
+                       "generated solver variants and the PyPI peers")
+    b.add_argument("config")
+    _add_precision(b)
+    b.add_argument("--json", help="write the table and the machine description as JSON")
+    b.add_argument("--plot", help="per-QP solve times (Fig. 3 style) as a PNG")
+    b.add_argument("--variants", default=None,
+                   help="comma-separated rows to run (default: all): "
+                   "hildreth,hildreth_plus,hildreth_plus_prime,default,quadprog,daqp,osqp,"
+                   "osqp_tight (quadprog, the reference, always runs)")
+    b.add_argument("--max-qps", type=int, default=None,
+                   help="replay at most this many QPs: evenly spread blocks of 20 "
+                   "consecutive ones (default: every QP)")
+    b.add_argument("--repeat", type=int, default=1,
+                   help="replay R times from a fresh start and keep each QP's minimum time "
+                   "(removes OS preemption from the maxima)")
+    b.add_argument("--include-transient", action="store_true",
+                   help="also replay samples 1-32 (the paper's Table 2 skips them)")
+    b.add_argument("--steps", type=int, default=None,
+                   help="scenario samples to record (default: the whole scenario)")
+    b.add_argument("--quiet", action="store_true", help="no progress on stderr")
+    _add_build_dir(b)
+    b.set_defaults(func=cmd_bench)
+
+    rp = sub.add_parser("report", help="flash, RAM, stack and cycles on an emulated "
+                        "Cortex-M4F, bit-exact against the host build")
+    rp.add_argument("config")
+    _add_precision(rp)
+    rp.add_argument("--json", help="write the report as JSON")
+    rp.add_argument("--horizons", default=None,
+                    help="comma-separated horizons (e.g. 25,50,100,200): tabulate generation "
+                    "time, flash, RAM and cycles per horizon instead")
+    rp.add_argument("--steps", type=int, default=None,
+                    help="scenario samples to replay (default: the whole scenario)")
+    rp.add_argument("--sample-every", type=int, default=20,
+                    help="count cycles on every n-th step besides the hardest (default 20)")
+    rp.add_argument("--hardest", type=int, default=10,
+                    help="count the top 3n steps by host solve time and the top n by polish "
+                    "corrections, active rows and sweeps (default 10)")
+    rp.add_argument("--host-repeats", type=int, default=5,
+                    help="host runs whose smallest solve time per step ranks the hardest "
+                    "steps (default 5)")
+    rp.add_argument("--extra-cflags", default=None,
+                    help="extra flags for the target build, appended to the firmware flags "
+                    "(e.g. \"-fno-builtin\" or \"-ffp-contract=fast\" to see what they cost)")
+    rp.add_argument("--quiet", action="store_true", help="no progress on stderr")
+    _add_build_dir(rp)
+    rp.set_defaults(func=cmd_report)
 
     t = sub.add_parser("testvectors", help="emit the host C test program with reference vectors")
     t.add_argument("config")
