@@ -53,7 +53,7 @@ from .config import ConfigError, ControllerConfig
 from .context import ControllerModel, build_context, build_model
 from .generate import load_model
 from .qp_peers import DaqpPeer, OsqpPeer, QuadprogPeer, c_stdout_silenced, qp_vectors
-from .scenario import paper_reference
+from .scenario import scenario_reference
 from .simulate import progress_printer, run_closed_loop
 from .simulate_cli import require_module
 from .solver_ref import STATUS_NAMES
@@ -385,7 +385,7 @@ def bench_command(args) -> int:
         return None if quiet else progress_printer(total, label)
 
     default_c = build_host_controller(ctx, build_root)
-    steps = args.steps if args.steps is not None else len(paper_reference(cfg.sample_time))
+    steps = args.steps if args.steps is not None else len(scenario_reference(cfg))
     seq = record_qp_sequence(model, default_c, steps, progress(steps, "bench: record scenario"))
     idx = select_qps(seq, args.include_transient, args.max_qps)
     qps = [mm.qp for mm in model.modes]

@@ -146,7 +146,7 @@ def parser() -> argparse.ArgumentParser:
                     "steps (default 5)")
     rp.add_argument("--extra-cflags", default=None,
                     help="extra flags for the target build, appended to the firmware flags "
-                    "(e.g. \"-fno-builtin\" or \"-ffp-contract=fast\" to see what they cost)")
+                    "(e.g. --extra-cflags=-fno-builtin or --extra-cflags=-ffp-contract=fast)")
     rp.add_argument("--quiet", action="store_true", help="no progress on stderr")
     _add_build_dir(rp)
     rp.set_defaults(func=cmd_report)

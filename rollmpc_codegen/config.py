@@ -101,6 +101,11 @@ class SolverConfig:
 @dataclass(frozen=True)
 class SimulationConfig:
     schedule_source: str = "output_rate"
+    # the piecewise-constant reference of ``rollmpc simulate/bench/report``: one row of
+    # n_outputs values per level, each held reference_segment_s seconds; None -> the
+    # paper's scenario (scenario.paper_reference, applied to every output)
+    reference_levels: tuple[tuple[float, ...], ...] | None = None
+    reference_segment_s: float | None = None
 
 
 @dataclass(frozen=True)
@@ -468,6 +473,21 @@ def _solver(r: _Reader) -> SolverConfig:
                         feasibility_tol=tol)
 
 
+def _reference(r: _Reader, n_outputs: int,
+               sample_time: float) -> tuple[tuple[tuple[float, ...], ...], float]:
+    """``simulation.reference``: levels (a scalar is applied to every output) and segment."""
+    raw = r.raw("levels")
+    if not isinstance(raw, list) or not raw:
+        raise ConfigError(r.key("levels"), "must be a non-empty list of levels")
+    levels = tuple(tuple(_vector(v, f"{r.key('levels')}[{i}]", n_outputs))
+                   for i, v in enumerate(raw))
+    segment = r.number("segment", positive=True)
+    if round(segment / sample_time) < 1:
+        raise ConfigError(r.key("segment"), f"must be at least sample_time ({sample_time})")
+    r.finish()
+    return levels, segment
+
+
 def _check_horizon(horizon: int, modes: tuple[ModeConfig, ...]) -> None:
     """Reject a horizon whose QP overflows the C's int16 row tables *before* building it.
 
@@ -543,8 +563,11 @@ def parse(data: Any, source_text: str = "") -> ControllerConfig:
                           "which is not supported yet (see docs)")
     solver = _solver(r.sub("solver", {}))
     sim = r.sub("simulation", {})
-    simulation = SimulationConfig(
-        schedule_source=sim.string("schedule_source", "output_rate", choices=SCHEDULE_SOURCES))
+    schedule_source = sim.string("schedule_source", "output_rate", choices=SCHEDULE_SOURCES)
+    levels, segment = (_reference(sim.sub("reference"), len(outputs), sample_time)
+                       if sim.has("reference") else (None, None))
+    simulation = SimulationConfig(schedule_source=schedule_source, reference_levels=levels,
+                                  reference_segment_s=segment)
     sim.finish()
     r.finish()
     _check_range(precision, modes, scheduler, solver)
@@ -571,6 +594,28 @@ def _yaml_problem(exc: yaml.YAMLError) -> tuple[str, str]:
     return where, f"not valid YAML: {what}"
 
 
+class _UniqueKeyLoader(yaml.SafeLoader):
+    """SafeLoader that rejects a key given twice in one mapping (PyYAML keeps the last)."""
+
+
+def _unique_mapping(loader: yaml.SafeLoader, node: yaml.MappingNode, deep: bool = False):
+    seen = set()
+    for key_node, _ in node.value:
+        key = loader.construct_object(key_node, deep=deep)
+        try:
+            duplicate = key in seen
+        except TypeError:  # an unhashable key: construct_mapping reports it
+            continue
+        if duplicate:
+            raise yaml.constructor.ConstructorError(
+                None, None, f"duplicate key {key!r}", key_node.start_mark)
+        seen.add(key)
+    return loader.construct_mapping(node, deep)
+
+
+_UniqueKeyLoader.add_constructor(yaml.resolver.BaseResolver.DEFAULT_MAPPING_TAG, _unique_mapping)
+
+
 def load(path: str | Path, precision: str | None = None) -> ControllerConfig:
     """Read and validate a YAML file; ``precision`` overrides the file's setting."""
     path = Path(path)
@@ -583,7 +628,7 @@ def load(path: str | Path, precision: str | None = None) -> ControllerConfig:
     except UnicodeDecodeError as exc:
         raise ConfigError(str(path), f"not UTF-8 text (byte {exc.start})") from None
     try:
-        data = yaml.safe_load(text)
+        data = yaml.load(text, Loader=_UniqueKeyLoader)  # noqa: S506 (a SafeLoader)
     except yaml.YAMLError as exc:
         raise ConfigError(*_yaml_problem(exc)) from None
     if data is None:

@@ -1,6 +1,8 @@
 """The closed-loop scenario of section 4.1 and the simulated plant.
 
-Reference: 0, -20, 20, -40, 40, 0 deg, 10 s each (6000 samples at Ts = 10 ms); the
+Reference: 0, -20, 20, -40, 40, 0 deg, 10 s each (6000 samples at Ts = 10 ms), applied
+to every output, unless the config gives ``simulation.reference`` (levels, each a scalar
+for every output or one value per output, held ``segment`` seconds each); the
 controller receives the preview r_{k+1..k+N} (held at the last value past the end).
 
 Plant: every mode is a *channel* (its continuous model from the config, sampled exactly
@@ -23,9 +25,24 @@ PAPER_SEGMENT_S = 10.0
 
 def paper_reference(sample_time: float, levels=PAPER_LEVELS_DEG,
                     segment_s: float = PAPER_SEGMENT_S) -> np.ndarray:
-    """Piecewise-constant reference, one value per sample (6000 for the paper)."""
+    """Piecewise-constant reference, one value (or row of ``levels``) per sample (6000 for
+    the paper)."""
     per = int(round(segment_s / sample_time))
-    return np.repeat(np.asarray(levels, dtype=float), per)
+    return np.repeat(np.asarray(levels, dtype=float), per, axis=0)
+
+
+def scenario_reference(cfg: ControllerConfig) -> np.ndarray:
+    """The reference of the closed-loop scenario, (samples, n_outputs).
+
+    ``simulation.reference`` of the config when given (each level held ``segment`` s),
+    else the paper's scenario applied to every output.
+    """
+    sim = cfg.simulation
+    if sim.reference_levels is None:
+        ref = paper_reference(cfg.sample_time)
+        return np.repeat(ref[:, None], cfg.n_outputs, axis=1)
+    return paper_reference(cfg.sample_time, np.asarray(sim.reference_levels, dtype=float),
+                           sim.reference_segment_s)
 
 
 def preview(ref: np.ndarray, k: int, N: int, n_outputs: int = 1) -> np.ndarray:

@@ -13,7 +13,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .config import ControllerConfig
-from .scenario import SimulatedPlant, paper_reference, preview
+from .scenario import SimulatedPlant, preview, scenario_reference
 
 
 @dataclass
@@ -53,13 +53,14 @@ def run_closed_loop(cfg: ControllerConfig, controller, reference: np.ndarray | N
                     steps: int | None = None, noise_std: float = 0.0,
                     disturbance: float = 0.0, seed: int = 0, progress=None,
                     info=None) -> ClosedLoopLog:
-    """Simulate ``steps`` samples of the scenario (default: the paper's 60 s reference).
+    """Simulate ``steps`` samples of the scenario (default: the config's reference,
+    scenario.scenario_reference: the paper's 60 s reference unless simulation.reference).
 
     ``noise_std`` adds seeded Gaussian noise to the measured outputs and the scheduling
     signal; ``disturbance`` is a constant input disturbance added to every actuator.
     ``info`` (optional) is a callable returning the controller's last-solve diagnostics.
     """
-    ref = paper_reference(cfg.sample_time) if reference is None else np.asarray(reference)
+    ref = scenario_reference(cfg) if reference is None else np.asarray(reference)
     K = len(ref) if steps is None else int(steps)
     rng = np.random.default_rng(seed)
     plant = SimulatedPlant(cfg)

@@ -72,9 +72,9 @@ def _check_args(args) -> None:
 
 
 def _run(cfg, controller, args, label: str) -> ClosedLoopLog:
-    from .scenario import paper_reference
+    from .scenario import scenario_reference
 
-    steps = args.steps if args.steps is not None else len(paper_reference(cfg.sample_time))
+    steps = args.steps if args.steps is not None else len(scenario_reference(cfg))
     progress = None if args.quiet else progress_printer(steps, label)
     return run_closed_loop(cfg, controller, steps=steps, noise_std=args.noise,
                            disturbance=args.disturbance, seed=args.seed, progress=progress,

@@ -14,7 +14,7 @@ import numpy as np
 from .controller_ref import ControllerRef
 from .generate import load_model
 from .render import render_sources, render_template, write_atomically
-from .scenario import paper_reference
+from .scenario import scenario_reference
 from .simulate import run_closed_loop
 from .solver_ref import SolverRef
 
@@ -55,11 +55,11 @@ def write_test_vectors(config: str | Path, out_dir: Path, precision: str | None 
 
     log = run_closed_loop(model.config, Recorder(), steps=steps)
     dt = model.dtype
-    reference = paper_reference(model.config.sample_time)
+    reference = scenario_reference(model.config)  # (samples, n_outputs)
     files = render_sources(ctx)
     files[f"{ctx['prefix']}_test_vectors.c"] = render_template(
         ctx, "host/test_vectors.c.j2", steps=steps, ref_len=len(reference),
-        ref=np.repeat(reference, ctx["n_outputs"]).astype(dt),
+        ref=reference.ravel().astype(dt),
         y=log.y.astype(dt), sched=log.sched.astype(dt),
         u=np.array(log.u_raw, dtype=dt), status=log.status,
         qp_cases=qp_cases_from_log(model, ctx, log, xs))

@@ -9,7 +9,9 @@ import pytest
 from conftest import ROOT
 from rollmpc_codegen.cli import main
 
-CASES = [("uav_roll", "double", "uav_roll"), ("uav_roll", "float", "uav_roll_f32")]
+CASES = [("uav_roll", "double", "uav_roll"), ("uav_roll", "float", "uav_roll_f32"),
+         ("chain_of_masses", "double", "chain_of_masses"),
+         ("chain_of_masses", "float", "chain_of_masses_f32")]
 
 
 @pytest.mark.parametrize("example,precision,committed", CASES)

@@ -533,7 +533,8 @@ static void free_multipliers(rollmpc_work *ws, const rollmpc_mode_data *md, int 
  * bound forces) and Uv = V S^-1, T = (2P)^-1 + V S^-1 V':
  *     beta = S^-1_BB^-1 (d_B + Uv_B' nu),   (T - Uv_B S^-1_BB^-1 Uv_B') nu = Uv_B S^-1_BB^-1 d_B,
  *     d = S^-1_{:,B} beta - Uv' nu,         z_k = -sign_k beta_k.
- * Costs nb^3/6 + n nb instead of nf^3/6. ws->tmp holds the bound inputs (ascending).
+ * Costs nb^3/6 + n nb instead of nf^3/6. ws->tmp holds the bound inputs in working-set
+ * order, which is not ascending when a stage has several inputs.
  */
 static int primal_solve_bound(rollmpc_work *ws, const rollmpc_mode_data *md, int nw)
 {
@@ -542,8 +543,9 @@ static int primal_solve_bound(rollmpc_work *ws, const rollmpc_mode_data *md, int
     for (a = 0; a < nw; ++a) {
         const int qa = ws->tmp[a];
         for (c = 0; c <= a; ++c) {
-            const int qc = ws->tmp[c];
-            ws->chol[ROLLMPC_TRI(a, c)] = md->Sinv_p[ROLLMPC_TRI(qa, qc)];
+            const int qc = ws->tmp[c]; /* S^-1 is packed lower: read (max, min) */
+            ws->chol[ROLLMPC_TRI(a, c)] = (qa >= qc) ? md->Sinv_p[ROLLMPC_TRI(qa, qc)]
+                                                         : md->Sinv_p[ROLLMPC_TRI(qc, qa)];
         }
         ws->rhs[a] = ws->dv[qa];
         for (o = 0; o < nt; ++o) {

@@ -1,0 +1,65 @@
+# Firmware stub builds (used by the top-level `make firmware`, `make size`; also usable
+# alone: make -f firmware_stub/firmware.mk [firmware|size|host] [FW_GEN=...] [FW_BUILD=...]).
+#
+#   firmware  Cortex-M4F image: stub + HAL + startup + the generated controller in FW_GEN
+#   size      flash and static RAM of that image
+#   host      host executable (stdin/stdout HAL) for closing the loop in a test
+#
+# Flags: the target flags of `rollmpc report` (bit-exact with the host float build), the
+# project's strict warnings, PX4's C warnings and ArduPilot's frame limit, all -Werror.
+
+FW_DIR ?= firmware_stub
+FW_GEN ?= generated/uav_roll_f32
+FW_BUILD ?= build/firmware
+ARM_CC ?= arm-none-eabi-gcc
+ARM_SIZE ?= arm-none-eabi-size
+HOST_CC ?= gcc
+
+FW_MCU := -mcpu=cortex-m4 -mthumb -mfpu=fpv4-sp-d16 -mfloat-abi=hard
+# -fbuiltin after -ffreestanding keeps fabsf/sqrtf as VABS/VSQRT instead of library calls
+FW_TARGET := -O2 -ffreestanding -fbuiltin -fno-math-errno -ffp-contract=off \
+    -ffunction-sections -fdata-sections -fstack-usage
+FW_WARN := -std=c99 -Wall -Wextra -Wpedantic -Wconversion -Wshadow -Wdouble-promotion -Werror \
+    -Wfloat-equal -Wcast-align -Wstrict-prototypes -Wbad-function-cast -Wnested-externs \
+    -fno-common -Wframe-larger-than=1300
+FW_INC := -I$(FW_GEN) -I$(FW_DIR)
+
+FW_ELF := $(FW_BUILD)/rollctl_m4f.elf
+FW_HOST := $(FW_BUILD)/rollctl_host
+FW_GEN_SRC := $(wildcard $(FW_GEN)/*.c)
+FW_STUB_SRC := $(FW_DIR)/rollctl.c $(FW_DIR)/app_main.c
+FW_M4F_SRC := $(FW_DIR)/m4f/rollctl_hal_m4f.c $(FW_DIR)/m4f/startup_m4f.c
+FW_HDR := $(wildcard $(FW_GEN)/*.h) $(FW_DIR)/rollctl.h $(FW_DIR)/rollctl_hal.h \
+    $(FW_DIR)/m4f/rollmpc_timestamp_m4f.h
+FW_OBJ := $(addprefix $(FW_BUILD)/obj/,$(notdir $(FW_GEN_SRC:.c=.o) $(FW_STUB_SRC:.c=.o) \
+    $(FW_M4F_SRC:.c=.o)))
+
+vpath %.c $(FW_GEN) $(FW_DIR) $(FW_DIR)/m4f
+
+.PHONY: firmware size host
+
+firmware: $(FW_ELF)
+
+$(FW_BUILD)/obj/%.o: %.c $(FW_HDR) | $(FW_BUILD)/obj
+	$(ARM_CC) $(FW_MCU) $(FW_TARGET) $(FW_WARN) -include $(FW_DIR)/m4f/rollmpc_timestamp_m4f.h \
+	    $(FW_INC) -c $< -o $@
+
+$(FW_BUILD)/obj:
+	mkdir -p $@
+
+$(FW_ELF): $(FW_OBJ) $(FW_DIR)/m4f/stm32f4_generic.ld
+	$(ARM_CC) $(FW_MCU) -nostartfiles --specs=nano.specs -Wl,--gc-sections \
+	    -T $(FW_DIR)/m4f/stm32f4_generic.ld -Wl,-Map=$(FW_BUILD)/rollctl_m4f.map \
+	    -o $@ $(FW_OBJ) -lm
+	@echo "firmware: $@"
+
+size: $(FW_ELF)
+	@$(ARM_SIZE) $(FW_ELF)
+	@$(ARM_SIZE) $(FW_ELF) | awk 'NR == 2 { printf "flash %d B (text + data), static RAM %d B (data + bss) of %s\n", $$1 + $$2, $$2 + $$3, $$6 }'
+
+host: $(FW_HOST)
+
+$(FW_HOST): $(FW_GEN_SRC) $(FW_STUB_SRC) $(FW_DIR)/host/rollctl_hal_host.c $(FW_HDR)
+	@mkdir -p $(FW_BUILD)
+	$(HOST_CC) -O2 -ffp-contract=off $(FW_WARN) $(FW_INC) -o $@ $(FW_GEN_SRC) $(FW_STUB_SRC) \
+	    $(FW_DIR)/host/rollctl_hal_host.c -lm

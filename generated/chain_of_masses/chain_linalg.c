@@ -1,0 +1,67 @@
+/**
+ * @file chain_linalg.c
+ * @brief Packed Cholesky factorisation and solves for the polish step.
+ *
+ * Operation order is fixed (sequential sums, no fused multiply-add) so the NumPy
+ * reference reproduces every result bit for bit.
+ */
+#include <math.h>
+#include "chain_internal.h"
+
+/**
+ * @brief In-place Cholesky factorisation A = L L' of a packed lower triangle.
+ * @param a Packed lower triangle of A on entry, of L on return.
+ * @param n Order of A.
+ * @return 0 on success, -1 if a pivot is not positive (A not numerically definite).
+ */
+int chain_cholesky(chain_real *a, int n)
+{
+    int i, j, k;
+    for (i = 0; i < n; ++i) {
+        chain_real *ri = &a[CHAIN_TRI(i, 0)];
+        for (j = 0; j <= i; ++j) {
+            const chain_real *rj = &a[CHAIN_TRI(j, 0)];
+            chain_real s = ri[j];
+            for (k = 0; k < j; ++k) {
+                s -= ri[k] * rj[k];
+            }
+            if (i == j) {
+                if (!(s > CHAIN_R(0.0))) {
+                    return -1;
+                }
+                ri[i] = CHAIN_SQRT(s);
+            } else {
+                ri[j] = s / rj[j];
+            }
+        }
+    }
+    return 0;
+}
+
+/**
+ * @brief Solve L L' x = b in place, L from chain_cholesky().
+ * @param l Packed lower Cholesky factor.
+ * @param n Order.
+ * @param b Right-hand side on entry, solution on return.
+ */
+void chain_chol_solve(const chain_real *l, int n, chain_real *b)
+{
+    int i, k, off;
+    for (i = 0; i < n; ++i) {
+        const chain_real *li = &l[CHAIN_TRI(i, 0)];
+        chain_real s = b[i];
+        for (k = 0; k < i; ++k) {
+            s -= li[k] * b[k];
+        }
+        b[i] = s / li[i];
+    }
+    for (i = n - 1; i >= 0; --i) {
+        chain_real s = b[i];
+        off = CHAIN_TRI(i + 1, i); /* column i below the diagonal: stride k + 1 */
+        for (k = i + 1; k < n; ++k) {
+            s -= l[off] * b[k];
+            off += k + 1;
+        }
+        b[i] = s / l[CHAIN_TRI(i, i)];
+    }
+}

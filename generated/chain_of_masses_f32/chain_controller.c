@@ -1,0 +1,196 @@
+/**
+ * @file chain_controller.c
+ * @brief Switched controller: hysteresis scheduler (eq. 3), one observer per mode,
+ *        QP solve of the active mode, first-move extraction.
+ *
+ * All observers run every sample in the paper's predictor form
+ * xhat+ = A xhat + B u_j + L (y - C xhat), each driven by the physical commands of its
+ * own actuators (0 for an inactive pair) and the shared measurement. The inactive
+ * observers therefore stay locked to y and a switch is bumpless.
+ */
+#include <math.h>
+#include "chain_internal.h"
+
+#define R_ CHAIN_R
+
+
+static int all_finite(const chain_real *v, int n)
+{
+    int i;
+    for (i = 0; i < n; ++i) {
+        if (!isfinite(v[i])) {
+            return 0;
+        }
+    }
+    return 1;
+}
+
+/* One observer update; use_y = 0 propagates open loop (no valid measurement). */
+static void observe(chain_work *ws, const chain_mode_data *md, chain_real *x,
+    const chain_real *y, const chain_real *u_phys, int use_y)
+{
+    int i, l, a;
+    for (a = 0; a < md->ny; ++a) {
+        chain_real acc = R_(0.0);
+        for (l = 0; l < md->nx; ++l) {
+            acc += md->C[a * md->nx + l] * x[l];
+        }
+        ws->innov[a] = use_y ? y[a] - acc : R_(0.0);
+    }
+    for (i = 0; i < md->nx; ++i) {
+        chain_real acc = R_(0.0);
+        for (l = 0; l < md->nx; ++l) {
+            acc += md->A[i * md->nx + l] * x[l];
+        }
+        for (l = 0; l < md->nu; ++l) {
+            acc += md->B[i * md->nu + l] * u_phys[md->actuator[l]];
+        }
+        if (use_y) {
+            for (a = 0; a < md->ny; ++a) {
+                acc += md->L[i * md->ny + a] * ws->innov[a];
+            }
+        }
+        ws->xn[i] = acc;
+    }
+    for (i = 0; i < md->nx; ++i) {
+        x[i] = ws->xn[i];
+    }
+}
+
+size_t chain_ctrl_size(void)
+{
+    return sizeof(chain_ctrl);
+}
+
+void chain_init(chain_ctrl *c)
+{
+    int j, i;
+    if (c == 0) {
+        return;
+    }
+    c->mode = 0;
+    for (j = 0; j < CHAIN_N_MODES; ++j) {
+        for (i = 0; i < CHAIN_NX_MAX; ++i) {
+            c->xhat[j][i] = R_(0.0);
+        }
+        for (i = 0; i < CHAIN_M_MAX; ++i) {
+            c->lam[j][i] = R_(0.0);
+        }
+    }
+    for (i = 0; i < CHAIN_N_ACTUATORS; ++i) {
+        c->u_last[i] = R_(0.0);
+    }
+    for (i = 0; i < CHAIN_N_MAX; ++i) {
+        c->U[i] = R_(0.0);
+    }
+    c->info.status = CHAIN_OPTIMAL;
+    c->info.mode = c->mode;
+    c->info.iterations = 0;
+    c->info.polish_iterations = 0;
+    c->info.active = 0;
+    c->info.mode_switches = 0;
+    c->info.solve_ticks = 0u;
+}
+
+static int solve_mode(chain_ctrl *c, int mode, const chain_real *x,
+    const chain_real *r, chain_real *U)
+{
+    const uint32_t t0 = CHAIN_TIMESTAMP();
+    const int status = chain_qp_solve(&c->work, c->lam[mode], &chain_modes[mode], x, r, U,
+        &c->info.iterations, &c->info.polish_iterations, &c->info.active);
+    c->info.solve_ticks = (uint32_t)(CHAIN_TIMESTAMP() - t0);
+    c->info.status = status;
+    c->info.mode = mode;
+    return status;
+}
+
+int chain_step(chain_ctrl *c, const chain_real *y, const chain_real *sched,
+    const chain_real *r, chain_real *u)
+{
+    int j, i, status, inputs_ok;
+    const chain_mode_data *md;
+    if (c == 0 || u == 0) {
+        return CHAIN_BAD_ARGUMENT;
+    }
+    inputs_ok = y != 0 && r != 0 && (CHAIN_N_SCHEDULE == 0 || sched != 0);
+    if (!inputs_ok) {
+        for (i = 0; i < CHAIN_N_ACTUATORS; ++i) {
+            u[i] = c->u_last[i];
+        }
+        c->info.status = CHAIN_BAD_ARGUMENT;
+        return CHAIN_BAD_ARGUMENT;
+    }
+    if (!all_finite(y, CHAIN_N_OUTPUTS) || !all_finite(sched, CHAIN_N_SCHEDULE)
+        || !all_finite(r, CHAIN_HORIZON * CHAIN_N_OUTPUTS)) {
+        for (i = 0; i < CHAIN_N_ACTUATORS; ++i) {
+            u[i] = c->u_last[i];
+        }
+        for (j = 0; j < CHAIN_N_MODES; ++j) {
+            observe(&c->work, &chain_modes[j], c->xhat[j], y, u, 0);
+        }
+        c->info.status = CHAIN_NONFINITE_INPUT;
+        c->info.iterations = 0;
+        return CHAIN_NONFINITE_INPUT;
+    }
+    (void)sched;
+    md = &chain_modes[c->mode];
+    status = solve_mode(c, c->mode, c->xhat[c->mode], r, c->U);
+    for (i = 0; i < CHAIN_N_ACTUATORS; ++i) {
+        u[i] = R_(0.0);
+    }
+    for (i = 0; i < md->nu; ++i) {
+        u[md->actuator[i]] = c->U[i];
+    }
+    for (j = 0; j < CHAIN_N_MODES; ++j) {
+        observe(&c->work, &chain_modes[j], c->xhat[j], y, u, 1);
+    }
+    for (i = 0; i < CHAIN_N_ACTUATORS; ++i) {
+        c->u_last[i] = u[i];
+    }
+    return status;
+}
+
+int chain_solve_qp(chain_ctrl *c, int mode, const chain_real *x,
+    const chain_real *r, chain_real *U, int *iterations)
+{
+    int status, i;
+    if (c == 0 || U == 0 || mode < 0 || mode >= CHAIN_N_MODES) {
+        return CHAIN_BAD_ARGUMENT;
+    }
+    if (x == 0 || r == 0 || !all_finite(x, chain_modes[mode].nx)
+        || !all_finite(r, CHAIN_HORIZON * CHAIN_N_OUTPUTS)) {
+        status = (x == 0 || r == 0) ? CHAIN_BAD_ARGUMENT : CHAIN_NONFINITE_INPUT;
+        for (i = 0; i < chain_modes[mode].n; ++i) {
+            U[i] = R_(0.0);
+        }
+        c->info.status = status;
+        if (iterations != 0) {
+            *iterations = 0;
+        }
+        return status;
+    }
+    status = solve_mode(c, mode, x, r, U);
+    if (iterations != 0) {
+        *iterations = c->info.iterations;
+    }
+    return status;
+}
+
+const chain_info *chain_last_info(const chain_ctrl *c)
+{
+    return &c->info;
+}
+
+const char *chain_status_message(int status)
+{
+    switch (status) {
+    case CHAIN_OPTIMAL: return "optimal";
+    case CHAIN_MAX_ITER: return "iteration cap reached";
+    case CHAIN_INACCURATE: return "converged by delta but constraints violated";
+    case CHAIN_INFEASIBLE: return "infeasible: dual multipliers diverged";
+    case CHAIN_NONFINITE_INPUT: return "non-finite input; last command held";
+    case CHAIN_NUMERICAL: return "non-finite intermediate result; safe fallback";
+    case CHAIN_BAD_ARGUMENT: return "bad argument";
+    default: return "unknown status";
+    }
+}

@@ -1,0 +1,131 @@
+"""rollmpc report: the target image runs on the emulated Cortex-M4F bit for bit like the
+host float build, the JSON carries the promised keys, and the cycle counts are positive
+and identical run to run."""
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+from conftest import UAV, require_tool
+
+ARM_HINT = "apt-get install -y --no-install-recommends gcc-arm-none-eabi libnewlib-arm-none-eabi"
+REPORT_KEYS = ("flash_bytes", "ram_bytes", "stack_bytes", "worst_step_instructions",
+               "worst_step_cycles", "median_step_cycles", "cpu_mhz_for_10ms",
+               "bit_exact_vs_host", "worst_step_top_functions")
+
+
+@pytest.fixture
+def target_tools():
+    require_tool("arm-none-eabi-gcc", ARM_HINT)
+    for module in ("unicorn", "capstone", "elftools"):
+        pytest.importorskip(module, reason="pip install 'rollmpc-codegen[target]'")
+
+
+@pytest.fixture(scope="module")
+def float_model():
+    from rollmpc_codegen.generate import load_model
+
+    return load_model(UAV, "float")
+
+
+def test_report_json_keys_and_bit_exact(target_tools, tmp_path, build_root, capsys):
+    """960 steps: the first reference step enters the preview at step 900 and saturates
+    the ailerons over the whole horizon."""
+    from rollmpc_codegen.cli import main
+
+    out = tmp_path / "report.json"
+    assert main(["report", str(UAV), "--precision", "float", "--steps", "960",
+                 "--sample-every", "160", "--hardest", "3", "--json", str(out), "--quiet",
+                 "--build-dir", str(build_root)]) == 0
+    rep = json.loads(out.read_text())
+    for key in REPORT_KEYS:
+        assert key in rep, key
+    assert rep["bit_exact_vs_host"] is True and rep["state_bit_exact"] is True
+    assert rep["steps_emulated"] == 960 and rep["mismatches"] == 0
+    assert rep["worst_step"] >= 900  # a constrained step, not the quiet first 9 s
+    assert rep["worst_step_cycles"] > rep["median_step_cycles"] > 0
+    assert rep["worst_step_cycles"] >= rep["worst_step_instructions"] > 0
+    assert rep["cpu_mhz_for_10ms"] == pytest.approx(rep["worst_step_cycles"] / 0.01 / 1e6,
+                                                    abs=0.01)
+    assert rep["ram_bytes"] >= rep["ctrl_bytes"] > 0 and rep["flash_bytes"] > 100_000
+    assert rep["stack_bytes"] > 0 and rep["stack_path"][0] == "rollmpc_step"
+    # the static worst path bounds the stack the emulated run really used
+    assert 0 < rep["stack_measured_bytes"] <= rep["stack_entry_bytes"]
+    shares = [f["share"] for f in rep["worst_step_top_functions"]]
+    assert shares == sorted(shares, reverse=True) and 0.99 <= sum(shares) <= 1.0001
+    text = capsys.readouterr().out
+    assert "168 MHz" in text and "bit-exact vs host: yes" in text
+
+
+def test_emulated_cycles_are_deterministic(target_tools, float_model, build_root):
+    from rollmpc_codegen.report import record_host_run, replay_on_target
+    from rollmpc_codegen.target import build_target
+
+    model, ctx = float_model
+    build = build_target(ctx, build_root)
+    record = record_host_run(model, ctx, build_root, steps=942, progress=False)
+    counted = {0, 940, 941}
+    runs = [replay_on_target(build, ctx, record, counted, progress=False) for _ in range(2)]
+    for run in runs:
+        assert not run.mismatches and run.state_equal
+        assert set(run.counts) == counted
+        assert all(c.cycles > c.instructions > 0 for c in run.counts.values())
+    for k in counted:
+        a, b = runs[0].counts[k], runs[1].counts[k]
+        assert (a.instructions, a.cycles, a.by_function) == (b.instructions, b.cycles,
+                                                             b.by_function)
+    # a saturated step costs more than the unconstrained first one
+    assert runs[0].counts[941].cycles > runs[0].counts[0].cycles
+
+
+@pytest.mark.parametrize("name, ops, cycles", [
+    ("vdiv", "s0, s1, s2", 14), ("vsqrt", "s0, s0", 14), ("vfma", "s0, s1, s2", 3),
+    ("vldr", "s0, [r3, #4]", 2), ("ldrd", "r2, r3, [r0]", 3), ("push", "{r4, r5, r6, lr}", 5),
+    ("vldmia", "r3!, {s14, s15}", 3), ("vpush", "{d8, d9}", 5), ("vmov", "r0, s0", 2),
+    ("vmov", "s0, s1", 1), ("sdiv", "r0, r1, r2", 12), ("add", "r0, r1", 1)])
+def test_cycle_weights_follow_the_table(name, ops, cycles):
+    pytest.importorskip("capstone", reason="pip install 'rollmpc-codegen[target]'")
+    from rollmpc_codegen.emulate import instruction_cycles
+
+    assert instruction_cycles(name, ops) == cycles
+
+
+def test_horizon_table_and_fits(target_tools, tmp_path, build_root, capsys):
+    from rollmpc_codegen.cli import main
+
+    out = tmp_path / "h.json"
+    assert main(["report", str(UAV), "--precision", "float", "--horizons", "10,20",
+                 "--steps", "60", "--sample-every", "30", "--hardest", "1", "--quiet",
+                 "--json", str(out), "--build-dir", str(build_root)]) == 0
+    table = json.loads(out.read_text())["horizons"]
+    rows = table["rows"]
+    assert [r["horizon"] for r in rows] == [10, 20]
+    assert rows[1]["flash_bytes"] > rows[0]["flash_bytes"] > 0
+    assert all(r["bit_exact_vs_host"] and r["generation_s"] > 0 for r in rows)
+    assert table["fits"]["flash_bytes"]["exponent"] > 0
+    assert all(p["horizons_that_fit_memory"] == [10, 20] for p in table["parts"])
+    assert "| 20 |" in capsys.readouterr().out
+
+
+@pytest.mark.parametrize("args", [["--horizons", "10,x"], ["--steps", "0"]])
+def test_bad_report_arguments_give_one_line(args, capsys):
+    from rollmpc_codegen.cli import main
+
+    assert main(["report", str(UAV), *args]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith("rollmpc: error:")
+
+
+def test_instance_layout_matches_the_host(target_tools, float_model, build_root):
+    """The final-state comparison of replay_on_target relies on identical struct layouts."""
+    from rollmpc_codegen.build import build_host_controller
+    from rollmpc_codegen.emulate import CortexM4
+    from rollmpc_codegen.target import build_target
+
+    model, ctx = float_model
+    em = CortexM4(build_target(ctx, build_root).elf)
+    size, real, _, _ = np.frombuffer(em.read("rollmpc_target_layout"), np.uint32)
+    host = build_host_controller(ctx, build_root)
+    assert size == host.lib.rollmpc_ctrl_size() and real == 4
