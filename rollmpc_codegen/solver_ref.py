@@ -361,6 +361,8 @@ class SolverRef:
                 th = self._correct(th0, W, z)
                 add = self._violated_outside(th, gam, W)
                 if add.size == 0:
+                    if np.any(self._violated(th, gam)[W]):  # working_set_holds()
+                        return False, None, 0, its
                     lam[:] = 0
                     lam[W] = z
                     return True, th, W.size, its

