@@ -309,6 +309,20 @@ static int slacks(chain_work *ws, const chain_mode_data *md)
     return count;
 }
 
+/*
+ * 1 if the output rows need checking at th (not certified); ws->yv then holds Gamma th.
+ * 0 if there are none or none can be violated.
+ */
+static int outputs_to_check(chain_work *ws, const chain_mode_data *md,
+    const chain_real *th)
+{
+    if (md->GEinvGt_p == 0 || outputs_certified(ws, md, th)) {
+        return 0;
+    }
+    predict_outputs(ws, md, th);
+    return 1;
+}
+
 /* Violation of row r at th (positive = violated) and its tolerance. */
 static int row_violated(const chain_work *ws, const chain_mode_data *md,
     const chain_real *th, int r)
@@ -431,10 +445,9 @@ static int violated_outside(chain_work *ws, const chain_mode_data *md,
     const chain_real *th, const int16_t *list, int count, int16_t *out, int cap)
 {
     const int nbox = violated_kind(ws, md, th, list, count, out, cap, 0);
-    if (nbox != 0 || md->GEinvGt_p == 0 || outputs_certified(ws, md, th)) {
+    if (nbox != 0 || !outputs_to_check(ws, md, th)) {
         return nbox;
     }
-    predict_outputs(ws, md, th);
     return violated_kind(ws, md, th, list, count, out, cap, 1);
 }
 
@@ -730,10 +743,7 @@ static int drop_negative(chain_work *ws, int *nw)
 static int working_set_holds(chain_work *ws, const chain_mode_data *md, int nw)
 {
     int i;
-    const int outputs = md->GEinvGt_p != 0 && !outputs_certified(ws, md, ws->th);
-    if (outputs) {
-        predict_outputs(ws, md, ws->th);
-    }
+    const int outputs = outputs_to_check(ws, md, ws->th);
     for (i = 0; i < nw; ++i) {
         const int r = ws->wset[i];
         if ((outputs || md->row_q[r] < md->n) && row_violated(ws, md, ws->th, r)) {
@@ -942,10 +952,7 @@ int chain_qp_solve(chain_work *ws, chain_real *lam, const chain_mode_data *md,
         nviol = violated_outside(ws, md, ws->th, ws->set, 0, ws->tmp, 0);
         if (CHAIN_SOLVER_REDUCED && nviol != 0) {
             /* every violated row joins: predict the outputs unless certified */
-            const int outputs = md->GEinvGt_p != 0 && !outputs_certified(ws, md, ws->th);
-            if (outputs) {
-                predict_outputs(ws, md, ws->th);
-            }
+            const int outputs = outputs_to_check(ws, md, ws->th);
             for (i = 0; i < md->m; ++i) {
                 if (!ws->in_set[i] && (outputs || md->row_q[i] < md->n)
                     && row_violated(ws, md, ws->th, i)) {
