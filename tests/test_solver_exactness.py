@@ -11,39 +11,15 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from rollmpc_codegen.bench import record_qp_sequence
 from rollmpc_codegen.exact_qp import qp_data, solve_exact
-from rollmpc_codegen.simulate import run_closed_loop
 from rollmpc_codegen.solver_ref import OPTIMAL
-
-
-def _scenario_qps(built):
-    """(mode, x, r) of every QP the compiled closed loop of ``built`` solves, in order.
-
-    The C runs the loop; the reference observers, fed the same y and the C's commands,
-    reproduce its state estimates bit for bit (tests/test_bitexact.py) at a fraction of
-    the cost of the reference solver.
-    """
-    ref = built.reference()
-    c = built.fresh_c()
-    qps = []
-
-    class Recorder:
-        def step(self, y, s, r):
-            before = [x.copy() for x in ref.xhat]
-            status, u = c.step(y, s, r)
-            mode = c.info()["mode"]
-            qps.append((mode, before[mode], np.asarray(r, dtype=before[0].dtype)))
-            for j, md in enumerate(ref.md):
-                ref._observe(md, ref.xhat[j], np.asarray(y, md.Kx.dtype), u, True)
-            return status, u
-
-    run_closed_loop(built.model.config, Recorder())
-    return qps
 
 
 @pytest.fixture(scope="module")
 def double_replay(uav_double):
-    qps = _scenario_qps(uav_double)
+    seq = record_qp_sequence(uav_double.model, uav_double.fresh_c())
+    qps = list(zip(seq.mode, seq.x, seq.r))
     c = uav_double.fresh_c()
     out = []
     for mode, x, r in qps:
