@@ -189,6 +189,16 @@ class SolverRef:
         tol = self.tol * np.where(ag > self.one, ag, self.one)
         return viol > tol
 
+    @staticmethod
+    def _drop_negative(W, z, guess):
+        """Mirror of drop_negative(): (kept rows, 0 none dropped / 1 dropped / -1 give up)."""
+        keep = z >= 0
+        if np.all(keep):
+            return W, 0
+        kept = W[keep]
+        give_up = kept.size == 0 or (guess and 2 * kept.size < W.size)
+        return kept, (-1 if give_up else 1)
+
     def _violated_outside(self, th, gam, W):
         """Mirror of violated_outside(): violated input rows first, output rows only if none."""
         viol = self._violated(th, gam)
@@ -339,11 +349,10 @@ class SolverRef:
                 if add.size == 0:
                     if z is None:
                         z = self._free_multipliers(W)
-                    keep = z >= 0
-                    if not np.all(keep):
-                        total, W = W.size, W[keep]
-                        if W.size == 0 or (guess and 2 * W.size < total):
-                            return False, None, 0, its
+                    W, dropped = self._drop_negative(W, z, guess)
+                    if dropped < 0:
+                        return False, None, 0, its
+                    if dropped:
                         continue
                     lam[:] = 0
                     lam[W] = z
@@ -352,11 +361,10 @@ class SolverRef:
                 ok, z = self._dual_solve(W, K)
                 if not ok:
                     return False, None, 0, its
-                keep = z >= 0
-                if not np.all(keep):
-                    total, W = W.size, W[keep]
-                    if W.size == 0 or (guess and 2 * W.size < total):
-                        return False, None, 0, its
+                W, dropped = self._drop_negative(W, z, guess)
+                if dropped < 0:
+                    return False, None, 0, its
+                if dropped:
                     continue
                 th = self._correct(th0, W, z)
                 add = self._violated_outside(th, gam, W)

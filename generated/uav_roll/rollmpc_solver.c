@@ -723,8 +723,12 @@ static int seed_from_violated(rollmpc_work *ws, const rollmpc_mode_data *md)
     return nw;
 }
 
-/* Drop the working-set rows with negative multipliers; returns how many left. */
-static int drop_negative(rollmpc_work *ws, int *nw)
+/*
+ * Drop the working-set rows with negative multipliers. Returns 0 if none was dropped,
+ * 1 if some were (solve again), -1 if the working set is to be given up: emptied, or a
+ * guess (see polish()) that lost more than half of its rows.
+ */
+static int drop_negative(rollmpc_work *ws, int *nw, int guess)
 {
     int i, keep = 0;
     for (i = 0; i < *nw; ++i) {
@@ -734,7 +738,10 @@ static int drop_negative(rollmpc_work *ws, int *nw)
             ++keep;
         }
     }
-    i = *nw - keep;
+    if (keep == *nw) {
+        return 0;
+    }
+    i = (keep == 0 || (guess && 2 * keep < *nw)) ? -1 : 1;
     *nw = keep;
     return i;
 }
@@ -786,7 +793,7 @@ static int polish(rollmpc_work *ws, const rollmpc_mode_data *md, rollmpc_real *l
         return -1;
     }
     for (it = 0; it < ROLLMPC_SOLVER_POLISH_MAX; ++it) {
-        int nadd, p, q, total, before, box_only = 1, solved;
+        int nadd, p, q, total, dropped, box_only = 1, solved;
         ++*iterations;
         for (i = 0; i < nw; ++i) {
             box_only = box_only && md->row_q[ws->wset[i]] < n;
@@ -802,9 +809,9 @@ static int polish(rollmpc_work *ws, const rollmpc_mode_data *md, rollmpc_real *l
                 if (solved == 0) {
                     free_multipliers(ws, md, nw);
                 }
-                before = nw;
-                if (drop_negative(ws, &nw) != 0) {
-                    if (nw == 0 || (guess && 2 * nw < before)) {
+                dropped = drop_negative(ws, &nw, guess);
+                if (dropped != 0) {
+                    if (dropped < 0) {
                         return -1;
                     }
                     continue;
@@ -815,9 +822,9 @@ static int polish(rollmpc_work *ws, const rollmpc_mode_data *md, rollmpc_real *l
             if (dual_solve(ws, md, nw) != 0) {
                 return -1;
             }
-            before = nw;
-            if (drop_negative(ws, &nw) != 0) {
-                if (nw == 0 || (guess && 2 * nw < before)) {
+            dropped = drop_negative(ws, &nw, guess);
+            if (dropped != 0) {
+                if (dropped < 0) {
                     return -1;
                 }
                 continue;
