@@ -741,9 +741,12 @@ static int drop_negative(rollmpc_work *ws, int *nw, int guess)
     if (keep == *nw) {
         return 0;
     }
-    i = (keep == 0 || (guess && 2 * keep < *nw)) ? -1 : 1;
+    i = *nw;
     *nw = keep;
-    return i;
+    if (keep == 0 || (guess && 2 * keep < i)) {
+        return -1;
+    }
+    return 1;
 }
 
 /* Do the working-set rows hold (within the feasibility tolerance) at ws->th? */
