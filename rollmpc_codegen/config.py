@@ -12,7 +12,7 @@ import hashlib
 import math
 import re
 import sys
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
 
@@ -53,6 +53,9 @@ class PlantConfig:
     D: np.ndarray | None = None
     discrete: bool = False  # state space only: already sampled at sample_time
     integrator: bool = False  # append 1/s to every output (eq. 1)
+    # transfer-function matrix (ny x nu): ((num_ij, den_ij) per input j) per output i;
+    # None for the SISO form (num, den above) and for state space
+    tf_matrix: tuple[tuple[tuple[tuple[float, ...], tuple[float, ...]], ...], ...] | None = None
 
 
 @dataclass(frozen=True)
@@ -68,19 +71,45 @@ class ModeConfig:
     y_min: np.ndarray  # -inf where unbounded
     y_max: np.ndarray
     observer_poles: tuple[complex, ...] | None  # None -> documented default
+    observer_kind: str = "poles"  # "poles" (placement) | "kalman" (steady-state Kalman)
+    observer_Qn: np.ndarray | None = None  # kalman: input-noise covariance (nu x nu)
+    observer_Rn: np.ndarray | None = None  # kalman: measurement-noise covariance (ny x ny)
+    observer_Qd: np.ndarray | None = None  # kalman + disturbance: its random-walk covariance
+    disturbance: str = "none"  # offset-free model: "none" | "input" | "output"
 
 
 @dataclass(frozen=True)
 class SchedulerConfig:
-    """Eq. (3): one band [lower, upper] with hysteresis margin epsilon."""
+    """Band scheduling with hysteresis, the generalisation of eq. (3) (docs/features.md).
+
+    k bands split the signal at k-1 increasing thresholds t_1 < .. < t_{k-1}: band b is
+    t_{b-1} <= s < t_b (t_0 = -inf, t_k = +inf) and is served by one mode (``band_modes``
+    lists them from the lowest band, 0-based, as every tuple here).  The active mode becomes
+    band b's mode only when s is inside band b by more than the margin of each of its
+    thresholds, t_{b-1} + eps_{b-1} < s < t_b - eps_b; within a margin of a threshold the
+    current mode is kept.  The two-mode shorthand (lower, upper, inside, outside) is the
+    three bands (outside, inside, outside), which is eq. (3) exactly.
+    """
 
     signal: str
-    lower: float
-    upper: float
-    epsilon: float
-    inside: int  # mode index active inside the band
-    outside: int  # mode index active outside the band
+    thresholds: tuple[float, ...]  # k-1, strictly increasing
+    epsilons: tuple[float, ...]  # k-1 hysteresis margins, one per threshold
+    band_modes: tuple[int, ...]  # k mode indices, one per band (a mode may serve several)
     initial: int  # mode index at P_init
+
+    @property
+    def below(self) -> tuple[float, ...]:
+        """t_i - eps_i: s below it is firmly below threshold i (computed once, in double)."""
+        return tuple(t - e for t, e in zip(self.thresholds, self.epsilons))
+
+    @property
+    def above(self) -> tuple[float, ...]:
+        """t_i + eps_i: s above it is firmly above threshold i."""
+        return tuple(t + e for t, e in zip(self.thresholds, self.epsilons))
+
+    def band_of(self, value: float) -> int:
+        """The band containing ``value`` (t_{b-1} <= value < t_b), without hysteresis."""
+        return sum(1 for t in self.thresholds if value >= t)
 
 
 @dataclass(frozen=True)
@@ -96,6 +125,9 @@ class SolverConfig:
     polish_every: int = 10
     polish_max: int = 8
     feasibility_tol: float | None = None  # None -> precision default
+    active_set: bool = True  # dual active-set (Goldfarb-Idnani) solve before any sweep
+    active_set_max: int = 500  # its cap on add/drop steps
+    dependence_tol: float | None = None  # None -> precision default
 
 
 @dataclass(frozen=True)
@@ -299,6 +331,58 @@ def _psd(mat: np.ndarray, key: str, strict: bool) -> np.ndarray:
 
 
 # --------------------------------------------------------------------------- sections
+def _is_rows(value: Any) -> bool:
+    """A non-empty list of lists: the matrix form of a transfer function."""
+    return isinstance(value, list) and bool(value) and all(isinstance(v, list) for v in value)
+
+
+def _tf_element(num_raw: Any, den_raw: Any, knum: str, kden: str, integrator: bool,
+                allow_zero: bool) -> tuple[tuple[float, ...], tuple[float, ...]]:
+    """One transfer function num/den (coefficients, highest power first), checked."""
+    num = np.trim_zeros(_vector(num_raw, knum), "f")
+    den = np.trim_zeros(_vector(den_raw, kden), "f")
+    if den.size == 0:
+        raise ConfigError(kden, "must not be all zeros")
+    if num.size == 0:
+        if allow_zero:  # a zero element of a matrix: no coupling
+            return (0.0,), tuple(den)
+        raise ConfigError(knum, "must not be all zeros")
+    if num.size > den.size:
+        raise ConfigError(knum, "improper transfer function (deg num > deg den)")
+    if num.size == den.size and not integrator:
+        raise ConfigError(knum, "transfer function has feedthrough; MPC needs a "
+                          "strictly proper plant (deg num < deg den) or integrator: true")
+    if den.size < 2 and not integrator:
+        raise ConfigError(kden, "a static gain has no state; use integrator: true")
+    return tuple(num), tuple(den)
+
+
+def _tf_matrix(tf: _Reader, integrator: bool):
+    """``num``: rows (outputs) of elements (inputs), each a coefficient list or a number;
+    ``den``: the same shape, or one coefficient list shared by every element."""
+    num_rows, den_raw = tf.raw("num"), tf.raw("den")
+    knum, kden = tf.key("num"), tf.key("den")
+    width = len(num_rows[0])
+    for i, row in enumerate(num_rows):
+        if len(row) != width or not row:
+            raise ConfigError(f"{knum}[{i}]", f"must have {width} elements (one per input)")
+    common = not _is_rows(den_raw)
+    if not common and (len(den_raw) != len(num_rows)
+                       or any(not isinstance(row, list) or len(row) != width
+                              for row in den_raw)):
+        raise ConfigError(kden, f"must have the shape of num ({len(num_rows)}x{width}) or be "
+                          "one coefficient list (a common denominator)")
+    matrix = []
+    for i, row in enumerate(num_rows):
+        matrix.append(tuple(
+            _tf_element(n, den_raw if common else den_raw[i][j], f"{knum}[{i}][{j}]",
+                        kden if common else f"{kden}[{i}][{j}]", integrator, allow_zero=True)
+            for j, n in enumerate(row)))
+    if all(n == (0.0,) for row in matrix for n, _ in row):
+        raise ConfigError(knum, "must not be all zeros")
+    return tuple(matrix)
+
+
 def _plant(r: _Reader) -> PlantConfig:
     kinds = [k for k in ("transfer_function", "state_space") if r.has(k)]
     if len(kinds) != 1:
@@ -306,25 +390,17 @@ def _plant(r: _Reader) -> PlantConfig:
     integrator = r.boolean("integrator", False)
     if kinds[0] == "transfer_function":
         tf = r.sub("transfer_function")
-        num = _vector(tf.raw("num"), tf.key("num"))
-        den = _vector(tf.raw("den"), tf.key("den"))
+        if _is_rows(tf.raw("num")):  # the matrix form: one row per output
+            matrix = _tf_matrix(tf, integrator)
+            tf.finish()
+            r.finish()
+            return PlantConfig(kind="transfer_function", tf_matrix=matrix,
+                               integrator=integrator)
+        num, den = _tf_element(tf.raw("num"), tf.raw("den"), tf.key("num"), tf.key("den"),
+                               integrator, allow_zero=False)
         tf.finish()
-        num = np.trim_zeros(num, "f")
-        den = np.trim_zeros(den, "f")
-        if den.size == 0:
-            raise ConfigError(tf.key("den"), "must not be all zeros")
-        if num.size == 0:
-            raise ConfigError(tf.key("num"), "must not be all zeros")
-        if num.size > den.size:
-            raise ConfigError(tf.key("num"), "improper transfer function (deg num > deg den)")
-        if num.size == den.size and not integrator:
-            raise ConfigError(tf.key("num"), "transfer function has feedthrough; MPC needs a "
-                              "strictly proper plant (deg num < deg den) or integrator: true")
-        if den.size < 2 and not integrator:
-            raise ConfigError(tf.key("den"), "a static gain has no state; use integrator: true")
         r.finish()
-        return PlantConfig(kind="transfer_function", num=tuple(num), den=tuple(den),
-                           integrator=integrator)
+        return PlantConfig(kind="transfer_function", num=num, den=den, integrator=integrator)
     ss = r.sub("state_space")
     A = _matrix(ss.raw("A"), ss.key("A"))
     nx = A.shape[0]
@@ -361,9 +437,16 @@ def _mode(r: _Reader, outputs: tuple[str, ...], actuators: tuple[str, ...]) -> M
                               f"declared actuators are {', '.join(actuators)}")
     plant = _plant(r.sub("plant"))
     nu, ny = len(acts), len(outputs)
-    if plant.kind == "transfer_function" and (nu, ny) != (1, 1):
+    if plant.kind == "transfer_function" and plant.tf_matrix is None and (nu, ny) != (1, 1):
         raise ConfigError(r.key("plant.transfer_function"),
-                          f"is SISO but the mode has {nu} actuators and {ny} outputs")
+                          f"is SISO but the mode has {nu} actuators and {ny} outputs; give "
+                          "num/den as matrices (one row per output, one element per input)")
+    if plant.tf_matrix is not None:
+        shape = (len(plant.tf_matrix), len(plant.tf_matrix[0]))
+        if shape != (ny, nu):
+            raise ConfigError(r.key("plant.transfer_function.num"),
+                              f"must be {ny}x{nu} (one row per output, one element per mode "
+                              f"actuator), got {shape[0]}x{shape[1]}")
     if plant.kind == "state_space":
         if plant.B.shape[1] != nu:
             raise ConfigError(r.key("plant.state_space.B"),
@@ -396,58 +479,177 @@ def _mode(r: _Reader, outputs: tuple[str, ...], actuators: tuple[str, ...]) -> M
         if not y_min[i] < y_max[i]:
             raise ConfigError(b.key("y_min"), f"must be < y_max (entry {i})")
     b.finish()
-    poles = None
-    if r.has("observer"):
-        o = r.sub("observer")
-        if o.has("poles"):
-            raw = o.raw("poles")
-            if not isinstance(raw, list) or not raw:
-                raise ConfigError(o.key("poles"), "must be a non-empty list")
-            parsed = []
-            for i, p in enumerate(raw):
-                k = f"{o.key('poles')}[{i}]"
-                if isinstance(p, list) and len(p) == 2:
-                    parsed.append(complex(_number(p[0], k), _number(p[1], k)))
-                else:
-                    parsed.append(complex(_number(p, k), 0.0))
-                if abs(parsed[-1]) >= 1.0:
-                    raise ConfigError(k, f"observer pole {p!r} is not inside the unit circle")
-            poles = tuple(parsed)
-        o.finish()
+    observer = _observer(r.sub("observer"), nu, ny) if r.has("observer") else {}
     r.finish()
     return ModeConfig(name=name, actuators=acts, plant=plant, Q=Q, R=R, P=P,
                       u_min=u_min, u_max=u_max, y_min=y_min, y_max=y_max,
-                      observer_poles=poles)
+                      observer_poles=observer.pop("poles", None), **observer)
+
+
+OBSERVER_KINDS = ("poles", "kalman")
+DISTURBANCE_MODELS = ("none", "input", "output")
+
+
+def _poles(o: _Reader) -> tuple[complex, ...]:
+    raw = o.raw("poles")
+    if not isinstance(raw, list) or not raw:
+        raise ConfigError(o.key("poles"), "must be a non-empty list")
+    parsed = []
+    for i, p in enumerate(raw):
+        k = f"{o.key('poles')}[{i}]"
+        if isinstance(p, list) and len(p) == 2:
+            parsed.append(complex(_number(p[0], k), _number(p[1], k)))
+        else:
+            parsed.append(complex(_number(p, k), 0.0))
+        if abs(parsed[-1]) >= 1.0:
+            raise ConfigError(k, f"observer pole {p!r} is not inside the unit circle")
+    return tuple(parsed)
+
+
+def _observer(o: _Reader, nu: int, ny: int) -> dict:
+    """``modes[].observer``: pole placement (default) or a steady-state Kalman filter, and
+    the optional disturbance model of offset-free tracking (docs/features.md)."""
+    kind = o.string("kind", "poles", choices=OBSERVER_KINDS)
+    disturbance = o.string("disturbance", "none", choices=DISTURBANCE_MODELS)
+    out: dict = {"observer_kind": kind, "disturbance": disturbance}
+    kalman_keys = [k for k in ("Qn", "Rn", "Qd") if o.has(k)]
+    if kind == "poles":
+        if kalman_keys:
+            raise ConfigError(o.key(kalman_keys[0]), "only with kind: kalman")
+        if o.has("poles"):
+            out["poles"] = _poles(o)
+    else:
+        if o.has("poles"):
+            raise ConfigError(o.key("poles"), "only with kind: poles (the Kalman filter "
+                              "places its own poles)")
+        out["observer_Qn"] = _psd(_matrix(o.raw("Qn"), o.key("Qn"), (nu, nu)), o.key("Qn"),
+                                  strict=False)
+        out["observer_Rn"] = _psd(_matrix(o.raw("Rn"), o.key("Rn"), (ny, ny)), o.key("Rn"),
+                                  strict=True)
+        if disturbance != "none":
+            nd = nu if disturbance == "input" else ny
+            out["observer_Qd"] = _psd(_matrix(o.raw("Qd"), o.key("Qd"), (nd, nd)),
+                                      o.key("Qd"), strict=True)
+        elif o.has("Qd"):
+            raise ConfigError(o.key("Qd"), "only with a disturbance model (disturbance: "
+                              "input or output)")
+    o.finish()
+    return out
+
+
+_SHORTHAND_KEYS = ("lower", "upper", "inside", "outside")
 
 
 def _scheduler(r: _Reader, modes: tuple[ModeConfig, ...]) -> SchedulerConfig:
+    """``scheduler``: ``bands`` (k bands, any number of modes) or the two-mode shorthand
+    ``lower, upper, inside, outside`` of eq. (3), translated into the three bands
+    (outside, inside, outside)."""
     names = [m.name for m in modes]
 
-    def mode_index(key: str) -> int:
-        name = r.string(key)
+    def mode_index(reader: _Reader, key: str) -> int:
+        name = reader.string(key)
         if name not in names:
-            raise ConfigError(r.key(key), f"unknown mode {name!r}; modes are {', '.join(names)}")
+            raise ConfigError(reader.key(key), f"unknown mode {name!r}; modes are "
+                              f"{', '.join(names)}")
         return names.index(name)
 
     signal = r.string("signal")
     if not _IDENT.match(signal):  # it is written into C comments of the generated code
         raise ConfigError(r.key("signal"), f"must be an identifier-like name, got {signal!r}")
-    lower = r.number("lower")
-    upper = r.number("upper")
-    if not lower < upper:
-        raise ConfigError(r.key("lower"), f"must be < upper ({lower} >= {upper})")
-    epsilon = r.number("epsilon", 0.5, nonnegative=True)
-    if 2 * epsilon >= upper - lower:
-        raise ConfigError(r.key("epsilon"), "the hysteresis margin leaves no inside band "
-                          "(need 2*epsilon < upper - lower)")
-    inside = mode_index("inside")
-    outside = mode_index("outside")
-    if inside == outside:
-        raise ConfigError(r.key("outside"), "must differ from inside")
-    initial = mode_index("initial") if r.has("initial") else inside
+    shorthand = [k for k in _SHORTHAND_KEYS if k in r.data]
+    if r.has("bands"):
+        if shorthand:
+            raise ConfigError(r.key(shorthand[0]), "give either bands or the two-mode "
+                              "shorthand (lower, upper, inside, outside), not both")
+        epsilon = r.number("epsilon", 0.5, nonnegative=True)
+        thresholds, epsilons, eps_keys, band_modes = _bands(r, epsilon, mode_index)
+        unused_hint = ""
+        default_initial = None
+    else:
+        if not shorthand:
+            raise ConfigError(r.key("bands"), "missing required key (or the two-mode "
+                              "shorthand lower, upper, inside, outside)")
+        lower = r.number("lower")
+        upper = r.number("upper")
+        if not lower < upper:
+            raise ConfigError(r.key("lower"), f"must be < upper ({lower} >= {upper})")
+        epsilon = r.number("epsilon", 0.5, nonnegative=True)
+        if 2 * epsilon >= upper - lower:
+            raise ConfigError(r.key("epsilon"), "the hysteresis margin leaves no inside band "
+                              "(need 2*epsilon < upper - lower)")
+        inside = mode_index(r, "inside")
+        outside = mode_index(r, "outside")
+        if inside == outside:
+            raise ConfigError(r.key("outside"), "must differ from inside")
+        thresholds, epsilons = [lower, upper], [epsilon, epsilon]
+        eps_keys = [r.key("epsilon")] * 2
+        band_modes = [outside, inside, outside]
+        unused_hint = " (the lower/upper shorthand schedules two modes: use bands)"
+        default_initial = inside
+    for b in range(1, len(thresholds)):  # the middle bands need a region beyond the margins
+        if not thresholds[b - 1] + epsilons[b - 1] < thresholds[b] - epsilons[b]:
+            key = eps_keys[b] if eps_keys[b] != r.key("epsilon") else eps_keys[b - 1]
+            raise ConfigError(key, f"too big for the band {thresholds[b - 1]} .. "
+                              f"{thresholds[b]}: its hysteresis margins leave no region "
+                              f"where that band's mode is chosen")
+    for j, name in enumerate(names):
+        if j not in band_modes:
+            raise ConfigError(r.key("bands") if not unused_hint else r.path,
+                              f"mode {name!r} (modes[{j}]) serves no band{unused_hint}")
+    sc = SchedulerConfig(signal=signal, thresholds=tuple(thresholds),
+                         epsilons=tuple(epsilons), band_modes=tuple(band_modes), initial=-1)
+    if r.has("initial"):
+        initial = mode_index(r, "initial")
+    else:  # the shorthand's inside mode, else the mode of the band that contains 0
+        initial = default_initial if default_initial is not None else band_modes[sc.band_of(0.0)]
     r.finish()
-    return SchedulerConfig(signal=signal, lower=lower, upper=upper, epsilon=epsilon,
-                           inside=inside, outside=outside, initial=initial)
+    return replace(sc, initial=initial)
+
+
+def _bands(r: _Reader, epsilon: float, mode_index) -> tuple[list, list, list, list]:
+    """``scheduler.bands``: each ``{mode, below, epsilon}``; the last band has no ``below``.
+
+    Returns the thresholds, their margins, the key each margin came from, and the band modes.
+    """
+    raw = r.raw("bands")
+    key = r.key("bands")
+    if not isinstance(raw, list) or len(raw) < 2:
+        raise ConfigError(key, "must be a list of at least two bands (one mode needs no "
+                          "scheduler)")
+    thresholds: list[float] = []
+    epsilons: list[float] = []
+    eps_keys: list[str] = []
+    band_modes: list[int] = []
+    for i, item in enumerate(raw):
+        b = _Reader(item, f"{key}[{i}]")
+        band_modes.append(mode_index(b, "mode"))
+        if i == len(raw) - 1:
+            if b.has("below"):
+                raise ConfigError(b.key("below"), "the last band is unbounded above: "
+                                  "remove below")
+            if b.has("epsilon"):
+                raise ConfigError(b.key("epsilon"), "the last band has no threshold "
+                                  "(epsilon is the margin of below)")
+        else:
+            t = b.number("below")
+            if thresholds and not t > thresholds[-1]:
+                raise ConfigError(b.key("below"), f"thresholds must increase: {t} is not "
+                                  f"above {thresholds[-1]} ({key}[{i - 1}].below)")
+            thresholds.append(t)
+            if b.has("epsilon"):
+                epsilons.append(b.number("epsilon", nonnegative=True))
+                eps_keys.append(b.key("epsilon"))
+            else:
+                epsilons.append(epsilon)
+                eps_keys.append(r.key("epsilon"))
+        b.finish()
+    if len(set(band_modes)) == 1:
+        raise ConfigError(key, "every band has the same mode: one mode needs no scheduler")
+    for i in range(1, len(band_modes)):
+        if band_modes[i] == band_modes[i - 1]:
+            raise ConfigError(f"{key}[{i}].mode", f"same mode as {key}[{i - 1}]: merge the "
+                              "two bands")
+    return thresholds, epsilons, eps_keys, band_modes
 
 
 def _solver(r: _Reader) -> SolverConfig:
@@ -465,12 +667,23 @@ def _solver(r: _Reader) -> SolverConfig:
     polish_every = r.integer("polish_every", d.polish_every, minimum=1, maximum=MAX_C_INT)
     polish_max = r.integer("polish_max", d.polish_max, minimum=1, maximum=MAX_C_INT)
     tol = r.number("feasibility_tol", None, positive=True) if r.has("feasibility_tol") else None
+    active_set = r.boolean("active_set", d.active_set)
+    active_set_max = r.integer("active_set_max", d.active_set_max, minimum=1,
+                               maximum=MAX_C_INT)
+    dep_tol = (r.number("dependence_tol", None, positive=True)
+               if r.has("dependence_tol") else None)
+    if dep_tol is not None and not dep_tol < 1.0:
+        raise ConfigError(r.key("dependence_tol"), f"must be < 1, got {dep_tol}")
+    if active_set and not polish and r.has("active_set"):
+        raise ConfigError(r.key("active_set"), "needs polish: true (its working set is "
+                          "finished by the polish step)")
     r.finish()
     return SolverConfig(method=method, omega=omega, sigma=sigma, delta=delta,
                         max_iterations=max_iterations, warm_start=warm_start, polish=polish,
                         polish_first=polish_first,
                         polish_every=polish_every, polish_max=polish_max,
-                        feasibility_tol=tol)
+                        feasibility_tol=tol, active_set=active_set,
+                        active_set_max=active_set_max, dependence_tol=dep_tol)
 
 
 def _reference(r: _Reader, n_outputs: int,
@@ -518,9 +731,8 @@ def _check_range(precision: str, modes: tuple[ModeConfig, ...],
                    # infinite output bounds mean "unbounded" and are never written
                    (f"{k}.bounds.y_min", m.y_min[np.isfinite(m.y_min)]),
                    (f"{k}.bounds.y_max", m.y_max[np.isfinite(m.y_max)])]
-    if scheduler is not None:  # the C stores the thresholds lower/upper -/+ epsilon
-        values += [("scheduler.epsilon", scheduler.lower - scheduler.epsilon),
-                   ("scheduler.epsilon", scheduler.upper + scheduler.epsilon)]
+    if scheduler is not None:  # the C stores every threshold -/+ its epsilon
+        values += [("scheduler", scheduler.below), ("scheduler", scheduler.above)]
     values += [("solver.sigma", solver.sigma), ("solver.delta", solver.delta),
                ("solver.feasibility_tol", solver.feasibility_tol or 0.0)]
     for key, value in values:
@@ -528,6 +740,12 @@ def _check_range(precision: str, modes: tuple[ModeConfig, ...],
         if arr.size and not arr.max() <= limit:
             raise ConfigError(key, f"a value of magnitude {arr.max():.3g} does not fit in "
                               f"{precision} precision (max {limit:.3g})")
+    if scheduler is not None and precision == "float":
+        # rounded to float, every middle band must keep a region where its mode is chosen
+        below, above = np.float32(scheduler.below), np.float32(scheduler.above)
+        if not np.all(above[:-1] < below[1:]):
+            raise ConfigError("scheduler", "in float precision the thresholds -/+ epsilon "
+                              "leave a band with no region where its mode is chosen")
 
 
 def parse(data: Any, source_text: str = "") -> ControllerConfig:
@@ -556,11 +774,8 @@ def parse(data: Any, source_text: str = "") -> ControllerConfig:
         if r.has("scheduler"):
             raise ConfigError("scheduler", "a single-mode controller has no scheduler")
         scheduler = None
-    elif len(modes) == 2:
-        scheduler = _scheduler(r.sub("scheduler"), modes)
     else:
-        raise ConfigError("modes", "more than two modes need band scheduling, "
-                          "which is not supported yet (see docs)")
+        scheduler = _scheduler(r.sub("scheduler"), modes)
     solver = _solver(r.sub("solver", {}))
     sim = r.sub("simulation", {})
     schedule_source = sim.string("schedule_source", "output_rate", choices=SCHEDULE_SOURCES)

@@ -16,7 +16,8 @@ from . import __version__
 from .config import MAX_ROWS, ConfigError, ControllerConfig
 from .mpc import CondensedQP, condense
 from .observer import observer_gain
-from .plant import DiscretePlant, discretise
+from .disturbance_model import prediction_model
+from .plant import DiscretePlant
 from .qp import ModeData, dtype_of, mode_data
 
 
@@ -44,7 +45,7 @@ def build_model(cfg: ControllerConfig) -> ControllerModel:
     modes = []
     for j, mode in enumerate(cfg.modes):
         key = f"modes[{j}]"
-        plant = discretise(mode, cfg.sample_time, key)
+        plant = prediction_model(mode, cfg.sample_time, key)  # with its disturbances
         qp = condense(plant, mode, cfg.horizon, key)
         if qp.m > MAX_ROWS or qp.n > MAX_ROWS:
             raise ConfigError("horizon", f"the QP has {qp.m} rows; at most {MAX_ROWS} supported")
@@ -79,6 +80,12 @@ def default_feasibility_tol(precision: str) -> float:
     return 1e-9 if precision == "double" else 1e-4
 
 
+def default_dependence_tol(precision: str) -> float:
+    """A row is dependent on the working set when its pivot H_pp - H_pW H_WW^-1 H_Wp is
+    below tol * H_pp (about 1e6 roundoffs of the storage precision)."""
+    return 1e-10 if precision == "double" else 1e-5
+
+
 def _arr(a) -> list:
     return np.asarray(a).tolist()
 
@@ -109,9 +116,12 @@ def build_context(model: ControllerModel) -> dict:
     sched = None
     if cfg.scheduler is not None:
         sc = cfg.scheduler
-        sched = {"signal": sc.signal, "lower": sc.lower, "upper": sc.upper,
-                 "epsilon": sc.epsilon, "inside": sc.inside, "outside": sc.outside,
-                 "initial": sc.initial}
+        # below/above: each threshold -/+ its margin, computed once in double; the C
+        # stores them rounded to the precision (the reference rounds the same numbers)
+        sched = {"signal": sc.signal, "thresholds": list(sc.thresholds),
+                 "epsilons": list(sc.epsilons), "below": list(sc.below),
+                 "above": list(sc.above), "band_modes": list(sc.band_modes),
+                 "n_bands": len(sc.band_modes), "initial": sc.initial}
     n_max = max(m["n"] for m in modes)
     return {
         "generator": {"name": "rollmpc-codegen", "version": __version__},
@@ -137,6 +147,9 @@ def build_context(model: ControllerModel) -> dict:
             "polish_first": s.polish and s.polish_first, "polish_every": s.polish_every, "polish_max": s.polish_max,
             "feasibility_tol": s.feasibility_tol if s.feasibility_tol is not None
             else default_feasibility_tol(cfg.precision),
+            "active_set": s.polish and s.active_set, "active_set_max": s.active_set_max,
+            "dependence_tol": s.dependence_tol if s.dependence_tol is not None
+            else default_dependence_tol(cfg.precision),
         },
         "sizes": {
             "nx_max": max(m["nx"] for m in modes), "nu_max": max(m["nu"] for m in modes),

@@ -1,6 +1,7 @@
 """NumPy reference of the generated switched controller (``P_step``), op by op.
 
-Mirrors ``templates/controller.c.j2``: eq. (3) hysteresis scheduler, the predictor
+Mirrors ``templates/controller.c.j2``: the band scheduler with hysteresis (eq. 3
+generalised, :mod:`.band_scheduler`), the predictor
 observers of every mode, the QP of the active mode (:class:`SolverRef`), first-move
 extraction and the inactive actuators at 0.
 """
@@ -8,6 +9,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from .band_scheduler import scheduled_mode
 from .solver_ref import NONFINITE_INPUT, SolverRef, seqsum
 
 
@@ -20,10 +22,9 @@ class ControllerRef:
         self.solvers = [SolverRef(md, ctx["solver"]) for md in mode_data]
         sc = ctx["scheduler"]
         if sc is not None:
-            # the C stores each threshold as one literal computed in double
-            self.thresholds = tuple(dt(v) for v in (
-                sc["lower"] - sc["epsilon"], sc["lower"] + sc["epsilon"],
-                sc["upper"] - sc["epsilon"], sc["upper"] + sc["epsilon"]))
+            # the C stores each threshold -/+ epsilon as one literal computed in double
+            self.below = tuple(dt(v) for v in sc["below"])
+            self.above = tuple(dt(v) for v in sc["above"])
         self.reset()
 
     def reset(self):
@@ -35,14 +36,10 @@ class ControllerRef:
         self.mode_switches = 0
         self.last = {"status": 0, "iterations": 0, "polish_iterations": 0, "active": 0}
 
-    def _schedule(self, rho):
-        out_lo, in_lo, in_hi, out_hi = self.thresholds
-        sc = self.ctx["scheduler"]
-        if rho < out_lo or rho > out_hi:
-            return sc["outside"]
-        if in_lo < rho < in_hi:
-            return sc["inside"]
-        return self.mode
+    def _schedule(self, s):
+        """The mode ``schedule()`` of the C returns for signal ``s`` (no state change)."""
+        return scheduled_mode(self.mode, s, self.below, self.above,
+                              self.ctx["scheduler"]["band_modes"])
 
     def _observe(self, md, x, y, u_phys, use_y):
         innov = np.empty(md.ny, md.Kx.dtype)

@@ -44,6 +44,9 @@ class CondensedQP:
     row_kind: np.ndarray  # (m,) 0 = input box row, 1 = output row
     row_index: np.ndarray  # (m,) index into U (box) or into Y (output)
     row_sign: np.ndarray  # (m,) -1 for a lower bound row, +1 for an upper bound row
+    # offset-free tracking: R weights U - Ut x (Ut = the disturbance-cancelling input
+    # target per stage, disturbance_model); None = 0, the paper's eq. (5)
+    Ut: np.ndarray | None = None  # (N nu, nx)
 
     @property
     def n(self) -> int:
@@ -71,6 +74,11 @@ class CondensedQP:
         V = self.Gamma[-ny:]
         S = 2.0 * (self.Psi + self.Gamma[:-ny].T @ self.Omega[:-ny, :-ny] @ self.Gamma[:-ny])
         return 0.5 * (S + S.T), V.copy(), np.linalg.inv(2.0 * P)
+
+    def gradient(self, x: np.ndarray, R: np.ndarray) -> np.ndarray:
+        """f of min 1/2 U'E U + f'U: F (Phi x - R), minus 2 Psi Ut x with an input target."""
+        f = self.F @ (self.Phi @ x - R)
+        return f if self.Ut is None else f - 2.0 * self.Psi @ (self.Ut @ x)
 
     def theta0(self, x: np.ndarray, R: np.ndarray) -> np.ndarray:
         return self.Kx @ x + self.Kr @ R
@@ -139,10 +147,14 @@ def condense(plant: DiscretePlant, mode: ModeConfig, N: int, key: str) -> Conden
     F = 2.0 * Gamma.T @ Omega
     Kr = solve_refined(E, F)
     Kx = -(Kr.astype(np.longdouble) @ Phi.astype(np.longdouble)).astype(np.float64)
+    Ut = None
+    if plant.input_target is not None:  # offset-free: the target only changes Kx
+        Ut = np.tile(plant.input_target, (N, 1))
+        Kx = Kx + solve_refined(E, 2.0 * Psi @ Ut)
     L, W, c, kind, index, sign = _constraints(mode, Phi, Gamma, N, nu, ny)
     return CondensedQP(N=N, nx=nx, nu=nu, ny=ny, Phi=Phi, Gamma=Gamma, markov=markov,
                        Omega=Omega, Psi=Psi, E=E, Einv=Einv, F=F, Kx=Kx, Kr=Kr,
-                       L=L, W=W, c=c, row_kind=kind, row_index=index, row_sign=sign)
+                       L=L, W=W, c=c, row_kind=kind, row_index=index, row_sign=sign, Ut=Ut)
 
 
 def _constraints(mode: ModeConfig, Phi, Gamma, N: int, nu: int, ny: int):

@@ -81,9 +81,9 @@ def plot_closed_loop(path: str | Path, cfg: ControllerConfig, log: ClosedLoopLog
             ax_s.plot(run.t, run.sched[:, 0], color=colors[4 % len(colors)], **style,
                       label=f"{signal}, {label}")
     if sc is not None:
-        for v in (sc.lower, sc.upper):
+        for v, eps in zip(sc.thresholds, sc.epsilons):
             ax_s.axhline(v, color="0.5", linewidth=0.8)
-            for e in (-sc.epsilon, sc.epsilon):
+            for e in (-eps, eps):
                 ax_s.axhline(v + e, color="0.7", linewidth=0.6, linestyle=":")
     ax_s.set_ylabel(f"{signal} rho [deg/s]")
     ax_s.set_xlabel("time t [s]")

@@ -4,7 +4,8 @@ The controller's realisation is ``x = [x_g; y]`` when ``integrator: true``: the 
 of G(s) followed by one integrator per output, so that y (the roll angle) is a state
 and its rate ``C_g x_g + D_g u`` (the roll rate) is a known linear function of x.
 The realisation of G(s) is balanced (diagonal similarity) before sampling, so the
-observer and the x-dependent matrices are not needlessly ill-conditioned.
+observer and the x-dependent matrices are not needlessly ill-conditioned.  A
+transfer-function *matrix* is realised minimally by :mod:`rollmpc_codegen.tf_realisation`.
 """
 from __future__ import annotations
 
@@ -14,6 +15,7 @@ import control
 import numpy as np
 import scipy.linalg
 
+from . import tf_realisation
 from .config import ConfigError, ModeConfig, PlantConfig
 
 
@@ -39,6 +41,10 @@ class DiscretePlant:
     C: np.ndarray
     Cr: np.ndarray | None  # rate output at the sampling instants (see ContinuousPlant)
     Dr: np.ndarray | None
+    # offset-free tracking (disturbance_model.augment): the last nd states are constant
+    # disturbances, and u_s = input_target @ x is the input that cancels them
+    nd: int = 0
+    input_target: np.ndarray | None = None
 
     @property
     def nx(self) -> int:
@@ -65,7 +71,10 @@ def _balanced(A: np.ndarray, B: np.ndarray, C: np.ndarray):
 
 def continuous_realisation(plant: PlantConfig, key: str) -> ContinuousPlant:
     """Realise a continuous plant config; ``key`` names it in errors."""
-    if plant.kind == "transfer_function":
+    if plant.tf_matrix is not None:  # MIMO: minimal realisation (tf_realisation)
+        A, B, C, D = tf_realisation.realise(plant.tf_matrix)
+        A, B, C = _balanced(A, B, C)
+    elif plant.kind == "transfer_function":
         sys = control.tf2ss(control.tf(list(plant.num), list(plant.den)))
         A, B, C, D = (np.atleast_2d(np.asarray(m, dtype=float)) for m in
                       (sys.A, sys.B, sys.C, sys.D))

@@ -32,8 +32,9 @@ DAQP_INF = 1e30
 
 
 def qp_vectors(qp: CondensedQP, x: np.ndarray, r: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """(f, b) of one QP: f = F (Phi x - R) (eq. 5) and b = c + W x (eq. 6)."""
-    return qp.F @ (qp.Phi @ x - r), qp.gamma(x)
+    """(f, b) of one QP: f = F (Phi x - R) (eq. 5; minus 2 Psi Ut x with an offset-free
+    input target, CondensedQP.gradient) and b = c + W x (eq. 6)."""
+    return qp.gradient(x, r), qp.gamma(x)
 
 
 @dataclass

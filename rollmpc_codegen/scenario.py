@@ -17,7 +17,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .config import ControllerConfig
-from .plant import continuous_realisation, zoh
+from .plant import discretise
 
 PAPER_LEVELS_DEG = (0.0, -20.0, 20.0, -40.0, 40.0, 0.0)
 PAPER_SEGMENT_S = 10.0
@@ -68,8 +68,9 @@ class SimulatedPlant:
         self.cfg = cfg
         self.channels = []
         for j, mode in enumerate(cfg.modes):
-            cont = continuous_realisation(mode.plant, f"modes[{j}]")
-            disc = zoh(cont, cfg.sample_time)
+            # the true plant: the config's model, never augmented by a disturbance model
+            # (disturbance_model); a discrete state-space plant is used as given
+            disc = discretise(mode, cfg.sample_time, f"modes[{j}]")
             acts = np.array([cfg.actuators.index(a) for a in mode.actuators])
             self.channels.append(Channel(disc.A, disc.B, disc.C, disc.Cr, disc.Dr, acts))
         self.reset()

@@ -57,11 +57,12 @@ def s_row_dots(S: np.ndarray, rows, v: np.ndarray) -> np.ndarray:
     return out
 
 
-def cholesky_packed(a: np.ndarray, n: int) -> bool:
-    """Mirror of ``P_cholesky`` (in place on the packed array); False on a bad pivot."""
+def cholesky_packed(a: np.ndarray, n: int, start: int = 0) -> bool:
+    """Mirror of ``P_cholesky_from`` (in place on the packed array, rows ``start``..n-1);
+    False on a bad pivot."""
     dt = a.dtype
     tri = _tri_offsets(n)
-    for i in range(n):
+    for i in range(start, n):
         ri = a[tri[i]:tri[i] + i + 1]
         for j in range(i + 1):
             rj = a[tri[j]:tri[j] + j + 1]
@@ -75,16 +76,27 @@ def cholesky_packed(a: np.ndarray, n: int) -> bool:
     return True
 
 
-def chol_solve_packed(l: np.ndarray, n: int, b: np.ndarray) -> None:
-    """Mirror of ``P_chol_solve`` (in place on b)."""
+def chol_lsolve_packed(l: np.ndarray, n: int, b: np.ndarray) -> None:
+    """Mirror of ``P_chol_lsolve`` (L y = b, in place on b)."""
     tri = _tri_offsets(n)
     for i in range(n):
         s = seqsum(-(l[tri[i]:tri[i] + i] * b[:i]), start=b[i])
         b[i] = s / l[tri[i] + i]
+
+
+def chol_ltsolve_packed(l: np.ndarray, n: int, b: np.ndarray) -> None:
+    """Mirror of ``P_chol_ltsolve`` (L' x = y, in place on b)."""
+    tri = _tri_offsets(n)
     for i in range(n - 1, -1, -1):
         col = l[tri[i + 1:n] + i] if i + 1 < n else np.zeros(0, l.dtype)
         s = seqsum(-(col * b[i + 1:n]), start=b[i])
         b[i] = s / l[tri[i] + i]
+
+
+def chol_solve_packed(l: np.ndarray, n: int, b: np.ndarray) -> None:
+    """Mirror of ``P_chol_solve`` (in place on b)."""
+    chol_lsolve_packed(l, n, b)
+    chol_ltsolve_packed(l, n, b)
 
 
 def _tri_offsets(n: int) -> np.ndarray:
@@ -107,6 +119,9 @@ class SolverRef:
         self.max_iter, self.polish_every, self.polish_max = (
             s["max_iterations"], s["polish_every"], s["polish_max"])
         self.limit = dt(1e30)
+        self.active_set = s.get("active_set", False)
+        self.active_set_max = s.get("active_set_max", 0)
+        self.dep_tol = dt(s.get("dependence_tol", 0.0))
         n, nyq = md.n, md.n_yq
         # E^-1 exactly as hq() forms it: S^-1(a, b) - sum_o Ew[o, a] Ew[o, b]
         acc = np.zeros((n, n), md.Kx.dtype)
@@ -379,6 +394,100 @@ class SolverRef:
             W = np.union1d(W, add).astype(W.dtype)
         return False, None, 0, its
 
+    # -- the dual active-set solve (Goldfarb-Idnani) ------------------------------------
+    def _most_violated(self, th, gam, in_set):
+        """Mirror of most_violated(): first row of largest relative violation, or -1."""
+        yv = self._predict(th) if self.has_out else None
+        v = self._values(th, yv)
+        sg = self.md.row_sign
+        viol = np.where(sg > 0, v - gam, -v - gam)
+        ag = np.abs(gam)
+        scale = np.where(ag > self.one, ag, self.one)
+        cand = (~in_set) & (viol > self.tol * scale)
+        if not np.any(cand):
+            return -1
+        rel = np.where(cand, viol / scale, self.zero)
+        return int(np.argmax(rel))
+
+    def _add_to_set(self, p, st):
+        """Mirror of add_to_set() on the state dict st (W, z, L, steps, in_set)."""
+        dt = self.md.Kx.dtype
+        hpp = self.Hdiag[p]
+        lp = self.zero
+        while True:
+            st["steps"] += 1
+            if st["steps"] > self.active_set_max:
+                return -1
+            W, z, L = st["W"], st["z"], st["L"]
+            nw = len(W)
+            h = self.H[W, p].astype(dt) if nw else np.zeros(0, dt)
+            viol = seqsum(-(h * z), start=-st["K"][p] - hpp * lp)
+            y = h.copy()
+            chol_lsolve_packed(L, nw, y)
+            zeta = seqsum(-(y * y), start=hpp)
+            d = y.copy()
+            chol_ltsolve_packed(L, nw, d)
+            k, tblock = -1, self.zero
+            for i in range(nw):
+                if d[i] > 0:
+                    ratio = z[i] / d[i]
+                    if k < 0 or ratio < tblock:
+                        k, tblock = i, ratio
+            dependent = nw == self.md.n or not zeta > self.dep_tol * hpp
+            if dependent and k < 0:
+                return 1
+            t = tblock if dependent else viol / zeta
+            if not dependent:
+                if k >= 0 and tblock < t:
+                    t = tblock
+                else:
+                    k = -1
+            z = z - t * d
+            lp = lp + t
+            if k < 0:
+                tri = nw * (nw + 1) // 2
+                L[tri:tri + nw] = y
+                L[tri + nw] = np.sqrt(zeta)
+                st["W"] = W + [p]
+                st["z"] = np.concatenate((z, np.array([lp], dt)))
+                st["in_set"][p] = True
+                return 0
+            st["in_set"][W[k]] = False
+            W = W[:k] + W[k + 1:]
+            z = np.delete(z, k)
+            for i in range(k, nw - 1):
+                tri = i * (i + 1) // 2
+                L[tri:tri + i + 1] = self.H[W[i], W[:i + 1]]
+            st["W"], st["z"] = W, z
+            if not cholesky_packed(L, nw - 1, start=k):
+                return -1
+
+    def _dual_active_set(self, lam, th0, K, gam):
+        """Mirror of dual_active_set(): (code 0/1/-1, th, active, steps + polish its)."""
+        md = self.md
+        st = {"W": [], "z": np.zeros(0, md.Kx.dtype), "steps": 0, "K": K,
+              "L": np.zeros(md.n * (md.n + 1) // 2 + md.n + 1, md.Kx.dtype),
+              "in_set": np.zeros(md.m, bool)}
+        th = th0.copy()
+        code = 0
+        while True:
+            p = self._most_violated(th, gam, st["in_set"])
+            if p < 0:
+                break
+            code = self._add_to_set(p, st)
+            if code != 0:
+                break
+            th = self._correct(th0, np.array(st["W"], np.int64), st["z"])
+        if not st["W"]:
+            if code == 0:
+                lam[:] = 0
+            return code, th, 0, st["steps"]
+        W = np.sort(np.array(st["W"], np.int64))
+        ok, th_p, act, its = self._polish(W, lam, th0, K, gam)
+        if ok:
+            return 0, th_p, act, st["steps"] + its
+        return (1 if code == 1 else -1), th0, 0, st["steps"] + its
+
     # -- the solve -------------------------------------------------------------------
     def solve(self, x, r):
         """Returns (status, U, iterations, polish_iterations, active)."""
@@ -409,6 +518,12 @@ class SolverRef:
                 if ok:
                     status, U = self._finish(th_p, th0, OPTIMAL)
                     return status, U, 0, polish_its, act
+        if self.active_set:
+            code, th_a, act, its = self._dual_active_set(lam, th0, K, gam)
+            polish_its += its
+            if code >= 0:
+                status, U = self._finish(th_a, th0, OPTIMAL if code == 0 else INFEASIBLE)
+                return status, U, 0, polish_its, act
         in_set = (K < self.sigma) if self.reduced else np.ones(md.m, bool)
         if not self.warm:
             lam[:] = 0

@@ -1,4 +1,5 @@
-"""Eq. (3) scheduler and the per-mode predictor observers, in double, from the context.
+"""Band scheduler (eq. 3 generalised) and the per-mode predictor observers, in double,
+from the context.
 
 This is what an integrator of ``P_solve_qp`` runs outside the generated C: the context
 JSON carries each mode's ``A, B, C, L`` in the generator's realisation, and the observer
@@ -14,9 +15,12 @@ from __future__ import annotations
 
 import numpy as np
 
+from .band_scheduler import scheduled_mode
+
 
 class SwitchedObserver:
-    """Hysteresis scheduler (eq. 3) plus one Luenberger predictor per mode."""
+    """Band scheduler with hysteresis (eq. 3 generalised) plus one Luenberger predictor
+    per mode."""
 
     def __init__(self, ctx: dict):
         self.ctx = ctx
@@ -25,10 +29,6 @@ class SwitchedObserver:
         self.C = [np.array(m["C"], float) for m in ctx["modes"]]
         self.L = [np.array(m["L"], float) for m in ctx["modes"]]
         self.actuators = [np.array(m["actuator_index"], int) for m in ctx["modes"]]
-        sc = ctx["scheduler"]
-        self.thresholds = None if sc is None else (
-            sc["lower"] - sc["epsilon"], sc["lower"] + sc["epsilon"],
-            sc["upper"] - sc["epsilon"], sc["upper"] + sc["epsilon"])
         self.reset()
 
     def reset(self) -> None:
@@ -36,17 +36,14 @@ class SwitchedObserver:
         self.xhat = [np.zeros(A.shape[0]) for A in self.A]
 
     def schedule(self, sched) -> int:
-        """Eq. (3): outside the outer band -> ``outside``, inside the inner -> ``inside``,
-        in between -> keep the current mode.  Returns (and keeps) the active mode."""
-        if self.thresholds is None:
-            return self.mode
-        out_lo, in_lo, in_hi, out_hi = self.thresholds
-        rho = float(np.asarray(sched).ravel()[0])
+        """The band rule of :mod:`.band_scheduler` (firmly inside a band -> its mode,
+        within a threshold's margin -> keep the current mode), in double.  Returns (and
+        keeps) the active mode."""
         sc = self.ctx["scheduler"]
-        if rho < out_lo or rho > out_hi:
-            self.mode = sc["outside"]
-        elif in_lo < rho < in_hi:
-            self.mode = sc["inside"]
+        if sc is None:
+            return self.mode
+        s = float(np.asarray(sched).ravel()[0])
+        self.mode = scheduled_mode(self.mode, s, sc["below"], sc["above"], sc["band_modes"])
         return self.mode
 
     def observe(self, y, u_phys) -> None:

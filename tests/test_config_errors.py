@@ -241,7 +241,7 @@ CASES = [
                  id="scheduler-signal-not-identifier"),
     pytest.param(single_mode_with_scheduler, "scheduler", "single-mode",
                  id="scheduler-with-single-mode"),
-    pytest.param(three_modes, "modes", "more than two", id="three-modes"),
+    pytest.param(three_modes, "scheduler", "serves no band", id="three-modes-shorthand"),
     pytest.param(set_("simulation.schedule_source", "roll"), "simulation.schedule_source",
                  "one of", id="unknown-schedule-source"),
     # ---- solver
@@ -408,7 +408,7 @@ def test_example_parses():
     cfg = load(UAV)
     assert cfg.horizon == 100 and cfg.sample_time == 0.01
     assert [m.name for m in cfg.modes] == ["inner", "outer"]
-    assert cfg.scheduler is not None and cfg.scheduler.inside == 0
+    assert cfg.scheduler is not None and cfg.scheduler.band_modes == (1, 0, 1)  # out, in, out
 
 
 def test_scalar_or_list_broadcasting():
@@ -475,7 +475,7 @@ def test_observer_may_be_omitted(mutate):
 def test_null_optional_key_means_default(mutate):
     cfg = _parse(mutate)
     assert cfg.solver.feasibility_tol is None
-    assert cfg.scheduler.initial == cfg.scheduler.inside
+    assert cfg.scheduler.initial == 0  # the shorthand's inside mode
 
 
 def test_config_error_is_one_line():

@@ -11,7 +11,11 @@ from rollmpc_codegen.cli import main
 
 CASES = [("uav_roll", "double", "uav_roll"), ("uav_roll", "float", "uav_roll_f32"),
          ("chain_of_masses", "double", "chain_of_masses"),
-         ("chain_of_masses", "float", "chain_of_masses_f32")]
+         ("chain_of_masses", "float", "chain_of_masses_f32"),
+         ("three_drives", "double", "three_drives"),
+         ("three_drives", "float", "three_drives_f32"),
+         ("quadruple_tank", "double", "quadruple_tank"),
+         ("quadruple_tank", "float", "quadruple_tank_f32")]
 
 
 @pytest.mark.parametrize("example,precision,committed", CASES)

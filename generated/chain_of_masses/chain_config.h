@@ -44,6 +44,9 @@ typedef double chain_real;
 #define CHAIN_SOLVER_MAX_ITER 1000
 #define CHAIN_SOLVER_POLISH_EVERY 10
 #define CHAIN_SOLVER_POLISH_MAX 8
+#define CHAIN_SOLVER_ACTIVE_SET 1
+#define CHAIN_SOLVER_ACTIVE_SET_MAX 500
+#define CHAIN_SOLVER_DEPENDENCE_TOL 1e-10
 
 /**
  * Optional time stamp around the QP solve, e.g. a cycle counter on the target.

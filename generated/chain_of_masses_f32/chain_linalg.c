@@ -9,15 +9,19 @@
 #include "chain_internal.h"
 
 /**
- * @brief In-place Cholesky factorisation A = L L' of a packed lower triangle.
- * @param a Packed lower triangle of A on entry, of L on return.
+ * @brief Cholesky factorisation A = L L' of a packed lower triangle, from row @p from on.
+ *
+ * Rows 0..from-1 must already hold L (the row-oriented algorithm computes row i from the
+ * rows above it), so a working set that lost a row refactors only the rows below it.
+ * @param a Packed lower triangle: L in rows < from, A in rows >= from on entry; L on return.
+ * @param from First row to factor (0 for the whole matrix).
  * @param n Order of A.
  * @return 0 on success, -1 if a pivot is not positive (A not numerically definite).
  */
-int chain_cholesky(chain_real *a, int n)
+int chain_cholesky_from(chain_real *a, int from, int n)
 {
     int i, j, k;
-    for (i = 0; i < n; ++i) {
+    for (i = from; i < n; ++i) {
         chain_real *ri = &a[CHAIN_TRI(i, 0)];
         for (j = 0; j <= i; ++j) {
             const chain_real *rj = &a[CHAIN_TRI(j, 0)];
@@ -39,14 +43,25 @@ int chain_cholesky(chain_real *a, int n)
 }
 
 /**
- * @brief Solve L L' x = b in place, L from chain_cholesky().
+ * @brief In-place Cholesky factorisation A = L L' of a packed lower triangle.
+ * @param a Packed lower triangle of A on entry, of L on return.
+ * @param n Order of A.
+ * @return 0 on success, -1 if a pivot is not positive (A not numerically definite).
+ */
+int chain_cholesky(chain_real *a, int n)
+{
+    return chain_cholesky_from(a, 0, n);
+}
+
+/**
+ * @brief Solve L y = b in place (forward substitution), L from chain_cholesky().
  * @param l Packed lower Cholesky factor.
  * @param n Order.
- * @param b Right-hand side on entry, solution on return.
+ * @param b Right-hand side on entry, y on return.
  */
-void chain_chol_solve(const chain_real *l, int n, chain_real *b)
+void chain_chol_lsolve(const chain_real *l, int n, chain_real *b)
 {
-    int i, k, off;
+    int i, k;
     for (i = 0; i < n; ++i) {
         const chain_real *li = &l[CHAIN_TRI(i, 0)];
         chain_real s = b[i];
@@ -55,6 +70,17 @@ void chain_chol_solve(const chain_real *l, int n, chain_real *b)
         }
         b[i] = s / li[i];
     }
+}
+
+/**
+ * @brief Solve L' x = y in place (back substitution), L from chain_cholesky().
+ * @param l Packed lower Cholesky factor.
+ * @param n Order.
+ * @param b y on entry, x on return.
+ */
+void chain_chol_ltsolve(const chain_real *l, int n, chain_real *b)
+{
+    int i, k, off;
     for (i = n - 1; i >= 0; --i) {
         chain_real s = b[i];
         off = CHAIN_TRI(i + 1, i); /* column i below the diagonal: stride k + 1 */
@@ -64,4 +90,16 @@ void chain_chol_solve(const chain_real *l, int n, chain_real *b)
         }
         b[i] = s / l[CHAIN_TRI(i, i)];
     }
+}
+
+/**
+ * @brief Solve L L' x = b in place, L from chain_cholesky().
+ * @param l Packed lower Cholesky factor.
+ * @param n Order.
+ * @param b Right-hand side on entry, solution on return.
+ */
+void chain_chol_solve(const chain_real *l, int n, chain_real *b)
+{
+    chain_chol_lsolve(l, n, b);
+    chain_chol_ltsolve(l, n, b);
 }

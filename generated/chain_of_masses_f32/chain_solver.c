@@ -859,6 +859,185 @@ static int polish(chain_work *ws, const chain_mode_data *md, chain_real *lam,
     return -1;
 }
 
+/*
+ * The row most violated at th (violation relative to max(1, |gamma_r|)) among the rows
+ * not in the working set (in_set flags); -1 if none is violated beyond the tolerance.
+ */
+static int most_violated(chain_work *ws, const chain_mode_data *md,
+    const chain_real *th)
+{
+    const int outputs = outputs_to_check(ws, md, th);
+    chain_real worst = R_(0.0);
+    int r, best = -1;
+    for (r = 0; r < md->m; ++r) {
+        if (!ws->in_set[r] && (outputs || md->row_q[r] < md->n)) {
+            const chain_real v = row_value(ws, md, th, r);
+            const chain_real g = ws->gam[r];
+            const chain_real viol = (md->row_sign[r] > 0) ? v - g : -v - g;
+            const chain_real ag = CHAIN_FABS(g);
+            const chain_real scale = (ag > R_(1.0)) ? ag : R_(1.0);
+            if (viol > CHAIN_SOLVER_FEAS_TOL * scale && viol / scale > worst) {
+                worst = viol / scale;
+                best = r;
+            }
+        }
+    }
+    return best;
+}
+
+/*
+ * Remove working-set position k: shift wset/z down and refactor the rows of L = chol(H_WW)
+ * from k on (the rows above are unchanged). Returns -1 if a pivot breaks down.
+ */
+static int remove_from_set(chain_work *ws, const chain_mode_data *md, int k, int *nw)
+{
+    int i, j;
+    ws->in_set[ws->wset[k]] = 0;
+    for (i = k; i + 1 < *nw; ++i) {
+        ws->wset[i] = ws->wset[i + 1];
+        ws->z[i] = ws->z[i + 1];
+    }
+    --*nw;
+    for (i = k; i < *nw; ++i) {
+        for (j = 0; j <= i; ++j) {
+            ws->chol[CHAIN_TRI(i, j)] = h_rows(md, ws->wset[i], ws->wset[j]);
+        }
+    }
+    return chain_cholesky_from(ws->chol, k, *nw);
+}
+
+/*
+ * Make the violated row p active (Goldfarb-Idnani): raise its multiplier t while the
+ * working-set rows stay tight, their multipliers moving by -t H_WW^-1 H_Wp. A row whose
+ * multiplier reaches 0 first leaves the set and the step repeats; once p's violation
+ * reaches 0 it joins. A row p dependent on the set (zeta = H_pp - H_pW H_WW^-1 H_Wp ~ 0)
+ * can only move the others; if none can move, the QP is infeasible (Farkas).
+ * Returns 0 when p joined, 1 for infeasible, -1 on the step cap or a breakdown.
+ */
+static int add_to_set(chain_work *ws, const chain_mode_data *md, int p, int *nw,
+    int *steps)
+{
+    const chain_real hpp = hq(md, md->row_q[p], md->row_q[p]);
+    chain_real lp = R_(0.0);
+    int i;
+    for (;;) {
+        chain_real zeta = hpp, viol = -ws->K[p] - hpp * lp, tblock = R_(0.0), t;
+        int k = -1, dependent;
+        if (++*steps > CHAIN_SOLVER_ACTIVE_SET_MAX) {
+            return -1;
+        }
+        for (i = 0; i < *nw; ++i) { /* y = L^-1 H_Wp (rhs), d = L'^-1 y (dv) */
+            ws->rhs[i] = h_rows(md, ws->wset[i], p);
+            viol -= ws->rhs[i] * ws->z[i];
+        }
+        chain_chol_lsolve(ws->chol, *nw, ws->rhs);
+        for (i = 0; i < *nw; ++i) {
+            zeta -= ws->rhs[i] * ws->rhs[i];
+            ws->dv[i] = ws->rhs[i];
+        }
+        chain_chol_ltsolve(ws->chol, *nw, ws->dv);
+        for (i = 0; i < *nw; ++i) { /* first row whose multiplier reaches 0 */
+            if (ws->dv[i] > R_(0.0)) {
+                const chain_real ratio = ws->z[i] / ws->dv[i];
+                if (k < 0 || ratio < tblock) {
+                    k = i;
+                    tblock = ratio;
+                }
+            }
+        }
+        dependent = *nw == md->n || !(zeta > CHAIN_SOLVER_DEPENDENCE_TOL * hpp);
+        if (dependent && k < 0) {
+            return 1;
+        }
+        t = dependent ? tblock : viol / zeta;
+        if (!dependent) {
+            if (k >= 0 && tblock < t) {
+                t = tblock;
+            } else {
+                k = -1; /* the full step: p becomes tight */
+            }
+        }
+        for (i = 0; i < *nw; ++i) {
+            ws->z[i] -= t * ws->dv[i];
+        }
+        lp += t;
+        if (k < 0) {
+            for (i = 0; i < *nw; ++i) {
+                ws->chol[CHAIN_TRI(*nw, i)] = ws->rhs[i];
+            }
+            ws->chol[CHAIN_TRI(*nw, *nw)] = CHAIN_SQRT(zeta);
+            ws->wset[*nw] = (int16_t)p;
+            ws->z[*nw] = lp;
+            ws->in_set[p] = 1;
+            ++*nw;
+            return 0;
+        }
+        if (remove_from_set(ws, md, k, nw) != 0) {
+            return -1;
+        }
+    }
+}
+
+/*
+ * Dual active-set solve (Goldfarb-Idnani) from the unconstrained optimum: add the most
+ * violated row until none is, keeping the multipliers >= 0 and the working set linearly
+ * independent, so it finishes where the polish fails (dependent active sets, working sets
+ * the shifted guess and the violated rows do not reach). Its working set then goes to
+ * polish() for the exact solve and KKT check -- also after a claim of infeasibility,
+ * because far from the origin (multipliers ~1e9 in float) th = th0 - E^-1 M' z loses the
+ * digits the primal form keeps. Returns 0 (optimal, as polish()), 1 (infeasible: ws->th
+ * is then th0) or -1 (step cap, breakdown, or the polish rejects the set).
+ */
+static int dual_active_set(chain_work *ws, const chain_mode_data *md,
+    chain_real *lam, int *iterations, int *active)
+{
+    int i, j, nw = 0, steps = 0, code = 0;
+    output_slacks(ws, md);
+    for (i = 0; i < md->m; ++i) {
+        ws->in_set[i] = 0;
+    }
+    for (i = 0; i < md->n; ++i) {
+        ws->th[i] = ws->th0[i];
+    }
+    for (;;) {
+        const int p = most_violated(ws, md, ws->th);
+        if (p < 0) {
+            break;
+        }
+        code = add_to_set(ws, md, p, &nw, &steps);
+        if (code != 0) {
+            break;
+        }
+        correct(ws, md, ws->wset, nw, ws->z, 0);
+    }
+    *iterations += steps;
+    if (nw == 0) {
+        if (code == 0) { /* violations of th0 within the tolerance only */
+            for (i = 0; i < md->m; ++i) {
+                lam[i] = R_(0.0);
+            }
+            *active = 0;
+        }
+        return code;
+    }
+    for (i = 1; i < nw; ++i) { /* polish() wants the working set sorted */
+        const int16_t row = ws->wset[i];
+        for (j = i; j > 0 && ws->wset[j - 1] > row; --j) {
+            ws->wset[j] = ws->wset[j - 1];
+        }
+        ws->wset[j] = row;
+    }
+    if (polish(ws, md, lam, nw, 0, iterations, active) == 0) {
+        return 0;
+    }
+    if (code == 1) {
+        for (i = 0; i < md->n; ++i) {
+            ws->th[i] = ws->th0[i];
+        }
+    }
+    return (code == 1) ? 1 : -1;
+}
+
 /* Clamp th into the input bounds (or fall back) and write U; returns the final status. */
 static int finish(chain_work *ws, const chain_mode_data *md, chain_real *lam,
     int status, chain_real *U)
@@ -925,6 +1104,11 @@ int chain_qp_solve(chain_work *ws, chain_real *lam, const chain_mode_data *md,
     }
     if (polish(ws, md, lam, seed_from_violated(ws, md), 0, polish_iterations, active) == 0) {
         return finish(ws, md, lam, CHAIN_OPTIMAL, U);
+    }
+    /* Before any sweep: the dual active-set solve, which also proves infeasibility. */
+    i = dual_active_set(ws, md, lam, polish_iterations, active);
+    if (i >= 0) {
+        return finish(ws, md, lam, (i == 0) ? CHAIN_OPTIMAL : CHAIN_INFEASIBLE, U);
     }
     output_slacks(ws, md);
     for (i = 0; i < md->m; ++i) {

@@ -24,6 +24,8 @@ typedef double rollmpc_real;
 #define ROLLMPC_N_OUTPUTS 1
 #define ROLLMPC_N_ACTUATORS 2
 #define ROLLMPC_N_SCHEDULE 1
+/** Bands of the scheduling signal (k-1 thresholds with hysteresis). */
+#define ROLLMPC_N_SCHED_BANDS 3
 #define ROLLMPC_NX_MAX 5
 #define ROLLMPC_NU_MAX 1
 #define ROLLMPC_N_MAX 100
@@ -44,6 +46,9 @@ typedef double rollmpc_real;
 #define ROLLMPC_SOLVER_MAX_ITER 1000
 #define ROLLMPC_SOLVER_POLISH_EVERY 10
 #define ROLLMPC_SOLVER_POLISH_MAX 8
+#define ROLLMPC_SOLVER_ACTIVE_SET 1
+#define ROLLMPC_SOLVER_ACTIVE_SET_MAX 500
+#define ROLLMPC_SOLVER_DEPENDENCE_TOL 1e-10
 
 /**
  * Optional time stamp around the QP solve, e.g. a cycle counter on the target.

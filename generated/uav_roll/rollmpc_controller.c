@@ -13,22 +13,45 @@
 
 #define R_ ROLLMPC_R
 
-/* Eq. (3) thresholds: lower -/+ epsilon and upper -/+ epsilon (roll_rate). */
-static const rollmpc_real sched_out_lo = -16.5;
-static const rollmpc_real sched_in_lo = -15.5;
-static const rollmpc_real sched_in_hi = 15.5;
-static const rollmpc_real sched_out_hi = 16.5;
+/*
+ * Band scheduler on roll_rate: 3 bands split at the thresholds
+ * -16.0, 16.0 (eq. 3 generalised). Band b lies between thresholds b-1 and b.
+ * Threshold i is stored as its hysteresis margins: sched_below[i] = threshold - epsilon and
+ * sched_above[i] = threshold + epsilon.
+ */
+static const rollmpc_real sched_below[ROLLMPC_N_SCHED_BANDS - 1] = {
+    -16.5, 15.5
+};
+static const rollmpc_real sched_above[ROLLMPC_N_SCHED_BANDS - 1] = {
+    -15.5, 16.5
+};
+/* Mode of each band (a mode may serve several bands). */
+static const int sched_mode[ROLLMPC_N_SCHED_BANDS] = {
+    1, 0, 1
+};
 
-/* Mode for scheduling value rho; between the thresholds the current mode is kept. */
-static int schedule(int current, rollmpc_real rho)
+/**
+ * @brief Mode for one sample of the scheduling signal (finite), with hysteresis.
+ *
+ * The mode becomes band b's mode only when s is inside band b by more than the margin
+ * of each of its thresholds (sched_above[b-1] < s < sched_below[b]); within a margin of
+ * a threshold the current mode is kept. With two modes in the bands (outside, inside,
+ * outside) this is eq. (3) exactly.
+ * @param current Mode of the previous sample.
+ * @param s       Scheduling signal.
+ * @return The mode for this sample.
+ */
+static int schedule(int current, rollmpc_real s)
 {
-    if (rho < sched_out_lo || rho > sched_out_hi) {
-        return 1;
+    int band = 0;
+    int next = current;
+    while ((band < (ROLLMPC_N_SCHED_BANDS - 1)) && (s > sched_above[band])) {
+        ++band; /* firmly above threshold band, hence above every threshold before it */
     }
-    if (rho > sched_in_lo && rho < sched_in_hi) {
-        return 0;
+    if ((band == (ROLLMPC_N_SCHED_BANDS - 1)) || (s < sched_below[band])) {
+        next = sched_mode[band];
     }
-    return current;
+    return next;
 }
 
 static int all_finite(const rollmpc_real *v, int n)

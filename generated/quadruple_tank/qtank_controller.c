@@ -1,0 +1,196 @@
+/**
+ * @file qtank_controller.c
+ * @brief Switched controller: hysteresis scheduler (eq. 3), one observer per mode,
+ *        QP solve of the active mode, first-move extraction.
+ *
+ * All observers run every sample in the paper's predictor form
+ * xhat+ = A xhat + B u_j + L (y - C xhat), each driven by the physical commands of its
+ * own actuators (0 for an inactive pair) and the shared measurement. The inactive
+ * observers therefore stay locked to y and a switch is bumpless.
+ */
+#include <math.h>
+#include "qtank_internal.h"
+
+#define R_ QTANK_R
+
+
+static int all_finite(const qtank_real *v, int n)
+{
+    int i;
+    for (i = 0; i < n; ++i) {
+        if (!isfinite(v[i])) {
+            return 0;
+        }
+    }
+    return 1;
+}
+
+/* One observer update; use_y = 0 propagates open loop (no valid measurement). */
+static void observe(qtank_work *ws, const qtank_mode_data *md, qtank_real *x,
+    const qtank_real *y, const qtank_real *u_phys, int use_y)
+{
+    int i, l, a;
+    for (a = 0; a < md->ny; ++a) {
+        qtank_real acc = R_(0.0);
+        for (l = 0; l < md->nx; ++l) {
+            acc += md->C[a * md->nx + l] * x[l];
+        }
+        ws->innov[a] = use_y ? y[a] - acc : R_(0.0);
+    }
+    for (i = 0; i < md->nx; ++i) {
+        qtank_real acc = R_(0.0);
+        for (l = 0; l < md->nx; ++l) {
+            acc += md->A[i * md->nx + l] * x[l];
+        }
+        for (l = 0; l < md->nu; ++l) {
+            acc += md->B[i * md->nu + l] * u_phys[md->actuator[l]];
+        }
+        if (use_y) {
+            for (a = 0; a < md->ny; ++a) {
+                acc += md->L[i * md->ny + a] * ws->innov[a];
+            }
+        }
+        ws->xn[i] = acc;
+    }
+    for (i = 0; i < md->nx; ++i) {
+        x[i] = ws->xn[i];
+    }
+}
+
+size_t qtank_ctrl_size(void)
+{
+    return sizeof(qtank_ctrl);
+}
+
+void qtank_init(qtank_ctrl *c)
+{
+    int j, i;
+    if (c == 0) {
+        return;
+    }
+    c->mode = 0;
+    for (j = 0; j < QTANK_N_MODES; ++j) {
+        for (i = 0; i < QTANK_NX_MAX; ++i) {
+            c->xhat[j][i] = R_(0.0);
+        }
+        for (i = 0; i < QTANK_M_MAX; ++i) {
+            c->lam[j][i] = R_(0.0);
+        }
+    }
+    for (i = 0; i < QTANK_N_ACTUATORS; ++i) {
+        c->u_last[i] = R_(0.0);
+    }
+    for (i = 0; i < QTANK_N_MAX; ++i) {
+        c->U[i] = R_(0.0);
+    }
+    c->info.status = QTANK_OPTIMAL;
+    c->info.mode = c->mode;
+    c->info.iterations = 0;
+    c->info.polish_iterations = 0;
+    c->info.active = 0;
+    c->info.mode_switches = 0;
+    c->info.solve_ticks = 0u;
+}
+
+static int solve_mode(qtank_ctrl *c, int mode, const qtank_real *x,
+    const qtank_real *r, qtank_real *U)
+{
+    const uint32_t t0 = QTANK_TIMESTAMP();
+    const int status = qtank_qp_solve(&c->work, c->lam[mode], &qtank_modes[mode], x, r, U,
+        &c->info.iterations, &c->info.polish_iterations, &c->info.active);
+    c->info.solve_ticks = (uint32_t)(QTANK_TIMESTAMP() - t0);
+    c->info.status = status;
+    c->info.mode = mode;
+    return status;
+}
+
+int qtank_step(qtank_ctrl *c, const qtank_real *y, const qtank_real *sched,
+    const qtank_real *r, qtank_real *u)
+{
+    int j, i, status, inputs_ok;
+    const qtank_mode_data *md;
+    if (c == 0 || u == 0) {
+        return QTANK_BAD_ARGUMENT;
+    }
+    inputs_ok = y != 0 && r != 0 && (QTANK_N_SCHEDULE == 0 || sched != 0);
+    if (!inputs_ok) {
+        for (i = 0; i < QTANK_N_ACTUATORS; ++i) {
+            u[i] = c->u_last[i];
+        }
+        c->info.status = QTANK_BAD_ARGUMENT;
+        return QTANK_BAD_ARGUMENT;
+    }
+    if (!all_finite(y, QTANK_N_OUTPUTS) || !all_finite(sched, QTANK_N_SCHEDULE)
+        || !all_finite(r, QTANK_HORIZON * QTANK_N_OUTPUTS)) {
+        for (i = 0; i < QTANK_N_ACTUATORS; ++i) {
+            u[i] = c->u_last[i];
+        }
+        for (j = 0; j < QTANK_N_MODES; ++j) {
+            observe(&c->work, &qtank_modes[j], c->xhat[j], y, u, 0);
+        }
+        c->info.status = QTANK_NONFINITE_INPUT;
+        c->info.iterations = 0;
+        return QTANK_NONFINITE_INPUT;
+    }
+    (void)sched;
+    md = &qtank_modes[c->mode];
+    status = solve_mode(c, c->mode, c->xhat[c->mode], r, c->U);
+    for (i = 0; i < QTANK_N_ACTUATORS; ++i) {
+        u[i] = R_(0.0);
+    }
+    for (i = 0; i < md->nu; ++i) {
+        u[md->actuator[i]] = c->U[i];
+    }
+    for (j = 0; j < QTANK_N_MODES; ++j) {
+        observe(&c->work, &qtank_modes[j], c->xhat[j], y, u, 1);
+    }
+    for (i = 0; i < QTANK_N_ACTUATORS; ++i) {
+        c->u_last[i] = u[i];
+    }
+    return status;
+}
+
+int qtank_solve_qp(qtank_ctrl *c, int mode, const qtank_real *x,
+    const qtank_real *r, qtank_real *U, int *iterations)
+{
+    int status, i;
+    if (c == 0 || U == 0 || mode < 0 || mode >= QTANK_N_MODES) {
+        return QTANK_BAD_ARGUMENT;
+    }
+    if (x == 0 || r == 0 || !all_finite(x, qtank_modes[mode].nx)
+        || !all_finite(r, QTANK_HORIZON * QTANK_N_OUTPUTS)) {
+        status = (x == 0 || r == 0) ? QTANK_BAD_ARGUMENT : QTANK_NONFINITE_INPUT;
+        for (i = 0; i < qtank_modes[mode].n; ++i) {
+            U[i] = R_(0.0);
+        }
+        c->info.status = status;
+        if (iterations != 0) {
+            *iterations = 0;
+        }
+        return status;
+    }
+    status = solve_mode(c, mode, x, r, U);
+    if (iterations != 0) {
+        *iterations = c->info.iterations;
+    }
+    return status;
+}
+
+const qtank_info *qtank_last_info(const qtank_ctrl *c)
+{
+    return &c->info;
+}
+
+const char *qtank_status_message(int status)
+{
+    switch (status) {
+    case QTANK_OPTIMAL: return "optimal";
+    case QTANK_MAX_ITER: return "iteration cap reached";
+    case QTANK_INACCURATE: return "converged by delta but constraints violated";
+    case QTANK_INFEASIBLE: return "infeasible: dual multipliers diverged";
+    case QTANK_NONFINITE_INPUT: return "non-finite input; last command held";
+    case QTANK_NUMERICAL: return "non-finite intermediate result; safe fallback";
+    case QTANK_BAD_ARGUMENT: return "bad argument";
+    default: return "unknown status";
+    }
+}

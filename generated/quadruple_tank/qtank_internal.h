@@ -1,0 +1,54 @@
+/**
+ * @file qtank_internal.h
+ * @brief Internal declarations shared by the generated sources (not part of the API).
+ */
+#ifndef QTANK_INTERNAL_H
+#define QTANK_INTERNAL_H
+
+#include "qtank.h"
+
+/** Static data of one mode (all arrays row-major; "_p" = packed lower triangle). */
+typedef struct {
+    int nx, nu, ny, n, m, nyq, nt;
+    const int16_t *actuator;        /**< [nu] physical actuator of each mode input. */
+    const qtank_real *A, *B, *C, *L; /**< Discrete model and observer gain. */
+    const qtank_real *Kx;      /**< [n][nx] unconstrained state gain. */
+    const qtank_real *EinvGt;  /**< [n][nyq] E^-1 Gamma'. */
+    const qtank_real *Sinv_p;  /**< S^-1, packed. */
+    const qtank_real *Ew;      /**< [nt][n]: E^-1 = S^-1 - Ew' Ew (Woodbury). */
+    const qtank_real *Uv;      /**< [nt][n] V S^-1. */
+    const qtank_real *T;       /**< [nt][nt] (2P)^-1 + V S^-1 V'. */
+    const qtank_real *S_p;     /**< Stage Hessian S (E = S + V'(2P)V), packed. */
+    const qtank_real *V;       /**< [nt][n] terminal rows of Gamma (nt = 0: none). */
+    const qtank_real *P2inv;   /**< [nt][nt] (2P)^-1. */
+    const qtank_real *GEinvGt_p; /**< Gamma E^-1 Gamma', packed (output rows only). */
+    const qtank_real *Omega2;  /**< [N][ny][ny] 2Q per stage, 2P last. */
+    const qtank_real *Phi;     /**< [nyq][nx]. */
+    const qtank_real *markov;  /**< [N][ny][nu] C A^i B. */
+    const int16_t *row_q;             /**< [m] quantity of each row (U index, or n + Y index). */
+    const int8_t *row_sign;           /**< [m] -1 lower / +1 upper bound row. */
+    const qtank_real *row_c;   /**< [m] constant right-hand side c. */
+    const int16_t *row_next;          /**< [m] same constraint one stage later (shifted warm start). */
+    const qtank_real *colsum;  /**< [ny][n] sum of the E^-1 Gamma' columns of stages 0..N-2. */
+    const qtank_real *out_bound; /**< [nyq] |(Gamma th)_k| <= out_bound[k] max|th|. */
+    const qtank_real *u_min, *u_max; /**< [nu] input bounds. */
+} qtank_mode_data;
+
+extern const qtank_mode_data qtank_modes[QTANK_N_MODES];
+
+/** Packed lower-triangle index of (i, j), j <= i. */
+#define QTANK_TRI(i, j) ((i) * ((i) + 1) / 2 + (j))
+
+/* Linear algebra on packed symmetric matrices (qtank_linalg.c). */
+int qtank_cholesky(qtank_real *a, int n);
+int qtank_cholesky_from(qtank_real *a, int from, int n);
+void qtank_chol_lsolve(const qtank_real *l, int n, qtank_real *b);
+void qtank_chol_ltsolve(const qtank_real *l, int n, qtank_real *b);
+void qtank_chol_solve(const qtank_real *l, int n, qtank_real *b);
+
+/* QP solver (qtank_solver.c). */
+int qtank_qp_solve(qtank_work *ws, qtank_real *lam, const qtank_mode_data *md,
+    const qtank_real *x, const qtank_real *r, qtank_real *U, int *iterations,
+    int *polish_iterations, int *active);
+
+#endif /* QTANK_INTERNAL_H */
