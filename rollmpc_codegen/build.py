@@ -87,7 +87,8 @@ class HostController:
         obj.prefix = ctx["prefix"]
         obj.dtype = np.float64 if ctx["real"] == "double" else np.float32
         obj._fn = {name: getattr(lib, f"{obj.prefix}_{name}") for name in
-                   ("ctrl_size", "init", "step", "solve_qp", "last_info", "status_message")}
+                   ("ctrl_size", "init", "step", "solve_qp", "last_info", "status_message")
+                   + (("set_bounds", "get_bounds") if ctx.get("runtime_bounds") else ())}
         obj.ctrl = ffi.new("char[]", obj._fn["ctrl_size"]())
         obj.u = np.zeros(ctx["n_actuators"], obj.dtype)
         obj.init()
@@ -118,6 +119,28 @@ class HostController:
         its = self.ffi.new("int *")
         status = self._fn["solve_qp"](self.ctrl, mode, self._ptr(x), self._ptr(r), self._ptr(U), its)
         return status, U, its[0]
+
+    def _bound_ptr(self, values):
+        """A P_real pointer to a copy of ``values`` (None -> NULL), and the copy."""
+        if values is None:
+            return self.ffi.NULL, None
+        arr = np.ascontiguousarray(np.atleast_1d(values), self.dtype)
+        return self._ptr(arr), arr
+
+    def set_bounds(self, mode: int, u_min, u_max, y_min, y_max) -> int:
+        """``P_set_bounds`` (configs with ``runtime_bounds: true``); None passes NULL."""
+        ptrs = [self._bound_ptr(v) for v in (u_min, u_max, y_min, y_max)]
+        return self._fn["set_bounds"](self.ctrl, mode, *(p for p, _ in ptrs))
+
+    def get_bounds(self, mode: int) -> tuple[int, dict]:
+        """``P_get_bounds``: (status, {u_min, u_max, y_min, y_max}) of one mode."""
+        nu = max(m["nu"] for m in self.ctx["modes"])
+        nu = self.ctx["modes"][mode]["nu"] if 0 <= mode < len(self.ctx["modes"]) else nu
+        out = {"u_min": np.zeros(nu, self.dtype), "u_max": np.zeros(nu, self.dtype),
+               "y_min": np.zeros(self.ctx["n_outputs"], self.dtype),
+               "y_max": np.zeros(self.ctx["n_outputs"], self.dtype)}
+        status = self._fn["get_bounds"](self.ctrl, mode, *(self._ptr(v) for v in out.values()))
+        return status, out
 
     def info(self) -> dict:
         p = self._fn["last_info"](self.ctrl)

@@ -93,9 +93,9 @@ def parser() -> argparse.ArgumentParser:
     s.add_argument("--plot", help="Fig. 2 style PNG")
     s.add_argument("--baseline", choices=["none", "lqr"], default="none",
                    help="also simulate an LQR-with-saturation baseline (plotted alongside)")
-    s.add_argument("--noise", type=float, default=0.0, help="measurement noise std (deg)")
+    s.add_argument("--noise", type=float, default=0.0, help="measurement noise std (output units)")
     s.add_argument("--disturbance", type=float, default=0.0,
-                   help="constant input disturbance on every actuator (deg)")
+                   help="constant input disturbance on every actuator (actuator units)")
     s.add_argument("--seed", type=int, default=0)
     s.add_argument("--steps", type=int, default=None, help="samples (default: whole scenario)")
     s.add_argument("--quiet", action="store_true", help="no progress bar")
@@ -178,11 +178,11 @@ def main(argv: list[str] | None = None) -> int:
 
         if os.environ.get("ROLLMPC_DEBUG"):
             raise
-        first = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
+        lines = str(exc).strip().splitlines() or [type(exc).__name__]
         kind = "build failed" if isinstance(exc, BuildError) else type(exc).__name__
-        print(f"rollmpc: error: {kind}: {first}", file=sys.stderr)
-        if isinstance(exc, BuildError):
-            print(str(exc), file=sys.stderr)
+        print(f"rollmpc: error: {kind}: {lines[0]}", file=sys.stderr)
+        if isinstance(exc, BuildError) and len(lines) > 1:  # the compiler's output, once
+            print("\n".join(lines[1:]), file=sys.stderr)
         return EXIT_TOOL_FAILED
 
 

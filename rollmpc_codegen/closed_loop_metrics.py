@@ -10,7 +10,8 @@ Definitions (also in docs/paper-reproduction.md):
   the MPC starts to move up to N samples early).  The last segment's window runs to its
   end.  For the paper's scenario: 7 s to 9 s of each 10 s segment (7 s to 10 s for the
   last).  It measures the steady-state offset, not the speed of the tail.
-* **Settled error**: max |y - r| over the settled window (deg for the UAV).
+* **Settled error**: max |y - r| over the settled window (in the output's unit: deg for
+  the UAV; the config's optional ``units`` only labels it).
 * **Settling time**: time from the step after which |y - r| stays within 2 % of the
   step size up to the anticipation cut-off (None if it never does; 0 without a step).
 * **Overshoot**: how far y goes past the new reference, in the direction of the step,
@@ -19,6 +20,8 @@ Definitions (also in docs/paper-reproduction.md):
 * **Constraint violation**: a sample where an active actuator is outside its mode's
   [u_min, u_max], an inactive actuator is not exactly 0, or an output is outside the
   active mode's [y_min, y_max].  No tolerance: the C clamps exactly.
+* **Total variation** of each actuator's command: sum over k of |u(k) - u(k-1)| (what
+  Δu weighting, ``weights.R_delta``, reduces).
 """
 from __future__ import annotations
 
@@ -140,6 +143,10 @@ def summarize(cfg: ControllerConfig, log: ClosedLoopLog) -> dict:
         "switches": int(switch_k.size),
         "switch_times_s": [_time(k, ts) for k in switch_k],
         "max_abs_u": {a: float(np.abs(log.u[:, i]).max()) for i, a in enumerate(cfg.actuators)},
+        "total_variation_u": {a: float(np.abs(np.diff(log.u[:, i])).sum())
+                              for i, a in enumerate(cfg.actuators)},
+        "units": {"outputs": list(cfg.units.outputs), "actuators": list(cfg.units.actuators),
+                  "schedule": cfg.units.schedule},
         "constraint_violations": constraint_violations(cfg, log),
         "non_optimal": int(np.count_nonzero(log.status != OPTIMAL)),
         "status_counts": statuses,

@@ -76,6 +76,9 @@ class ModeConfig:
     observer_Rn: np.ndarray | None = None  # kalman: measurement-noise covariance (ny x ny)
     observer_Qd: np.ndarray | None = None  # kalman + disturbance: its random-walk covariance
     disturbance: str = "none"  # offset-free model: "none" | "input" | "output"
+    # Δu weighting (nu x nu PSD): (u_k - u_{k-1})' R_delta (u_k - u_{k-1}) over the
+    # horizon, u_{-1} = the previous command (input_rate); None when absent or zero
+    R_delta: np.ndarray | None = None
 
 
 @dataclass(frozen=True)
@@ -141,6 +144,23 @@ class SimulationConfig:
 
 
 @dataclass(frozen=True)
+class UnitsConfig:
+    """Units of the signals, for labels only (``rollmpc simulate``'s summary and --plot);
+    "" = no unit shown.  The top-level ``units`` key; the generated C never sees them."""
+
+    outputs: tuple[str, ...] = ()  # one per output, or () for none
+    actuators: tuple[str, ...] = ()  # one per actuator, or () for none
+    schedule: str = ""  # the scheduling signal's unit
+
+    def label(self, signals: str) -> str:
+        """`` [u]`` when every one of the ``signals`` (outputs, actuators or schedule) has
+        the unit u, else "" (no unit, or mixed units)."""
+        value = getattr(self, signals)
+        found = {value} if isinstance(value, str) else set(value)
+        return f" [{found.pop()}]" if len(found) == 1 and "" not in found else ""
+
+
+@dataclass(frozen=True)
 class ControllerConfig:
     prefix: str
     precision: str
@@ -153,6 +173,10 @@ class ControllerConfig:
     solver: SolverConfig
     simulation: SimulationConfig
     config_hash: str
+    # the instance carries the input/output bounds, changeable by P_set_bounds() between
+    # samples (runtime_bounds.py; docs/features.md "Run-time bounds"); False: baked in
+    runtime_bounds: bool = False
+    units: UnitsConfig = UnitsConfig()  # labels only (the top-level `units` key)
 
     @property
     def n_outputs(self) -> int:
@@ -456,8 +480,15 @@ def _mode(r: _Reader, outputs: tuple[str, ...], actuators: tuple[str, ...]) -> M
                               f"must have {ny} rows (one per output)")
     w = r.sub("weights")
     Q = _psd(_matrix(w.raw("Q"), w.key("Q"), (ny, ny)), w.key("Q"), strict=False)
-    R = _psd(_matrix(w.raw("R"), w.key("R"), (nu, nu)), w.key("R"), strict=True)
+    R = _matrix(w.raw("R"), w.key("R"), (nu, nu))
     P = _psd(_matrix(w.raw("P", w.raw("Q")), w.key("P"), (ny, ny)), w.key("P"), strict=False)
+    R_delta = (_psd(_matrix(w.raw("R_delta"), w.key("R_delta"), (nu, nu)), w.key("R_delta"),
+                    strict=False) if w.has("R_delta") else None)
+    if R_delta is not None and not np.any(R_delta):
+        R_delta = None  # zero: no Δu term, no previous-input states
+    # R may be singular (e.g. 0: pure Δu weighting) when R_delta keeps Psi definite
+    delta_definite = R_delta is not None and np.linalg.eigvalsh(R_delta).min() > 0
+    R = _psd(R, w.key("R"), strict=not delta_definite)
     w.finish()
     b = r.sub("bounds")
     u_min = _vector(b.raw("u_min"), b.key("u_min"), nu)
@@ -481,7 +512,7 @@ def _mode(r: _Reader, outputs: tuple[str, ...], actuators: tuple[str, ...]) -> M
     b.finish()
     observer = _observer(r.sub("observer"), nu, ny) if r.has("observer") else {}
     r.finish()
-    return ModeConfig(name=name, actuators=acts, plant=plant, Q=Q, R=R, P=P,
+    return ModeConfig(name=name, actuators=acts, plant=plant, Q=Q, R=R, P=P, R_delta=R_delta,
                       u_min=u_min, u_max=u_max, y_min=y_min, y_max=y_max,
                       observer_poles=observer.pop("poles", None), **observer)
 
@@ -748,6 +779,25 @@ def _check_range(precision: str, modes: tuple[ModeConfig, ...],
                               "leave a band with no region where its mode is chosen")
 
 
+def _units(u: _Reader, outputs: tuple[str, ...], actuators: tuple[str, ...]) -> UnitsConfig:
+    """``units: {outputs, actuators, schedule}``: a unit string per signal (one string for
+    all outputs / actuators is allowed); every entry optional."""
+    def per_signal(name: str, count: int) -> tuple[str, ...]:
+        value = u.raw(name, "")
+        value = [value] * count if isinstance(value, str) else value
+        if not isinstance(value, list) or len(value) != count or not all(
+                isinstance(v, str) for v in value):
+            raise ConfigError(u.key(name), f"must be a unit string or a list of {count} "
+                              f"(one per {name[:-1]})")
+        return tuple(value)
+
+    units = UnitsConfig(outputs=per_signal("outputs", len(outputs)),
+                        actuators=per_signal("actuators", len(actuators)),
+                        schedule=u.string("schedule", ""))
+    u.finish()
+    return units
+
+
 def parse(data: Any, source_text: str = "") -> ControllerConfig:
     """Validate a parsed YAML document into a :class:`ControllerConfig`."""
     r = _Reader(data, "")
@@ -777,6 +827,7 @@ def parse(data: Any, source_text: str = "") -> ControllerConfig:
     else:
         scheduler = _scheduler(r.sub("scheduler"), modes)
     solver = _solver(r.sub("solver", {}))
+    runtime_bounds = r.boolean("runtime_bounds", False)
     sim = r.sub("simulation", {})
     schedule_source = sim.string("schedule_source", "output_rate", choices=SCHEDULE_SOURCES)
     levels, segment = (_reference(sim.sub("reference"), len(outputs), sample_time)
@@ -784,6 +835,7 @@ def parse(data: Any, source_text: str = "") -> ControllerConfig:
     simulation = SimulationConfig(schedule_source=schedule_source, reference_levels=levels,
                                   reference_segment_s=segment)
     sim.finish()
+    units = _units(r.sub("units"), outputs, actuators) if r.has("units") else UnitsConfig()
     r.finish()
     _check_range(precision, modes, scheduler, solver)
     if simulation.schedule_source == "output_rate" and scheduler is not None:
@@ -795,7 +847,7 @@ def parse(data: Any, source_text: str = "") -> ControllerConfig:
     return ControllerConfig(prefix=prefix, precision=precision, sample_time=sample_time,
                             horizon=horizon, outputs=outputs, actuators=actuators, modes=modes,
                             scheduler=scheduler, solver=solver, simulation=simulation,
-                            config_hash=digest)
+                            config_hash=digest, runtime_bounds=runtime_bounds, units=units)
 
 
 def _yaml_problem(exc: yaml.YAMLError) -> tuple[str, str]:

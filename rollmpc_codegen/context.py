@@ -15,10 +15,11 @@ import numpy as np
 from . import __version__
 from .config import MAX_ROWS, ConfigError, ControllerConfig
 from .mpc import CondensedQP, condense
-from .observer import observer_gain
+from . import input_rate
 from .disturbance_model import prediction_model
 from .plant import DiscretePlant
 from .qp import ModeData, dtype_of, mode_data
+from .runtime_bounds import context_bounds
 
 
 @dataclass(frozen=True)
@@ -45,11 +46,12 @@ def build_model(cfg: ControllerConfig) -> ControllerModel:
     modes = []
     for j, mode in enumerate(cfg.modes):
         key = f"modes[{j}]"
-        plant = prediction_model(mode, cfg.sample_time, key)  # with its disturbances
+        # with its disturbances, and the previous input with Δu weighting (input_rate)
+        plant = input_rate.augment(prediction_model(mode, cfg.sample_time, key), mode)
         qp = condense(plant, mode, cfg.horizon, key)
         if qp.m > MAX_ROWS or qp.n > MAX_ROWS:
             raise ConfigError("horizon", f"the QP has {qp.m} rows; at most {MAX_ROWS} supported")
-        L, poles = observer_gain(plant, mode, key)
+        L, poles = input_rate.observer_gain(plant, mode, key)
         act_index = [cfg.actuators.index(a) for a in mode.actuators]
         # an overflow in the cast to float is reported just below, naming the key; numpy's
         # own RuntimeWarning would only add a second, vaguer line on stderr
@@ -113,6 +115,9 @@ def build_context(model: ControllerModel) -> dict:
             "u_min": _arr(d.u_min), "u_max": _arr(d.u_max),
             "cond_E": float(np.linalg.cond(mm.qp.E)),
         })
+    if cfg.runtime_bounds:  # the output bounds P_init gives the instance (None: unbounded)
+        for entry, mode_cfg in zip(modes, cfg.modes):
+            entry.update(context_bounds(mode_cfg))
     sched = None
     if cfg.scheduler is not None:
         sc = cfg.scheduler
@@ -140,6 +145,7 @@ def build_context(model: ControllerModel) -> dict:
         "n_modes": len(modes),
         "initial_mode": 0 if sched is None else sched["initial"],
         "scheduler": sched,
+        "runtime_bounds": cfg.runtime_bounds,
         "solver": {
             "method": s.method, "reduced": flags["reduced"], "warm_start": flags["warm"]
             and s.warm_start, "omega": s.omega if flags["sor"] else 1.0, "sigma": s.sigma,

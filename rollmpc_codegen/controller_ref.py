@@ -9,8 +9,9 @@ from __future__ import annotations
 
 import numpy as np
 
+from . import runtime_bounds
 from .band_scheduler import scheduled_mode
-from .solver_ref import NONFINITE_INPUT, SolverRef, seqsum
+from .solver_ref import NONFINITE_INPUT, OPTIMAL, SolverRef, seqsum
 
 
 class ControllerRef:
@@ -35,6 +36,39 @@ class ControllerRef:
         self.u_last = np.zeros(self.ctx["n_actuators"], self.md[0].Kx.dtype)
         self.mode_switches = 0
         self.last = {"status": 0, "iterations": 0, "polish_iterations": 0, "active": 0}
+        if self.ctx.get("runtime_bounds"):
+            self.config_bounds = [runtime_bounds.config_bounds(m, md.Kx.dtype)
+                                  for m, md in zip(self.ctx["modes"], self.md)]
+            self.bounds = [dict(b) for b in self.config_bounds]
+            for j in range(len(self.md)):
+                self._apply_bounds(j)
+
+    def _apply_bounds(self, j):
+        """Mode j's solver reads the live bounds, as the C's row_const() derives them."""
+        md, b, solver = self.md[j], self.bounds[j], self.solvers[j]
+        solver.row_c = runtime_bounds.row_constants(md.row_q, md.row_sign, md.n, md.nu, md.ny,
+                                                    dtype=md.Kx.dtype, **b)
+        solver.u_min, solver.u_max = b["u_min"], b["u_max"]
+
+    def set_bounds(self, mode, u_min, u_max, y_min, y_max):
+        """Mirror of ``P_set_bounds``: returns its status; changes nothing unless OPTIMAL.
+        None stands for a NULL pointer; the C reads nu(mode) and ny entries."""
+        if not 0 <= mode < len(self.md):
+            return runtime_bounds.BAD_ARGUMENT
+        md = self.md[mode]
+        sizes = (md.nu, md.nu, md.ny, md.ny)
+        new = [None if v is None else np.array(np.atleast_1d(v)[:size], md.Kx.dtype)
+               for v, size in zip((u_min, u_max, y_min, y_max), sizes)]
+        status = runtime_bounds.check_bounds(self.config_bounds[mode], *new)
+        if status != OPTIMAL:
+            return status
+        self.bounds[mode] = dict(zip(("u_min", "u_max", "y_min", "y_max"), new))
+        self._apply_bounds(mode)
+        if mode == self.mode:  # the held command obeys the new input bounds
+            lo, hi, act = new[0], new[1], md.actuator_index
+            v = self.u_last[act]
+            self.u_last[act] = np.where(v < lo, lo, np.where(v > hi, hi, v))
+        return OPTIMAL
 
     def _schedule(self, s):
         """The mode ``schedule()`` of the C returns for signal ``s`` (no state change)."""

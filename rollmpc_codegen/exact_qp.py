@@ -51,10 +51,8 @@ class ExactSolution:
 
 def qp_data(qp, x: np.ndarray, r: np.ndarray) -> QPData:
     """The QP of one mode (a :class:`~rollmpc_codegen.mpc.CondensedQP`) at state x, preview r."""
-    xl, rl = np.asarray(x, dtype=LD), np.asarray(r, dtype=LD)
-    f = qp.F.astype(LD) @ (qp.Phi.astype(LD) @ xl - rl)
-    if getattr(qp, "Ut", None) is not None:  # offset-free input target (CondensedQP.gradient)
-        f = f - 2.0 * qp.Psi.astype(LD) @ (qp.Ut.astype(LD) @ xl)
+    xl = np.asarray(x, dtype=LD)
+    f = qp.gradient(x, r, LD)  # with the input target and the Δu terms (CondensedQP.gradient)
     b = qp.c.astype(LD) + qp.W.astype(LD) @ xl
     return QPData(E=qp.E, f=f, L=qp.L, b=b, box=np.asarray(qp.row_kind) == 0)
 

@@ -10,6 +10,10 @@ Everything the C needs is computed here once (one source of truth):
   with the rows on y_{0|k} dropped (they carry no decision variable);
 * the dual Hessian ``H = L E^-1 L'`` and its L/D/U split (for reference and tests; the C
   reads H through its structure, see :mod:`rollmpc_codegen.qp`).
+
+Offset-free tracking (:mod:`.disturbance_model`) and Δu weighting (:mod:`.input_rate`)
+add a state-dependent gradient term ``Gx x`` (``Gx`` below), which only changes Kx; Δu
+weighting also makes Psi block tridiagonal.
 """
 from __future__ import annotations
 
@@ -18,6 +22,7 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.linalg
 
+from . import input_rate
 from .config import ConfigError, ModeConfig
 from .plant import DiscretePlant
 
@@ -32,7 +37,7 @@ class CondensedQP:
     Gamma: np.ndarray  # (N ny, N nu)
     markov: np.ndarray  # (N, ny, nu): C A^i B, i = 0..N-1 (Gamma is block Toeplitz in these)
     Omega: np.ndarray  # (N ny, N ny)
-    Psi: np.ndarray  # (N nu, N nu)
+    Psi: np.ndarray  # (N nu, N nu): blkdiag(R), plus D' R_delta D with Δu weighting
     E: np.ndarray  # (n, n)
     Einv: np.ndarray
     F: np.ndarray  # (n, N ny)
@@ -47,6 +52,9 @@ class CondensedQP:
     # offset-free tracking: R weights U - Ut x (Ut = the disturbance-cancelling input
     # target per stage, disturbance_model); None = 0, the paper's eq. (5)
     Ut: np.ndarray | None = None  # (N nu, nx)
+    # the gradient's state-dependent part beyond F Phi x (None = 0): -2 blkdiag(R) Ut for
+    # the input target, plus input_rate.delta_gradient (-2 R_delta u_prev) for Δu
+    Gx: np.ndarray | None = None  # (N nu, nx)
 
     @property
     def n(self) -> int:
@@ -75,10 +83,12 @@ class CondensedQP:
         S = 2.0 * (self.Psi + self.Gamma[:-ny].T @ self.Omega[:-ny, :-ny] @ self.Gamma[:-ny])
         return 0.5 * (S + S.T), V.copy(), np.linalg.inv(2.0 * P)
 
-    def gradient(self, x: np.ndarray, R: np.ndarray) -> np.ndarray:
-        """f of min 1/2 U'E U + f'U: F (Phi x - R), minus 2 Psi Ut x with an input target."""
-        f = self.F @ (self.Phi @ x - R)
-        return f if self.Ut is None else f - 2.0 * self.Psi @ (self.Ut @ x)
+    def gradient(self, x: np.ndarray, R: np.ndarray, dtype=np.float64) -> np.ndarray:
+        """f of min 1/2 U'E U + f'U: F (Phi x - R) + Gx x (Gx: input target, Δu), in
+        ``dtype`` (e.g. np.longdouble for the extended-precision reference)."""
+        x, R = np.asarray(x, dtype=dtype), np.asarray(R, dtype=dtype)
+        f = self.F.astype(dtype) @ (self.Phi.astype(dtype) @ x - R)
+        return f if self.Gx is None else f + self.Gx.astype(dtype) @ x
 
     def theta0(self, x: np.ndarray, R: np.ndarray) -> np.ndarray:
         return self.Kx @ x + self.Kr @ R
@@ -132,7 +142,8 @@ def condense(plant: DiscretePlant, mode: ModeConfig, N: int, key: str) -> Conden
         for k in range(i + 1):  # input step k
             Gamma[i * ny:(i + 1) * ny, k * nu:(k + 1) * nu] = markov[i - k]
     Omega = _block_diag(mode.Q, N, last=mode.P)
-    Psi = _block_diag(mode.R, N)
+    Psi_R = _block_diag(mode.R, N)
+    Psi = Psi_R if plant.n_prev == 0 else Psi_R + input_rate.delta_hessian(mode.R_delta, N)
     E = 2.0 * (Psi + Gamma.T @ Omega @ Gamma)
     E = 0.5 * (E + E.T)
     eig = np.linalg.eigvalsh(E)
@@ -147,14 +158,20 @@ def condense(plant: DiscretePlant, mode: ModeConfig, N: int, key: str) -> Conden
     F = 2.0 * Gamma.T @ Omega
     Kr = solve_refined(E, F)
     Kx = -(Kr.astype(np.longdouble) @ Phi.astype(np.longdouble)).astype(np.float64)
-    Ut = None
-    if plant.input_target is not None:  # offset-free: the target only changes Kx
+    Ut = Gx = None
+    if plant.input_target is not None:  # offset-free: R weights U - Ut x
         Ut = np.tile(plant.input_target, (N, 1))
-        Kx = Kx + solve_refined(E, 2.0 * Psi @ Ut)
+        Gx = -2.0 * Psi_R @ Ut
+    if plant.n_prev:  # Δu weighting: -2 R_delta u_prev on the first stage
+        G = input_rate.delta_gradient(mode.R_delta, N, nx)
+        Gx = G if Gx is None else Gx + G
+    if Gx is not None:  # the state-dependent gradient only changes Kx
+        Kx = Kx - solve_refined(E, Gx)
     L, W, c, kind, index, sign = _constraints(mode, Phi, Gamma, N, nu, ny)
     return CondensedQP(N=N, nx=nx, nu=nu, ny=ny, Phi=Phi, Gamma=Gamma, markov=markov,
                        Omega=Omega, Psi=Psi, E=E, Einv=Einv, F=F, Kx=Kx, Kr=Kr,
-                       L=L, W=W, c=c, row_kind=kind, row_index=index, row_sign=sign, Ut=Ut)
+                       L=L, W=W, c=c, row_kind=kind, row_index=index, row_sign=sign, Ut=Ut,
+                       Gx=Gx)
 
 
 def _constraints(mode: ModeConfig, Phi, Gamma, N: int, nu: int, ny: int):

@@ -2,8 +2,10 @@
 
 * Fig. 2 (:func:`plot_closed_loop`, ``rollmpc simulate --plot``): panel (a) the output y
   and the reference r, with the actuator commands u in a subplot beneath; panel (b) the
-  scheduling signal (the roll rate rho) with the eq. (3) thresholds, and the active mode
-  on a second axis.  An optional baseline (the saturated LQR) is drawn dashed.
+  scheduling signal rho (the UAV's roll rate) with the eq. (3) thresholds, and the active
+  mode on a second axis.  An optional baseline (the saturated LQR) is drawn dashed.  The
+  labels use the config's output, actuator and signal names, with units only where the
+  config's ``units`` gives them.
 * Fig. 3 (:func:`plot_solve_times`, ``rollmpc bench --plot``): every QP's solve time per
   solver against the sample index, log scale.
 """
@@ -56,8 +58,10 @@ def plot_closed_loop(path: str | Path, cfg: ControllerConfig, log: ClosedLoopLog
         for label, run, style in runs:
             ax_y.plot(run.t, run.y[:, o], color=colors[o % len(colors)], **style,
                       label=f"y ({name}), {label}")
-    ax_y.set_ylabel("output y, reference r [deg]")
-    ax_y.set_title("(a) tracking output y(k) = roll angle and reference r(k)", loc="left",
+    units = cfg.units  # labels only: no unit unless the config's `units` gives one
+    outputs = ", ".join(cfg.outputs)
+    ax_y.set_ylabel(f"output y, reference r{units.label('outputs')}")
+    ax_y.set_title(f"(a) tracking output y(k) = {outputs} and reference r(k)", loc="left",
                    fontsize=10)
     ax_y.legend(loc="upper left", fontsize=8, ncol=2)
     ax_y.grid(alpha=0.3)
@@ -69,7 +73,7 @@ def plot_closed_loop(path: str | Path, cfg: ControllerConfig, log: ClosedLoopLog
     limits = sorted({float(v) for m in cfg.modes for v in (*m.u_min, *m.u_max)})
     for v in limits:
         ax_u.axhline(v, color="0.6", linewidth=0.8, linestyle="-.")
-    ax_u.set_ylabel("input u [deg]")
+    ax_u.set_ylabel(f"input u{units.label('actuators')}")
     ax_u.set_title("control inputs u(k) (dash-dot: actuator limits)", loc="left", fontsize=10)
     ax_u.legend(loc="upper left", fontsize=8, ncol=len(cfg.actuators))
     ax_u.grid(alpha=0.3)
@@ -85,7 +89,7 @@ def plot_closed_loop(path: str | Path, cfg: ControllerConfig, log: ClosedLoopLog
             ax_s.axhline(v, color="0.5", linewidth=0.8)
             for e in (-eps, eps):
                 ax_s.axhline(v + e, color="0.7", linewidth=0.6, linestyle=":")
-    ax_s.set_ylabel(f"{signal} rho [deg/s]")
+    ax_s.set_ylabel(f"{signal} rho{units.label('schedule')}")
     ax_s.set_xlabel("time t [s]")
     ax_s.grid(alpha=0.3)
     ax_m = ax_s.twinx()
@@ -97,8 +101,8 @@ def plot_closed_loop(path: str | Path, cfg: ControllerConfig, log: ClosedLoopLog
                     [f"{j + 1}: {n}" for j, n in enumerate(names)])
     ax_m.set_ylim(0.5, len(names) + 0.5 + 0.6 * len(names))
     ax_m.set_ylabel("mode j")
-    ax_s.set_title("(b) roll rate rho(k) (solid: band of eq. 3, dotted: +/- epsilon) "
-                   "and switching mode j(k)", loc="left", fontsize=10)
+    ax_s.set_title(f"(b) {signal} rho(k) (solid: band thresholds of eq. 3, dotted: "
+                   "+/- epsilon) and switching mode j(k)", loc="left", fontsize=10)
     h1, l1 = ax_s.get_legend_handles_labels()
     h2, l2 = ax_m.get_legend_handles_labels()
     ax_s.legend(h1 + h2, l1 + l2, loc="upper left", fontsize=8, ncol=2)

@@ -45,6 +45,9 @@ class DiscretePlant:
     # disturbances, and u_s = input_target @ x is the input that cancels them
     nd: int = 0
     input_target: np.ndarray | None = None
+    # Δu weighting (input_rate.augment): the last n_prev states are the previous input
+    # u_{k-1} (u_prev+ = u), after the disturbance states
+    n_prev: int = 0
 
     @property
     def nx(self) -> int:

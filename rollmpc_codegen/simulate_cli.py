@@ -15,7 +15,8 @@ Outputs (each optional):
   ``baseline`` holding the LQR's when ``--baseline lqr``).
 * ``--plot``: Fig. 2 (:mod:`rollmpc_codegen.paper_figures`).
 
-A short summary goes to stdout; the progress bar to stderr (``--quiet`` disables it).
+A short summary goes to stdout, with the config's ``units`` (none unless given); the
+progress bar to stderr (``--quiet`` disables it).
 """
 from __future__ import annotations
 
@@ -83,18 +84,19 @@ def _run(cfg, controller, args, label: str) -> ClosedLoopLog:
 
 def _print_summary(cfg, ctx: dict, s: dict, base: dict | None) -> None:
     names = [m.name for m in cfg.modes]
+    y_unit, u_unit = cfg.units.label("outputs"), cfg.units.label("actuators")
     print(f"rollmpc simulate: {s['samples']} samples ({s['duration_s']:g} s), "
           f"{ctx['precision']}, solver {ctx['solver']['method']}"
           f"{' + polish' if ctx['solver']['polish'] else ''}")
     errs = ", ".join(f"{x['settled_error']:.3g}" for x in s["segments"])
-    print(f"  settled |y - r| per segment [deg]: {errs} (max {s['max_settled_error']:.3g})")
+    print(f"  settled |y - r| per segment{y_unit}: {errs} (max {s['max_settled_error']:.3g})")
     over = ", ".join(f"{x['overshoot']:.3g}" for x in s["segments"])
-    print(f"  overshoot per segment [deg]: {over}")
+    print(f"  overshoot per segment{y_unit}: {over}")
     modes = ", ".join(f"{n} {s['by_mode'][n]['samples']}" for n in names)
     print(f"  switches: {s['switches']} (samples per mode: {modes})")
     umax = ", ".join(f"{a} {v:g}" for a, v in s["max_abs_u"].items())
     cv = s["constraint_violations"]
-    print(f"  max |u|: {umax}; constraint violations: {cv['total']} "
+    print(f"  max |u|{u_unit}: {umax}; constraint violations: {cv['total']} "
           f"(u {cv['u']}, inactive {cv['inactive_actuator_nonzero']}, y {cv['y']})")
     st = s["solve_us"]
     if st["median"] is not None:
@@ -102,7 +104,7 @@ def _print_summary(cfg, ctx: dict, s: dict, base: dict | None) -> None:
               f"solve time median {st['median']:.1f} us, max {st['max']:.1f} us")
     if base is not None:
         errs = ", ".join(f"{x['settled_error']:.3g}" for x in base["segments"])
-        print(f"  LQR baseline: settled |y - r| per segment [deg]: {errs}; "
+        print(f"  LQR baseline: settled |y - r| per segment{y_unit}: {errs}; "
               f"switches {base['switches']}; "
               f"constraint violations {base['constraint_violations']['total']}")
 

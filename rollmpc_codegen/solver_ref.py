@@ -150,6 +150,8 @@ class SolverRef:
         self.has_out = has_out
         self.lam = np.zeros(md.m, md.Kx.dtype)
         self.one, self.zero = dt(1.0), dt(0.0)
+        # the bound data: baked (md), or live with runtime_bounds (ControllerRef.set_bounds)
+        self.row_c, self.u_min, self.u_max = md.row_c, md.u_min, md.u_max
 
     # -- pieces mirroring the static functions of solver.c.j2 ------------------------
     def _unconstrained(self, x, r):
@@ -254,7 +256,7 @@ class SolverRef:
         qW = md.row_q[W]
         if np.unique(qW).size != qW.size:
             return False, None, None
-        th[qW] = np.where(md.row_sign[W] > 0, md.row_c[W], -md.row_c[W])
+        th[qW] = np.where(md.row_sign[W] > 0, self.row_c[W], -self.row_c[W])
         dv[qW] = th[qW] - th0[qW]
         bound = np.zeros(n, bool)
         bound[qW] = True
@@ -499,7 +501,7 @@ class SolverRef:
         yv0 = self._predict(th0) if self.has_out else None
         v = self._values(th0, yv0)
         q, sg, n = md.row_q, md.row_sign, md.n
-        gam = md.row_c.copy()
+        gam = self.row_c.copy()
         if self.has_out:
             out = q >= n
             pxr = px[np.maximum(q - n, 0)]
@@ -583,8 +585,8 @@ class SolverRef:
         if not np.all(np.isfinite(th)):
             status = NUMERICAL
             src = th0 if np.all(np.isfinite(th0)) else np.zeros_like(th0)
-        lo = np.tile(md.u_min, md.N)
-        hi = np.tile(md.u_max, md.N)
+        lo = np.tile(self.u_min, md.N)
+        hi = np.tile(self.u_max, md.N)
         U = np.where(src < lo, lo, np.where(src > hi, hi, src))
         if status != OPTIMAL:
             self.lam[:] = 0

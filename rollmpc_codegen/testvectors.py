@@ -19,11 +19,23 @@ from .simulate import run_closed_loop
 from .solver_ref import SolverRef
 
 
+def saturated_samples(cfg, log, modes) -> np.ndarray:
+    """Samples at which the active mode (``modes[k]``) commands an actuator at one of its
+    own bounds (to 1e-6 relative: the command is the bound rounded to the precision)."""
+    hits = []
+    for k, j in enumerate(modes):
+        m = cfg.modes[j]
+        u = log.u[k, [cfg.actuators.index(a) for a in m.actuators]]
+        hits.append(np.any(np.isclose(u, m.u_min, rtol=1e-6, atol=0)
+                           | np.isclose(u, m.u_max, rtol=1e-6, atol=0)))
+    return np.flatnonzero(hits)
+
+
 def qp_cases_from_log(model, ctx, log, xs, count: int = 12) -> list[dict]:
     """QP solves at states of the closed loop, spread over the constrained samples."""
     N, ny = ctx["horizon"], ctx["n_outputs"]
     ref = log.r[:, 0] if ny == 1 else log.r
-    constrained = np.flatnonzero(np.abs(log.u).max(axis=1) >= 14.999)
+    constrained = saturated_samples(model.config, log, [mode for mode, _ in xs])
     picks = np.unique(np.concatenate((constrained[:: max(1, len(constrained) // count)][:count],
                                       [0, len(log.t) // 2])))
     cases = []

@@ -95,3 +95,73 @@ def short_uav_config(tmp_path: Path, horizon: int = 20, name: str = "uav_short",
     data["horizon"] = horizon
     path.write_text(yaml.safe_dump(data, sort_keys=False))
     return path
+
+
+def sampled_qps_against_independent_solvers(built: Built, states: list, reference, bound: float,
+                                            perturb: float, seed: int, count: int = 12):
+    """One-mode check on ``count`` states of a lockstep run (``Lockstep.states``), each with
+    the scenario's preview and a randomly perturbed one: ``P_solve_qp`` bit for bit against
+    the reference solver, both optimal; returns (QPs with an input at +-``bound``, worst
+    max |U - U_daqp|, worst max |U - U_exact|), the independent solutions from
+    ``exact_qp.qp_data`` (CondensedQP.gradient) by DAQP and ``exact_qp.solve_exact``."""
+    import numpy as np
+
+    daqp = pytest.importorskip("daqp", reason="install with: pip install 'rollmpc-codegen[peers]'")
+    from rollmpc_codegen.exact_qp import qp_data, solve_exact
+    from rollmpc_codegen.scenario import preview
+    from rollmpc_codegen.solver_ref import OPTIMAL, SolverRef
+
+    qp, ny = built.model.modes[0].qp, built.ctx["n_outputs"]
+    rng = np.random.default_rng(seed)
+    c = built.fresh_c()
+    solver = SolverRef(built.model.modes[0].data, built.ctx["solver"])
+    saturated, worst_daqp, worst_exact = 0, 0.0, 0.0
+    for k in sorted(rng.choice(len(states), count, replace=False)):
+        _, x, kk = states[k]
+        r0 = preview(reference, kk, qp.N, ny)
+        for r in (r0, r0 + rng.uniform(-perturb, perturb, r0.size)):
+            st_c, U_c, _ = c.solve_qp(0, x, r)
+            st_r, U_r, _, _, _ = solver.solve(x, r)
+            assert st_c == st_r == OPTIMAL and U_c.tobytes() == U_r.tobytes()
+            saturated += bool(np.any(np.abs(U_c) == bound))
+            data = qp_data(qp, x, r)
+            U_d, _, flag, _ = daqp.solve(qp.E, data.f.astype(float), qp.L,
+                                         data.b.astype(float), np.full(qp.m, -1e30),
+                                         np.zeros(qp.m, dtype=np.intc))
+            exact = solve_exact(data)
+            assert flag == 1 and exact.status == "optimal"
+            worst_daqp = max(worst_daqp, float(np.abs(U_c - U_d).max()))
+            worst_exact = max(worst_exact, float(np.abs(U_c - exact.U).max()))
+    return saturated, worst_daqp, worst_exact
+
+
+def cli(args: list[str]) -> tuple[int, str, str]:
+    """``rollmpc <args>`` in-process: (exit status, stdout, stderr)."""
+    import contextlib
+    import io
+
+    from rollmpc_codegen.cli import main
+
+    out, err = io.StringIO(), io.StringIO()
+    with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
+        rc = main(args)
+    return rc, out.getvalue(), err.getvalue()
+
+
+def simulate_and_bench(config: Path, tmp_path: Path, *simulate_args: str):
+    """``rollmpc simulate`` (JSON summary) then ``rollmpc bench --max-qps 40 --variants
+    default,daqp``; returns (summary, simulate's stdout, bench rows by key)."""
+    import json
+
+    rc, out, err = cli(["simulate", str(config), "--quiet", *simulate_args, "--json",
+                        str(tmp_path / "s.json"), "--build-dir", str(tmp_path / "b")])
+    assert rc == 0, err
+    summary = json.loads((tmp_path / "s.json").read_text())
+    pytest.importorskip("quadprog", reason="install with: pip install 'rollmpc-codegen[peers]'")
+    pytest.importorskip("daqp", reason="install with: pip install 'rollmpc-codegen[peers]'")
+    rc, _, err = cli(["bench", str(config), "--quiet", "--max-qps", "40", "--variants",
+                      "default,daqp", "--json", str(tmp_path / "b.json"),
+                      "--build-dir", str(tmp_path / "b")])
+    assert rc == 0, err
+    rows = {r["key"]: r for r in json.loads((tmp_path / "b.json").read_text())["rows"]}
+    return summary, out, rows

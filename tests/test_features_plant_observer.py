@@ -22,18 +22,18 @@ import pytest
 import scipy.linalg
 import yaml
 
-from conftest import ROOT, UAV, Built
+from conftest import (ROOT, UAV, Built, sampled_qps_against_independent_solvers,
+                      simulate_and_bench)
 from rollmpc_codegen.build import build_host_controller
 from rollmpc_codegen.cli import main
 from rollmpc_codegen.config import ConfigError, load, parse
 from rollmpc_codegen.context import build_model
-from rollmpc_codegen.exact_qp import QPData, solve_exact
 from rollmpc_codegen.generate import generate, load_model
 from rollmpc_codegen.observer import process_noise
 from rollmpc_codegen.plant import continuous_realisation
-from rollmpc_codegen.scenario import SimulatedPlant, preview, scenario_reference
+from rollmpc_codegen.scenario import SimulatedPlant, scenario_reference
 from rollmpc_codegen.simulate import run_closed_loop
-from rollmpc_codegen.solver_ref import OPTIMAL, SolverRef
+from rollmpc_codegen.solver_ref import OPTIMAL
 from rollmpc_codegen.tf_realisation import (column_realisation, frequency_response,
                                             matrix_response)
 from test_bitexact import Lockstep
@@ -224,29 +224,10 @@ def test_double_matches_independent_solvers(tank_run):
     built, lock, log = tank_run
     if built.ctx["precision"] != "double":
         pytest.skip("the independent check is a double-precision property")
-    daqp = pytest.importorskip("daqp", reason="install with: pip install 'rollmpc-codegen[peers]'")
-    qp = built.model.modes[0].qp
-    ref = scenario_reference(built.model.config)
-    rng = np.random.default_rng(7)
-    c = built.fresh_c()
-    solver = SolverRef(built.model.modes[0].data, built.ctx["solver"])
-    worst_daqp = worst_exact = 0.0
-    saturated = 0
-    for k in sorted(rng.choice(len(lock.states), 12, replace=False)):
-        _, x, kk = lock.states[k]
-        for r in (preview(ref, kk, qp.N, 2), preview(ref, kk, qp.N, 2) + rng.uniform(-4, 4, 2 * qp.N)):
-            st_c, U_c, its_c = c.solve_qp(0, x, r)
-            st_r, U_r, its_r, _, _ = solver.solve(x, r)
-            assert st_c == st_r == OPTIMAL and U_c.tobytes() == U_r.tobytes()
-            saturated += bool(np.any(np.abs(U_c) == 3.0))
-            f, b = qp.gradient(x, r), qp.gamma(x)
-            U_d, _, flag, _ = daqp.solve(qp.E, f, qp.L, b, np.full_like(b, -1e30),
-                                         np.zeros(b.size, dtype=np.intc))
-            assert flag == 1
-            exact = solve_exact(QPData(E=qp.E, f=f.astype(np.longdouble), L=qp.L,
-                                       b=b.astype(np.longdouble), box=qp.row_kind == 0))
-            worst_daqp = max(worst_daqp, np.abs(U_c - U_d).max())
-            worst_exact = max(worst_exact, np.abs(U_c - np.asarray(exact.U, float)).max())
+    # qp_data's gradient includes the offset-free target term (CondensedQP.gradient)
+    saturated, worst_daqp, worst_exact = sampled_qps_against_independent_solvers(
+        built, lock.states, scenario_reference(built.model.config), bound=3.0, perturb=4.0,
+        seed=7)
     assert saturated >= 4
     assert worst_daqp <= 1e-8 and worst_exact <= 1e-8, (worst_daqp, worst_exact)
 
@@ -317,26 +298,9 @@ def test_uav_input_disturbance_offset_removed(tmp_path, build_root):
 
 
 # --------------------------------------------------------------------------- CLI
-def _cli(args):
-    out, err = io.StringIO(), io.StringIO()
-    with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
-        rc = main(args)
-    return rc, out.getvalue(), err.getvalue()
-
-
 def test_simulate_and_bench_cli_on_tank(tmp_path):
-    rc, _, err = _cli(["simulate", str(TANK), "--quiet", "--disturbance", str(DIST),
-                       "--json", str(tmp_path / "s.json"), "--build-dir", str(tmp_path / "b")])
-    assert rc == 0, err
-    summary = json.loads((tmp_path / "s.json").read_text())
+    summary, _, rows = simulate_and_bench(TANK, tmp_path, "--disturbance", str(DIST))
     assert summary["samples"] == 400 and summary["non_optimal"] == 0
-    pytest.importorskip("quadprog", reason="install with: pip install 'rollmpc-codegen[peers]'")
-    pytest.importorskip("daqp", reason="install with: pip install 'rollmpc-codegen[peers]'")
-    rc, _, err = _cli(["bench", str(TANK), "--quiet", "--max-qps", "40", "--variants",
-                       "default,daqp", "--json", str(tmp_path / "b.json"),
-                       "--build-dir", str(tmp_path / "b")])
-    assert rc == 0, err
-    rows = {r["key"]: r for r in json.loads((tmp_path / "b.json").read_text())["rows"]}
     # the peers solve the QP with the offset-free gradient (CondensedQP.gradient)
     assert rows["default"]["optimal"] == 40 and rows["default"]["max_abs_err"] <= 1e-8
     assert rows["daqp"]["max_abs_err"] <= 1e-8
