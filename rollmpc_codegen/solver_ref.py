@@ -387,7 +387,9 @@ class SolverRef:
                 add = self._violated_outside(th, gam, W)
                 if add.size == 0:
                     if np.any(self._violated(th, gam)[W]):  # working_set_holds()
-                        return False, None, 0, its
+                        ok, th, z = self._refine_dual(W, z, th0, K, gam, th)
+                        if not ok:
+                            return False, None, 0, its
                     lam[:] = 0
                     lam[W] = z
                     return True, th, W.size, its
@@ -395,6 +397,27 @@ class SolverRef:
                 return False, None, 0, its
             W = np.union1d(W, add).astype(W.dtype)
         return False, None, 0, its
+
+    def _refine_dual(self, W, z, th0, K, gam, th):
+        """Mirror of refine_dual(): (ok, th, z) after up to two refinement rounds."""
+        md = self.md
+        nw = W.size
+        chol = np.concatenate([self.H[W[i], W[:i + 1]] for i in range(nw)])
+        cholesky_packed(chol, nw)  # the factor dual_solve() left in ws->chol
+        sg = md.row_sign[W]
+        for _ in range(2):
+            yv = self._predict(th) if self.has_out else None
+            v = self._values(th, yv)[W]
+            e = np.where(sg > 0, v - gam[W], -v - gam[W])
+            chol_solve_packed(chol, nw, e)
+            z = z + e
+            if np.any(z < 0):
+                return False, th, z
+            th = self._correct(th0, W, z)
+            if not np.any(self._violated(th, gam)[W]):
+                viol = self._violated(th, gam)
+                return (not np.any(viol)), th, z
+        return False, th, z
 
     # -- the dual active-set solve (Goldfarb-Idnani) ------------------------------------
     def _most_violated(self, th, gam, in_set):
