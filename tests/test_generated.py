@@ -15,7 +15,11 @@ CASES = [("uav_roll", "double", "uav_roll"), ("uav_roll", "float", "uav_roll_f32
          ("three_drives", "double", "three_drives"),
          ("three_drives", "float", "three_drives_f32"),
          ("quadruple_tank", "double", "quadruple_tank"),
-         ("quadruple_tank", "float", "quadruple_tank_f32")]
+         ("quadruple_tank", "float", "quadruple_tank_f32"),
+         ("thermal_zones", "double", "thermal_zones"),
+         ("thermal_zones", "float", "thermal_zones_f32"),
+         ("chain_runtime_bounds", "double", "chain_runtime_bounds"),
+         ("chain_runtime_bounds", "float", "chain_runtime_bounds_f32")]
 
 
 @pytest.mark.parametrize("example,precision,committed", CASES)

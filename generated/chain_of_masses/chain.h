@@ -28,7 +28,7 @@ typedef enum {
     CHAIN_OPTIMAL = 0,        /**< QP solved; all constraints hold within tolerance. */
     CHAIN_MAX_ITER = 1,       /**< Iteration cap hit; command is the best in-limit estimate. */
     CHAIN_INACCURATE = 2,     /**< Stopped by the delta test with constraints still violated. */
-    CHAIN_INFEASIBLE = 3,     /**< Dual multipliers diverged: the constraints cannot all hold. */
+    CHAIN_INFEASIBLE = 3,     /**< The constraints cannot all hold (proven by the dual active set, or the sweeps' multipliers diverged); command is the clamped unconstrained optimum or the best estimate. */
     CHAIN_NONFINITE_INPUT = 4,/**< NaN or Inf in an input; last command held. */
     CHAIN_NUMERICAL = 5,      /**< Non-finite intermediate result; safe fallback command. */
     CHAIN_BAD_ARGUMENT = 6    /**< NULL pointer or mode index out of range. */

@@ -763,6 +763,42 @@ static int working_set_holds(chain_work *ws, const chain_mode_data *md, int nw)
     return 1;
 }
 
+/*
+ * Iterative refinement of a dual solve whose point misses its own working set: with
+ * multipliers ~1e9 (float), th = th0 - E^-1 M_W' z cancels most digits. The residual
+ * e = M_W th - gamma_W is small, so z += H_WW^-1 e (ws->chol still holds the factor) and
+ * a new th lose far fewer. Up to two rounds; 0 once the working set holds, no multiplier
+ * is negative and no other row is violated, else -1.
+ */
+static int refine_dual(chain_work *ws, const chain_mode_data *md, int nw)
+{
+    int round, i;
+    for (round = 0; round < 2; ++round) {
+        int negative = 0;
+        if (md->GEinvGt_p != 0) {
+            predict_outputs(ws, md, ws->th);
+        }
+        for (i = 0; i < nw; ++i) {
+            const int r = ws->wset[i];
+            const chain_real v = row_value(ws, md, ws->th, r);
+            ws->rhs[i] = (md->row_sign[r] > 0) ? v - ws->gam[r] : -v - ws->gam[r];
+        }
+        chain_chol_solve(ws->chol, nw, ws->rhs);
+        for (i = 0; i < nw; ++i) {
+            ws->z[i] += ws->rhs[i];
+            negative += (ws->z[i] < R_(0.0));
+        }
+        if (negative != 0) {
+            return -1;
+        }
+        correct(ws, md, ws->wset, nw, ws->z, 0);
+        if (working_set_holds(ws, md, nw)) {
+            return (violated_outside(ws, md, ws->th, ws->wset, nw, ws->tmp, 0) == 0) ? 0 : -1;
+        }
+    }
+    return -1;
+}
+
 /* The polish converged: the working set and its multipliers become the warm start. */
 static int accept(chain_work *ws, const chain_mode_data *md, chain_real *lam,
     int nw, int *active)
@@ -837,7 +873,8 @@ static int polish(chain_work *ws, const chain_mode_data *md, chain_real *lam,
             if (nadd == 0) {
                 /* a (near-)singular H_WW, e.g. parallel rows of an infeasible QP, can give
                  * multipliers whose point misses its own working set: not optimal */
-                return working_set_holds(ws, md, nw) ? accept(ws, md, lam, nw, active) : -1;
+                return (working_set_holds(ws, md, nw) || refine_dual(ws, md, nw) == 0)
+                    ? accept(ws, md, lam, nw, active) : -1;
             }
         }
         if (nadd > n - nw) {

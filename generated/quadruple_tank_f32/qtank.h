@@ -28,7 +28,7 @@ typedef enum {
     QTANK_OPTIMAL = 0,        /**< QP solved; all constraints hold within tolerance. */
     QTANK_MAX_ITER = 1,       /**< Iteration cap hit; command is the best in-limit estimate. */
     QTANK_INACCURATE = 2,     /**< Stopped by the delta test with constraints still violated. */
-    QTANK_INFEASIBLE = 3,     /**< Dual multipliers diverged: the constraints cannot all hold. */
+    QTANK_INFEASIBLE = 3,     /**< The constraints cannot all hold (proven by the dual active set, or the sweeps' multipliers diverged); command is the clamped unconstrained optimum or the best estimate. */
     QTANK_NONFINITE_INPUT = 4,/**< NaN or Inf in an input; last command held. */
     QTANK_NUMERICAL = 5,      /**< Non-finite intermediate result; safe fallback command. */
     QTANK_BAD_ARGUMENT = 6    /**< NULL pointer or mode index out of range. */

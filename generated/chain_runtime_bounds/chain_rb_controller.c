@@ -1,0 +1,295 @@
+/**
+ * @file chain_rb_controller.c
+ * @brief Switched controller: hysteresis scheduler (eq. 3), one observer per mode,
+ *        QP solve of the active mode, first-move extraction.
+ *
+ * All observers run every sample in the paper's predictor form
+ * xhat+ = A xhat + B u_j + L (y - C xhat), each driven by the physical commands of its
+ * own actuators (0 for an inactive pair) and the shared measurement. The inactive
+ * observers therefore stay locked to y and a switch is bumpless.
+ */
+#include <math.h>
+#include "chain_rb_internal.h"
+
+#define R_ CHAIN_RB_R
+
+
+/* The config's bounds of every mode, which chain_rb_init() restores (+-inf: no rows). */
+static const chain_rb_bounds config_bounds[CHAIN_RB_N_MODES] = {
+    { { -0.5, -0.5, -0.5, -0.5 }, { 0.5, 0.5, 0.5, 0.5 },
+      { -0.6, -0.6, -0.6, -0.6, -HUGE_VAL, -HUGE_VAL },
+      { 0.6, 0.6, 0.6, 0.6, 0.6, HUGE_VAL } }
+};
+
+static int all_finite(const chain_rb_real *v, int n)
+{
+    int i;
+    for (i = 0; i < n; ++i) {
+        if (!isfinite(v[i])) {
+            return 0;
+        }
+    }
+    return 1;
+}
+
+/* One observer update; use_y = 0 propagates open loop (no valid measurement). */
+static void observe(chain_rb_work *ws, const chain_rb_mode_data *md, chain_rb_real *x,
+    const chain_rb_real *y, const chain_rb_real *u_phys, int use_y)
+{
+    int i, l, a;
+    for (a = 0; a < md->ny; ++a) {
+        chain_rb_real acc = R_(0.0);
+        for (l = 0; l < md->nx; ++l) {
+            acc += md->C[a * md->nx + l] * x[l];
+        }
+        ws->innov[a] = use_y ? y[a] - acc : R_(0.0);
+    }
+    for (i = 0; i < md->nx; ++i) {
+        chain_rb_real acc = R_(0.0);
+        for (l = 0; l < md->nx; ++l) {
+            acc += md->A[i * md->nx + l] * x[l];
+        }
+        for (l = 0; l < md->nu; ++l) {
+            acc += md->B[i * md->nu + l] * u_phys[md->actuator[l]];
+        }
+        if (use_y) {
+            for (a = 0; a < md->ny; ++a) {
+                acc += md->L[i * md->ny + a] * ws->innov[a];
+            }
+        }
+        ws->xn[i] = acc;
+    }
+    for (i = 0; i < md->nx; ++i) {
+        x[i] = ws->xn[i];
+    }
+}
+
+size_t chain_rb_ctrl_size(void)
+{
+    return sizeof(chain_rb_ctrl);
+}
+
+void chain_rb_init(chain_rb_ctrl *c)
+{
+    int j, i;
+    if (c == 0) {
+        return;
+    }
+    c->mode = 0;
+    for (j = 0; j < CHAIN_RB_N_MODES; ++j) {
+        for (i = 0; i < CHAIN_RB_NX_MAX; ++i) {
+            c->xhat[j][i] = R_(0.0);
+        }
+        for (i = 0; i < CHAIN_RB_M_MAX; ++i) {
+            c->lam[j][i] = R_(0.0);
+        }
+    }
+    for (i = 0; i < CHAIN_RB_N_ACTUATORS; ++i) {
+        c->u_last[i] = R_(0.0);
+    }
+    for (i = 0; i < CHAIN_RB_N_MAX; ++i) {
+        c->U[i] = R_(0.0);
+    }
+    for (j = 0; j < CHAIN_RB_N_MODES; ++j) {
+        c->bounds[j] = config_bounds[j];
+    }
+    c->work.bounds = c->bounds[c->mode];
+    c->info.status = CHAIN_RB_OPTIMAL;
+    c->info.mode = c->mode;
+    c->info.iterations = 0;
+    c->info.polish_iterations = 0;
+    c->info.active = 0;
+    c->info.mode_switches = 0;
+    c->info.solve_ticks = 0u;
+}
+
+static int solve_mode(chain_rb_ctrl *c, int mode, const chain_rb_real *x,
+    const chain_rb_real *r, chain_rb_real *U)
+{
+    const uint32_t t0 = CHAIN_RB_TIMESTAMP();
+    const int status = chain_rb_qp_solve(&c->work, c->lam[mode], &chain_rb_modes[mode], x, r, U,
+        &c->info.iterations, &c->info.polish_iterations, &c->info.active);
+    c->info.solve_ticks = (uint32_t)(CHAIN_RB_TIMESTAMP() - t0);
+    c->info.status = status;
+    c->info.mode = mode;
+    return status;
+}
+
+int chain_rb_step(chain_rb_ctrl *c, const chain_rb_real *y, const chain_rb_real *sched,
+    const chain_rb_real *r, chain_rb_real *u)
+{
+    int j, i, status, inputs_ok;
+    const chain_rb_mode_data *md;
+    if (c == 0 || u == 0) {
+        return CHAIN_RB_BAD_ARGUMENT;
+    }
+    inputs_ok = y != 0 && r != 0 && (CHAIN_RB_N_SCHEDULE == 0 || sched != 0);
+    if (!inputs_ok) {
+        for (i = 0; i < CHAIN_RB_N_ACTUATORS; ++i) {
+            u[i] = c->u_last[i];
+        }
+        c->info.status = CHAIN_RB_BAD_ARGUMENT;
+        return CHAIN_RB_BAD_ARGUMENT;
+    }
+    if (!all_finite(y, CHAIN_RB_N_OUTPUTS) || !all_finite(sched, CHAIN_RB_N_SCHEDULE)
+        || !all_finite(r, CHAIN_RB_HORIZON * CHAIN_RB_N_OUTPUTS)) {
+        for (i = 0; i < CHAIN_RB_N_ACTUATORS; ++i) {
+            u[i] = c->u_last[i];
+        }
+        for (j = 0; j < CHAIN_RB_N_MODES; ++j) {
+            observe(&c->work, &chain_rb_modes[j], c->xhat[j], y, u, 0);
+        }
+        c->info.status = CHAIN_RB_NONFINITE_INPUT;
+        c->info.iterations = 0;
+        return CHAIN_RB_NONFINITE_INPUT;
+    }
+    (void)sched;
+    md = &chain_rb_modes[c->mode];
+    c->work.bounds = c->bounds[c->mode]; /* the solver reads the live bounds here */
+    status = solve_mode(c, c->mode, c->xhat[c->mode], r, c->U);
+    for (i = 0; i < CHAIN_RB_N_ACTUATORS; ++i) {
+        u[i] = R_(0.0);
+    }
+    for (i = 0; i < md->nu; ++i) {
+        u[md->actuator[i]] = c->U[i];
+    }
+    for (j = 0; j < CHAIN_RB_N_MODES; ++j) {
+        observe(&c->work, &chain_rb_modes[j], c->xhat[j], y, u, 1);
+    }
+    for (i = 0; i < CHAIN_RB_N_ACTUATORS; ++i) {
+        c->u_last[i] = u[i];
+    }
+    return status;
+}
+
+int chain_rb_solve_qp(chain_rb_ctrl *c, int mode, const chain_rb_real *x,
+    const chain_rb_real *r, chain_rb_real *U, int *iterations)
+{
+    int status, i;
+    if (c == 0 || U == 0 || mode < 0 || mode >= CHAIN_RB_N_MODES) {
+        return CHAIN_RB_BAD_ARGUMENT;
+    }
+    if (x == 0 || r == 0 || !all_finite(x, chain_rb_modes[mode].nx)
+        || !all_finite(r, CHAIN_RB_HORIZON * CHAIN_RB_N_OUTPUTS)) {
+        status = (x == 0 || r == 0) ? CHAIN_RB_BAD_ARGUMENT : CHAIN_RB_NONFINITE_INPUT;
+        for (i = 0; i < chain_rb_modes[mode].n; ++i) {
+            U[i] = R_(0.0);
+        }
+        c->info.status = status;
+        if (iterations != 0) {
+            *iterations = 0;
+        }
+        return status;
+    }
+    c->work.bounds = c->bounds[mode]; /* the solver reads the live bounds here */
+    status = solve_mode(c, mode, x, r, U);
+    if (iterations != 0) {
+        *iterations = c->info.iterations;
+    }
+    return status;
+}
+
+/*
+ * Status of a new output bound v where the config has configured (+-inf: no rows):
+ * a configured bound stays finite, an unconfigured one stays that infinity.
+ */
+static int output_bound_status(chain_rb_real configured, chain_rb_real v, int upper)
+{
+    if (isnan(v)) {
+        return CHAIN_RB_BAD_BOUNDS;
+    }
+    if (isfinite(configured)) {
+        return isfinite(v) ? CHAIN_RB_OPTIMAL : CHAIN_RB_BAD_BOUNDS;
+    }
+    if (isfinite(v)) {
+        return CHAIN_RB_BOUND_NOT_CONFIGURED;
+    }
+    return ((v > R_(0.0)) == (upper != 0)) ? CHAIN_RB_OPTIMAL : CHAIN_RB_BAD_BOUNDS;
+}
+
+int chain_rb_set_bounds(chain_rb_ctrl *c, int mode, const chain_rb_real *u_min,
+    const chain_rb_real *u_max, const chain_rb_real *y_min, const chain_rb_real *y_max)
+{
+    const chain_rb_mode_data *md;
+    chain_rb_bounds *b;
+    int i;
+    if (c == 0 || mode < 0 || mode >= CHAIN_RB_N_MODES || u_min == 0 || u_max == 0
+        || y_min == 0 || y_max == 0) {
+        return CHAIN_RB_BAD_ARGUMENT;
+    }
+    md = &chain_rb_modes[mode];
+    for (i = 0; i < md->nu; ++i) {
+        if (!(isfinite(u_min[i]) && isfinite(u_max[i]) && u_min[i] < u_max[i]
+              && u_min[i] <= R_(0.0) && u_max[i] >= R_(0.0))) {
+            return CHAIN_RB_BAD_BOUNDS;
+        }
+    }
+    for (i = 0; i < md->ny; ++i) {
+        int status = output_bound_status(config_bounds[mode].y_min[i], y_min[i], 0);
+        if (status == CHAIN_RB_OPTIMAL) {
+            status = output_bound_status(config_bounds[mode].y_max[i], y_max[i], 1);
+        }
+        if (status == CHAIN_RB_OPTIMAL && !(y_min[i] < y_max[i])) {
+            status = CHAIN_RB_BAD_BOUNDS;
+        }
+        if (status != CHAIN_RB_OPTIMAL) {
+            return status;
+        }
+    }
+    b = &c->bounds[mode];
+    for (i = 0; i < md->nu; ++i) {
+        b->u_min[i] = u_min[i];
+        b->u_max[i] = u_max[i];
+    }
+    for (i = 0; i < md->ny; ++i) {
+        b->y_min[i] = y_min[i];
+        b->y_max[i] = y_max[i];
+    }
+    if (mode == c->mode) { /* the held command obeys the new input bounds too */
+        for (i = 0; i < md->nu; ++i) {
+            chain_rb_real *v = &c->u_last[md->actuator[i]];
+            *v = (*v < b->u_min[i]) ? b->u_min[i] : ((*v > b->u_max[i]) ? b->u_max[i] : *v);
+        }
+    }
+    return CHAIN_RB_OPTIMAL;
+}
+
+int chain_rb_get_bounds(const chain_rb_ctrl *c, int mode, chain_rb_real *u_min,
+    chain_rb_real *u_max, chain_rb_real *y_min, chain_rb_real *y_max)
+{
+    int i;
+    if (c == 0 || mode < 0 || mode >= CHAIN_RB_N_MODES || u_min == 0 || u_max == 0
+        || y_min == 0 || y_max == 0) {
+        return CHAIN_RB_BAD_ARGUMENT;
+    }
+    for (i = 0; i < chain_rb_modes[mode].nu; ++i) {
+        u_min[i] = c->bounds[mode].u_min[i];
+        u_max[i] = c->bounds[mode].u_max[i];
+    }
+    for (i = 0; i < chain_rb_modes[mode].ny; ++i) {
+        y_min[i] = c->bounds[mode].y_min[i];
+        y_max[i] = c->bounds[mode].y_max[i];
+    }
+    return CHAIN_RB_OPTIMAL;
+}
+
+const chain_rb_info *chain_rb_last_info(const chain_rb_ctrl *c)
+{
+    return &c->info;
+}
+
+const char *chain_rb_status_message(int status)
+{
+    switch (status) {
+    case CHAIN_RB_OPTIMAL: return "optimal";
+    case CHAIN_RB_MAX_ITER: return "iteration cap reached";
+    case CHAIN_RB_INACCURATE: return "converged by delta but constraints violated";
+    case CHAIN_RB_INFEASIBLE: return "infeasible: dual multipliers diverged";
+    case CHAIN_RB_NONFINITE_INPUT: return "non-finite input; last command held";
+    case CHAIN_RB_NUMERICAL: return "non-finite intermediate result; safe fallback";
+    case CHAIN_RB_BAD_ARGUMENT: return "bad argument";
+    case CHAIN_RB_BAD_BOUNDS: return "bad bounds; nothing changed";
+    case CHAIN_RB_BOUND_NOT_CONFIGURED: return "bound not in the config (no constraint rows); nothing changed";
+    default: return "unknown status";
+    }
+}

@@ -1,0 +1,54 @@
+/**
+ * @file chain_rb_internal.h
+ * @brief Internal declarations shared by the generated sources (not part of the API).
+ */
+#ifndef CHAIN_RB_INTERNAL_H
+#define CHAIN_RB_INTERNAL_H
+
+#include "chain_rb.h"
+
+/** Static data of one mode (all arrays row-major; "_p" = packed lower triangle). */
+typedef struct {
+    int nx, nu, ny, n, m, nyq, nt;
+    const int16_t *actuator;        /**< [nu] physical actuator of each mode input. */
+    const chain_rb_real *A, *B, *C, *L; /**< Discrete model and observer gain. */
+    const chain_rb_real *Kx;      /**< [n][nx] unconstrained state gain. */
+    const chain_rb_real *EinvGt;  /**< [n][nyq] E^-1 Gamma'. */
+    const chain_rb_real *Sinv_p;  /**< S^-1, packed. */
+    const chain_rb_real *Ew;      /**< [nt][n]: E^-1 = S^-1 - Ew' Ew (Woodbury). */
+    const chain_rb_real *Uv;      /**< [nt][n] V S^-1. */
+    const chain_rb_real *T;       /**< [nt][nt] (2P)^-1 + V S^-1 V'. */
+    const chain_rb_real *S_p;     /**< Stage Hessian S (E = S + V'(2P)V), packed. */
+    const chain_rb_real *V;       /**< [nt][n] terminal rows of Gamma (nt = 0: none). */
+    const chain_rb_real *P2inv;   /**< [nt][nt] (2P)^-1. */
+    const chain_rb_real *GEinvGt_p; /**< Gamma E^-1 Gamma', packed (output rows only). */
+    const chain_rb_real *Omega2;  /**< [N][ny][ny] 2Q per stage, 2P last. */
+    const chain_rb_real *Phi;     /**< [nyq][nx]. */
+    const chain_rb_real *markov;  /**< [N][ny][nu] C A^i B. */
+    const int16_t *row_q;             /**< [m] quantity of each row (U index, or n + Y index). */
+    const int8_t *row_sign;           /**< [m] -1 lower / +1 upper bound row. */
+    const chain_rb_real *row_c;   /**< [m] constant right-hand side c. */
+    const int16_t *row_next;          /**< [m] same constraint one stage later (shifted warm start). */
+    const chain_rb_real *colsum;  /**< [ny][n] sum of the E^-1 Gamma' columns of stages 0..N-2. */
+    const chain_rb_real *out_bound; /**< [nyq] |(Gamma th)_k| <= out_bound[k] max|th|. */
+    const chain_rb_real *u_min, *u_max; /**< [nu] input bounds. */
+} chain_rb_mode_data;
+
+extern const chain_rb_mode_data chain_rb_modes[CHAIN_RB_N_MODES];
+
+/** Packed lower-triangle index of (i, j), j <= i. */
+#define CHAIN_RB_TRI(i, j) ((i) * ((i) + 1) / 2 + (j))
+
+/* Linear algebra on packed symmetric matrices (chain_rb_linalg.c). */
+int chain_rb_cholesky(chain_rb_real *a, int n);
+int chain_rb_cholesky_from(chain_rb_real *a, int from, int n);
+void chain_rb_chol_lsolve(const chain_rb_real *l, int n, chain_rb_real *b);
+void chain_rb_chol_ltsolve(const chain_rb_real *l, int n, chain_rb_real *b);
+void chain_rb_chol_solve(const chain_rb_real *l, int n, chain_rb_real *b);
+
+/* QP solver (chain_rb_solver.c). */
+int chain_rb_qp_solve(chain_rb_work *ws, chain_rb_real *lam, const chain_rb_mode_data *md,
+    const chain_rb_real *x, const chain_rb_real *r, chain_rb_real *U, int *iterations,
+    int *polish_iterations, int *active);
+
+#endif /* CHAIN_RB_INTERNAL_H */

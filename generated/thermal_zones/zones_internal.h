@@ -1,0 +1,54 @@
+/**
+ * @file zones_internal.h
+ * @brief Internal declarations shared by the generated sources (not part of the API).
+ */
+#ifndef ZONES_INTERNAL_H
+#define ZONES_INTERNAL_H
+
+#include "zones.h"
+
+/** Static data of one mode (all arrays row-major; "_p" = packed lower triangle). */
+typedef struct {
+    int nx, nu, ny, n, m, nyq, nt;
+    const int16_t *actuator;        /**< [nu] physical actuator of each mode input. */
+    const zones_real *A, *B, *C, *L; /**< Discrete model and observer gain. */
+    const zones_real *Kx;      /**< [n][nx] unconstrained state gain. */
+    const zones_real *EinvGt;  /**< [n][nyq] E^-1 Gamma'. */
+    const zones_real *Sinv_p;  /**< S^-1, packed. */
+    const zones_real *Ew;      /**< [nt][n]: E^-1 = S^-1 - Ew' Ew (Woodbury). */
+    const zones_real *Uv;      /**< [nt][n] V S^-1. */
+    const zones_real *T;       /**< [nt][nt] (2P)^-1 + V S^-1 V'. */
+    const zones_real *S_p;     /**< Stage Hessian S (E = S + V'(2P)V), packed. */
+    const zones_real *V;       /**< [nt][n] terminal rows of Gamma (nt = 0: none). */
+    const zones_real *P2inv;   /**< [nt][nt] (2P)^-1. */
+    const zones_real *GEinvGt_p; /**< Gamma E^-1 Gamma', packed (output rows only). */
+    const zones_real *Omega2;  /**< [N][ny][ny] 2Q per stage, 2P last. */
+    const zones_real *Phi;     /**< [nyq][nx]. */
+    const zones_real *markov;  /**< [N][ny][nu] C A^i B. */
+    const int16_t *row_q;             /**< [m] quantity of each row (U index, or n + Y index). */
+    const int8_t *row_sign;           /**< [m] -1 lower / +1 upper bound row. */
+    const zones_real *row_c;   /**< [m] constant right-hand side c. */
+    const int16_t *row_next;          /**< [m] same constraint one stage later (shifted warm start). */
+    const zones_real *colsum;  /**< [ny][n] sum of the E^-1 Gamma' columns of stages 0..N-2. */
+    const zones_real *out_bound; /**< [nyq] |(Gamma th)_k| <= out_bound[k] max|th|. */
+    const zones_real *u_min, *u_max; /**< [nu] input bounds. */
+} zones_mode_data;
+
+extern const zones_mode_data zones_modes[ZONES_N_MODES];
+
+/** Packed lower-triangle index of (i, j), j <= i. */
+#define ZONES_TRI(i, j) ((i) * ((i) + 1) / 2 + (j))
+
+/* Linear algebra on packed symmetric matrices (zones_linalg.c). */
+int zones_cholesky(zones_real *a, int n);
+int zones_cholesky_from(zones_real *a, int from, int n);
+void zones_chol_lsolve(const zones_real *l, int n, zones_real *b);
+void zones_chol_ltsolve(const zones_real *l, int n, zones_real *b);
+void zones_chol_solve(const zones_real *l, int n, zones_real *b);
+
+/* QP solver (zones_solver.c). */
+int zones_qp_solve(zones_work *ws, zones_real *lam, const zones_mode_data *md,
+    const zones_real *x, const zones_real *r, zones_real *U, int *iterations,
+    int *polish_iterations, int *active);
+
+#endif /* ZONES_INTERNAL_H */

@@ -1,0 +1,196 @@
+/**
+ * @file zones_controller.c
+ * @brief Switched controller: hysteresis scheduler (eq. 3), one observer per mode,
+ *        QP solve of the active mode, first-move extraction.
+ *
+ * All observers run every sample in the paper's predictor form
+ * xhat+ = A xhat + B u_j + L (y - C xhat), each driven by the physical commands of its
+ * own actuators (0 for an inactive pair) and the shared measurement. The inactive
+ * observers therefore stay locked to y and a switch is bumpless.
+ */
+#include <math.h>
+#include "zones_internal.h"
+
+#define R_ ZONES_R
+
+
+static int all_finite(const zones_real *v, int n)
+{
+    int i;
+    for (i = 0; i < n; ++i) {
+        if (!isfinite(v[i])) {
+            return 0;
+        }
+    }
+    return 1;
+}
+
+/* One observer update; use_y = 0 propagates open loop (no valid measurement). */
+static void observe(zones_work *ws, const zones_mode_data *md, zones_real *x,
+    const zones_real *y, const zones_real *u_phys, int use_y)
+{
+    int i, l, a;
+    for (a = 0; a < md->ny; ++a) {
+        zones_real acc = R_(0.0);
+        for (l = 0; l < md->nx; ++l) {
+            acc += md->C[a * md->nx + l] * x[l];
+        }
+        ws->innov[a] = use_y ? y[a] - acc : R_(0.0);
+    }
+    for (i = 0; i < md->nx; ++i) {
+        zones_real acc = R_(0.0);
+        for (l = 0; l < md->nx; ++l) {
+            acc += md->A[i * md->nx + l] * x[l];
+        }
+        for (l = 0; l < md->nu; ++l) {
+            acc += md->B[i * md->nu + l] * u_phys[md->actuator[l]];
+        }
+        if (use_y) {
+            for (a = 0; a < md->ny; ++a) {
+                acc += md->L[i * md->ny + a] * ws->innov[a];
+            }
+        }
+        ws->xn[i] = acc;
+    }
+    for (i = 0; i < md->nx; ++i) {
+        x[i] = ws->xn[i];
+    }
+}
+
+size_t zones_ctrl_size(void)
+{
+    return sizeof(zones_ctrl);
+}
+
+void zones_init(zones_ctrl *c)
+{
+    int j, i;
+    if (c == 0) {
+        return;
+    }
+    c->mode = 0;
+    for (j = 0; j < ZONES_N_MODES; ++j) {
+        for (i = 0; i < ZONES_NX_MAX; ++i) {
+            c->xhat[j][i] = R_(0.0);
+        }
+        for (i = 0; i < ZONES_M_MAX; ++i) {
+            c->lam[j][i] = R_(0.0);
+        }
+    }
+    for (i = 0; i < ZONES_N_ACTUATORS; ++i) {
+        c->u_last[i] = R_(0.0);
+    }
+    for (i = 0; i < ZONES_N_MAX; ++i) {
+        c->U[i] = R_(0.0);
+    }
+    c->info.status = ZONES_OPTIMAL;
+    c->info.mode = c->mode;
+    c->info.iterations = 0;
+    c->info.polish_iterations = 0;
+    c->info.active = 0;
+    c->info.mode_switches = 0;
+    c->info.solve_ticks = 0u;
+}
+
+static int solve_mode(zones_ctrl *c, int mode, const zones_real *x,
+    const zones_real *r, zones_real *U)
+{
+    const uint32_t t0 = ZONES_TIMESTAMP();
+    const int status = zones_qp_solve(&c->work, c->lam[mode], &zones_modes[mode], x, r, U,
+        &c->info.iterations, &c->info.polish_iterations, &c->info.active);
+    c->info.solve_ticks = (uint32_t)(ZONES_TIMESTAMP() - t0);
+    c->info.status = status;
+    c->info.mode = mode;
+    return status;
+}
+
+int zones_step(zones_ctrl *c, const zones_real *y, const zones_real *sched,
+    const zones_real *r, zones_real *u)
+{
+    int j, i, status, inputs_ok;
+    const zones_mode_data *md;
+    if (c == 0 || u == 0) {
+        return ZONES_BAD_ARGUMENT;
+    }
+    inputs_ok = y != 0 && r != 0 && (ZONES_N_SCHEDULE == 0 || sched != 0);
+    if (!inputs_ok) {
+        for (i = 0; i < ZONES_N_ACTUATORS; ++i) {
+            u[i] = c->u_last[i];
+        }
+        c->info.status = ZONES_BAD_ARGUMENT;
+        return ZONES_BAD_ARGUMENT;
+    }
+    if (!all_finite(y, ZONES_N_OUTPUTS) || !all_finite(sched, ZONES_N_SCHEDULE)
+        || !all_finite(r, ZONES_HORIZON * ZONES_N_OUTPUTS)) {
+        for (i = 0; i < ZONES_N_ACTUATORS; ++i) {
+            u[i] = c->u_last[i];
+        }
+        for (j = 0; j < ZONES_N_MODES; ++j) {
+            observe(&c->work, &zones_modes[j], c->xhat[j], y, u, 0);
+        }
+        c->info.status = ZONES_NONFINITE_INPUT;
+        c->info.iterations = 0;
+        return ZONES_NONFINITE_INPUT;
+    }
+    (void)sched;
+    md = &zones_modes[c->mode];
+    status = solve_mode(c, c->mode, c->xhat[c->mode], r, c->U);
+    for (i = 0; i < ZONES_N_ACTUATORS; ++i) {
+        u[i] = R_(0.0);
+    }
+    for (i = 0; i < md->nu; ++i) {
+        u[md->actuator[i]] = c->U[i];
+    }
+    for (j = 0; j < ZONES_N_MODES; ++j) {
+        observe(&c->work, &zones_modes[j], c->xhat[j], y, u, 1);
+    }
+    for (i = 0; i < ZONES_N_ACTUATORS; ++i) {
+        c->u_last[i] = u[i];
+    }
+    return status;
+}
+
+int zones_solve_qp(zones_ctrl *c, int mode, const zones_real *x,
+    const zones_real *r, zones_real *U, int *iterations)
+{
+    int status, i;
+    if (c == 0 || U == 0 || mode < 0 || mode >= ZONES_N_MODES) {
+        return ZONES_BAD_ARGUMENT;
+    }
+    if (x == 0 || r == 0 || !all_finite(x, zones_modes[mode].nx)
+        || !all_finite(r, ZONES_HORIZON * ZONES_N_OUTPUTS)) {
+        status = (x == 0 || r == 0) ? ZONES_BAD_ARGUMENT : ZONES_NONFINITE_INPUT;
+        for (i = 0; i < zones_modes[mode].n; ++i) {
+            U[i] = R_(0.0);
+        }
+        c->info.status = status;
+        if (iterations != 0) {
+            *iterations = 0;
+        }
+        return status;
+    }
+    status = solve_mode(c, mode, x, r, U);
+    if (iterations != 0) {
+        *iterations = c->info.iterations;
+    }
+    return status;
+}
+
+const zones_info *zones_last_info(const zones_ctrl *c)
+{
+    return &c->info;
+}
+
+const char *zones_status_message(int status)
+{
+    switch (status) {
+    case ZONES_OPTIMAL: return "optimal";
+    case ZONES_MAX_ITER: return "iteration cap reached";
+    case ZONES_INACCURATE: return "converged by delta but constraints violated";
+    case ZONES_INFEASIBLE: return "infeasible: dual multipliers diverged";
+    case ZONES_NONFINITE_INPUT: return "non-finite input; last command held";
+    case ZONES_NUMERICAL: return "non-finite intermediate result; safe fallback";
+    case ZONES_BAD_ARGUMENT: return "bad argument";
+    default: return "unknown status";
+    }
+}
