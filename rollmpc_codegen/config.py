@@ -79,6 +79,16 @@ class ModeConfig:
     # Δu weighting (nu x nu PSD): (u_k - u_{k-1})' R_delta (u_k - u_{k-1}) over the
     # horizon, u_{-1} = the previous command (input_rate); None when absent or zero
     R_delta: np.ndarray | None = None
+    # Δu constraints (input-rate limits, input_rate): du_min <= u_k - u_{k-1} <= du_max,
+    # k = 0..N-1, u_{-1} = the previous command; +-inf = absent (no rows)
+    du_min: np.ndarray | None = None
+    du_max: np.ndarray | None = None
+
+    @property
+    def has_rate_bounds(self) -> bool:
+        """Whether the mode has any finite Δu bound (then u_prev is part of the state)."""
+        return self.du_min is not None and bool(
+            np.any(np.isfinite(self.du_min)) or np.any(np.isfinite(self.du_max)))
 
 
 @dataclass(frozen=True)
@@ -493,28 +503,44 @@ def _mode(r: _Reader, outputs: tuple[str, ...], actuators: tuple[str, ...]) -> M
     b = r.sub("bounds")
     u_min = _vector(b.raw("u_min"), b.key("u_min"), nu)
     u_max = _vector(b.raw("u_max"), b.key("u_max"), nu)
-    for i in range(nu):
-        if not u_min[i] < u_max[i]:
-            raise ConfigError(b.key("u_min"), f"must be < u_max (entry {i}: "
-                              f"{u_min[i]} >= {u_max[i]})")
-        # name the bound that is on the wrong side of 0, not always u_min
-        if u_min[i] > 0.0:
-            raise ConfigError(b.key("u_min"), f"must be <= 0: the bounds must contain 0 "
-                              f"(the inactive actuator command), got {u_min[i]}")
-        if u_max[i] < 0.0:
-            raise ConfigError(b.key("u_max"), f"must be >= 0: the bounds must contain 0 "
-                              f"(the inactive actuator command), got {u_max[i]}")
+    _check_contains_zero(b, "u", u_min, u_max, "the bounds must contain 0 (the inactive "
+                         "actuator command)")
     y_min = _vector(b.raw("y_min", -math.inf), b.key("y_min"), ny, allow_inf=True)
     y_max = _vector(b.raw("y_max", math.inf), b.key("y_max"), ny, allow_inf=True)
     for i in range(ny):
         if not y_min[i] < y_max[i]:
             raise ConfigError(b.key("y_min"), f"must be < y_max (entry {i})")
+    du_min, du_max = _rate_bounds(b, nu)
     b.finish()
     observer = _observer(r.sub("observer"), nu, ny) if r.has("observer") else {}
     r.finish()
     return ModeConfig(name=name, actuators=acts, plant=plant, Q=Q, R=R, P=P, R_delta=R_delta,
                       u_min=u_min, u_max=u_max, y_min=y_min, y_max=y_max,
-                      observer_poles=observer.pop("poles", None), **observer)
+                      du_min=du_min, du_max=du_max, observer_poles=observer.pop("poles", None), **observer)
+
+
+def _check_contains_zero(b: _Reader, name: str, lo, hi, why: str) -> None:
+    """lo < hi and lo <= 0 <= hi entry by entry; the error names the bound on the wrong
+    side of 0 (``<name>_min`` or ``<name>_max``), not always the lower one."""
+    for i, (a, c) in enumerate(zip(lo, hi)):
+        if not a < c:
+            raise ConfigError(b.key(f"{name}_min"), f"must be < {name}_max (entry {i}: "
+                              f"{a} >= {c})")
+        if a > 0.0:
+            raise ConfigError(b.key(f"{name}_min"), f"must be <= 0: {why}, got {a}")
+        if c < 0.0:
+            raise ConfigError(b.key(f"{name}_max"), f"must be >= 0: {why}, got {c}")
+
+
+def _rate_bounds(b: _Reader, nu: int) -> tuple[np.ndarray | None, np.ndarray | None]:
+    """``bounds.du_min``/``du_max`` (Δu constraints; None when neither key is given).
+    Holding the input must be allowed, so du_min <= 0 <= du_max."""
+    if not (b.has("du_min") or b.has("du_max")):
+        return None, None
+    du_min = _vector(b.raw("du_min", -math.inf), b.key("du_min"), nu, allow_inf=True)
+    du_max = _vector(b.raw("du_max", math.inf), b.key("du_max"), nu, allow_inf=True)
+    _check_contains_zero(b, "du", du_min, du_max, "holding the input (Δu = 0) must be allowed")
+    return du_min, du_max
 
 
 OBSERVER_KINDS = ("poles", "kalman")
@@ -762,6 +788,9 @@ def _check_range(precision: str, modes: tuple[ModeConfig, ...],
                    # infinite output bounds mean "unbounded" and are never written
                    (f"{k}.bounds.y_min", m.y_min[np.isfinite(m.y_min)]),
                    (f"{k}.bounds.y_max", m.y_max[np.isfinite(m.y_max)])]
+        if m.du_min is not None:
+            values += [(f"{k}.bounds.du_min", m.du_min[np.isfinite(m.du_min)]),
+                       (f"{k}.bounds.du_max", m.du_max[np.isfinite(m.du_max)])]
     if scheduler is not None:  # the C stores every threshold -/+ its epsilon
         values += [("scheduler", scheduler.below), ("scheduler", scheduler.above)]
     values += [("solver.sigma", solver.sigma), ("solver.delta", solver.delta),
@@ -828,6 +857,10 @@ def parse(data: Any, source_text: str = "") -> ControllerConfig:
         scheduler = _scheduler(r.sub("scheduler"), modes)
     solver = _solver(r.sub("solver", {}))
     runtime_bounds = r.boolean("runtime_bounds", False)
+    rate = [i for i, m in enumerate(modes) if m.has_rate_bounds]
+    if runtime_bounds and rate:
+        raise ConfigError("runtime_bounds", f"is not supported with Δu bounds (modes[{rate[0]}]"
+                          ".bounds.du_min/du_max): their rows are not updatable at run time")
     sim = r.sub("simulation", {})
     schedule_source = sim.string("schedule_source", "output_rate", choices=SCHEDULE_SOURCES)
     levels, segment = (_reference(sim.sub("reference"), len(outputs), sample_time)

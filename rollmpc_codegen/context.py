@@ -49,7 +49,9 @@ def build_model(cfg: ControllerConfig) -> ControllerModel:
         # with its disturbances, and the previous input with Δu weighting (input_rate)
         plant = input_rate.augment(prediction_model(mode, cfg.sample_time, key), mode)
         qp = condense(plant, mode, cfg.horizon, key)
-        if qp.m > MAX_ROWS or qp.n > MAX_ROWS:
+        # the largest row quantity (int16 in the C): n + N ny, plus n Δu quantities
+        q_end = qp.n + qp.N * qp.ny + (qp.n if np.any(qp.row_kind == 2) else 0)
+        if qp.m > MAX_ROWS or qp.n > MAX_ROWS or q_end > MAX_ROWS:
             raise ConfigError("horizon", f"the QP has {qp.m} rows; at most {MAX_ROWS} supported")
         L, poles = input_rate.observer_gain(plant, mode, key)
         act_index = [cfg.actuators.index(a) for a in mode.actuators]
@@ -146,6 +148,8 @@ def build_context(model: ControllerModel) -> dict:
         "initial_mode": 0 if sched is None else sched["initial"],
         "scheduler": sched,
         "runtime_bounds": cfg.runtime_bounds,
+        # Δu rows in some mode: the solver's third row kind (else the C is unchanged)
+        "has_rate_rows": any(mm.data.has_rate_rows for mm in model.modes),
         "solver": {
             "method": s.method, "reduced": flags["reduced"], "warm_start": flags["warm"]
             and s.warm_start, "omega": s.omega if flags["sor"] else 1.0, "sigma": s.sigma,

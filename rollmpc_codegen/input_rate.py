@@ -24,8 +24,10 @@ done at the model level, so the generated C is unchanged:
   designed on the model without u_prev (pole placement or Kalman, with its disturbances),
   which u_prev does not influence.
 
-Δu *constraints* (rate limits) are not done: they need rows on differences of two inputs
-(and on u_0 - u_prev, which moves with the state), a new row kind in the solver.
+Δu *constraints* (``bounds.du_min``/``du_max``, rate limits) use the same augmented state:
+they are rows of a third kind in the condensed QP (:func:`.mpc.condense`, row kind 2) on
+u_k - u_{k-1}, whose stage-0 rows u_0 - u_prev carry u_prev in their right-hand side
+c + W x.  Δu bounds without ``R_delta`` add the u_prev states but no cost term.
 """
 from __future__ import annotations
 
@@ -40,8 +42,8 @@ from .plant import DiscretePlant
 
 def augment(plant: DiscretePlant, mode: ModeConfig) -> DiscretePlant:
     """The prediction model with the previous input appended to the state, when the mode
-    weights Δu (else the plant itself)."""
-    if mode.R_delta is None:
+    weights or bounds Δu (else the plant itself)."""
+    if mode.R_delta is None and not mode.has_rate_bounds:
         return plant
     nx, nu, ny = plant.nx, plant.nu, plant.ny
     zeros = np.zeros((ny, nu))

@@ -46,8 +46,8 @@ class CondensedQP:
     L: np.ndarray  # (m, n) eq. (6)
     W: np.ndarray  # (m, nx)
     c: np.ndarray  # (m,)
-    row_kind: np.ndarray  # (m,) 0 = input box row, 1 = output row
-    row_index: np.ndarray  # (m,) index into U (box) or into Y (output)
+    row_kind: np.ndarray  # (m,) 0 = input box row, 1 = output row, 2 = Δu row
+    row_index: np.ndarray  # (m,) index into U (box, Δu: u_i - u_{i-nu}) or into Y (output)
     row_sign: np.ndarray  # (m,) -1 for a lower bound row, +1 for an upper bound row
     # offset-free tracking: R weights U - Ut x (Ut = the disturbance-cancelling input
     # target per stage, disturbance_model); None = 0, the paper's eq. (5)
@@ -143,7 +143,8 @@ def condense(plant: DiscretePlant, mode: ModeConfig, N: int, key: str) -> Conden
             Gamma[i * ny:(i + 1) * ny, k * nu:(k + 1) * nu] = markov[i - k]
     Omega = _block_diag(mode.Q, N, last=mode.P)
     Psi_R = _block_diag(mode.R, N)
-    Psi = Psi_R if plant.n_prev == 0 else Psi_R + input_rate.delta_hessian(mode.R_delta, N)
+    Psi = (Psi_R if mode.R_delta is None
+           else Psi_R + input_rate.delta_hessian(mode.R_delta, N))
     E = 2.0 * (Psi + Gamma.T @ Omega @ Gamma)
     E = 0.5 * (E + E.T)
     eig = np.linalg.eigvalsh(E)
@@ -162,7 +163,7 @@ def condense(plant: DiscretePlant, mode: ModeConfig, N: int, key: str) -> Conden
     if plant.input_target is not None:  # offset-free: R weights U - Ut x
         Ut = np.tile(plant.input_target, (N, 1))
         Gx = -2.0 * Psi_R @ Ut
-    if plant.n_prev:  # Δu weighting: -2 R_delta u_prev on the first stage
+    if mode.R_delta is not None:  # Δu weighting: -2 R_delta u_prev on the first stage
         G = input_rate.delta_gradient(mode.R_delta, N, nx)
         Gx = G if Gx is None else Gx + G
     if Gx is not None:  # the state-dependent gradient only changes Kx
@@ -175,10 +176,12 @@ def condense(plant: DiscretePlant, mode: ModeConfig, N: int, key: str) -> Conden
 
 
 def _constraints(mode: ModeConfig, Phi, Gamma, N: int, nu: int, ny: int):
-    """Eq. (6) rows, stage by stage: [-u_i, +u_i, -y_i, +y_i], i = 0..N.
+    """Eq. (6) rows, stage by stage: [-u_i, +u_i, -du_i, +du_i, -y_i, +y_i], i = 0..N.
 
     u exists for stages 0..N-1; y rows exist for stages 1..N (y_0 depends on x only, so
-    its rows are dropped) and only for finite bounds.
+    its rows are dropped) and only for finite bounds.  Δu rows (kind 2, finite
+    ``du_min``/``du_max`` only) bound u_i - u_{i-1}; at stage 0 that is u_0 - u_prev with
+    u_prev = the last nu states (input_rate.augment), so W carries sign * 1 on it.
     """
     n = N * nu
     rows_L, rows_W, rows_c, kind, index, sign = [], [], [], [], [], []
@@ -200,6 +203,20 @@ def _constraints(mode: ModeConfig, Phi, Gamma, N: int, nu: int, ny: int):
                     e = np.zeros(n)
                     e[q] = s
                     add(e, np.zeros(nx), s * bounds[j], 0, q, s)
+            if mode.du_min is not None:
+                for s, bounds in ((-1, mode.du_min), (1, mode.du_max)):
+                    for j in range(nu):
+                        if not np.isfinite(bounds[j]):
+                            continue
+                        q = stage * nu + j
+                        e = np.zeros(n)
+                        e[q] = s
+                        w = np.zeros(nx)
+                        if stage == 0:
+                            w[nx - nu + j] = s
+                        else:
+                            e[q - nu] = -s
+                        add(e, w, s * bounds[j], 2, q, s)
         if stage >= 1:
             for s, bounds in ((-1, mode.y_min), (1, mode.y_max)):
                 for j in range(ny):

@@ -29,6 +29,11 @@ A held reference makes w constant over the stages 0..N-2, so the C sums the colu
 E^-1 Gamma' per run of equal w and takes the longest run from the precomputed column sum
 ``colsum`` (one n-vector per output): n (nx + ny) operations instead of n (nx + N ny).
 
+Δu rows (``modes[].bounds.du_min/du_max``, row kind 2 of :func:`.mpc.condense`) are on the
+quantity D_i = U_i - U_{i-nu} (D_i = U_i at stage 0, whose u_prev is in the right-hand
+side), numbered q = n + N ny + i.  Their Hq entries are differences of the ones above,
+``Hq(D_a, b) = Hq(a, b) - Hq(a - nu, b)`` (on either side), so they need no data.
+
 ``out_bound`` (one value per predicted output) bounds ``|(Gamma th)_k| <= out_bound_k
 max_i |th_i|``; when that certifies every output row, the C skips the N^2/2 prediction.
 ``row_next`` maps each row to the same constraint one stage later, for the shifted warm start.
@@ -112,7 +117,12 @@ class ModeData:
 
     @property
     def has_output_rows(self) -> bool:
-        return bool(np.any(self.row_q >= self.n))
+        return bool(np.any((self.row_q >= self.n) & (self.row_q < self.n + self.n_yq)))
+
+    @property
+    def has_rate_rows(self) -> bool:
+        """Δu rows (quantities n + N ny + i, see the module docstring)."""
+        return bool(np.any(self.row_q >= self.n + self.n_yq))
 
 
 def mode_data(name: str, actuator_index, plant: DiscretePlant, obs_gain: np.ndarray,
@@ -134,7 +144,8 @@ def mode_data(name: str, actuator_index, plant: DiscretePlant, obs_gain: np.ndar
     T = 0.5 * (T + T.T)
     Ew = (np.linalg.solve(np.linalg.cholesky(T), Uv) if V.shape[0]
           else np.zeros((0, qp.n)))
-    row_q = np.where(qp.row_kind == 0, qp.row_index, qp.n + qp.row_index).astype(np.int32)
+    offset = np.select([qp.row_kind == 1, qp.row_kind == 2], [qp.n, qp.n + N * ny], 0)
+    row_q = (offset + qp.row_index).astype(np.int32)
     colsum = (EinvGt.astype(np.longdouble)[:, :(N - 1) * ny].reshape(qp.n, N - 1, ny)
               .sum(axis=1).T.astype(np.float64))
 
@@ -150,19 +161,24 @@ def mode_data(name: str, actuator_index, plant: DiscretePlant, obs_gain: np.ndar
         Uv=cast(Uv), T=cast(T), S_p=cast(packed_lower(S)), V=cast(V), P2inv=cast(P2inv),
         GEinvGt_p=cast(packed_lower(GEinvGt)), Omega2=cast(Omega2), Phi=cast(qp.Phi),
         markov=markov, row_q=row_q, row_sign=qp.row_sign.astype(np.int32), row_c=cast(qp.c),
-        row_next=next_stage_rows(row_q, qp.row_sign, qp.n, nu, ny),
+        row_next=next_stage_rows(row_q, qp.row_sign, qp.n, nu, ny, N * ny),
         colsum=cast(colsum), out_bound=cast(output_bound(markov, dt)),
         u_min=cast(u_min), u_max=cast(u_max))
 
 
 def next_stage_rows(row_q: np.ndarray, row_sign: np.ndarray, n: int, nu: int,
-                    ny: int) -> np.ndarray:
+                    ny: int, nyq: int) -> np.ndarray:
     """Row of the same constraint one stage later (a row of the last stage maps to itself)."""
     where = {(int(q), int(s)): r for r, (q, s) in enumerate(zip(row_q, row_sign))}
     out = np.empty(row_q.size, dtype=np.int32)
     for r, (q, s) in enumerate(zip(row_q, row_sign)):
-        step = nu if q < n else ny
-        out[r] = where.get((int(q) + step, int(s)), r)
+        # Δu rows (q >= n + nyq) stay in their own range; an output row never maps to one.
+        # (A last-stage input row q maps to the output row n + q - n + nu, if one exists,
+        # as it always has: kept so that builds without Δu rows keep their warm start.)
+        step, end = (nu, n + nyq) if q < n else ((ny, n + nyq) if q < n + nyq
+                                                 else (nu, 2 * n + nyq))
+        nxt = int(q) + step
+        out[r] = where.get((nxt, int(s)), r) if nxt < end else r
     return out
 
 

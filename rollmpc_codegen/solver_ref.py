@@ -99,6 +99,18 @@ def chol_solve_packed(l: np.ndarray, n: int, b: np.ndarray) -> None:
     chol_ltsolve_packed(l, n, b)
 
 
+def _rate_extended(Hq: np.ndarray, n: int, nu: int) -> np.ndarray:
+    """Hq with the n Δu quantities D_i = U_i - U_{i-nu} (D_i = U_i at stage 0) appended on
+    both sides, exactly as hq() forms them: columns first (hq_side()), then rows."""
+    def diff(M, axis):
+        base = np.take(M, np.arange(n), axis=axis)
+        prev = np.take(M, np.arange(n - nu), axis=axis)
+        tail = np.take(base, np.arange(nu, n), axis=axis) - prev
+        return np.concatenate((np.take(base, np.arange(nu), axis=axis), tail), axis=axis)
+    X = np.hstack((Hq, diff(Hq, 1)))
+    return np.vstack((X, diff(X, 0)))
+
+
 def _tri_offsets(n: int) -> np.ndarray:
     i = np.arange(n + 1)
     return i * (i + 1) // 2
@@ -132,6 +144,9 @@ class SolverRef:
         has_out = md.has_output_rows
         GEG = unpack_lower(md.GEinvGt_p, nyq) if has_out else np.zeros((nyq, nyq), md.Kx.dtype)
         Hq = np.block([[Einv, md.EinvGt], [md.EinvGt.T, GEG]])
+        self.has_rate = md.has_rate_rows
+        if self.has_rate:
+            Hq = _rate_extended(Hq, n, md.nu)
         q, sg = md.row_q, md.row_sign
         same = sg[:, None] == sg[None, :]
         Hrows = Hq[np.ix_(q, q)]
@@ -193,9 +208,21 @@ class SolverRef:
 
     def _values(self, th, yv):
         q, n = self.md.row_q, self.md.n
+        if self.has_rate:  # mirror of row_value() with Δu rows
+            d = q - (n + self.md.n_yq)
+            i = np.clip(d, 0, n - 1)
+            prev = th[np.maximum(i - self.md.nu, 0)]
+            rate = np.where(d >= self.md.nu, th[i] - prev, th[i])
+            plain = th[np.minimum(q, n - 1)] if yv is None else np.where(
+                q < n, th[np.minimum(q, n - 1)], yv[np.clip(q - n, 0, self.md.n_yq - 1)])
+            return np.where(d >= 0, rate, plain)
         if yv is None:
             return th[q]
         return np.where(q < n, th[np.minimum(q, n - 1)], yv[np.maximum(q - n, 0)])
+
+    def _is_output(self):
+        q, n = self.md.row_q, self.md.n
+        return (q >= n) & (q < n + self.md.n_yq)
 
     def _violated(self, th, gam):
         yv = self._predict(th) if self.has_out else None
@@ -220,7 +247,7 @@ class SolverRef:
         """Mirror of violated_outside(): violated input rows first, output rows only if none."""
         viol = self._violated(th, gam)
         viol[W] = False
-        box = self.md.row_q < self.md.n
+        box = ~self._is_output()
         first = np.flatnonzero(viol & box)
         return first if first.size else np.flatnonzero(viol)
 
@@ -526,9 +553,14 @@ class SolverRef:
         q, sg, n = md.row_q, md.row_sign, md.n
         gam = self.row_c.copy()
         if self.has_out:
-            out = q >= n
-            pxr = px[np.maximum(q - n, 0)]
+            out = self._is_output()
+            pxr = px[np.clip(q - n, 0, md.n_yq - 1)]
             gam = np.where(out, np.where(sg > 0, gam - pxr, gam + pxr), gam)
+        if self.has_rate:  # first-stage Δu rows: gamma carries u_prev (last nu states)
+            d = q - (n + md.n_yq)
+            first = (d >= 0) & (d < md.nu)
+            up = x[md.nx - md.nu + np.clip(d, 0, md.nu - 1)]
+            gam = np.where(first, np.where(sg > 0, gam + up, gam - up), gam)
         K = np.where(sg > 0, gam - v, gam + v)
         if not np.any(K < 0):
             lam[:] = 0

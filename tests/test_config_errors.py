@@ -123,7 +123,7 @@ CASES = [
     pytest.param(set_(f"{TF0}.gain", 2), f"{TF0}.gain", "unknown key", id="unknown-tf"),
     pytest.param(set_("modes[0].weights.S", 1), "modes[0].weights.S", "unknown key",
                  id="unknown-weights"),
-    pytest.param(set_("modes[0].bounds.du_max", 1), "modes[0].bounds.du_max", "unknown key",
+    pytest.param(set_("modes[0].bounds.dy_max", 1), "modes[0].bounds.dy_max", "unknown key",
                  id="unknown-bounds"),
     pytest.param(set_("solver.tolerance", 1e-9), "solver.tolerance", "unknown key",
                  id="unknown-solver"),

@@ -106,22 +106,29 @@ def test_observer_previous_input_rows_are_deadbeat(tmp_path, observer):
 
 
 # --------------------------------------------------------------------------- closed loop
-@pytest.fixture(scope="module", params=["double", "float"])
-def zones_run(request, build_root):
-    built = Built(ZONES, request.param, build_root)
+def checked_closed_loop(built, disturbance: float):
+    """Lockstep C/reference closed loop of a one-mode config with previous-input states;
+    returns (lock, log, per sample: the reference's u_prev estimate == the applied command)."""
     lock = Lockstep(built)
     prev_ok = []
+    nu = built.ctx["modes"][0]["nu"]
 
-    class Checked:  # the reference's u_prev estimate is the command just applied
+    class Checked:
         def step(self, y, s, r):
             st, u = lock.step(y, s, r)
-            prev_ok.append(np.array_equal(lock.ref.xhat[0][-2:], u))
+            prev_ok.append(np.array_equal(lock.ref.xhat[0][-nu:], u))
             return st, u
 
         info = staticmethod(lock.info)
 
-    log = run_closed_loop(built.model.config, Checked(), disturbance=DIST, info=lock.info)
-    return built, lock, log, prev_ok
+    log = run_closed_loop(built.model.config, Checked(), disturbance=disturbance, info=lock.info)
+    return lock, log, prev_ok
+
+
+@pytest.fixture(scope="module", params=["double", "float"])
+def zones_run(request, build_root):
+    built = Built(ZONES, request.param, build_root)
+    return (built, *checked_closed_loop(built, DIST))
 
 
 def test_step_bit_exact_over_disturbed_closed_loop(zones_run):

@@ -60,6 +60,14 @@ def test_misra_on_a_single_mode_controller(tmp_path):
     _check(src, "solo")
 
 
+@pytest.mark.slow
+def test_misra_on_rate_rows(tmp_path):
+    """The Δu-row code of the solver (has_rate_rows; absent from the UAV build above)."""
+    src = tmp_path / "src"
+    generate(ROOT / "examples" / "thermal_zones_rate.yaml", src, "float")
+    _check(src, "zrate")
+
+
 def test_deviation_file_is_complete_and_documented():
     devs = load_deviations(DEVIATIONS)
     assert len(devs) >= 10

@@ -1,0 +1,196 @@
+/**
+ * @file zrate_controller.c
+ * @brief Switched controller: hysteresis scheduler (eq. 3), one observer per mode,
+ *        QP solve of the active mode, first-move extraction.
+ *
+ * All observers run every sample in the paper's predictor form
+ * xhat+ = A xhat + B u_j + L (y - C xhat), each driven by the physical commands of its
+ * own actuators (0 for an inactive pair) and the shared measurement. The inactive
+ * observers therefore stay locked to y and a switch is bumpless.
+ */
+#include <math.h>
+#include "zrate_internal.h"
+
+#define R_ ZRATE_R
+
+
+static int all_finite(const zrate_real *v, int n)
+{
+    int i;
+    for (i = 0; i < n; ++i) {
+        if (!isfinite(v[i])) {
+            return 0;
+        }
+    }
+    return 1;
+}
+
+/* One observer update; use_y = 0 propagates open loop (no valid measurement). */
+static void observe(zrate_work *ws, const zrate_mode_data *md, zrate_real *x,
+    const zrate_real *y, const zrate_real *u_phys, int use_y)
+{
+    int i, l, a;
+    for (a = 0; a < md->ny; ++a) {
+        zrate_real acc = R_(0.0);
+        for (l = 0; l < md->nx; ++l) {
+            acc += md->C[a * md->nx + l] * x[l];
+        }
+        ws->innov[a] = use_y ? y[a] - acc : R_(0.0);
+    }
+    for (i = 0; i < md->nx; ++i) {
+        zrate_real acc = R_(0.0);
+        for (l = 0; l < md->nx; ++l) {
+            acc += md->A[i * md->nx + l] * x[l];
+        }
+        for (l = 0; l < md->nu; ++l) {
+            acc += md->B[i * md->nu + l] * u_phys[md->actuator[l]];
+        }
+        if (use_y) {
+            for (a = 0; a < md->ny; ++a) {
+                acc += md->L[i * md->ny + a] * ws->innov[a];
+            }
+        }
+        ws->xn[i] = acc;
+    }
+    for (i = 0; i < md->nx; ++i) {
+        x[i] = ws->xn[i];
+    }
+}
+
+size_t zrate_ctrl_size(void)
+{
+    return sizeof(zrate_ctrl);
+}
+
+void zrate_init(zrate_ctrl *c)
+{
+    int j, i;
+    if (c == 0) {
+        return;
+    }
+    c->mode = 0;
+    for (j = 0; j < ZRATE_N_MODES; ++j) {
+        for (i = 0; i < ZRATE_NX_MAX; ++i) {
+            c->xhat[j][i] = R_(0.0);
+        }
+        for (i = 0; i < ZRATE_M_MAX; ++i) {
+            c->lam[j][i] = R_(0.0);
+        }
+    }
+    for (i = 0; i < ZRATE_N_ACTUATORS; ++i) {
+        c->u_last[i] = R_(0.0);
+    }
+    for (i = 0; i < ZRATE_N_MAX; ++i) {
+        c->U[i] = R_(0.0);
+    }
+    c->info.status = ZRATE_OPTIMAL;
+    c->info.mode = c->mode;
+    c->info.iterations = 0;
+    c->info.polish_iterations = 0;
+    c->info.active = 0;
+    c->info.mode_switches = 0;
+    c->info.solve_ticks = 0u;
+}
+
+static int solve_mode(zrate_ctrl *c, int mode, const zrate_real *x,
+    const zrate_real *r, zrate_real *U)
+{
+    const uint32_t t0 = ZRATE_TIMESTAMP();
+    const int status = zrate_qp_solve(&c->work, c->lam[mode], &zrate_modes[mode], x, r, U,
+        &c->info.iterations, &c->info.polish_iterations, &c->info.active);
+    c->info.solve_ticks = (uint32_t)(ZRATE_TIMESTAMP() - t0);
+    c->info.status = status;
+    c->info.mode = mode;
+    return status;
+}
+
+int zrate_step(zrate_ctrl *c, const zrate_real *y, const zrate_real *sched,
+    const zrate_real *r, zrate_real *u)
+{
+    int j, i, status, inputs_ok;
+    const zrate_mode_data *md;
+    if (c == 0 || u == 0) {
+        return ZRATE_BAD_ARGUMENT;
+    }
+    inputs_ok = y != 0 && r != 0 && (ZRATE_N_SCHEDULE == 0 || sched != 0);
+    if (!inputs_ok) {
+        for (i = 0; i < ZRATE_N_ACTUATORS; ++i) {
+            u[i] = c->u_last[i];
+        }
+        c->info.status = ZRATE_BAD_ARGUMENT;
+        return ZRATE_BAD_ARGUMENT;
+    }
+    if (!all_finite(y, ZRATE_N_OUTPUTS) || !all_finite(sched, ZRATE_N_SCHEDULE)
+        || !all_finite(r, ZRATE_HORIZON * ZRATE_N_OUTPUTS)) {
+        for (i = 0; i < ZRATE_N_ACTUATORS; ++i) {
+            u[i] = c->u_last[i];
+        }
+        for (j = 0; j < ZRATE_N_MODES; ++j) {
+            observe(&c->work, &zrate_modes[j], c->xhat[j], y, u, 0);
+        }
+        c->info.status = ZRATE_NONFINITE_INPUT;
+        c->info.iterations = 0;
+        return ZRATE_NONFINITE_INPUT;
+    }
+    (void)sched;
+    md = &zrate_modes[c->mode];
+    status = solve_mode(c, c->mode, c->xhat[c->mode], r, c->U);
+    for (i = 0; i < ZRATE_N_ACTUATORS; ++i) {
+        u[i] = R_(0.0);
+    }
+    for (i = 0; i < md->nu; ++i) {
+        u[md->actuator[i]] = c->U[i];
+    }
+    for (j = 0; j < ZRATE_N_MODES; ++j) {
+        observe(&c->work, &zrate_modes[j], c->xhat[j], y, u, 1);
+    }
+    for (i = 0; i < ZRATE_N_ACTUATORS; ++i) {
+        c->u_last[i] = u[i];
+    }
+    return status;
+}
+
+int zrate_solve_qp(zrate_ctrl *c, int mode, const zrate_real *x,
+    const zrate_real *r, zrate_real *U, int *iterations)
+{
+    int status, i;
+    if (c == 0 || U == 0 || mode < 0 || mode >= ZRATE_N_MODES) {
+        return ZRATE_BAD_ARGUMENT;
+    }
+    if (x == 0 || r == 0 || !all_finite(x, zrate_modes[mode].nx)
+        || !all_finite(r, ZRATE_HORIZON * ZRATE_N_OUTPUTS)) {
+        status = (x == 0 || r == 0) ? ZRATE_BAD_ARGUMENT : ZRATE_NONFINITE_INPUT;
+        for (i = 0; i < zrate_modes[mode].n; ++i) {
+            U[i] = R_(0.0);
+        }
+        c->info.status = status;
+        if (iterations != 0) {
+            *iterations = 0;
+        }
+        return status;
+    }
+    status = solve_mode(c, mode, x, r, U);
+    if (iterations != 0) {
+        *iterations = c->info.iterations;
+    }
+    return status;
+}
+
+const zrate_info *zrate_last_info(const zrate_ctrl *c)
+{
+    return &c->info;
+}
+
+const char *zrate_status_message(int status)
+{
+    switch (status) {
+    case ZRATE_OPTIMAL: return "optimal";
+    case ZRATE_MAX_ITER: return "iteration cap reached";
+    case ZRATE_INACCURATE: return "converged by delta but constraints violated";
+    case ZRATE_INFEASIBLE: return "infeasible: dual multipliers diverged";
+    case ZRATE_NONFINITE_INPUT: return "non-finite input; last command held";
+    case ZRATE_NUMERICAL: return "non-finite intermediate result; safe fallback";
+    case ZRATE_BAD_ARGUMENT: return "bad argument";
+    default: return "unknown status";
+    }
+}
