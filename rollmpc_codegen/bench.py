@@ -282,8 +282,9 @@ def reduced_set_check(model: ControllerModel, seq: QpSequence, idx: np.ndarray,
         mode_cfg = model.config.modes[mode]
         u0 = theta[:nus[mode]]
         beyond = float(max(0.0, (u0 - mode_cfg.u_max).max(), (mode_cfg.u_min - u0).max()))
-        U_beyond = max(0.0, float((theta - np.tile(mode_cfg.u_max, qp.N)).max()),
-                       float((np.tile(mode_cfg.u_min, qp.N) - theta).max()))
+        moves = qp.n // qp.nu  # stages, or blocks with move blocking
+        U_beyond = max(0.0, float((theta - np.tile(mode_cfg.u_max, moves)).max()),
+                       float((np.tile(mode_cfg.u_min, moves) - theta).max()))
         worst_U_beyond = max(worst_U_beyond, U_beyond)
         worst_row = max(worst_row, viol)
         worst_u = max(worst_u, float(np.abs(u0).max()))

@@ -83,6 +83,9 @@ class ModeConfig:
     # k = 0..N-1, u_{-1} = the previous command; +-inf = absent (no rows)
     du_min: np.ndarray | None = None
     du_max: np.ndarray | None = None
+    # move blocking (move_blocking.py): block lengths summing to the horizon, from the
+    # mode's or the top level's control_horizon / move_blocking; None = one block per stage
+    blocks: tuple[int, ...] | None = None
 
     @property
     def has_rate_bounds(self) -> bool:
@@ -460,7 +463,9 @@ def _plant(r: _Reader) -> PlantConfig:
                        integrator=integrator)
 
 
-def _mode(r: _Reader, outputs: tuple[str, ...], actuators: tuple[str, ...]) -> ModeConfig:
+def _mode(r: _Reader, outputs: tuple[str, ...], actuators: tuple[str, ...], horizon: int,
+          default_blocks: tuple[int, ...] | None) -> ModeConfig:
+    from .move_blocking import blocks_of, is_blocked  # (it imports ConfigError from here)
     name = r.string("name")
     if not _IDENT.match(name):
         raise ConfigError(r.key("name"), f"must be an identifier-like name, got {name!r}")
@@ -513,8 +518,12 @@ def _mode(r: _Reader, outputs: tuple[str, ...], actuators: tuple[str, ...]) -> M
     du_min, du_max = _rate_bounds(b, nu)
     b.finish()
     observer = _observer(r.sub("observer"), nu, ny) if r.has("observer") else {}
+    blocks = blocks_of(r.raw("control_horizon", None), r.raw("move_blocking", None), horizon,
+                       r.path)
+    blocks = default_blocks if blocks is None else blocks
     r.finish()
     return ModeConfig(name=name, actuators=acts, plant=plant, Q=Q, R=R, P=P, R_delta=R_delta,
+                      blocks=blocks if is_blocked(blocks) else None,
                       u_min=u_min, u_max=u_max, y_min=y_min, y_max=y_max,
                       du_min=du_min, du_max=du_max, observer_poles=observer.pop("poles", None), **observer)
 
@@ -766,8 +775,9 @@ def _check_horizon(horizon: int, modes: tuple[ModeConfig, ...]) -> None:
     like ``horizon: 100000`` would first allocate and fill N^2-sized matrices for hours.
     """
     for i, m in enumerate(modes):
-        rows = horizon * (2 * len(m.actuators) + int(np.isfinite(m.y_min).sum())
-                          + int(np.isfinite(m.y_max).sum()))
+        moves = horizon if m.blocks is None else len(m.blocks)  # input rows: per block
+        rows = (moves * 2 * len(m.actuators) + horizon * (int(np.isfinite(m.y_min).sum())
+                                                          + int(np.isfinite(m.y_max).sum())))
         if rows > MAX_ROWS:
             raise ConfigError("horizon", f"too long: modes[{i}] would have {rows} QP rows; "
                               f"at most {MAX_ROWS} supported")
@@ -842,7 +852,10 @@ def parse(data: Any, source_text: str = "") -> ControllerConfig:
     raw_modes = r.raw("modes")
     if not isinstance(raw_modes, list) or not raw_modes:
         raise ConfigError("modes", "must be a non-empty list of modes")
-    modes = tuple(_mode(_Reader(m, f"modes[{i}]"), outputs, actuators)
+    from .move_blocking import blocks_of  # (it imports ConfigError from here)
+    default_blocks = blocks_of(r.raw("control_horizon", None), r.raw("move_blocking", None),
+                               horizon, "")
+    modes = tuple(_mode(_Reader(m, f"modes[{i}]"), outputs, actuators, horizon, default_blocks)
                   for i, m in enumerate(raw_modes))
     _check_horizon(horizon, modes)
     names = [m.name for m in modes]
@@ -861,6 +874,11 @@ def parse(data: Any, source_text: str = "") -> ControllerConfig:
     if runtime_bounds and rate:
         raise ConfigError("runtime_bounds", f"is not supported with Δu bounds (modes[{rate[0]}]"
                           ".bounds.du_min/du_max): their rows are not updatable at run time")
+    for i, m in enumerate(modes):
+        if m.has_rate_bounds and m.blocks is not None:
+            raise ConfigError(f"modes[{i}].bounds.du_min", "Δu bounds are not supported with "
+                              "move blocking / a control horizon (rate rows are built per "
+                              "stage); remove one of them")
     sim = r.sub("simulation", {})
     schedule_source = sim.string("schedule_source", "output_rate", choices=SCHEDULE_SOURCES)
     levels, segment = (_reference(sim.sub("reference"), len(outputs), sample_time)

@@ -117,6 +117,12 @@ def build_context(model: ControllerModel) -> dict:
             "u_min": _arr(d.u_min), "u_max": _arr(d.u_max),
             "cond_E": float(np.linalg.cond(mm.qp.E)),
         })
+    blocking = any(mm.qp.blocks is not None for mm in model.modes)
+    if blocking:  # every mode's block lengths and stage -> block map (identity: unblocked)
+        for entry, mm in zip(modes, model.modes):
+            sb = mm.data.stage_block
+            entry.update({"blocks": list(mm.qp.blocks or (1,) * cfg.horizon),
+                          "stage_block": _arr(np.arange(cfg.horizon) if sb is None else sb)})
     if cfg.runtime_bounds:  # the output bounds P_init gives the instance (None: unbounded)
         for entry, mode_cfg in zip(modes, cfg.modes):
             entry.update(context_bounds(mode_cfg))
@@ -150,6 +156,9 @@ def build_context(model: ControllerModel) -> dict:
         "runtime_bounds": cfg.runtime_bounds,
         # Δu rows in some mode: the solver's third row kind (else the C is unchanged)
         "has_rate_rows": any(mm.data.has_rate_rows for mm in model.modes),
+        # some mode holds its input over blocks of stages (move_blocking.py): the C then
+        # stores each mode's stage -> block map; without blocking its text is unchanged
+        "move_blocking": blocking,
         "solver": {
             "method": s.method, "reduced": flags["reduced"], "warm_start": flags["warm"]
             and s.warm_start, "omega": s.omega if flags["sor"] else 1.0, "sigma": s.sigma,

@@ -14,6 +14,10 @@ Everything the C needs is computed here once (one source of truth):
 Offset-free tracking (:mod:`.disturbance_model`) and Δu weighting (:mod:`.input_rate`)
 add a state-dependent gradient term ``Gx x`` (``Gx`` below), which only changes Kx; Δu
 weighting also makes Psi block tridiagonal.
+
+Move blocking (:mod:`.move_blocking`) substitutes U = T U_b before any of the above:
+Gamma, Psi and Gx become Gamma T, T' Psi T and T' Gx, and the input rows are one pair per
+block, so n = p nu; ``markov`` stays the unblocked (stage) one.
 """
 from __future__ import annotations
 
@@ -22,7 +26,7 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.linalg
 
-from . import input_rate
+from . import input_rate, move_blocking
 from .config import ConfigError, ModeConfig
 from .plant import DiscretePlant
 
@@ -34,7 +38,7 @@ class CondensedQP:
     nu: int
     ny: int
     Phi: np.ndarray  # (N ny, nx)
-    Gamma: np.ndarray  # (N ny, N nu)
+    Gamma: np.ndarray  # (N ny, n): N nu columns, or p nu with move blocking (Gamma T)
     markov: np.ndarray  # (N, ny, nu): C A^i B, i = 0..N-1 (Gamma is block Toeplitz in these)
     Omega: np.ndarray  # (N ny, N ny)
     Psi: np.ndarray  # (N nu, N nu): blkdiag(R), plus D' R_delta D with Δu weighting
@@ -54,7 +58,8 @@ class CondensedQP:
     Ut: np.ndarray | None = None  # (N nu, nx)
     # the gradient's state-dependent part beyond F Phi x (None = 0): -2 blkdiag(R) Ut for
     # the input target, plus input_rate.delta_gradient (-2 R_delta u_prev) for Δu
-    Gx: np.ndarray | None = None  # (N nu, nx)
+    Gx: np.ndarray | None = None  # (n, nx)
+    blocks: tuple[int, ...] | None = None  # move blocking (None: one block per stage)
 
     @property
     def n(self) -> int:
@@ -145,6 +150,17 @@ def condense(plant: DiscretePlant, mode: ModeConfig, N: int, key: str) -> Conden
     Psi_R = _block_diag(mode.R, N)
     Psi = (Psi_R if mode.R_delta is None
            else Psi_R + input_rate.delta_hessian(mode.R_delta, N))
+    Ut = Gx = None
+    if plant.input_target is not None:  # offset-free: R weights U - Ut x
+        Ut = np.tile(plant.input_target, (N, 1))
+        Gx = -2.0 * Psi_R @ Ut
+    if mode.R_delta is not None:  # Δu weighting: -2 R_delta u_prev on the first stage
+        G = input_rate.delta_gradient(mode.R_delta, N, nx)
+        Gx = G if Gx is None else Gx + G
+    if mode.blocks is not None:  # U = T U_b: the QP in the block inputs
+        Tb = move_blocking.expansion(mode.blocks, nu)
+        Gamma, Psi = Gamma @ Tb, Tb.T @ Psi @ Tb
+        Gx = None if Gx is None else Tb.T @ Gx
     E = 2.0 * (Psi + Gamma.T @ Omega @ Gamma)
     E = 0.5 * (E + E.T)
     eig = np.linalg.eigvalsh(E)
@@ -159,20 +175,13 @@ def condense(plant: DiscretePlant, mode: ModeConfig, N: int, key: str) -> Conden
     F = 2.0 * Gamma.T @ Omega
     Kr = solve_refined(E, F)
     Kx = -(Kr.astype(np.longdouble) @ Phi.astype(np.longdouble)).astype(np.float64)
-    Ut = Gx = None
-    if plant.input_target is not None:  # offset-free: R weights U - Ut x
-        Ut = np.tile(plant.input_target, (N, 1))
-        Gx = -2.0 * Psi_R @ Ut
-    if mode.R_delta is not None:  # Δu weighting: -2 R_delta u_prev on the first stage
-        G = input_rate.delta_gradient(mode.R_delta, N, nx)
-        Gx = G if Gx is None else Gx + G
     if Gx is not None:  # the state-dependent gradient only changes Kx
         Kx = Kx - solve_refined(E, Gx)
     L, W, c, kind, index, sign = _constraints(mode, Phi, Gamma, N, nu, ny)
     return CondensedQP(N=N, nx=nx, nu=nu, ny=ny, Phi=Phi, Gamma=Gamma, markov=markov,
                        Omega=Omega, Psi=Psi, E=E, Einv=Einv, F=F, Kx=Kx, Kr=Kr,
                        L=L, W=W, c=c, row_kind=kind, row_index=index, row_sign=sign, Ut=Ut,
-                       Gx=Gx)
+                       Gx=Gx, blocks=mode.blocks)
 
 
 def _constraints(mode: ModeConfig, Phi, Gamma, N: int, nu: int, ny: int):
@@ -181,9 +190,14 @@ def _constraints(mode: ModeConfig, Phi, Gamma, N: int, nu: int, ny: int):
     u exists for stages 0..N-1; y rows exist for stages 1..N (y_0 depends on x only, so
     its rows are dropped) and only for finite bounds.  Δu rows (kind 2, finite
     ``du_min``/``du_max`` only) bound u_i - u_{i-1}; at stage 0 that is u_0 - u_prev with
-    u_prev = the last nu states (input_rate.augment), so W carries sign * 1 on it.
+    u_prev = the last nu states (input_rate.augment), so W carries sign * 1 on it.  With
+    move blocking the input rows of block j (U_b,j) sit at its first stage, and Gamma is
+    the blocked Gamma T (blocking and Δu rows are not combined: config.py rejects it).
     """
-    n = N * nu
+    n = Gamma.shape[1]
+    first = (np.arange(N) if mode.blocks is None
+             else move_blocking.block_starts(mode.blocks))
+    block_at = {int(s): j for j, s in enumerate(first)}
     rows_L, rows_W, rows_c, kind, index, sign = [], [], [], [], [], []
 
     def add(L_row, W_row, c_val, k, idx, s):
@@ -196,10 +210,10 @@ def _constraints(mode: ModeConfig, Phi, Gamma, N: int, nu: int, ny: int):
 
     nx = Phi.shape[1]
     for stage in range(N + 1):
-        if stage < N:
+        if stage in block_at:
             for s, bounds in ((-1, mode.u_min), (1, mode.u_max)):
                 for j in range(nu):
-                    q = stage * nu + j
+                    q = block_at[stage] * nu + j
                     e = np.zeros(n)
                     e[q] = s
                     add(e, np.zeros(nx), s * bounds[j], 0, q, s)

@@ -38,6 +38,11 @@ side), numbered q = n + N ny + i.  Their Hq entries are differences of the ones 
 max_i |th_i|``; when that certifies every output row, the C skips the N^2/2 prediction.
 ``row_next`` maps each row to the same constraint one stage later, for the shifted warm start.
 
+With move blocking (:mod:`.move_blocking`) n = p nu (one input vector per block) and
+Gamma is the blocked Gamma T; ``stage_block`` tells the C's prediction which block holds
+each stage, ``row_next`` maps an input row to the block holding its first stage + 1, and
+``out_bound`` stays that of the stage Markov parameters (sound, see move_blocking).
+
 Both the renderer and the NumPy reference read these arrays, so the numbers the C is
 compiled with and the numbers the reference computes with are the same by construction.
 """
@@ -47,6 +52,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from . import move_blocking
 from .mpc import CondensedQP, solve_refined
 from .plant import DiscretePlant
 
@@ -110,6 +116,7 @@ class ModeData:
     out_bound: np.ndarray  # (N ny,) |(Gamma th)_k| <= out_bound_k max|th| (inflated)
     u_min: np.ndarray  # (nu,)
     u_max: np.ndarray
+    stage_block: np.ndarray | None = None  # (N,) block of each stage; None: unblocked
 
     @property
     def nt(self) -> int:
@@ -161,22 +168,27 @@ def mode_data(name: str, actuator_index, plant: DiscretePlant, obs_gain: np.ndar
         Uv=cast(Uv), T=cast(T), S_p=cast(packed_lower(S)), V=cast(V), P2inv=cast(P2inv),
         GEinvGt_p=cast(packed_lower(GEinvGt)), Omega2=cast(Omega2), Phi=cast(qp.Phi),
         markov=markov, row_q=row_q, row_sign=qp.row_sign.astype(np.int32), row_c=cast(qp.c),
-        row_next=next_stage_rows(row_q, qp.row_sign, qp.n, nu, ny, N * ny),
+        row_next=next_stage_rows(row_q, qp.row_sign, qp.n, nu, ny, N * ny, qp.blocks),
         colsum=cast(colsum), out_bound=cast(output_bound(markov, dt)),
-        u_min=cast(u_min), u_max=cast(u_max))
+        u_min=cast(u_min), u_max=cast(u_max),
+        stage_block=None if qp.blocks is None else move_blocking.stage_block(qp.blocks))
 
 
 def next_stage_rows(row_q: np.ndarray, row_sign: np.ndarray, n: int, nu: int,
-                    ny: int, nyq: int) -> np.ndarray:
-    """Row of the same constraint one stage later (a row of the last stage maps to itself)."""
+                    ny: int, nyq: int, blocks: tuple[int, ...] | None = None) -> np.ndarray:
+    """Row of the same constraint one stage later (a row of the last stage maps to itself);
+    with move blocking an input row maps to move_blocking.next_input_quantity's block."""
     where = {(int(q), int(s)): r for r, (q, s) in enumerate(zip(row_q, row_sign))}
+    later = None if blocks is None else move_blocking.next_input_quantity(blocks, nu)
     out = np.empty(row_q.size, dtype=np.int32)
     for r, (q, s) in enumerate(zip(row_q, row_sign)):
-        # Δu rows (q >= n + nyq) stay in their own range; an output row never maps to one.
-        # (A last-stage input row q maps to the output row n + q - n + nu, if one exists,
-        # as it always has: kept so that builds without Δu rows keep their warm start.)
-        step, end = (nu, n + nyq) if q < n else ((ny, n + nyq) if q < n + nyq
-                                                 else (nu, 2 * n + nyq))
+        # each kind stays in its own range: input rows [0, n), output rows [n, n + nyq),
+        # Δu rows [n + nyq, 2n + nyq); a last-stage row maps to itself
+        if q < n and later is not None:
+            out[r] = where.get((int(later[q]), int(s)), r)
+            continue
+        step, end = (nu, n) if q < n else ((ny, n + nyq) if q < n + nyq
+                                           else (nu, 2 * n + nyq))
         nxt = int(q) + step
         out[r] = where.get((nxt, int(s)), r) if nxt < end else r
     return out

@@ -157,7 +157,10 @@ class SolverRef:
         self.S = unpack_lower(md.S_p, n)
         # Gamma in the storage dtype, rows restricted to their nonzero prefix in predict
         N, ny, nu = md.N, md.ny, md.nu
-        self.Gam = np.zeros((nyq, n), md.Kx.dtype)
+        self.Gam = np.zeros((nyq, N * nu), md.Kx.dtype)  # over the stages (n with no blocks)
+        # move blocking: the C reads th[stage_block[t] nu + b] for stage t (U = T th)
+        self.expand = (None if md.stage_block is None else
+                       (md.stage_block[:, None] * nu + np.arange(nu)[None, :]).reshape(-1))
         for k in range(nyq):
             stage, a = divmod(k, ny)
             for t in range(stage + 1):
@@ -201,6 +204,7 @@ class SolverRef:
     def _predict(self, th):
         md = self.md
         out = np.empty(md.n_yq, md.Kx.dtype)
+        th = th if self.expand is None else th[self.expand]
         for k in range(md.n_yq):
             width = (k // md.ny + 1) * md.nu
             out[k] = seqsum(self.Gam[k, :width] * th[:width])
@@ -640,8 +644,8 @@ class SolverRef:
         if not np.all(np.isfinite(th)):
             status = NUMERICAL
             src = th0 if np.all(np.isfinite(th0)) else np.zeros_like(th0)
-        lo = np.tile(self.u_min, md.N)
-        hi = np.tile(self.u_max, md.N)
+        lo = np.tile(self.u_min, md.n // md.nu)  # per stage, or per block
+        hi = np.tile(self.u_max, md.n // md.nu)
         U = np.where(src < lo, lo, np.where(src > hi, hi, src))
         if status != OPTIMAL:
             self.lam[:] = 0

@@ -21,7 +21,9 @@ CASES = [("uav_roll", "double", "uav_roll"), ("uav_roll", "float", "uav_roll_f32
          ("chain_runtime_bounds", "double", "chain_runtime_bounds"),
          ("chain_runtime_bounds", "float", "chain_runtime_bounds_f32"),
          ("thermal_zones_rate", "double", "thermal_zones_rate"),
-         ("thermal_zones_rate", "float", "thermal_zones_rate_f32")]
+         ("thermal_zones_rate", "float", "thermal_zones_rate_f32"),
+         ("uav_roll_blocked", "double", "uav_roll_blocked"),
+         ("uav_roll_blocked", "float", "uav_roll_blocked_f32")]
 
 
 @pytest.mark.parametrize("example,precision,committed", CASES)

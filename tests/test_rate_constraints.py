@@ -200,3 +200,9 @@ def test_infinite_rate_bounds_are_absent(tmp_path):
                                                                    du_max="inf")))
     assert ctx["modes"][0]["nx"] == 6 and not ctx["has_rate_rows"]
     assert not np.any(model.modes[0].qp.row_kind == 2)
+
+
+def test_move_blocking_with_rate_rows_is_rejected(tmp_path):
+    with pytest.raises(ConfigError) as exc:
+        load(_variant(tmp_path, RATE, "mb", lambda d: d.update(control_horizon=5)))
+    assert exc.value.key == "modes[0].bounds.du_min" and "blocking" in str(exc.value)

@@ -1,0 +1,55 @@
+/**
+ * @file rollmpc_internal.h
+ * @brief Internal declarations shared by the generated sources (not part of the API).
+ */
+#ifndef ROLLMPC_INTERNAL_H
+#define ROLLMPC_INTERNAL_H
+
+#include "rollmpc.h"
+
+/** Static data of one mode (all arrays row-major; "_p" = packed lower triangle). */
+typedef struct {
+    int nx, nu, ny, n, m, nyq, nt;
+    const int16_t *actuator;        /**< [nu] physical actuator of each mode input. */
+    const rollmpc_real *A, *B, *C, *L; /**< Discrete model and observer gain. */
+    const rollmpc_real *Kx;      /**< [n][nx] unconstrained state gain. */
+    const rollmpc_real *EinvGt;  /**< [n][nyq] E^-1 Gamma'. */
+    const rollmpc_real *Sinv_p;  /**< S^-1, packed. */
+    const rollmpc_real *Ew;      /**< [nt][n]: E^-1 = S^-1 - Ew' Ew (Woodbury). */
+    const rollmpc_real *Uv;      /**< [nt][n] V S^-1. */
+    const rollmpc_real *T;       /**< [nt][nt] (2P)^-1 + V S^-1 V'. */
+    const rollmpc_real *S_p;     /**< Stage Hessian S (E = S + V'(2P)V), packed. */
+    const rollmpc_real *V;       /**< [nt][n] terminal rows of Gamma (nt = 0: none). */
+    const rollmpc_real *P2inv;   /**< [nt][nt] (2P)^-1. */
+    const rollmpc_real *GEinvGt_p; /**< Gamma E^-1 Gamma', packed (output rows only). */
+    const rollmpc_real *Omega2;  /**< [N][ny][ny] 2Q per stage, 2P last. */
+    const rollmpc_real *Phi;     /**< [nyq][nx]. */
+    const rollmpc_real *markov;  /**< [N][ny][nu] C A^i B. */
+    const int16_t *row_q;             /**< [m] quantity of each row (U index, or n + Y index). */
+    const int8_t *row_sign;           /**< [m] -1 lower / +1 upper bound row. */
+    const rollmpc_real *row_c;   /**< [m] constant right-hand side c. */
+    const int16_t *row_next;          /**< [m] same constraint one stage later (shifted warm start). */
+    const rollmpc_real *colsum;  /**< [ny][n] sum of the E^-1 Gamma' columns of stages 0..N-2. */
+    const rollmpc_real *out_bound; /**< [nyq] |(Gamma th)_k| <= out_bound[k] max|th|. */
+    const rollmpc_real *u_min, *u_max; /**< [nu] input bounds. */
+    const int16_t *stage_block;       /**< [N] move blocking: the block (of U, n = blocks * nu) holding each stage. */
+} rollmpc_mode_data;
+
+extern const rollmpc_mode_data rollmpc_modes[ROLLMPC_N_MODES];
+
+/** Packed lower-triangle index of (i, j), j <= i. */
+#define ROLLMPC_TRI(i, j) ((i) * ((i) + 1) / 2 + (j))
+
+/* Linear algebra on packed symmetric matrices (rollmpc_linalg.c). */
+int rollmpc_cholesky(rollmpc_real *a, int n);
+int rollmpc_cholesky_from(rollmpc_real *a, int from, int n);
+void rollmpc_chol_lsolve(const rollmpc_real *l, int n, rollmpc_real *b);
+void rollmpc_chol_ltsolve(const rollmpc_real *l, int n, rollmpc_real *b);
+void rollmpc_chol_solve(const rollmpc_real *l, int n, rollmpc_real *b);
+
+/* QP solver (rollmpc_solver.c). */
+int rollmpc_qp_solve(rollmpc_work *ws, rollmpc_real *lam, const rollmpc_mode_data *md,
+    const rollmpc_real *x, const rollmpc_real *r, rollmpc_real *U, int *iterations,
+    int *polish_iterations, int *active);
+
+#endif /* ROLLMPC_INTERNAL_H */
