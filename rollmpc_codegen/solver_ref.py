@@ -228,14 +228,17 @@ class SolverRef:
         q, n = self.md.row_q, self.md.n
         return (q >= n) & (q < n + self.md.n_yq)
 
-    def _violated(self, th, gam):
+    def _excess(self, th, gam):
+        """Mirror of row_excess() and tol_scale() for every row: (M th - gamma, max(1, |gamma|))."""
         yv = self._predict(th) if self.has_out else None
         v = self._values(th, yv)
         sg = self.md.row_sign
-        viol = np.where(sg > 0, v - gam, -v - gam)
         ag = np.abs(gam)
-        tol = self.tol * np.where(ag > self.one, ag, self.one)
-        return viol > tol
+        return np.where(sg > 0, v - gam, -v - gam), np.where(ag > self.one, ag, self.one)
+
+    def _violated(self, th, gam):
+        viol, scale = self._excess(th, gam)
+        return viol > self.tol * scale
 
     @staticmethod
     def _drop_negative(W, z, guess):
@@ -431,34 +434,25 @@ class SolverRef:
 
     def _refine_dual(self, W, z, th0, K, gam, th):
         """Mirror of refine_dual(): (ok, th, z) after up to two refinement rounds."""
-        md = self.md
         nw = W.size
         chol = np.concatenate([self.H[W[i], W[:i + 1]] for i in range(nw)])
         cholesky_packed(chol, nw)  # the factor dual_solve() left in ws->chol
-        sg = md.row_sign[W]
         for _ in range(2):
-            yv = self._predict(th) if self.has_out else None
-            v = self._values(th, yv)[W]
-            e = np.where(sg > 0, v - gam[W], -v - gam[W])
+            e = self._excess(th, gam)[0][W]
             chol_solve_packed(chol, nw, e)
             z = z + e
             if np.any(z < 0):
                 return False, th, z
             th = self._correct(th0, W, z)
-            if not np.any(self._violated(th, gam)[W]):
-                viol = self._violated(th, gam)
+            viol = self._violated(th, gam)
+            if not np.any(viol[W]):
                 return (not np.any(viol)), th, z
         return False, th, z
 
     # -- the dual active-set solve (Goldfarb-Idnani) ------------------------------------
     def _most_violated(self, th, gam, in_set):
         """Mirror of most_violated(): first row of largest relative violation, or -1."""
-        yv = self._predict(th) if self.has_out else None
-        v = self._values(th, yv)
-        sg = self.md.row_sign
-        viol = np.where(sg > 0, v - gam, -v - gam)
-        ag = np.abs(gam)
-        scale = np.where(ag > self.one, ag, self.one)
+        viol, scale = self._excess(th, gam)
         cand = (~in_set) & (viol > self.tol * scale)
         if not np.any(cand):
             return -1
