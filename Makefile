@@ -10,7 +10,7 @@ VENV ?= .venv
 PY := $(VENV)/bin/python
 ROLLMPC := $(VENV)/bin/rollmpc
 EXAMPLES := uav_roll chain_of_masses three_drives quadruple_tank thermal_zones chain_runtime_bounds thermal_zones_rate \
-            uav_roll_blocked
+            uav_roll_blocked chain_soft
 CC ?= gcc
 CSTRICT := -std=c99 -O2 -ffp-contract=off -Wall -Wextra -Wpedantic -Wconversion -Wshadow \
            -Wdouble-promotion -Werror

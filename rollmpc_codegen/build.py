@@ -144,9 +144,12 @@ class HostController:
 
     def info(self) -> dict:
         p = self._fn["last_info"](self.ctrl)
-        return {"status": p.status, "mode": p.mode, "iterations": p.iterations,
-                "polish_iterations": p.polish_iterations, "active": p.active,
-                "mode_switches": p.mode_switches, "solve_ticks": p.solve_ticks}
+        out = {"status": p.status, "mode": p.mode, "iterations": p.iterations,
+               "polish_iterations": p.polish_iterations, "active": p.active,
+               "mode_switches": p.mode_switches, "solve_ticks": p.solve_ticks}
+        if self.ctx.get("has_soft_rows"):  # soft output bounds: the plan's slack
+            out.update(slack_max=float(p.slack_max), slack_rows=p.slack_rows)
+        return out
 
     def status_message(self, status: int) -> str:
         return self.ffi.string(self._fn["status_message"](status)).decode()

@@ -134,7 +134,11 @@ def summarize(cfg: ControllerConfig, log: ClosedLoopLog) -> dict:
         by_mode[name] = {"samples": int(rows.sum()),
                          "max_iterations": int(log.iterations[rows].max()) if rows.any() else 0,
                          "solve_us": _stats(log.solve_us[rows])}
+    soft = (None if log.slack_max is None else  # soft output bounds: slacks of the plans
+            {"samples_with_slack": int(np.count_nonzero(log.slack_max > 0)),
+             "max_slack": float(log.slack_max.max())})
     return {
+        "soft_bounds": soft,
         "samples": int(len(log.t)),
         "duration_s": float(len(log.t) * ts),
         "segments": segments,

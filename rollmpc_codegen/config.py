@@ -86,6 +86,11 @@ class ModeConfig:
     # move blocking (move_blocking.py): block lengths summing to the horizon, from the
     # mode's or the top level's control_horizon / move_blocking; None = one block per stage
     blocks: tuple[int, ...] | None = None
+    # soft output bounds (soft_constraints.py), ``bounds.soft``: per output (rows) and side
+    # (column 0 = y_min, 1 = y_max), the penalty l1 s + l2 s^2 of the slack s >= 0 added
+    # to J; l2 = 0 keeps that bound hard. None: every bound is hard
+    soft_l1: np.ndarray | None = None  # (ny, 2)
+    soft_l2: np.ndarray | None = None  # (ny, 2)
 
     @property
     def has_rate_bounds(self) -> bool:
@@ -516,6 +521,7 @@ def _mode(r: _Reader, outputs: tuple[str, ...], actuators: tuple[str, ...], hori
         if not y_min[i] < y_max[i]:
             raise ConfigError(b.key("y_min"), f"must be < y_max (entry {i})")
     du_min, du_max = _rate_bounds(b, nu)
+    soft = _soft_bounds(b.sub("soft"), y_min, y_max) if b.has("soft") else {}
     b.finish()
     observer = _observer(r.sub("observer"), nu, ny) if r.has("observer") else {}
     blocks = blocks_of(r.raw("control_horizon", None), r.raw("move_blocking", None), horizon,
@@ -525,7 +531,8 @@ def _mode(r: _Reader, outputs: tuple[str, ...], actuators: tuple[str, ...], hori
     return ModeConfig(name=name, actuators=acts, plant=plant, Q=Q, R=R, P=P, R_delta=R_delta,
                       blocks=blocks if is_blocked(blocks) else None,
                       u_min=u_min, u_max=u_max, y_min=y_min, y_max=y_max,
-                      du_min=du_min, du_max=du_max, observer_poles=observer.pop("poles", None), **observer)
+                      du_min=du_min, du_max=du_max, observer_poles=observer.pop("poles", None),
+                      **soft, **observer)
 
 
 def _check_contains_zero(b: _Reader, name: str, lo, hi, why: str) -> None:
@@ -550,6 +557,36 @@ def _rate_bounds(b: _Reader, nu: int) -> tuple[np.ndarray | None, np.ndarray | N
     du_max = _vector(b.raw("du_max", math.inf), b.key("du_max"), nu, allow_inf=True)
     _check_contains_zero(b, "du", du_min, du_max, "holding the input (Δu = 0) must be allowed")
     return du_min, du_max
+
+
+def _soft_bounds(s: _Reader, y_min: np.ndarray, y_max: np.ndarray) -> dict:
+    """``bounds.soft.y_min``/``y_max``: ``{l1, l2}`` (scalars or one entry per output) of the
+    slack penalty l1 s + l2 s^2 (soft_constraints.py). l2 > 0 softens that output's bound,
+    l2 = 0 (with l1 = 0) keeps it hard; a soft entry needs a finite bound."""
+    ny = y_min.size
+    l1, l2 = np.zeros((ny, 2)), np.zeros((ny, 2))
+    for side, (name, bound) in enumerate((("y_min", y_min), ("y_max", y_max))):
+        if not s.has(name):
+            continue
+        p = s.sub(name)
+        a = _vector(p.raw("l1"), p.key("l1"), ny)
+        c = _vector(p.raw("l2"), p.key("l2"), ny)
+        p.finish()
+        for i in range(ny):
+            if a[i] < 0.0:
+                raise ConfigError(p.key("l1"), f"must be >= 0 (entry {i}: {a[i]})")
+            if c[i] < 0.0:
+                raise ConfigError(p.key("l2"), f"must be >= 0 (entry {i}: {c[i]})")
+            if c[i] == 0.0 and a[i] != 0.0:
+                raise ConfigError(p.key("l2"), f"must be > 0 where l1 is (entry {i}): the "
+                                  "solver needs the quadratic term; l1 = l2 = 0 keeps the bound hard")
+            if c[i] > 0.0 and not np.isfinite(bound[i]):
+                raise ConfigError(s.key(name), f"output {i} has no finite {name} to soften")
+        l1[:, side], l2[:, side] = a, c
+    s.finish()
+    if not np.any(l2 > 0.0):
+        raise ConfigError(s.path, "softens no bound (give y_min or y_max with l2 > 0)")
+    return {"soft_l1": l1, "soft_l2": l2}
 
 
 OBSERVER_KINDS = ("poles", "kalman")

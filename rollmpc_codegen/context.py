@@ -59,7 +59,7 @@ def build_model(cfg: ControllerConfig) -> ControllerModel:
         # own RuntimeWarning would only add a second, vaguer line on stderr
         with np.errstate(over="ignore"):
             data = mode_data(mode.name, act_index, plant, L, qp, mode.u_min, mode.u_max,
-                             cfg.precision)
+                             cfg.precision, mode.soft_l1, mode.soft_l2)
         for field in ("Kx", "EinvGt", "Sinv_p", "S_p", "Ew", "L", "A", "B"):
             arr = getattr(data, field)
             if not np.all(np.isfinite(arr)):
@@ -135,7 +135,16 @@ def build_context(model: ControllerModel) -> dict:
                  "epsilons": list(sc.epsilons), "below": list(sc.below),
                  "above": list(sc.above), "band_modes": list(sc.band_modes),
                  "n_bands": len(sc.band_modes), "initial": sc.initial}
+    soft = any(mm.data.has_soft_rows for mm in model.modes)
+    if soft:  # per-bound penalties and the working-set capacity (soft_constraints.py)
+        for entry, mm in zip(modes, model.modes):
+            d = mm.data
+            zeros = np.zeros(2 * d.ny)
+            entry.update({"soft_l1": _arr(zeros if d.soft_l1 is None else d.soft_l1),
+                          "soft_w": _arr(zeros if d.soft_w is None else d.soft_w),
+                          "w_cap": d.w_cap})
     n_max = max(m["n"] for m in modes)
+    w_max = max(mm.data.w_cap for mm in model.modes) if soft else n_max
     return {
         "generator": {"name": "rollmpc-codegen", "version": __version__},
         "config_hash": cfg.config_hash,
@@ -159,6 +168,9 @@ def build_context(model: ControllerModel) -> dict:
         # some mode holds its input over blocks of stages (move_blocking.py): the C then
         # stores each mode's stage -> block map; without blocking its text is unchanged
         "move_blocking": blocking,
+        # soft output rows in some mode (soft_constraints.py): slack states in the solver,
+        # the slack in the info struct, working sets beyond n rows (else the C is unchanged)
+        "has_soft_rows": soft,
         "solver": {
             "method": s.method, "reduced": flags["reduced"], "warm_start": flags["warm"]
             and s.warm_start, "omega": s.omega if flags["sor"] else 1.0, "sigma": s.sigma,
@@ -175,7 +187,7 @@ def build_context(model: ControllerModel) -> dict:
             "n_max": n_max, "m_max": max(m["m"] for m in modes),
             "nyq_max": max(m["nyq"] for m in modes),
             "nt_max": max(m["nt"] for m in modes),
-            "chol_max": n_max * (n_max + 1) // 2,
+            "w_max": w_max, "chol_max": w_max * (w_max + 1) // 2,
         },
         "modes": modes,
     }

@@ -115,6 +115,9 @@ class ControllerRef:
         self.U = U
         self.last = {"status": status, "iterations": its, "polish_iterations": pits,
                      "active": active}
+        if self.ctx.get("has_soft_rows"):  # info.slack_max / slack_rows of P_step
+            solver = self.solvers[self.mode]
+            self.last.update(slack_max=float(solver.slack_max), slack_rows=solver.slack_rows)
         u = np.zeros(self.ctx["n_actuators"], dt)
         u[md.actuator_index] = U[:md.nu]
         for j, mdj in enumerate(self.md):

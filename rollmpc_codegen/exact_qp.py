@@ -25,6 +25,8 @@ import numpy as np
 import scipy.linalg
 import scipy.optimize
 
+from . import soft_constraints
+
 LD = np.longdouble
 
 
@@ -37,6 +39,7 @@ class QPData:
     L: np.ndarray
     b: np.ndarray
     box: np.ndarray  # (m,) True for input-bound rows
+    n_u: int = -1  # the first n_u variables are U (the rest: slacks of soft rows); -1: all
 
 
 @dataclass(frozen=True)
@@ -50,11 +53,14 @@ class ExactSolution:
 
 
 def qp_data(qp, x: np.ndarray, r: np.ndarray) -> QPData:
-    """The QP of one mode (a :class:`~rollmpc_codegen.mpc.CondensedQP`) at state x, preview r."""
+    """The QP of one mode (a :class:`~rollmpc_codegen.mpc.CondensedQP`) at state x, preview r;
+    with soft output rows, the QP with explicit slacks (soft_constraints.explicit_qp)."""
+    n_u = qp.n
+    qp = soft_constraints.explicit_qp(qp)
     xl = np.asarray(x, dtype=LD)
     f = qp.gradient(x, r, LD)  # with the input target and the Δu terms (CondensedQP.gradient)
     b = qp.c.astype(LD) + qp.W.astype(LD) @ xl
-    return QPData(E=qp.E, f=f, L=qp.L, b=b, box=np.asarray(qp.row_kind) == 0)
+    return QPData(E=qp.E, f=f, L=qp.L, b=b, box=np.asarray(qp.row_kind) == 0, n_u=n_u)
 
 
 def _independent_rows(L: np.ndarray, rows: np.ndarray) -> np.ndarray:
@@ -122,7 +128,8 @@ def solve_exact(data: QPData, max_changes: int = 200) -> ExactSolution:
         kkt = float(np.abs(grad).max() / max(1.0, float(np.abs(f).max())))
         slack = (LL @ U - b) / scale
         n_active = int(np.count_nonzero(np.abs(slack) <= 1e-9))
-        return ExactSolution(status="optimal", U=U.astype(np.float64), active=W,
+        n_u = data.n_u if data.n_u >= 0 else U.size
+        return ExactSolution(status="optimal", U=U.astype(np.float64)[:n_u], active=W,
                              n_active=n_active, kkt_error=kkt,
                              daqp_gap=float(np.abs(U.astype(np.float64) - U_d).max()))
     return ExactSolution(status="failed")

@@ -26,7 +26,7 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.linalg
 
-from . import input_rate, move_blocking
+from . import input_rate, move_blocking, soft_constraints
 from .config import ConfigError, ModeConfig
 from .plant import DiscretePlant
 
@@ -60,6 +60,12 @@ class CondensedQP:
     # the input target, plus input_rate.delta_gradient (-2 R_delta u_prev) for Δu
     Gx: np.ndarray | None = None  # (n, nx)
     blocks: tuple[int, ...] | None = None  # move blocking (None: one block per stage)
+    # soft output rows (soft_constraints): per row the slack penalty l1 s + l2 s^2 (0 for
+    # hard rows); None without soft bounds
+    soft_l1: np.ndarray | None = None  # (m,)
+    soft_l2: np.ndarray | None = None  # (m,)
+    # constant part of the gradient (soft_constraints.explicit_qp: l1 of the slacks)
+    f_const: np.ndarray | None = None  # (n,)
 
     @property
     def n(self) -> int:
@@ -93,7 +99,8 @@ class CondensedQP:
         ``dtype`` (e.g. np.longdouble for the extended-precision reference)."""
         x, R = np.asarray(x, dtype=dtype), np.asarray(R, dtype=dtype)
         f = self.F.astype(dtype) @ (self.Phi.astype(dtype) @ x - R)
-        return f if self.Gx is None else f + self.Gx.astype(dtype) @ x
+        f = f if self.Gx is None else f + self.Gx.astype(dtype) @ x
+        return f if self.f_const is None else f + self.f_const.astype(dtype)
 
     def theta0(self, x: np.ndarray, R: np.ndarray) -> np.ndarray:
         return self.Kx @ x + self.Kr @ R
@@ -178,7 +185,9 @@ def condense(plant: DiscretePlant, mode: ModeConfig, N: int, key: str) -> Conden
     if Gx is not None:  # the state-dependent gradient only changes Kx
         Kx = Kx - solve_refined(E, Gx)
     L, W, c, kind, index, sign = _constraints(mode, Phi, Gamma, N, nu, ny)
-    return CondensedQP(N=N, nx=nx, nu=nu, ny=ny, Phi=Phi, Gamma=Gamma, markov=markov,
+    soft_l1, soft_l2 = soft_constraints.row_penalties(mode.soft_l1, mode.soft_l2, kind, index,
+                                                      sign, ny)
+    return CondensedQP(soft_l1=soft_l1, soft_l2=soft_l2, N=N, nx=nx, nu=nu, ny=ny, Phi=Phi, Gamma=Gamma, markov=markov,
                        Omega=Omega, Psi=Psi, E=E, Einv=Einv, F=F, Kx=Kx, Kr=Kr,
                        L=L, W=W, c=c, row_kind=kind, row_index=index, row_sign=sign, Ut=Ut,
                        Gx=Gx, blocks=mode.blocks)

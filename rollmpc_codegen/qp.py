@@ -52,7 +52,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from . import move_blocking
+from . import move_blocking, soft_constraints
 from .mpc import CondensedQP, solve_refined
 from .plant import DiscretePlant
 
@@ -117,6 +117,11 @@ class ModeData:
     u_min: np.ndarray  # (nu,)
     u_max: np.ndarray
     stage_block: np.ndarray | None = None  # (N,) block of each stage; None: unblocked
+    # soft output bounds (soft_constraints): per bound (2 j + side, side 1 = y_max) the
+    # penalty l1 and w = 1 / (2 l2) (0: hard); None without soft bounds
+    soft_l1: np.ndarray | None = None  # (2 ny,)
+    soft_w: np.ndarray | None = None  # (2 ny,)
+    w_cap: int = 0  # working-set capacity: n, plus the soft (output, stage) pairs
 
     @property
     def nt(self) -> int:
@@ -127,13 +132,24 @@ class ModeData:
         return bool(np.any((self.row_q >= self.n) & (self.row_q < self.n + self.n_yq)))
 
     @property
+    def has_soft_rows(self) -> bool:
+        """Some output row is soft (soft_constraints)."""
+        if self.soft_w is None:
+            return False
+        out = (self.row_q >= self.n) & (self.row_q < self.n + self.n_yq)
+        idx = 2 * ((self.row_q[out] - self.n) % self.ny) + (self.row_sign[out] > 0)
+        return bool(np.any(self.soft_w[idx] > 0))
+
+    @property
     def has_rate_rows(self) -> bool:
         """Δu rows (quantities n + N ny + i, see the module docstring)."""
         return bool(np.any(self.row_q >= self.n + self.n_yq))
 
 
 def mode_data(name: str, actuator_index, plant: DiscretePlant, obs_gain: np.ndarray,
-              qp: CondensedQP, u_min, u_max, precision: str) -> ModeData:
+              qp: CondensedQP, u_min, u_max, precision: str, soft_l1=None,
+              soft_l2=None) -> ModeData:
+    """The mode's stored arrays; soft_l1/soft_l2: the config's (ny, 2) soft penalties."""
     dt = dtype_of(precision)
     N, ny, nu = qp.N, qp.ny, qp.nu
     EinvGt = solve_refined(qp.E, qp.Gamma.T)  # full double accuracy (see solve_refined)
@@ -160,7 +176,12 @@ def mode_data(name: str, actuator_index, plant: DiscretePlant, obs_gain: np.ndar
         return np.ascontiguousarray(np.asarray(a, dtype=np.float64).astype(dt))
 
     markov = cast(qp.markov)
-    return ModeData(
+    soft = {"w_cap": qp.n}
+    if soft_l2 is not None:
+        l1, w = soft_constraints.storage(soft_l1, soft_l2)
+        soft = {"soft_l1": cast(l1), "soft_w": cast(w), "w_cap": soft_constraints.working_set_cap(
+            qp.n, qp.row_kind, qp.row_index, qp.soft_l2)}
+    return ModeData(**soft,
         name=name, nx=qp.nx, nu=nu, ny=ny, N=N, n=qp.n, m=qp.m, n_yq=N * ny,
         actuator_index=np.asarray(actuator_index, dtype=np.int32),
         A=cast(plant.A), B=cast(plant.B), C=cast(plant.C), L=cast(obs_gain),

@@ -27,6 +27,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .mpc import CondensedQP
+from .soft_constraints import explicit_qp
 
 DAQP_INF = 1e30
 
@@ -43,6 +44,12 @@ class PeerResult:
     U: np.ndarray
     solver_s: float | None
     iterations: int
+
+
+def peer_problems(qps: list[CondensedQP]) -> tuple[list[CondensedQP], list[int]]:
+    """The QPs the peers solve -- with soft output rows, the explicit-slack form
+    (soft_constraints.explicit_qp) -- and each mode's n (their U is its first n entries)."""
+    return [explicit_qp(qp) for qp in qps], [qp.n for qp in qps]
 
 
 @contextlib.contextmanager
@@ -112,7 +119,7 @@ class QuadprogPeer:
         import quadprog
 
         self._solve = quadprog.solve_qp
-        self.qps = qps
+        self.qps, self.n_u = peer_problems(qps)
 
     def solve(self, mode: int, x: np.ndarray, r: np.ndarray) -> PeerResult:
         qp = self.qps[mode]
@@ -120,8 +127,8 @@ class QuadprogPeer:
         try:
             U = self._solve(qp.E, -f, -qp.L.T, -b, 0)[0]
         except ValueError:  # "constraints are inconsistent, no solution"
-            return PeerResult("infeasible", np.full(qp.n, np.nan), None, 0)
-        return PeerResult("optimal", U, None, 0)
+            return PeerResult("infeasible", np.full(self.n_u[mode], np.nan), None, 0)
+        return PeerResult("optimal", U[:self.n_u[mode]], None, 0)
 
 
 class DaqpPeer:
@@ -131,7 +138,8 @@ class DaqpPeer:
         import daqp
 
         self._daqp = daqp
-        self.forms = [TwoSidedForm(qp) for qp in qps]
+        problems, self.n_u = peer_problems(qps)
+        self.forms = [TwoSidedForm(qp) for qp in problems]
         self.models: list = [None] * len(qps)
 
     def solve(self, mode: int, x: np.ndarray, r: np.ndarray) -> PeerResult:
@@ -148,7 +156,7 @@ class DaqpPeer:
             model.update(f=f, bupper=upper, blower=lower)
         U, _, exitflag, info = model.solve()
         status = "optimal" if exitflag == 1 else f"exitflag {exitflag}"
-        return PeerResult(status, np.asarray(U, float), float(info["solve_time"]),
+        return PeerResult(status, np.asarray(U, float)[:self.n_u[mode]], float(info["solve_time"]),
                           int(info["iterations"]))
 
 
@@ -162,7 +170,8 @@ class OsqpPeer:
         self._osqp = osqp
         self._sp = sp
         self.settings = {"verbose": False, **settings}
-        self.forms = [TwoSidedForm(qp) for qp in qps]
+        problems, self.n_u = peer_problems(qps)
+        self.forms = [TwoSidedForm(qp) for qp in problems]
         self.solvers: list = [None] * len(qps)
 
     def solve(self, mode: int, x: np.ndarray, r: np.ndarray) -> PeerResult:
@@ -183,5 +192,5 @@ class OsqpPeer:
         # are reported by name (the iterate is still what a controller would apply)
         status = "optimal" if res.info.status_val == 1 else str(res.info.status)
         U = np.asarray(res.x, float) if res.x is not None else np.full(form.qp.n, np.nan)
-        return PeerResult(status, U, float(res.info.solve_time + res.info.polish_time),
+        return PeerResult(status, U[:self.n_u[mode]], float(res.info.solve_time + res.info.polish_time),
                           int(res.info.iter))

@@ -30,6 +30,7 @@ class ClosedLoopLog:
     mode: np.ndarray = None
     iterations: np.ndarray = None
     solve_us: np.ndarray = None
+    slack_max: np.ndarray | None = None  # soft output bounds: the plan's largest slack
 
 
 def progress_printer(total: int, label: str, stream=None):
@@ -86,6 +87,10 @@ def run_closed_loop(cfg: ControllerConfig, controller, reference: np.ndarray | N
             d = info()
             log.mode[k], log.iterations[k] = d["mode"], d["iterations"]
             log.solve_us[k] = d.get("solve_ticks", 0) / 1000.0
+            if "slack_max" in d:
+                if log.slack_max is None:
+                    log.slack_max = np.zeros(K)
+                log.slack_max[k] = d["slack_max"]
         plant.advance(np.asarray(u, float), dist if disturbance else None)
         if progress is not None:
             progress(k)

@@ -98,6 +98,10 @@ def _print_summary(cfg, ctx: dict, s: dict, base: dict | None) -> None:
     cv = s["constraint_violations"]
     print(f"  max |u|{u_unit}: {umax}; constraint violations: {cv['total']} "
           f"(u {cv['u']}, inactive {cv['inactive_actuator_nonzero']}, y {cv['y']})")
+    if s.get("soft_bounds"):
+        sb = s["soft_bounds"]
+        print(f"  soft output bounds: a plan exceeds one (slack > 0) in "
+              f"{sb['samples_with_slack']} samples, max slack {sb['max_slack']:.3g}{y_unit}")
     st = s["solve_us"]
     if st["median"] is not None:
         print(f"  non-optimal: {s['non_optimal']}; max iterations: {s['max_iterations']}; "

@@ -170,6 +170,18 @@ class SolverRef:
         self.one, self.zero = dt(1.0), dt(0.0)
         # the bound data: baked (md), or live with runtime_bounds (ControllerRef.set_bounds)
         self.row_c, self.u_min, self.u_max = md.row_c, md.u_min, md.u_max
+        # soft output rows (soft_of() per row): w = 1/(2 l2) (0: hard) and l1; the slack
+        # states of the working-set rows (ws->slack_on); the working-set capacity
+        self.soft = md.has_soft_rows
+        self.soft_w = np.zeros(md.m, md.Kx.dtype)
+        self.soft_l1 = np.zeros(md.m, md.Kx.dtype)
+        if self.soft:
+            out = self._is_output()
+            b = 2 * ((q[out] - n) % md.ny) + (sg[out] > 0)
+            self.soft_w[out], self.soft_l1[out] = md.soft_w[b], md.soft_l1[b]
+        self.slack_on = np.zeros(md.m, bool)
+        self.wcap = md.w_cap if self.soft else n
+        self.slack_max, self.slack_rows = self.zero, 0
 
     # -- pieces mirroring the static functions of solver.c.j2 ------------------------
     def _unconstrained(self, x, r):
@@ -272,6 +284,8 @@ class SolverRef:
             others = S[mask]
             acc = seqsum(self.H[r, others] * lam[others])
             t = -(K[r] + acc) / self.Hdiag[r]
+            if self.soft_w[r] > 0 and t > self.soft_l1[r]:  # piecewise maximum
+                t = (self.soft_l1[r] * self.soft_w[r] - (K[r] + acc)) / (self.Hdiag[r] + self.soft_w[r])
             wv = (self.one - om) * lam[r] + om * t
             nl = wv if wv > 0 else self.zero
             d = nl - lam[r]
@@ -372,22 +386,60 @@ class SolverRef:
         th[F] = th0[F] + d
         return True, th, z
 
+    def _factor(self, W, start=0, chol=None):
+        """Mirror of factor_working_set(): rows start.. of chol(H_WW + w of the slack rows);
+        (ok, packed factor)."""
+        nw = len(W)
+        if chol is None:
+            chol = np.zeros(nw * (nw + 1) // 2 + nw + 1, self.md.Kx.dtype)
+        for i in range(start, nw):
+            tri = i * (i + 1) // 2
+            chol[tri:tri + i + 1] = self.H[W[i], W[:i + 1]]
+            if self.slack_on[W[i]]:
+                chol[tri + i] = chol[tri + i] + self.soft_w[W[i]]
+        return cholesky_packed(chol, nw, start=start), chol
+
     def _dual_solve(self, W, K):
         """Mirror of dual_solve(): returns (ok, z)."""
         nw = W.size
-        chol = np.concatenate([self.H[W[i], W[:i + 1]] for i in range(nw)])
-        if not cholesky_packed(chol, nw):
+        ok, chol = self._factor(W)
+        if not ok:
             return False, None
         z = -K[W]
+        on = self.slack_on[W]
+        z[on] = z[on] + self.soft_l1[W][on] * self.soft_w[W][on]
         chol_solve_packed(chol, nw, z)
         return True, z
+
+    def _slack_in_set(self, W, z):
+        """Mirror of slack_in_set() for the working set: (z - l1) w where slack, else 0."""
+        sl = (z - self.soft_l1[W]) * self.soft_w[W]
+        return np.where(self.slack_on[W], sl, self.zero)
+
+    def _switch_states(self, W, z):
+        """Mirror of switch_states(): flip the rows whose multiplier crossed l1; count."""
+        l1, on = self.soft_l1[W], self.slack_on[W]
+        flip = (self.soft_w[W] > 0) & np.where(on, z < l1, z > l1)
+        self.slack_on[W[flip]] = ~on[flip]
+        return int(np.count_nonzero(flip))
+
+    def _set_states(self, W, lam_of_W):
+        """Mirror of set_state() for rows joining with these multipliers."""
+        self.slack_on[W] = (self.soft_w[W] > 0) & (lam_of_W > self.soft_l1[W])
+
+    def _holds(self, W, z, th, gam):
+        """Mirror of working_set_holds() (violated_in_set() with soft rows)."""
+        viol, scale = self._excess(th, gam)
+        if self.soft:
+            return not np.any(viol[W] - self._slack_in_set(W, z) > self.tol * scale[W])
+        return not np.any((viol > self.tol * scale)[W])
 
     def _polish(self, W, lam, th0, K, gam, guess=False):
         """Mirror of polish() from working set W; returns (ok, th, active, iterations)."""
         md = self.md
         n = md.n
         its = 0
-        if W.size == 0 or W.size > n:
+        if W.size == 0 or W.size > self.wcap:
             return False, None, 0, its
         for _ in range(self.polish_max):
             its += 1
@@ -412,6 +464,8 @@ class SolverRef:
                 ok, z = self._dual_solve(W, K)
                 if not ok:
                     return False, None, 0, its
+                if self.soft and self._switch_states(W, z):
+                    continue
                 W, dropped = self._drop_negative(W, z, guess)
                 if dropped < 0:
                     return False, None, 0, its
@@ -420,32 +474,35 @@ class SolverRef:
                 th = self._correct(th0, W, z)
                 add = self._violated_outside(th, gam, W)
                 if add.size == 0:
-                    if np.any(self._violated(th, gam)[W]):  # working_set_holds()
+                    if not self._holds(W, z, th, gam):  # working_set_holds()
                         ok, th, z = self._refine_dual(W, z, th0, K, gam, th)
                         if not ok:
                             return False, None, 0, its
                     lam[:] = 0
                     lam[W] = z
                     return True, th, W.size, its
-            if add.size > n - W.size:
+            if add.size > self.wcap - W.size:
                 return False, None, 0, its
+            self.slack_on[add] = False  # joining rows start tight
             W = np.union1d(W, add).astype(W.dtype)
         return False, None, 0, its
 
     def _refine_dual(self, W, z, th0, K, gam, th):
         """Mirror of refine_dual(): (ok, th, z) after up to two refinement rounds."""
         nw = W.size
-        chol = np.concatenate([self.H[W[i], W[:i + 1]] for i in range(nw)])
-        cholesky_packed(chol, nw)  # the factor dual_solve() left in ws->chol
+        chol = self._factor(W)[1]  # the factor dual_solve() left in ws->chol
         for _ in range(2):
             e = self._excess(th, gam)[0][W]
+            if self.soft:
+                e = e - self._slack_in_set(W, z)
             chol_solve_packed(chol, nw, e)
             z = z + e
-            if np.any(z < 0):
+            if np.any(z < 0) or (self.soft and self._switch_states(W, z)):
                 return False, th, z
             th = self._correct(th0, W, z)
             viol = self._violated(th, gam)
-            if not np.any(viol[W]):
+            if self._holds(W, z, th, gam):
+                viol[W] = False  # violated_outside(): the rows outside W
                 return (not np.any(viol)), th, z
         return False, th, z
 
@@ -464,6 +521,7 @@ class SolverRef:
         dt = self.md.Kx.dtype
         hpp = self.Hdiag[p]
         lp = self.zero
+        wp, l1p, p_on = self.soft_w[p], self.soft_l1[p], False
         while True:
             st["steps"] += 1
             if st["steps"] > self.active_set_max:
@@ -477,13 +535,23 @@ class SolverRef:
             zeta = seqsum(-(y * y), start=hpp)
             d = y.copy()
             chol_ltsolve_packed(L, nw, d)
-            k, tblock = -1, self.zero
-            for i in range(nw):
-                if d[i] > 0:
-                    ratio = z[i] / d[i]
-                    if k < 0 or ratio < tblock:
-                        k, tblock = i, ratio
-            dependent = nw == self.md.n or not zeta > self.dep_tol * hpp
+            k, tblock, event = -1, self.zero, 0
+            if self.soft:
+                k, tblock, event = self._first_event(W, z, d)
+                if p_on:
+                    zeta = zeta + wp
+                    viol = viol - (lp - l1p) * wp
+                elif wp > 0:
+                    tp = l1p - lp if l1p > lp else self.zero
+                    if k < 0 or tp < tblock:
+                        k, tblock, event = nw, tp, 2
+            else:
+                for i in range(nw):
+                    if d[i] > 0:
+                        ratio = z[i] / d[i]
+                        if k < 0 or ratio < tblock:
+                            k, tblock = i, ratio
+            dependent = nw == self.wcap or not zeta > self.dep_tol * hpp
             if dependent and k < 0:
                 return 1
             t = tblock if dependent else viol / zeta
@@ -501,25 +569,53 @@ class SolverRef:
                 st["W"] = W + [p]
                 st["z"] = np.concatenate((z, np.array([lp], dt)))
                 st["in_set"][p] = True
+                self.slack_on[p] = p_on
                 return 0
+            if event == 2:
+                p_on = True
+                st["z"] = z
+                continue
+            if event == 1:  # row k's diagonal gains or loses w: refactor from it
+                self.slack_on[W[k]] = not self.slack_on[W[k]]
+                st["z"] = z
+                if not self._factor(W, start=k, chol=L)[0]:
+                    return -1
+                continue
             st["in_set"][W[k]] = False
+            self.slack_on[W[k]] = False
             W = W[:k] + W[k + 1:]
             z = np.delete(z, k)
-            for i in range(k, nw - 1):
-                tri = i * (i + 1) // 2
-                L[tri:tri + i + 1] = self.H[W[i], W[:i + 1]]
             st["W"], st["z"] = W, z
-            if not cholesky_packed(L, nw - 1, start=k):
+            if not self._factor(W, start=k, chol=L)[0]:
                 return -1
+
+    def _first_event(self, W, z, d):
+        """The soft add_to_set()'s scan: (k, tblock, event) of the first multiplier to reach
+        0 (event 0) or to cross l1 (event 1), ratios clamped at 0; k = -1 if none."""
+        k, tblock, event = -1, self.zero, 0
+        for i, r in enumerate(W):
+            ev, ratio = 0, None
+            if d[i] > 0:
+                ev = int(self.slack_on[r])
+                ratio = (z[i] - self.soft_l1[r] if ev else z[i]) / d[i]
+            elif d[i] < 0 and self.soft_w[r] > 0 and not self.slack_on[r]:
+                ev = 1
+                ratio = (self.soft_l1[r] - z[i]) / -d[i]
+            if ratio is not None:
+                ratio = ratio if ratio > 0 else self.zero
+                if k < 0 or ratio < tblock:
+                    k, tblock, event = i, ratio, ev
+        return k, tblock, event
 
     def _dual_active_set(self, lam, th0, K, gam):
         """Mirror of dual_active_set(): (code 0/1/-1, th, active, steps + polish its)."""
         md = self.md
         st = {"W": [], "z": np.zeros(0, md.Kx.dtype), "steps": 0, "K": K,
-              "L": np.zeros(md.n * (md.n + 1) // 2 + md.n + 1, md.Kx.dtype),
+              "L": np.zeros(self.wcap * (self.wcap + 1) // 2 + self.wcap + 1, md.Kx.dtype),
               "in_set": np.zeros(md.m, bool)}
         th = th0.copy()
         code = 0
+        self.slack_on[:] = False
         while True:
             p = self._most_violated(th, gam, st["in_set"])
             if p < 0:
@@ -568,6 +664,8 @@ class SolverRef:
             shifted = np.flatnonzero(lam[md.row_next] > 0)
             seeds = ([(shifted, True)] if self.warm else []) + [(np.flatnonzero(K < 0), False)]
             for W, guess in seeds:
+                # seed_shifted()/seed_from_violated(): slack where the shifted lam > l1
+                self._set_states(W, lam[md.row_next[W]] if guess else np.zeros(W.size, lam.dtype))
                 ok, th_p, act, its = self._polish(W, lam, th0, K, gam, guess)
                 polish_its += its
                 if ok:
@@ -604,13 +702,20 @@ class SolverRef:
                 break
             th = self._correct(th0, S, lam[S])
             if self.polish_on:
+                self._set_states(S[lam[S] > 0], lam[S[lam[S] > 0]])  # seed_from_multipliers()
                 ok, th_p, act, its = self._polish(S[lam[S] > 0], lam, th0, K, gam)
                 polish_its += its
                 if ok:
                     th, active, status = th_p, act, OPTIMAL
                     break
             viol = self._violated(th, gam)
-            nviol = int(np.count_nonzero(viol))
+            if self.soft:  # violated_beyond_slack(): beyond max(0, (lam - l1) w)
+                exc, scale = self._excess(th, gam)
+                sl = np.where((self.soft_w > 0) & (lam > self.soft_l1),
+                              (lam - self.soft_l1) * self.soft_w, self.zero)
+                nviol = int(np.count_nonzero(exc - sl > self.tol * scale))
+            else:
+                nviol = int(np.count_nonzero(viol))
             added = 0
             if self.reduced and nviol:
                 new = viol & ~in_set
@@ -643,4 +748,9 @@ class SolverRef:
         U = np.where(src < lo, lo, np.where(src > hi, hi, src))
         if status != OPTIMAL:
             self.lam[:] = 0
+        if self.soft:  # the plan's slacks (finish()): 0 unless optimal
+            on = (self.soft_w > 0) & (self.lam > self.soft_l1)
+            sl = (self.lam - self.soft_l1) * self.soft_w
+            self.slack_max = max(self.zero, sl[on].max(initial=self.zero))
+            self.slack_rows = int(np.count_nonzero(on))
         return status, U

@@ -125,9 +125,11 @@ def sampled_qps_against_independent_solvers(built: Built, states: list, referenc
             assert st_c == st_r == OPTIMAL and U_c.tobytes() == U_r.tobytes()
             saturated += bool(np.any(np.abs(U_c) == bound))
             data = qp_data(qp, x, r)
-            U_d, _, flag, _ = daqp.solve(qp.E, data.f.astype(float), qp.L,
-                                         data.b.astype(float), np.full(qp.m, -1e30),
-                                         np.zeros(qp.m, dtype=np.intc))
+            m = data.b.size  # with soft rows: the QP with explicit slacks, U first
+            U_d, _, flag, _ = daqp.solve(data.E, data.f.astype(float), data.L,
+                                         data.b.astype(float), np.full(m, -1e30),
+                                         np.zeros(m, dtype=np.intc))
+            U_d = U_d[:qp.n]
             exact = solve_exact(data)
             assert flag == 1 and exact.status == "optimal"
             worst_daqp = max(worst_daqp, float(np.abs(U_c - U_d).max()))

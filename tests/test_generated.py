@@ -23,7 +23,9 @@ CASES = [("uav_roll", "double", "uav_roll"), ("uav_roll", "float", "uav_roll_f32
          ("thermal_zones_rate", "double", "thermal_zones_rate"),
          ("thermal_zones_rate", "float", "thermal_zones_rate_f32"),
          ("uav_roll_blocked", "double", "uav_roll_blocked"),
-         ("uav_roll_blocked", "float", "uav_roll_blocked_f32")]
+         ("uav_roll_blocked", "float", "uav_roll_blocked_f32"),
+         ("chain_soft", "double", "chain_soft"),
+         ("chain_soft", "float", "chain_soft_f32")]
 
 
 @pytest.mark.parametrize("example,precision,committed", CASES)

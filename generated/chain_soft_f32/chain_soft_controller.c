@@ -1,0 +1,200 @@
+/**
+ * @file chain_soft_controller.c
+ * @brief Switched controller: hysteresis scheduler (eq. 3), one observer per mode,
+ *        QP solve of the active mode, first-move extraction.
+ *
+ * All observers run every sample in the paper's predictor form
+ * xhat+ = A xhat + B u_j + L (y - C xhat), each driven by the physical commands of its
+ * own actuators (0 for an inactive pair) and the shared measurement. The inactive
+ * observers therefore stay locked to y and a switch is bumpless.
+ */
+#include <math.h>
+#include "chain_soft_internal.h"
+
+#define R_ CHAIN_SOFT_R
+
+
+static int all_finite(const chain_soft_real *v, int n)
+{
+    int i;
+    for (i = 0; i < n; ++i) {
+        if (!isfinite(v[i])) {
+            return 0;
+        }
+    }
+    return 1;
+}
+
+/* One observer update; use_y = 0 propagates open loop (no valid measurement). */
+static void observe(chain_soft_work *ws, const chain_soft_mode_data *md, chain_soft_real *x,
+    const chain_soft_real *y, const chain_soft_real *u_phys, int use_y)
+{
+    int i, l, a;
+    for (a = 0; a < md->ny; ++a) {
+        chain_soft_real acc = R_(0.0);
+        for (l = 0; l < md->nx; ++l) {
+            acc += md->C[a * md->nx + l] * x[l];
+        }
+        ws->innov[a] = use_y ? y[a] - acc : R_(0.0);
+    }
+    for (i = 0; i < md->nx; ++i) {
+        chain_soft_real acc = R_(0.0);
+        for (l = 0; l < md->nx; ++l) {
+            acc += md->A[i * md->nx + l] * x[l];
+        }
+        for (l = 0; l < md->nu; ++l) {
+            acc += md->B[i * md->nu + l] * u_phys[md->actuator[l]];
+        }
+        if (use_y) {
+            for (a = 0; a < md->ny; ++a) {
+                acc += md->L[i * md->ny + a] * ws->innov[a];
+            }
+        }
+        ws->xn[i] = acc;
+    }
+    for (i = 0; i < md->nx; ++i) {
+        x[i] = ws->xn[i];
+    }
+}
+
+size_t chain_soft_ctrl_size(void)
+{
+    return sizeof(chain_soft_ctrl);
+}
+
+void chain_soft_init(chain_soft_ctrl *c)
+{
+    int j, i;
+    if (c == 0) {
+        return;
+    }
+    c->mode = 0;
+    for (j = 0; j < CHAIN_SOFT_N_MODES; ++j) {
+        for (i = 0; i < CHAIN_SOFT_NX_MAX; ++i) {
+            c->xhat[j][i] = R_(0.0);
+        }
+        for (i = 0; i < CHAIN_SOFT_M_MAX; ++i) {
+            c->lam[j][i] = R_(0.0);
+        }
+    }
+    for (i = 0; i < CHAIN_SOFT_N_ACTUATORS; ++i) {
+        c->u_last[i] = R_(0.0);
+    }
+    for (i = 0; i < CHAIN_SOFT_N_MAX; ++i) {
+        c->U[i] = R_(0.0);
+    }
+    c->info.status = CHAIN_SOFT_OPTIMAL;
+    c->info.mode = c->mode;
+    c->info.iterations = 0;
+    c->info.polish_iterations = 0;
+    c->info.active = 0;
+    c->info.mode_switches = 0;
+    c->info.solve_ticks = 0u;
+    c->info.slack_max = R_(0.0);
+    c->info.slack_rows = 0;
+}
+
+static int solve_mode(chain_soft_ctrl *c, int mode, const chain_soft_real *x,
+    const chain_soft_real *r, chain_soft_real *U)
+{
+    const uint32_t t0 = CHAIN_SOFT_TIMESTAMP();
+    const int status = chain_soft_qp_solve(&c->work, c->lam[mode], &chain_soft_modes[mode], x, r, U,
+        &c->info.iterations, &c->info.polish_iterations, &c->info.active);
+    c->info.solve_ticks = (uint32_t)(CHAIN_SOFT_TIMESTAMP() - t0);
+    c->info.status = status;
+    c->info.mode = mode;
+    c->info.slack_max = c->work.slack_max;
+    c->info.slack_rows = c->work.slack_rows;
+    return status;
+}
+
+int chain_soft_step(chain_soft_ctrl *c, const chain_soft_real *y, const chain_soft_real *sched,
+    const chain_soft_real *r, chain_soft_real *u)
+{
+    int j, i, status, inputs_ok;
+    const chain_soft_mode_data *md;
+    if (c == 0 || u == 0) {
+        return CHAIN_SOFT_BAD_ARGUMENT;
+    }
+    inputs_ok = y != 0 && r != 0 && (CHAIN_SOFT_N_SCHEDULE == 0 || sched != 0);
+    if (!inputs_ok) {
+        for (i = 0; i < CHAIN_SOFT_N_ACTUATORS; ++i) {
+            u[i] = c->u_last[i];
+        }
+        c->info.status = CHAIN_SOFT_BAD_ARGUMENT;
+        return CHAIN_SOFT_BAD_ARGUMENT;
+    }
+    if (!all_finite(y, CHAIN_SOFT_N_OUTPUTS) || !all_finite(sched, CHAIN_SOFT_N_SCHEDULE)
+        || !all_finite(r, CHAIN_SOFT_HORIZON * CHAIN_SOFT_N_OUTPUTS)) {
+        for (i = 0; i < CHAIN_SOFT_N_ACTUATORS; ++i) {
+            u[i] = c->u_last[i];
+        }
+        for (j = 0; j < CHAIN_SOFT_N_MODES; ++j) {
+            observe(&c->work, &chain_soft_modes[j], c->xhat[j], y, u, 0);
+        }
+        c->info.status = CHAIN_SOFT_NONFINITE_INPUT;
+        c->info.iterations = 0;
+        return CHAIN_SOFT_NONFINITE_INPUT;
+    }
+    (void)sched;
+    md = &chain_soft_modes[c->mode];
+    status = solve_mode(c, c->mode, c->xhat[c->mode], r, c->U);
+    for (i = 0; i < CHAIN_SOFT_N_ACTUATORS; ++i) {
+        u[i] = R_(0.0);
+    }
+    for (i = 0; i < md->nu; ++i) {
+        u[md->actuator[i]] = c->U[i];
+    }
+    for (j = 0; j < CHAIN_SOFT_N_MODES; ++j) {
+        observe(&c->work, &chain_soft_modes[j], c->xhat[j], y, u, 1);
+    }
+    for (i = 0; i < CHAIN_SOFT_N_ACTUATORS; ++i) {
+        c->u_last[i] = u[i];
+    }
+    return status;
+}
+
+int chain_soft_solve_qp(chain_soft_ctrl *c, int mode, const chain_soft_real *x,
+    const chain_soft_real *r, chain_soft_real *U, int *iterations)
+{
+    int status, i;
+    if (c == 0 || U == 0 || mode < 0 || mode >= CHAIN_SOFT_N_MODES) {
+        return CHAIN_SOFT_BAD_ARGUMENT;
+    }
+    if (x == 0 || r == 0 || !all_finite(x, chain_soft_modes[mode].nx)
+        || !all_finite(r, CHAIN_SOFT_HORIZON * CHAIN_SOFT_N_OUTPUTS)) {
+        status = (x == 0 || r == 0) ? CHAIN_SOFT_BAD_ARGUMENT : CHAIN_SOFT_NONFINITE_INPUT;
+        for (i = 0; i < chain_soft_modes[mode].n; ++i) {
+            U[i] = R_(0.0);
+        }
+        c->info.status = status;
+        if (iterations != 0) {
+            *iterations = 0;
+        }
+        return status;
+    }
+    status = solve_mode(c, mode, x, r, U);
+    if (iterations != 0) {
+        *iterations = c->info.iterations;
+    }
+    return status;
+}
+
+const chain_soft_info *chain_soft_last_info(const chain_soft_ctrl *c)
+{
+    return &c->info;
+}
+
+const char *chain_soft_status_message(int status)
+{
+    switch (status) {
+    case CHAIN_SOFT_OPTIMAL: return "optimal";
+    case CHAIN_SOFT_MAX_ITER: return "iteration cap reached";
+    case CHAIN_SOFT_INACCURATE: return "converged by delta but constraints violated";
+    case CHAIN_SOFT_INFEASIBLE: return "infeasible: dual multipliers diverged";
+    case CHAIN_SOFT_NONFINITE_INPUT: return "non-finite input; last command held";
+    case CHAIN_SOFT_NUMERICAL: return "non-finite intermediate result; safe fallback";
+    case CHAIN_SOFT_BAD_ARGUMENT: return "bad argument";
+    default: return "unknown status";
+    }
+}

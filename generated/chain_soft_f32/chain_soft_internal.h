@@ -1,0 +1,57 @@
+/**
+ * @file chain_soft_internal.h
+ * @brief Internal declarations shared by the generated sources (not part of the API).
+ */
+#ifndef CHAIN_SOFT_INTERNAL_H
+#define CHAIN_SOFT_INTERNAL_H
+
+#include "chain_soft.h"
+
+/** Static data of one mode (all arrays row-major; "_p" = packed lower triangle). */
+typedef struct {
+    int nx, nu, ny, n, m, nyq, nt;
+    const int16_t *actuator;        /**< [nu] physical actuator of each mode input. */
+    const chain_soft_real *A, *B, *C, *L; /**< Discrete model and observer gain. */
+    const chain_soft_real *Kx;      /**< [n][nx] unconstrained state gain. */
+    const chain_soft_real *EinvGt;  /**< [n][nyq] E^-1 Gamma'. */
+    const chain_soft_real *Sinv_p;  /**< S^-1, packed. */
+    const chain_soft_real *Ew;      /**< [nt][n]: E^-1 = S^-1 - Ew' Ew (Woodbury). */
+    const chain_soft_real *Uv;      /**< [nt][n] V S^-1. */
+    const chain_soft_real *T;       /**< [nt][nt] (2P)^-1 + V S^-1 V'. */
+    const chain_soft_real *S_p;     /**< Stage Hessian S (E = S + V'(2P)V), packed. */
+    const chain_soft_real *V;       /**< [nt][n] terminal rows of Gamma (nt = 0: none). */
+    const chain_soft_real *P2inv;   /**< [nt][nt] (2P)^-1. */
+    const chain_soft_real *GEinvGt_p; /**< Gamma E^-1 Gamma', packed (output rows only). */
+    const chain_soft_real *Omega2;  /**< [N][ny][ny] 2Q per stage, 2P last. */
+    const chain_soft_real *Phi;     /**< [nyq][nx]. */
+    const chain_soft_real *markov;  /**< [N][ny][nu] C A^i B. */
+    const int16_t *row_q;             /**< [m] quantity of each row (U index, or n + Y index). */
+    const int8_t *row_sign;           /**< [m] -1 lower / +1 upper bound row. */
+    const chain_soft_real *row_c;   /**< [m] constant right-hand side c. */
+    const int16_t *row_next;          /**< [m] same constraint one stage later (shifted warm start). */
+    const chain_soft_real *colsum;  /**< [ny][n] sum of the E^-1 Gamma' columns of stages 0..N-2. */
+    const chain_soft_real *out_bound; /**< [nyq] |(Gamma th)_k| <= out_bound[k] max|th|. */
+    const chain_soft_real *u_min, *u_max; /**< [nu] input bounds. */
+    const chain_soft_real *soft_l1; /**< [2 ny] soft bound penalty l1 (index 2 j + side, side 1 = y_max). */
+    const chain_soft_real *soft_w;  /**< [2 ny] 1/(2 l2) of a soft bound, 0 for a hard one. */
+    int w_cap;                        /**< Working-set capacity: n + soft (output, stage) pairs. */
+} chain_soft_mode_data;
+
+extern const chain_soft_mode_data chain_soft_modes[CHAIN_SOFT_N_MODES];
+
+/** Packed lower-triangle index of (i, j), j <= i. */
+#define CHAIN_SOFT_TRI(i, j) ((i) * ((i) + 1) / 2 + (j))
+
+/* Linear algebra on packed symmetric matrices (chain_soft_linalg.c). */
+int chain_soft_cholesky(chain_soft_real *a, int n);
+int chain_soft_cholesky_from(chain_soft_real *a, int from, int n);
+void chain_soft_chol_lsolve(const chain_soft_real *l, int n, chain_soft_real *b);
+void chain_soft_chol_ltsolve(const chain_soft_real *l, int n, chain_soft_real *b);
+void chain_soft_chol_solve(const chain_soft_real *l, int n, chain_soft_real *b);
+
+/* QP solver (chain_soft_solver.c). */
+int chain_soft_qp_solve(chain_soft_work *ws, chain_soft_real *lam, const chain_soft_mode_data *md,
+    const chain_soft_real *x, const chain_soft_real *r, chain_soft_real *U, int *iterations,
+    int *polish_iterations, int *active);
+
+#endif /* CHAIN_SOFT_INTERNAL_H */
