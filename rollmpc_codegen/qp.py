@@ -131,14 +131,19 @@ class ModeData:
     def has_output_rows(self) -> bool:
         return bool(np.any((self.row_q >= self.n) & (self.row_q < self.n + self.n_yq)))
 
+    def soft_rows(self) -> tuple[np.ndarray, np.ndarray]:
+        """(l1, w) of every row, as the C's soft_of() reads them (0 for hard rows)."""
+        l1, w = np.zeros(self.m, self.Kx.dtype), np.zeros(self.m, self.Kx.dtype)
+        if self.soft_w is not None:
+            out = (self.row_q >= self.n) & (self.row_q < self.n + self.n_yq)
+            idx = 2 * ((self.row_q[out] - self.n) % self.ny) + (self.row_sign[out] > 0)
+            l1[out], w[out] = self.soft_l1[idx], self.soft_w[idx]
+        return l1, w
+
     @property
     def has_soft_rows(self) -> bool:
         """Some output row is soft (soft_constraints)."""
-        if self.soft_w is None:
-            return False
-        out = (self.row_q >= self.n) & (self.row_q < self.n + self.n_yq)
-        idx = 2 * ((self.row_q[out] - self.n) % self.ny) + (self.row_sign[out] > 0)
-        return bool(np.any(self.soft_w[idx] > 0))
+        return bool(np.any(self.soft_rows()[1] > 0))
 
     @property
     def has_rate_rows(self) -> bool:

@@ -61,10 +61,11 @@ def working_set_cap(n: int, row_kind, row_index, row_l2) -> int:
     return n + int(np.unique(np.asarray(row_index)[soft]).size)
 
 
-def slacks(lam: np.ndarray, row_l1: np.ndarray, row_l2: np.ndarray) -> np.ndarray:
-    """s_r = max(0, (lam_r - l1_r) / (2 l2_r)) of every row (0 for hard rows), in double."""
-    w = np.divide(1.0, 2.0 * row_l2, out=np.zeros_like(row_l2), where=row_l2 > 0.0)
-    return np.maximum(0.0, (np.asarray(lam, dtype=float) - row_l1) * w)
+def slacks(lam: np.ndarray, row_l1: np.ndarray, row_w: np.ndarray) -> np.ndarray:
+    """s_r = (lam_r - l1_r) w_r where w_r > 0 and lam_r > l1_r, else 0 (w = 1/(2 l2), 0 for
+    hard rows), in the arrays' dtype: the C's multiplier_slack() for every row."""
+    on = (row_w > 0) & (lam > row_l1)
+    return np.where(on, (lam - row_l1) * row_w, np.zeros_like(row_w))
 
 
 def explicit_qp(qp):

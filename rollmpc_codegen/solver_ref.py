@@ -16,6 +16,7 @@ from __future__ import annotations
 import numpy as np
 
 from .qp import ModeData, unpack_lower
+from .soft_constraints import slacks
 
 # Status codes of the generated C (api.h.j2).
 OPTIMAL, MAX_ITER, INACCURATE, INFEASIBLE, NONFINITE_INPUT, NUMERICAL, BAD_ARGUMENT = range(7)
@@ -172,13 +173,8 @@ class SolverRef:
         self.row_c, self.u_min, self.u_max = md.row_c, md.u_min, md.u_max
         # soft output rows (soft_of() per row): w = 1/(2 l2) (0: hard) and l1; the slack
         # states of the working-set rows (ws->slack_on); the working-set capacity
-        self.soft = md.has_soft_rows
-        self.soft_w = np.zeros(md.m, md.Kx.dtype)
-        self.soft_l1 = np.zeros(md.m, md.Kx.dtype)
-        if self.soft:
-            out = self._is_output()
-            b = 2 * ((q[out] - n) % md.ny) + (sg[out] > 0)
-            self.soft_w[out], self.soft_l1[out] = md.soft_w[b], md.soft_l1[b]
+        self.soft_l1, self.soft_w = md.soft_rows()
+        self.soft = bool(np.any(self.soft_w > 0))
         self.slack_on = np.zeros(md.m, bool)
         self.wcap = md.w_cap if self.soft else n
         self.slack_max, self.slack_rows = self.zero, 0
@@ -427,9 +423,9 @@ class SolverRef:
         """Mirror of set_state() for rows joining with these multipliers."""
         self.slack_on[W] = (self.soft_w[W] > 0) & (lam_of_W > self.soft_l1[W])
 
-    def _holds(self, W, z, th, gam):
-        """Mirror of working_set_holds() (violated_in_set() with soft rows)."""
-        viol, scale = self._excess(th, gam)
+    def _holds(self, W, z, viol, scale):
+        """Mirror of working_set_holds() (violated_in_set() with soft rows), from the
+        rows' excess and tolerance scale at th (_excess())."""
         if self.soft:
             return not np.any(viol[W] - self._slack_in_set(W, z) > self.tol * scale[W])
         return not np.any((viol > self.tol * scale)[W])
@@ -474,7 +470,7 @@ class SolverRef:
                 th = self._correct(th0, W, z)
                 add = self._violated_outside(th, gam, W)
                 if add.size == 0:
-                    if not self._holds(W, z, th, gam):  # working_set_holds()
+                    if not self._holds(W, z, *self._excess(th, gam)):  # working_set_holds()
                         ok, th, z = self._refine_dual(W, z, th0, K, gam, th)
                         if not ok:
                             return False, None, 0, its
@@ -500,8 +496,9 @@ class SolverRef:
             if np.any(z < 0) or (self.soft and self._switch_states(W, z)):
                 return False, th, z
             th = self._correct(th0, W, z)
-            viol = self._violated(th, gam)
-            if self._holds(W, z, th, gam):
+            exc, scale = self._excess(th, gam)
+            if self._holds(W, z, exc, scale):
+                viol = exc > self.tol * scale
                 viol[W] = False  # violated_outside(): the rows outside W
                 return (not np.any(viol)), th, z
         return False, th, z
@@ -702,17 +699,17 @@ class SolverRef:
                 break
             th = self._correct(th0, S, lam[S])
             if self.polish_on:
-                self._set_states(S[lam[S] > 0], lam[S[lam[S] > 0]])  # seed_from_multipliers()
-                ok, th_p, act, its = self._polish(S[lam[S] > 0], lam, th0, K, gam)
+                seed = S[lam[S] > 0]
+                self._set_states(seed, lam[seed])  # seed_from_multipliers()
+                ok, th_p, act, its = self._polish(seed, lam, th0, K, gam)
                 polish_its += its
                 if ok:
                     th, active, status = th_p, act, OPTIMAL
                     break
-            viol = self._violated(th, gam)
-            if self.soft:  # violated_beyond_slack(): beyond max(0, (lam - l1) w)
-                exc, scale = self._excess(th, gam)
-                sl = np.where((self.soft_w > 0) & (lam > self.soft_l1),
-                              (lam - self.soft_l1) * self.soft_w, self.zero)
+            exc, scale = self._excess(th, gam)
+            viol = exc > self.tol * scale
+            if self.soft:  # violated_beyond_slack(): beyond the slack of the multiplier
+                sl = slacks(lam, self.soft_l1, self.soft_w)
                 nviol = int(np.count_nonzero(exc - sl > self.tol * scale))
             else:
                 nviol = int(np.count_nonzero(viol))
@@ -749,8 +746,7 @@ class SolverRef:
         if status != OPTIMAL:
             self.lam[:] = 0
         if self.soft:  # the plan's slacks (finish()): 0 unless optimal
-            on = (self.soft_w > 0) & (self.lam > self.soft_l1)
-            sl = (self.lam - self.soft_l1) * self.soft_w
-            self.slack_max = max(self.zero, sl[on].max(initial=self.zero))
-            self.slack_rows = int(np.count_nonzero(on))
+            sl = slacks(self.lam, self.soft_l1, self.soft_w)
+            self.slack_max = sl.max(initial=self.zero)
+            self.slack_rows = int(np.count_nonzero(sl > 0))
         return status, U

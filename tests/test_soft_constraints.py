@@ -80,8 +80,8 @@ def test_default_builds_carry_no_soft_code():
 def test_slack_formula():
     lam = np.array([0.0, 500.0, 1500.0, 3000.0])
     l1 = np.full(4, 1000.0)
-    assert np.array_equal(slacks(lam, l1, np.array([1000.0, 1000.0, 1000.0, 0.0])),
-                          [0.0, 0.0, 0.25, 0.0])
+    w = np.array([5e-4, 5e-4, 5e-4, 0.0])  # 1 / (2 l2), l2 = 1000; the last row hard
+    assert np.array_equal(slacks(lam, l1, w), [0.0, 0.0, 0.25, 0.0])
 
 
 # --------------------------------------------------------------------------- closed loop

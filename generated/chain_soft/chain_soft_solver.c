@@ -414,8 +414,16 @@ static int violated_in_set(const chain_soft_work *ws, const chain_soft_mode_data
         > CHAIN_SOFT_SOLVER_FEAS_TOL * tol_scale(ws, r);
 }
 
+/* Slack of row r at multiplier lam: (lam - l1) w when soft and lam > l1, else 0. */
+static chain_soft_real multiplier_slack(const chain_soft_mode_data *md, int r, chain_soft_real lam)
+{
+    chain_soft_real l1;
+    const chain_soft_real w = soft_of(md, r, &l1);
+    return (w > R_(0.0) && lam > l1) ? (lam - l1) * w : R_(0.0);
+}
+
 /*
- * Rows violated at ws->th beyond their slack max(0, (lam_r - l1) w) under the sweep
+ * Rows violated at ws->th beyond their slack multiplier_slack() under the sweep
  * multipliers lam (by row), for the sweeps' convergence test.
  */
 static int violated_beyond_slack(chain_soft_work *ws, const chain_soft_mode_data *md,
@@ -425,9 +433,7 @@ static int violated_beyond_slack(chain_soft_work *ws, const chain_soft_mode_data
     int r, count = 0;
     for (r = 0; r < md->m; ++r) {
         if (outputs || md->row_q[r] < md->n) {
-            chain_soft_real l1;
-            const chain_soft_real w = soft_of(md, r, &l1);
-            const chain_soft_real sl = (w > R_(0.0) && lam[r] > l1) ? (lam[r] - l1) * w : R_(0.0);
+            const chain_soft_real sl = multiplier_slack(md, r, lam[r]);
             count += (row_excess(ws, md, ws->th, r) - sl > CHAIN_SOFT_SOLVER_FEAS_TOL * tol_scale(ws, r));
         }
     }
@@ -1271,10 +1277,8 @@ static int finish(chain_soft_work *ws, const chain_soft_mode_data *md, chain_sof
     ws->slack_max = R_(0.0); /* the slacks of the plan: 0 unless optimal (lam is 0 then) */
     ws->slack_rows = 0;
     for (i = 0; i < md->m; ++i) {
-        chain_soft_real l1;
-        const chain_soft_real w = soft_of(md, i, &l1);
-        if (w > R_(0.0) && lam[i] > l1) {
-            const chain_soft_real sl = (lam[i] - l1) * w;
+        const chain_soft_real sl = multiplier_slack(md, i, lam[i]);
+        if (sl > R_(0.0)) {
             ws->slack_max = (sl > ws->slack_max) ? sl : ws->slack_max;
             ++ws->slack_rows;
         }
