@@ -164,22 +164,3 @@ def infeasibility_margin(data: QPData) -> float:
     if res.status != 0:
         raise RuntimeError(f"phase-1 LP failed: {res.message}")
     return float(res.x[-1])
-
-
-def float_data_floor(qp, x: np.ndarray, r: np.ndarray) -> float:
-    """max|U*_f - U*| / max(1, |U*|), U*_f the exact solution of the same QP with its data
-    (E, f, M, b) rounded to float: the error that storing the problem in float alone
-    causes, whatever the solver (docs/reliability.md, "Float").  NaN when either is not
-    optimal."""
-    d = qp_data(qp, x, r)
-
-    def f32(a):
-        return np.asarray(a, np.float64).astype(np.float32).astype(np.float64)
-
-    exact = solve_exact(d)
-    rounded = solve_exact(QPData(E=f32(d.E), f=f32(d.f).astype(LD), L=f32(d.L),
-                                 b=f32(d.b).astype(LD), box=d.box))
-    if exact.status != "optimal" or rounded.status != "optimal":
-        return float("nan")
-    return float(np.abs(rounded.U - exact.U).max() / max(1.0, np.abs(exact.U).max()))
-

@@ -6,7 +6,8 @@ builds each once per precision, and pushes many QPs (states and previews) of it 
 (:mod:`rollmpc_codegen.exact_qp`).
 
 * Feasible campaign: status must be OPTIMAL and the error
-  ``max|U_c - U*| / max(1, max|U*|)`` within :func:`error_bound`.  QPs come in pairs: a
+  ``max|U_c - U*| / max(1, max|U*|)`` within :func:`error_bound`.  A failing float QP
+  also gets its stored-data floor (:mod:`rollmpc_codegen.float_floor`).  QPs come in pairs: a
   cold solve (fresh ``P_init``) and a warm one, the next sample (state moved, preview
   shifted), solved right after it as in closed loop.
 * Infeasible campaign: output bounds no input sequence in the box can meet (by a phase-1
@@ -27,6 +28,7 @@ import numpy as np
 
 from .build import build_host_controller
 from .exact_qp import infeasibility_margin, qp_data, solve_exact
+from .float_floor import FLOOR_CLASSES, floor_class, stored_data_floor
 from .generate import load_model
 from .random_configs import COND_DECADES, RandomConfig, draw_instance, random_config
 from .solver_ref import OPTIMAL, STATUS_NAMES
@@ -78,6 +80,10 @@ class QPRecord(SolvedQP):
     error: float = float("nan")  # relative to max(1, |U*|); nan when not optimal
     n_active: int = 0
     n_independent: int = 0
+    # failing float QPs only (float_floor): status and error of the double solver on the
+    # float build's stored numbers; -1 / nan when not measured
+    floor_status: int = -1
+    floor: float = float("nan")
     x: list = field(default_factory=list)
     r: list = field(default_factory=list)
 
@@ -95,6 +101,7 @@ class Controller:
     path: Path
     models: dict  # precision -> ControllerModel
     c: dict  # precision -> HostController
+    solver_ctx: dict  # precision -> the context's "solver" settings
 
     @property
     def qp(self):
@@ -109,12 +116,12 @@ def build_controller(rc: RandomConfig, root: Path, precisions=PRECISIONS,
         rc.data["solver"] = {**rc.data.get("solver", {}), "max_iterations": max_iterations}
     path = cfg_dir / f"{rc.data['prefix']}_seed{rc.seed}.yaml"
     path.write_text(rc.yaml())
-    models, cs = {}, {}
+    models, cs, solver_ctx = {}, {}, {}
     for prec in precisions:
         model, ctx = load_model(path, prec)
-        models[prec] = model
+        models[prec], solver_ctx[prec] = model, ctx["solver"]
         cs[prec] = build_host_controller(ctx, Path(root))
-    return Controller(rc=rc, path=path, models=models, c=cs)
+    return Controller(rc=rc, path=path, models=models, c=cs, solver_ctx=solver_ctx)
 
 
 def snapshot_state(c) -> bytes:
@@ -203,10 +210,19 @@ def feasible_campaign(n_configs: int, qps_per_config: int, root: Path, seed0: in
                         in_limits=_in_limits(U, ctrl.models[prec]),
                         x=_as(prec, xx).astype(float).tolist(),
                         r=_as(prec, rr).astype(float).tolist()))
+                    _measure_floor(ctrl, records[-1], sol)
                 got += 1
         if progress is not None:
             progress(i)
     return records
+
+
+def _measure_floor(ctrl: Controller, rec: QPRecord, sol) -> None:
+    """For a failing float QP, the stored-data floor (float_floor), when double is built."""
+    if rec.ok or rec.precision != "float" or "double" not in ctrl.solver_ctx:
+        return
+    rec.floor_status, rec.floor = stored_data_floor(
+        ctrl.models["float"].modes[0].data, ctrl.solver_ctx["double"], rec.x, rec.r, sol.U)
 
 
 def summarise_feasible(records: list[QPRecord]) -> dict:
@@ -240,6 +256,11 @@ def summarise_feasible(records: list[QPRecord]) -> dict:
             "dependent_active_sets": sum(r.n_active > r.n_independent for r in rows),
             "max_active": max(r.n_active for r in rows),
         }
+        if prec == "float":
+            failed = [r for r in rows if not r.ok and r.floor_status >= 0]
+            out["totals"][prec]["failures_by_stored_data_floor"] = {
+                c: sum(floor_class(r.floor_status, r.floor) == c for r in failed)
+                for c in FLOOR_CLASSES}
     out["kinds"] = {k: len({r.config for r in records if r.kind == k})
                     for k in sorted({r.kind for r in records})}
     out["max_n"] = max(r.n for r in records)

@@ -5,7 +5,8 @@
 (``make reliability``.)  Sections:
 
 * ``qp``: 10,000 random feasible QPs (80 controllers x 125), errors per cond(E) band in
-  double and float (:mod:`rollmpc_codegen.qp_campaign`);
+  double and float (:mod:`rollmpc_codegen.qp_campaign`); each failing float QP is
+  classed by its stored-data floor (:mod:`rollmpc_codegen.float_floor`);
 * ``infeasible``: 1,000 infeasible QPs (50 controllers x 20) and their recovery;
 * ``memory``: the paper's test-vector program and a 100,000-step random closed loop
   under ASan+UBSan, and the test-vector program under valgrind, both precisions;
@@ -145,6 +146,7 @@ def replay(failures: Path, first: int = 10) -> int:
 
     from .build import build_host_controller
     from .exact_qp import qp_data, solve_exact
+    from .float_floor import stored_data_floor
     from .generate import load_model
 
     failures = Path(failures)
@@ -166,6 +168,10 @@ def replay(failures: Path, first: int = 10) -> int:
             cost = [float(0.5 * u @ qp.E @ u + f @ u) for u in (U.astype(float), sol.U)]
             err = np.abs(U - sol.U).max() / max(1.0, np.abs(sol.U).max())
             line += f", error {err:.3g}, cost {cost[0]:.10g} vs optimal {cost[1]:.10g}"
+            if rec["precision"] == "float":
+                _, dctx = load_model(cfg, "double")
+                fst, floor = stored_data_floor(model.modes[0].data, dctx["solver"], x, r, sol.U)
+                line += f", stored-data floor {floor:.3g} (status {fst})"
         else:
             line += f", reference: {sol.status}"
         print(line)
