@@ -108,3 +108,19 @@ def test_host_c_test_program_passes(tmp_path):
         assert run.returncode == 0, run.stdout
         m = re.search(r"^(\d+) passed, (\d+) failed$", run.stdout, re.M)
         assert m and int(m.group(2)) == 0 and int(m.group(1)) >= 2200, run.stdout
+
+
+@pytest.mark.parametrize("precision", ["double", "float"])
+def test_single_precision_constant_flag(tmp_path_factory, precision):
+    """ArduPilot's -fsingle-precision-constant would round a double tree's literals (all
+    the stored matrices) to float: the double tree refuses to compile under it, naming the
+    reason; the float tree (every literal already float) compiles warning-free."""
+    out = tmp_path_factory.mktemp(f"spc_{precision}") / "uav_roll"
+    generate(UAV, out, precision)
+    proc = _compile("gcc", out, ["-O2", *STRICT, "-fsingle-precision-constant"],
+                    out.parent / "obj")
+    if precision == "float":
+        assert proc.returncode == 0 and proc.stderr == "", proc.stderr
+    else:
+        assert proc.returncode != 0
+        assert "double_tree_built_with_single_precision_constants" in proc.stderr

@@ -17,6 +17,15 @@ typedef double zones_real;
 #define ZONES_FABS(x) fabs(x)
 /** Largest dual multiplier before the QP is declared infeasible. */
 #define ZONES_LAMBDA_LIMIT 1.0e30
+/*
+ * Build guard: GCC's -fsingle-precision-constant (ArduPilot's flags) would silently round
+ * every unsuffixed literal of this double tree, all of the stored matrices, to float.
+ * 16777217.0 is not a float: under that flag it reads 16777216 and this array size turns
+ * negative, so the build stops here. Compile the double tree without that flag, or use
+ * the float tree (firmware_stub/README.md).
+ */
+typedef char zones_double_tree_built_with_single_precision_constants[
+    ((long)16777217.0 == 16777217L) ? 1 : -1];
 
 /* Problem sizes (maxima over the modes size the work arrays). */
 #define ZONES_HORIZON 20
