@@ -164,3 +164,10 @@ def infeasibility_margin(data: QPData) -> float:
     if res.status != 0:
         raise RuntimeError(f"phase-1 LP failed: {res.message}")
     return float(res.x[-1])
+
+
+def relative_error(U: np.ndarray, U_star: np.ndarray) -> float:
+    """The campaigns' error measure (issue 4): max|U - U*| / max(1, max|U*|), in double."""
+    U_star = np.asarray(U_star, np.float64)
+    return float(np.abs(np.asarray(U, np.float64) - U_star).max()
+                 / max(1.0, np.abs(U_star).max()))

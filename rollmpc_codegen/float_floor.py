@@ -23,6 +23,7 @@ import dataclasses
 
 import numpy as np
 
+from .exact_qp import relative_error
 from .qp import ModeData
 from .solver_ref import OPTIMAL, SolverRef
 
@@ -45,8 +46,7 @@ def stored_data_floor(md_float: ModeData, double_solver_ctx: dict, x, r,
         np.asarray(x, np.float64), np.asarray(r, np.float64))
     if status != OPTIMAL:
         return int(status), float("nan")
-    U_exact = np.asarray(U_exact, np.float64)
-    return int(status), float(np.abs(U - U_exact).max() / max(1.0, np.abs(U_exact).max()))
+    return int(status), relative_error(U, U_exact)
 
 
 def floor_class(status: int, floor: float) -> str:

@@ -27,7 +27,7 @@ from pathlib import Path
 import numpy as np
 
 from .build import build_host_controller
-from .exact_qp import infeasibility_margin, qp_data, solve_exact
+from .exact_qp import infeasibility_margin, qp_data, relative_error, solve_exact
 from .float_floor import FLOOR_CLASSES, floor_class, stored_data_floor
 from .generate import load_model
 from .random_configs import COND_DECADES, RandomConfig, draw_instance, random_config
@@ -162,7 +162,7 @@ def _solve_and_score(ctrl: Controller, prec: str, x, r, cold: bool, cache: dict)
     sol = _exact(ctrl, prec, x, r, cache)
     err = float("nan")
     if sol.status == "optimal" and status == OPTIMAL:
-        err = float(np.abs(U.astype(np.float64) - sol.U).max() / max(1.0, np.abs(sol.U).max()))
+        err = relative_error(U, sol.U)
     return status, U, its, sol, err
 
 

@@ -145,7 +145,7 @@ def replay(failures: Path, first: int = 10) -> int:
     import numpy as np
 
     from .build import build_host_controller
-    from .exact_qp import qp_data, solve_exact
+    from .exact_qp import qp_data, relative_error, solve_exact
     from .float_floor import stored_data_floor
     from .generate import load_model
 
@@ -166,7 +166,7 @@ def replay(failures: Path, first: int = 10) -> int:
         if sol.status == "optimal":
             f = data.f.astype(float)
             cost = [float(0.5 * u @ qp.E @ u + f @ u) for u in (U.astype(float), sol.U)]
-            err = np.abs(U - sol.U).max() / max(1.0, np.abs(sol.U).max())
+            err = relative_error(U, sol.U)
             line += f", error {err:.3g}, cost {cost[0]:.10g} vs optimal {cost[1]:.10g}"
             if rec["precision"] == "float":
                 _, dctx = load_model(cfg, "double")

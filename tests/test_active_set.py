@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 
 from conftest import Built, short_uav_config
-from rollmpc_codegen.exact_qp import qp_data, solve_exact
+from rollmpc_codegen.exact_qp import qp_data, relative_error, solve_exact
 from rollmpc_codegen.qp_campaign import error_bound
 from rollmpc_codegen.solver_ref import INFEASIBLE, OPTIMAL, SolverRef
 
@@ -55,7 +55,7 @@ def test_dual_active_set_matches_reference_and_exact_solution(gi_only):
         assert st == (OPTIMAL if sol.status == "optimal" else INFEASIBLE), (mode, sol.status)
         assert np.all(np.isfinite(U)) and np.all(U >= md.u_min[0]) and np.all(U <= md.u_max[0])
         if st == OPTIMAL:
-            err = np.abs(U.astype(float) - sol.U).max() / max(1.0, np.abs(sol.U).max())
+            err = relative_error(U, sol.U)
             cond = float(np.linalg.cond(qp.E))
             assert err <= error_bound(cond, ctx["precision"]), (mode, cond, err)
         statuses[st] += 1
