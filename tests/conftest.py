@@ -75,15 +75,40 @@ def uav_double(build_root) -> Built:
     return Built(UAV, "double", build_root)
 
 
-def variant_config(tmp_path: Path, name: str = "variant", **solver) -> Path:
-    """examples/uav_roll.yaml with solver settings overridden, written to tmp_path."""
+def edited_config(tmp_path: Path, base: Path, name: str, edit) -> Path:
+    """The config ``base`` with ``edit(data)`` applied, written to tmp_path/<name>.yaml."""
     import yaml
 
-    data = yaml.safe_load(UAV.read_text())
-    data["solver"] = {**data.get("solver", {}), **solver}
+    data = yaml.safe_load(Path(base).read_text())
+    edit(data)
     path = tmp_path / f"{name}.yaml"
     path.write_text(yaml.safe_dump(data, sort_keys=False))
     return path
+
+
+def edit_bounds(**bounds):
+    """An ``edited_config`` edit: update every mode's ``bounds`` with ``bounds``."""
+    def edit(data):
+        for m in data["modes"]:
+            m["bounds"].update(bounds)
+    return edit
+
+
+def config_error(path_or_data, loader=None):
+    """The ConfigError that ``loader`` (default: config.load) raises on ``path_or_data``;
+    the test fails if none is raised."""
+    from rollmpc_codegen.config import ConfigError, load
+
+    with pytest.raises(ConfigError) as exc:
+        (loader or load)(path_or_data)
+    return exc.value
+
+
+def variant_config(tmp_path: Path, name: str = "variant", **solver) -> Path:
+    """examples/uav_roll.yaml with solver settings overridden, written to tmp_path."""
+    def edit(data):
+        data["solver"] = {**data.get("solver", {}), **solver}
+    return edited_config(tmp_path, UAV, name, edit)
 
 
 def short_uav_config(tmp_path: Path, horizon: int = 20, name: str = "uav_short", **solver) -> Path:

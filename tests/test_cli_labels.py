@@ -7,10 +7,10 @@ import numpy as np
 import pytest
 import yaml
 
-from conftest import ROOT, UAV, cli
+from conftest import ROOT, UAV, cli, config_error
 from rollmpc_codegen import paper_figures, simulate_cli
 from rollmpc_codegen.build import BuildError
-from rollmpc_codegen.config import ConfigError, UnitsConfig, load
+from rollmpc_codegen.config import UnitsConfig, load
 from rollmpc_codegen.simulate import ClosedLoopLog
 from rollmpc_codegen.testvectors import saturated_samples
 
@@ -39,9 +39,8 @@ def test_units_errors_name_the_key(tmp_path, units, key):
     data["units"] = units
     path = tmp_path / "bad.yaml"
     path.write_text(yaml.safe_dump(data))
-    with pytest.raises(ConfigError) as exc:
-        load(path)
-    assert exc.value.key == key
+    err = config_error(path)
+    assert err.key == key
 
 
 def _log(cfg, K: int = 30) -> ClosedLoopLog:

@@ -22,11 +22,11 @@ import pytest
 import scipy.linalg
 import yaml
 
-from conftest import (ROOT, UAV, Built, sampled_qps_against_independent_solvers,
-                      simulate_and_bench)
+from conftest import (ROOT, UAV, Built, config_error, edited_config,
+                      sampled_qps_against_independent_solvers, simulate_and_bench)
 from rollmpc_codegen.build import build_host_controller
 from rollmpc_codegen.cli import main
-from rollmpc_codegen.config import ConfigError, load, parse
+from rollmpc_codegen.config import load, parse
 from rollmpc_codegen.context import build_model
 from rollmpc_codegen.generate import generate, load_model
 from rollmpc_codegen.observer import process_noise
@@ -44,14 +44,6 @@ SEGMENT, N_TANK = 80, 20  # samples per reference level, horizon
 # the last sample of each level before the preview sees the next step (steady state)
 STEADY = [SEGMENT * (i + 1) - N_TANK - 1 for i in range(4)]
 KALMAN = {"kind": "kalman", "Qn": 0.01, "Rn": 0.01}
-
-
-def _variant(tmp_path, base, name: str, edit) -> object:
-    data = yaml.safe_load(base.read_text())
-    edit(data)
-    path = tmp_path / f"{name}.yaml"
-    path.write_text(yaml.safe_dump(data, sort_keys=False))
-    return path
 
 
 def _tank_observer(**observer):
@@ -120,11 +112,10 @@ def test_tf_matrix_with_integrator_and_feedthrough():
      "2 elements"),
 ])
 def test_tf_matrix_errors_name_the_key(tmp_path, edit, key, text):
-    path = _variant(tmp_path, TANK, "bad",
+    path = edited_config(tmp_path, TANK, "bad",
                     lambda d: edit(d["modes"][0]["plant"]["transfer_function"]))
-    with pytest.raises(ConfigError) as exc:
-        load(path)
-    assert exc.value.key == key and text in exc.value.problem
+    err = config_error(path)
+    assert err.key == key and text in err.problem
 
 
 # --------------------------------------------------------------------------- Kalman
@@ -158,10 +149,9 @@ def test_kalman_gain_is_the_predictor_form_dare_gain():
      "6 states: 4 of the plant + 2 disturbance states"),
 ])
 def test_observer_errors_name_the_key(tmp_path, observer, key, text):
-    path = _variant(tmp_path, TANK, "bad", _tank_observer(**observer))
-    with pytest.raises(ConfigError) as exc:
-        load_model(path)
-    assert exc.value.key == f"modes[0].{key}" and text in exc.value.problem
+    path = edited_config(tmp_path, TANK, "bad", _tank_observer(**observer))
+    err = config_error(path, load_model)
+    assert err.key == f"modes[0].{key}" and text in err.problem
 
 
 @pytest.mark.parametrize("observer, key, text", [
@@ -174,13 +164,12 @@ def test_uav_observer_errors(tmp_path, observer, key, text):
     def edit(data):
         for m in data["modes"]:
             m["observer"] = dict(observer)
-    with pytest.raises(ConfigError) as exc:
-        load_model(_variant(tmp_path, UAV, "bad", edit))
-    assert exc.value.key == f"modes[0].{key}" and text in exc.value.problem
+    err = config_error(edited_config(tmp_path, UAV, "bad", edit), load_model)
+    assert err.key == f"modes[0].{key}" and text in err.problem
 
 
 def test_cli_error_is_one_line(tmp_path):
-    path = _variant(tmp_path, TANK, "bad", _tank_observer(kind="kalman", Qn=1, Rn=0))
+    path = edited_config(tmp_path, TANK, "bad", _tank_observer(kind="kalman", Qn=1, Rn=0))
     err = io.StringIO()
     with contextlib.redirect_stderr(err):
         rc = main(["generate", str(path), "-o", str(tmp_path / "out")])
@@ -238,7 +227,7 @@ def _tank_log(tmp_path, build_root, name, observer, true_plant=None, disturbance
         _tank_observer(**observer)(data)
         if R is not None:
             data["modes"][0]["weights"]["R"] = R
-    model, ctx = load_model(_variant(tmp_path, TANK, name, edit))
+    model, ctx = load_model(edited_config(tmp_path, TANK, name, edit))
     c = build_host_controller(ctx, build_root)
     cfg = model.config if true_plant is None else load(true_plant)
     return run_closed_loop(cfg, c, disturbance=disturbance, info=c.info)
@@ -266,7 +255,7 @@ def test_output_disturbance_removes_a_gain_mismatch(tmp_path, build_root):
     def stronger(data):
         tf = data["modes"][0]["plant"]["transfer_function"]
         tf["num"] = [[[1.2 * v for v in e] for e in row] for row in tf["num"]]
-    true_plant = _variant(tmp_path, TANK, "true", stronger)
+    true_plant = edited_config(tmp_path, TANK, "true", stronger)
     without = _tank_log(tmp_path, build_root, "none", KALMAN, true_plant, 0.0, R=1e-4)
     with_model = _tank_log(tmp_path, build_root, "output",
                            {**KALMAN, "disturbance": "output", "Qd": 0.001}, true_plant, 0.0,
@@ -286,7 +275,7 @@ def test_uav_input_disturbance_offset_removed(tmp_path, build_root):
         return edit
     logs = {}
     for name, obs in (("plain", None), ("input", {"disturbance": "input"})):
-        model, ctx = load_model(_variant(tmp_path, UAV, f"uav_{name}", short(obs)))
+        model, ctx = load_model(edited_config(tmp_path, UAV, f"uav_{name}", short(obs)))
         c = build_host_controller(ctx, build_root)
         logs[name] = run_closed_loop(model.config, c, disturbance=1.0, info=c.info)
     assert [m["nx"] for m in ctx["modes"]] == [5, 6]
@@ -328,5 +317,5 @@ def test_simulated_true_plant_is_unaugmented_and_discrete_as_given(tmp_path):
     def as_discrete(data):
         ss = data["modes"][0]["plant"]["state_space"]
         ss.update(A=cont.A.tolist(), B=cont.B.tolist(), discrete=True)
-    disc = SimulatedPlant(load(_variant(tmp_path, chain, "disc", as_discrete))).channels[0]
+    disc = SimulatedPlant(load(edited_config(tmp_path, chain, "disc", as_discrete))).channels[0]
     assert np.array_equal(disc.A, cont.A) and np.array_equal(disc.B, cont.B)

@@ -17,15 +17,14 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from conftest import ROOT, Built, sampled_qps_against_independent_solvers, simulate_and_bench
+from conftest import (ROOT, Built, config_error, edited_config,
+                      sampled_qps_against_independent_solvers, simulate_and_bench)
 from rollmpc_codegen.build import build_host_controller
-from rollmpc_codegen.config import ConfigError, load
 from rollmpc_codegen.generate import load_model
 from rollmpc_codegen.scenario import scenario_reference
 from rollmpc_codegen.simulate import run_closed_loop
 from rollmpc_codegen.solver_ref import OPTIMAL
 from test_bitexact import Lockstep
-from test_features_plant_observer import _variant  # the example, edited, in tmp_path
 
 ZONES = ROOT / "examples" / "thermal_zones.yaml"
 DRIVES = ROOT / "examples" / "three_drives.yaml"
@@ -93,8 +92,8 @@ def test_observer_previous_input_rows_are_deadbeat(tmp_path, observer):
     def edit(data):
         if observer is not None:
             data["modes"][0]["observer"] = {**observer, "disturbance": "input"}
-    with_du, _ = load_model(_variant(tmp_path, ZONES, "du", edit))
-    without, _ = load_model(_variant(tmp_path, ZONES, "plain", lambda d: (
+    with_du, _ = load_model(edited_config(tmp_path, ZONES, "du", edit))
+    without, _ = load_model(edited_config(tmp_path, ZONES, "plain", lambda d: (
         edit(d), _weights(R=0.01, R_delta=None)(d))))
     a, b = with_du.modes[0], without.modes[0]
     assert a.observer_gain.shape == (8, 2) and b.observer_gain.shape == (6, 2)
@@ -157,7 +156,7 @@ def test_double_matches_independent_solvers(zones_run):
 
 
 def _log(tmp_path, build_root, base, name, edit, disturbance=0.0, steps=None):
-    model, ctx = load_model(_variant(tmp_path, base, name, edit))
+    model, ctx = load_model(edited_config(tmp_path, base, name, edit))
     c = build_host_controller(ctx, build_root)
     return run_closed_loop(model.config, c, disturbance=disturbance, info=c.info, steps=steps)
 
@@ -180,7 +179,7 @@ def test_switching_modes_bit_exact_with_inactive_previous_input(tmp_path, build_
     """Three drives (3 modes, 5 bands) with R_delta on every mode: bit for bit over the
     switching scenario; an inactive mode's u_prev estimate is exactly 0, the active one's
     its actuator's command."""
-    path = _variant(tmp_path, DRIVES, "drives_du", _weights(R_delta=1.0))
+    path = edited_config(tmp_path, DRIVES, "drives_du", _weights(R_delta=1.0))
     built = Built(path, "double", build_root)
     assert [m["nx"] for m in built.ctx["modes"]] == [3, 3, 3]
     lock = Lockstep(built)
@@ -211,13 +210,12 @@ def test_switching_modes_bit_exact_with_inactive_previous_input(tmp_path, build_
     ({"R_delta": "a"}, "modes[0].weights.R_delta", "number"),
 ])
 def test_config_errors_name_the_key(tmp_path, weights, key, text):
-    with pytest.raises(ConfigError) as exc:
-        load(_variant(tmp_path, ZONES, "bad", _weights(**weights)))
-    assert exc.value.key == key and text in str(exc.value)
+    err = config_error(edited_config(tmp_path, ZONES, "bad", _weights(**weights)))
+    assert err.key == key and text in str(err)
 
 
 def test_zero_r_delta_is_no_delta_weighting(tmp_path):
-    model, ctx = load_model(_variant(tmp_path, ZONES, "zero", _weights(R=0.01, R_delta=0)))
+    model, ctx = load_model(edited_config(tmp_path, ZONES, "zero", _weights(R=0.01, R_delta=0)))
     assert model.config.modes[0].R_delta is None and ctx["modes"][0]["nx"] == 6
     assert model.modes[0].plant.n_prev == 0
 

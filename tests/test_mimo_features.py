@@ -20,9 +20,9 @@ import numpy as np
 import pytest
 import yaml
 
-from conftest import ROOT, Built
+from conftest import ROOT, Built, config_error
 from rollmpc_codegen.cli import main
-from rollmpc_codegen.config import ConfigError, load
+from rollmpc_codegen.config import load
 from rollmpc_codegen.exact_qp import qp_data, solve_exact
 from rollmpc_codegen.generate import generate
 from rollmpc_codegen.scenario import preview, scenario_reference
@@ -204,6 +204,5 @@ def test_reference_errors_name_the_key(tmp_path, levels, key):
     data["simulation"]["reference"]["levels"] = levels
     path = tmp_path / "bad.yaml"
     path.write_text(yaml.safe_dump(data))
-    with pytest.raises(ConfigError) as exc:
-        load(path)
-    assert exc.value.key == key
+    err = config_error(path)
+    assert err.key == key

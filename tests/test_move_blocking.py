@@ -13,16 +13,16 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from conftest import ROOT, Built, sampled_qps_against_independent_solvers
+from conftest import (ROOT, Built, config_error, edited_config,
+                      sampled_qps_against_independent_solvers)
 from rollmpc_codegen import move_blocking
-from rollmpc_codegen.config import ConfigError, load
+from rollmpc_codegen.config import load
 from rollmpc_codegen.generate import load_model
 from rollmpc_codegen.render import render_sources
 from rollmpc_codegen.scenario import scenario_reference
 from rollmpc_codegen.simulate import run_closed_loop
 from rollmpc_codegen.solver_ref import OPTIMAL
 from test_bitexact import Lockstep
-from test_features_plant_observer import _variant  # the example, edited, in tmp_path
 
 UAV_BLOCKED = ROOT / "examples" / "uav_roll_blocked.yaml"
 CHAIN = ROOT / "examples" / "chain_of_masses.yaml"
@@ -31,13 +31,13 @@ ZONES = ROOT / "examples" / "thermal_zones.yaml"
 
 
 def _chain_nc3(tmp_path):
-    return _variant(tmp_path, CHAIN, "chain_nc3", lambda d: d.update(control_horizon=3))
+    return edited_config(tmp_path, CHAIN, "chain_nc3", lambda d: d.update(control_horizon=3))
 
 
 def _zones_blocked(tmp_path):
     def edit(d):
         d["modes"][0]["move_blocking"] = [1, 2, 3, d["horizon"] - 6]
-    return _variant(tmp_path, ZONES, "zones_blk", edit)
+    return edited_config(tmp_path, ZONES, "zones_blk", edit)
 
 
 # --------------------------------------------------------------------------- model
@@ -48,7 +48,7 @@ def test_blocked_qp_is_the_full_qp_restricted(tmp_path):
                                                                        12, 12)),
                          (_zones_blocked(tmp_path), (1, 2, 3, 14))):
         blocked, _ = load_model(path)
-        full, _ = load_model(_variant(tmp_path, path, "full", lambda d: (
+        full, _ = load_model(edited_config(tmp_path, path, "full", lambda d: (
             d.pop("move_blocking", None), d["modes"][0].pop("move_blocking", None))))
         b, f = blocked.modes[0].qp, full.modes[0].qp
         assert b.blocks == blocks and f.blocks is None
@@ -138,7 +138,7 @@ def test_runtime_bounds_with_control_horizon_bit_exact(tmp_path, build_root):
     schedule of test_runtime_bounds (tighten, infeasible, loosen, reset, bad calls)."""
     from test_runtime_bounds import STEPS, BoundsLockstep, _reference
 
-    path = _variant(tmp_path, CHAIN_RB, "chain_rb_nc3", lambda d: d.update(control_horizon=3))
+    path = edited_config(tmp_path, CHAIN_RB, "chain_rb_nc3", lambda d: d.update(control_horizon=3))
     built = Built(path, "float", build_root)
     lock = BoundsLockstep(built)
     log = run_closed_loop(built.model.config, lock, _reference(built.model.config),
@@ -168,7 +168,7 @@ def test_unblocked_build_generates_the_same_c(tmp_path):
     def edit(d):
         d["control_horizon"] = 2
         d["modes"][0]["control_horizon"] = d["horizon"]
-    cfg = load(_variant(tmp_path, CHAIN, "override", edit))
+    cfg = load(edited_config(tmp_path, CHAIN, "override", edit))
     assert cfg.modes[0].blocks is None
 
 
@@ -189,6 +189,5 @@ def test_config_errors_name_the_key(tmp_path, top, mode, key, text):
     def edit(d):
         d.update(top)
         d["modes"][0].update(mode)
-    with pytest.raises(ConfigError) as err:
-        load(_variant(tmp_path, CHAIN, "bad", edit))
-    assert err.value.key == key and text in str(err.value), str(err.value)
+    err = config_error(edited_config(tmp_path, CHAIN, "bad", edit))
+    assert err.key == key and text in str(err), str(err)

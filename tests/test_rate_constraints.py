@@ -16,8 +16,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from conftest import ROOT, Built, sampled_qps_against_independent_solvers
-from rollmpc_codegen.config import ConfigError, load
+from conftest import (ROOT, Built, config_error, edit_bounds, edited_config,
+                      sampled_qps_against_independent_solvers)
 from rollmpc_codegen.exact_qp import qp_data, solve_exact
 from rollmpc_codegen.generate import load_model
 from rollmpc_codegen.render import render_sources
@@ -25,20 +25,12 @@ from rollmpc_codegen.scenario import preview, scenario_reference
 from rollmpc_codegen.simulate import run_closed_loop
 from rollmpc_codegen.solver_ref import INFEASIBLE, OPTIMAL, SolverRef
 from test_bitexact import Lockstep
-from test_features_plant_observer import _variant  # the example, edited, in tmp_path
 from test_input_rate import checked_closed_loop
 
 RATE = ROOT / "examples" / "thermal_zones_rate.yaml"
 ZONES = ROOT / "examples" / "thermal_zones.yaml"
 DU = 0.3  # kW per sample, the example's ramp limit
 DIST = 0.3  # kW on both heaters
-
-
-def _bounds(**b):
-    def edit(data):
-        for m in data["modes"]:
-            m["bounds"].update(b)
-    return edit
 
 
 def _applied_du(log) -> np.ndarray:
@@ -65,7 +57,7 @@ def test_rate_rows_of_the_condensed_qp(tmp_path):
     assert np.array_equal(d.row_q[rate], n + N * qp.ny + qp.row_index[rate])
     assert np.all(d.row_q[d.row_next[rate]] >= n + N * qp.ny)
     # the cost does not see the bounds (R_delta absent): E and Kx as without u_prev
-    plain, _ = load_model(_variant(tmp_path, RATE, "plain", _bounds(du_min=None, du_max=None)))
+    plain, _ = load_model(edited_config(tmp_path, RATE, "plain", edit_bounds(du_min=None, du_max=None)))
     assert plain.modes[0].plant.n_prev == 0
     assert np.allclose(qp.E, plain.modes[0].qp.E, rtol=1e-13, atol=0)
     assert np.allclose(qp.Kx[:, :-nu], plain.modes[0].qp.Kx, rtol=1e-9, atol=1e-12)
@@ -132,9 +124,9 @@ def test_double_matches_independent_solvers(rate_run):
 
 def _variant_both(tmp_path):
     def edit(data):
-        _bounds(du_min=[-0.2, "-inf"], du_max=[0.4, 0.25])(data)
+        edit_bounds(du_min=[-0.2, "-inf"], du_max=[0.4, 0.25])(data)
         data["modes"][0]["weights"]["R_delta"] = [[0.05, 0.0], [0.0, 0.05]]
-    return _variant(tmp_path, RATE, "both", edit)
+    return edited_config(tmp_path, RATE, "both", edit)
 
 
 def test_with_r_delta_and_partial_bounds_random_states(tmp_path, build_root):
@@ -184,25 +176,22 @@ def test_with_r_delta_and_partial_bounds_random_states(tmp_path, build_root):
     ({"du_min": "a"}, "modes[0].bounds.du_min", "number"),
 ])
 def test_config_errors_name_the_key(tmp_path, bounds, key, text):
-    with pytest.raises(ConfigError) as exc:
-        load(_variant(tmp_path, RATE, "bad", _bounds(**bounds)))
-    assert exc.value.key == key and text in str(exc.value)
+    err = config_error(edited_config(tmp_path, RATE, "bad", edit_bounds(**bounds)))
+    assert err.key == key and text in str(err)
 
 
 def test_runtime_bounds_with_rate_rows_is_rejected(tmp_path):
-    with pytest.raises(ConfigError) as exc:
-        load(_variant(tmp_path, RATE, "rt", lambda d: d.update(runtime_bounds=True)))
-    assert exc.value.key == "runtime_bounds" and "Δu" in str(exc.value)
+    err = config_error(edited_config(tmp_path, RATE, "rt", lambda d: d.update(runtime_bounds=True)))
+    assert err.key == "runtime_bounds" and "Δu" in str(err)
 
 
 def test_infinite_rate_bounds_are_absent(tmp_path):
-    model, ctx = load_model(_variant(tmp_path, RATE, "inf", _bounds(du_min="-inf",
+    model, ctx = load_model(edited_config(tmp_path, RATE, "inf", edit_bounds(du_min="-inf",
                                                                    du_max="inf")))
     assert ctx["modes"][0]["nx"] == 6 and not ctx["has_rate_rows"]
     assert not np.any(model.modes[0].qp.row_kind == 2)
 
 
 def test_move_blocking_with_rate_rows_is_rejected(tmp_path):
-    with pytest.raises(ConfigError) as exc:
-        load(_variant(tmp_path, RATE, "mb", lambda d: d.update(control_horizon=5)))
-    assert exc.value.key == "modes[0].bounds.du_min" and "blocking" in str(exc.value)
+    err = config_error(edited_config(tmp_path, RATE, "mb", lambda d: d.update(control_horizon=5)))
+    assert err.key == "modes[0].bounds.du_min" and "blocking" in str(err)

@@ -24,10 +24,10 @@ import numpy as np
 import pytest
 import yaml
 
-from conftest import ROOT, UAV, Built, require_tool
+from conftest import ROOT, UAV, Built, config_error, require_tool
 from rollmpc_codegen.band_scheduler import scheduled_mode
 from rollmpc_codegen.cli import main
-from rollmpc_codegen.config import ConfigError, parse
+from rollmpc_codegen.config import parse
 from rollmpc_codegen.context import ControllerModel, build_context, build_model
 from rollmpc_codegen.exact_qp import qp_data, solve_exact
 from rollmpc_codegen.generate import generate
@@ -212,10 +212,9 @@ ERRORS = [
 def test_config_error_names_the_key(mutate, key, text):
     d = copy.deepcopy(BASE)
     mutate(d)
-    with pytest.raises(ConfigError) as exc:
-        parse(d)
-    assert exc.value.key == key and text in exc.value.problem, str(exc.value)
-    assert "\n" not in str(exc.value)
+    err = config_error(d, parse)
+    assert err.key == key and text in err.problem, str(err)
+    assert "\n" not in str(err)
 
 
 def test_bands_empty_in_float_precision():
@@ -225,9 +224,8 @@ def test_bands_empty_in_float_precision():
     d["scheduler"]["epsilon"] = 0.0
     d["scheduler"]["bands"] = [{"mode": "fine", "below": 1.0},
                                {"mode": "medium", "below": 1.00000001}, {"mode": "coarse"}]
-    with pytest.raises(ConfigError) as exc:
-        parse(d)
-    assert exc.value.key == "scheduler" and "float" in exc.value.problem
+    err = config_error(d, parse)
+    assert err.key == "scheduler" and "float" in err.problem
     d["precision"] = "double"
     assert parse(d).scheduler.thresholds == (1.0, 1.00000001)
 

@@ -16,8 +16,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from conftest import ROOT, Built
-from rollmpc_codegen.config import ConfigError, load
+from conftest import ROOT, Built, config_error, edit_bounds, edited_config
 from rollmpc_codegen.exact_qp import qp_data, solve_exact
 from rollmpc_codegen.generate import load_model
 from rollmpc_codegen.render import render_sources
@@ -26,20 +25,12 @@ from rollmpc_codegen.simulate import run_closed_loop
 from rollmpc_codegen.soft_constraints import explicit_qp, slacks
 from rollmpc_codegen.solver_ref import INFEASIBLE, OPTIMAL, SolverRef
 from test_bitexact import Lockstep
-from test_features_plant_observer import _variant  # the example, edited, in tmp_path
 
 SOFT = ROOT / "examples" / "chain_soft.yaml"
 CHAIN = ROOT / "examples" / "chain_of_masses.yaml"
 PUSH = 0.05  # N on every force input: pushes masses past 0.4 m, the QPs stay feasible
 HARD_PUSH = 0.3  # makes the hard bounds infeasible on most samples
 BOUND, U_MAX = 0.4, 0.5
-
-
-def _bounds(**b):
-    def edit(data):
-        for m in data["modes"]:
-            m["bounds"].update(b)
-    return edit
 
 
 def _hard(data):
@@ -162,7 +153,7 @@ def test_other_solver_paths_on_slack_qps(soft_run, solver, tmp_path):
     prec = built.ctx["precision"]
     if "polish" in solver and prec == "float":
         pytest.skip("float sweeps stall at the float step size long before a 1e-24 delta")
-    other = Built(_variant(tmp_path, SOFT, "path", _solver(**solver)), prec, built.build_root)
+    other = Built(edited_config(tmp_path, SOFT, "path", _solver(**solver)), prec, built.build_root)
     c = other.fresh_c()
     ref = SolverRef(other.model.modes[0].data, other.ctx["solver"])
     base = built.fresh_c()
@@ -186,7 +177,7 @@ def test_l1_penalty_is_exact_where_the_hard_bounds_hold(build_root, tmp_path):
     """Undisturbed: the hard 0.4 m bounds can hold on every sample, so the soft plan is
     the hard plan (l1 = 1000 is above every multiplier they need) and no slack is used."""
     soft = Built(SOFT, "double", build_root)
-    hard = Built(_variant(tmp_path, SOFT, "hard", _hard), "double", build_root)
+    hard = Built(edited_config(tmp_path, SOFT, "hard", _hard), "double", build_root)
     cs, ch = soft.fresh_c(), hard.fresh_c()
     worst, slack = 0.0, 0.0
 
@@ -214,7 +205,7 @@ def test_always_feasible_where_the_hard_qp_is_not(build_root, tmp_path, precisio
     slacks of metres (multipliers ~5e3) defeat the 1e-4 feasibility check of the dual
     polish on most samples (docs/features.md): MAX_ITER, still a finite command."""
     soft = Built(SOFT, precision, build_root)
-    hard = Built(_variant(tmp_path, SOFT, "hard", _hard), precision, build_root)
+    hard = Built(edited_config(tmp_path, SOFT, "hard", _hard), precision, build_root)
     logs = {}
     for name, built in (("soft", soft), ("hard", hard)):
         c = built.fresh_c()
@@ -238,20 +229,18 @@ def test_always_feasible_where_the_hard_qp_is_not(build_root, tmp_path, precisio
     ({"y_max": {"l1": 0, "l2": 0}}, "modes[0].bounds.soft", "softens no bound"),
 ])
 def test_config_errors_name_the_key(tmp_path, soft, key, text):
-    with pytest.raises(ConfigError) as exc:
-        load(_variant(tmp_path, SOFT, "bad", _bounds(soft=soft)))
-    assert exc.value.key == key and text in str(exc.value)
+    err = config_error(edited_config(tmp_path, SOFT, "bad", edit_bounds(soft=soft)))
+    assert err.key == key and text in str(err)
 
 
 def test_soft_bound_needs_a_finite_bound(tmp_path):
-    with pytest.raises(ConfigError) as exc:
-        load(_variant(tmp_path, SOFT, "inf", _bounds(y_max=[0.4] * 5 + ["inf"])))
-    assert exc.value.key == "modes[0].bounds.soft.y_max" and "no finite y_max" in str(exc.value)
+    err = config_error(edited_config(tmp_path, SOFT, "inf", edit_bounds(y_max=[0.4] * 5 + ["inf"])))
+    assert err.key == "modes[0].bounds.soft.y_max" and "no finite y_max" in str(err)
 
 
 def test_per_output_choice_keeps_the_others_hard(tmp_path):
     l2 = [1000, 0, 0, 0, 0, 0]
-    model, _ = load_model(_variant(tmp_path, SOFT, "one", _bounds(
+    model, _ = load_model(edited_config(tmp_path, SOFT, "one", edit_bounds(
         soft={"y_max": {"l1": [1000, 0, 0, 0, 0, 0], "l2": l2}})))
     qp = model.modes[0].qp
     soft = np.flatnonzero(qp.soft_l2 > 0)
