@@ -92,7 +92,7 @@ check-long: venv
 
 ## reliability: measure the figures of docs/reliability.md into build/reliability/*.json
 reliability: venv
-	$(PY) -m rollmpc_codegen.reliability --out build/reliability
+	$(PY) -m rollmpc_codegen.verify.reliability --out build/reliability
 
 clean:
 	rm -rf build

@@ -46,8 +46,8 @@ class Built:
     """Model, context and compiled C of one configuration."""
 
     def __init__(self, config: Path, precision: str, build_root: Path):
-        from rollmpc_codegen.build import build_host_controller
-        from rollmpc_codegen.generate import load_model
+        from rollmpc_codegen.host.build import build_host_controller
+        from rollmpc_codegen.pipeline import load_model
 
         self.model, self.ctx = load_model(config, precision)
         self.build_root = build_root
@@ -55,12 +55,12 @@ class Built:
 
     def fresh_c(self):
         """A second, independent controller instance from the same library."""
-        from rollmpc_codegen.build import build_host_controller
+        from rollmpc_codegen.host.build import build_host_controller
 
         return build_host_controller(self.ctx, self.build_root)
 
     def reference(self):
-        from rollmpc_codegen.controller_ref import ControllerRef
+        from rollmpc_codegen.reference.controller import ControllerRef
 
         return ControllerRef(self.ctx, [m.data for m in self.model.modes])
 
@@ -132,9 +132,9 @@ def sampled_qps_against_independent_solvers(built: Built, states: list, referenc
     import numpy as np
 
     daqp = pytest.importorskip("daqp", reason="install with: pip install 'rollmpc-codegen[peers]'")
-    from rollmpc_codegen.exact_qp import qp_data, solve_exact
-    from rollmpc_codegen.scenario import preview
-    from rollmpc_codegen.solver_ref import OPTIMAL, SolverRef
+    from rollmpc_codegen.qp.exact import qp_data, solve_exact
+    from rollmpc_codegen.sim.scenario import preview
+    from rollmpc_codegen.reference.solver import OPTIMAL, SolverRef
 
     qp, ny = built.model.modes[0].qp, built.ctx["n_outputs"]
     rng = np.random.default_rng(seed)
@@ -167,7 +167,7 @@ def cli(args: list[str]) -> tuple[int, str, str]:
     import contextlib
     import io
 
-    from rollmpc_codegen.cli import main
+    from rollmpc_codegen.cli.main import main
 
     out, err = io.StringIO(), io.StringIO()
     with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):

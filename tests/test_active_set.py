@@ -13,9 +13,9 @@ import numpy as np
 import pytest
 
 from conftest import Built, short_uav_config
-from rollmpc_codegen.exact_qp import qp_data, relative_error, solve_exact
-from rollmpc_codegen.qp_campaign import error_bound
-from rollmpc_codegen.solver_ref import INFEASIBLE, OPTIMAL, SolverRef
+from rollmpc_codegen.qp.exact import qp_data, relative_error, solve_exact
+from rollmpc_codegen.verify.qp_campaign import error_bound
+from rollmpc_codegen.reference.solver import INFEASIBLE, OPTIMAL, SolverRef
 
 N = 20
 QPS = 48

@@ -5,8 +5,8 @@ import numpy as np
 import pytest
 
 from conftest import Built, variant_config
-from rollmpc_codegen.scenario import paper_reference, preview
-from rollmpc_codegen.solver_ref import (BAD_ARGUMENT, MAX_ITER, NONFINITE_INPUT, OPTIMAL,
+from rollmpc_codegen.sim.scenario import paper_reference, preview
+from rollmpc_codegen.reference.solver import (BAD_ARGUMENT, MAX_ITER, NONFINITE_INPUT, OPTIMAL,
                                         STATUS_NAMES)
 
 N = 100

@@ -12,8 +12,8 @@ import numpy as np
 import pytest
 
 from conftest import UAV
-from rollmpc_codegen.bench import QpSequence, parse_variants, select_qps
-from rollmpc_codegen.cli import main
+from rollmpc_codegen.host.bench import QpSequence, parse_variants, select_qps
+from rollmpc_codegen.cli.main import main
 
 VARIANTS = ["default", "hildreth_plus_prime", "daqp", "osqp"]
 MAX_QPS = 40  # two blocks of 20: samples 33-52 and 1181-1200
@@ -125,8 +125,8 @@ def test_qp_selection_skips_the_transient_and_samples_evenly():
 
 def test_two_sided_form_is_the_same_constraint_set():
     """DAQP/OSQP see [simple bounds on U; two-sided output rows]: same rows as L U <= b."""
-    from rollmpc_codegen.generate import load_model
-    from rollmpc_codegen.qp_peers import TwoSidedForm, qp_vectors
+    from rollmpc_codegen.pipeline import load_model
+    from rollmpc_codegen.qp.peers import TwoSidedForm, qp_vectors
 
     model, _ = load_model(UAV)
     rng = np.random.default_rng(3)

@@ -9,9 +9,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from rollmpc_codegen.scenario import paper_reference, preview
-from rollmpc_codegen.simulate import run_closed_loop
-from rollmpc_codegen.solver_ref import OPTIMAL, SolverRef
+from rollmpc_codegen.sim.scenario import paper_reference, preview
+from rollmpc_codegen.sim.simulate import run_closed_loop
+from rollmpc_codegen.reference.solver import OPTIMAL, SolverRef
 
 
 class Lockstep:

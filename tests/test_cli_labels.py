@@ -8,11 +8,12 @@ import pytest
 import yaml
 
 from conftest import ROOT, UAV, cli, config_error
-from rollmpc_codegen import paper_figures, simulate_cli
-from rollmpc_codegen.build import BuildError
+from rollmpc_codegen.sim import figures as paper_figures
+from rollmpc_codegen.cli import simulate as simulate_cli
+from rollmpc_codegen.host.build import BuildError
 from rollmpc_codegen.config import UnitsConfig, load
-from rollmpc_codegen.simulate import ClosedLoopLog
-from rollmpc_codegen.testvectors import saturated_samples
+from rollmpc_codegen.sim.simulate import ClosedLoopLog
+from rollmpc_codegen.host.testvectors import saturated_samples
 
 CHAIN = ROOT / "examples" / "chain_of_masses.yaml"
 ZONES = ROOT / "examples" / "thermal_zones.yaml"

@@ -9,7 +9,7 @@ from pathlib import Path
 import pytest
 
 from conftest import UAV, require_tool
-from rollmpc_codegen.generate import generate
+from rollmpc_codegen.pipeline import generate
 
 STRICT = ["-std=c99", "-Wall", "-Wextra", "-Wpedantic", "-Wconversion", "-Wshadow",
           "-Wdouble-promotion", "-Wvla", "-Werror"]
@@ -93,7 +93,7 @@ def test_static_memory_only(sources, tmp_path):
 
 def test_host_c_test_program_passes(tmp_path):
     """`rollmpc testvectors` + the C compiler alone: the make ctest path."""
-    from rollmpc_codegen.cli import main
+    from rollmpc_codegen.cli.main import main
 
     for precision in ("double", "float"):
         out = tmp_path / precision

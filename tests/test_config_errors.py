@@ -22,7 +22,7 @@ import numpy as np
 import pytest
 import yaml
 
-from rollmpc_codegen import cli
+from rollmpc_codegen.cli import main as cli
 from rollmpc_codegen.config import ConfigError, load, parse
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -366,7 +366,7 @@ def test_subprocess_has_no_traceback(tmp_path):
     env = {k: v for k, v in os.environ.items() if k != "ROLLMPC_DEBUG"}
     env["PYTHONPATH"] = os.pathsep.join([str(ROOT), env.get("PYTHONPATH", "")])
     proc = subprocess.run(
-        [sys.executable, "-m", "rollmpc_codegen.cli", "generate", str(config), "-o", str(out)],
+        [sys.executable, "-m", "rollmpc_codegen.cli.main", "generate", str(config), "-o", str(out)],
         capture_output=True, text=True, cwd=tmp_path, env=env, timeout=120)
     _assert_clean_failure(proc.returncode, proc.stderr, "modes[0].plant", "not controllable")
     assert "Traceback" not in proc.stdout
@@ -445,8 +445,8 @@ def test_output_bounds_may_be_omitted():
     cfg = _parse(both(drop("modes[0].bounds.y_min"), drop("modes[0].bounds.y_max")))
     assert np.all(np.isneginf(cfg.modes[0].y_min)) and np.all(np.isposinf(cfg.modes[0].y_max))
     # unbounded outputs contribute no QP rows: only the 2 N box rows remain
-    from rollmpc_codegen.mpc import condense
-    from rollmpc_codegen.plant import discretise
+    from rollmpc_codegen.qp.condense import condense
+    from rollmpc_codegen.model.plant import discretise
 
     plant = discretise(cfg.modes[0], cfg.sample_time, "modes[0]")
     assert condense(plant, cfg.modes[0], cfg.horizon, "modes[0]").m == 2 * cfg.horizon
@@ -456,8 +456,8 @@ def test_output_bounds_may_be_omitted():
                                     set_("modes[0].observer.poles", None)],
                          ids=["absent", "null", "null-poles"])
 def test_observer_may_be_omitted(mutate):
-    from rollmpc_codegen.observer import default_poles, observer_gain
-    from rollmpc_codegen.plant import discretise
+    from rollmpc_codegen.model.observer import default_poles, observer_gain
+    from rollmpc_codegen.model.plant import discretise
 
     cfg = _parse(mutate)
     mode = cfg.modes[0]

@@ -24,17 +24,17 @@ import yaml
 
 from conftest import (ROOT, UAV, Built, config_error, edited_config,
                       sampled_qps_against_independent_solvers, simulate_and_bench)
-from rollmpc_codegen.build import build_host_controller
-from rollmpc_codegen.cli import main
+from rollmpc_codegen.host.build import build_host_controller
+from rollmpc_codegen.cli.main import main
 from rollmpc_codegen.config import load, parse
-from rollmpc_codegen.context import build_model
-from rollmpc_codegen.generate import generate, load_model
-from rollmpc_codegen.observer import process_noise
-from rollmpc_codegen.plant import continuous_realisation
-from rollmpc_codegen.scenario import SimulatedPlant, scenario_reference
-from rollmpc_codegen.simulate import run_closed_loop
-from rollmpc_codegen.solver_ref import OPTIMAL
-from rollmpc_codegen.tf_realisation import (column_realisation, frequency_response,
+from rollmpc_codegen.pipeline import build_model
+from rollmpc_codegen.pipeline import generate, load_model
+from rollmpc_codegen.model.observer import process_noise
+from rollmpc_codegen.model.plant import continuous_realisation
+from rollmpc_codegen.sim.scenario import SimulatedPlant, scenario_reference
+from rollmpc_codegen.sim.simulate import run_closed_loop
+from rollmpc_codegen.reference.solver import OPTIMAL
+from rollmpc_codegen.model.tf_realisation import (column_realisation, frequency_response,
                                             matrix_response)
 from test_bitexact import Lockstep
 

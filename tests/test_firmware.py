@@ -12,7 +12,7 @@ import pytest
 import yaml
 
 from conftest import ROOT, UAV, require_tool
-from rollmpc_codegen.generate import generate
+from rollmpc_codegen.pipeline import generate
 
 ARM_HINT = "apt-get install -y --no-install-recommends gcc-arm-none-eabi libnewlib-arm-none-eabi"
 STUB = ROOT / "firmware_stub"
@@ -126,9 +126,9 @@ class StubProcess:
 
 def test_host_stub_closes_the_loop_with_failsafe(host_stub, generated_f32, build_root):
     """-20 deg command held over the horizon; one missing IMU sample at step 300."""
-    from rollmpc_codegen.build import build_host_controller
-    from rollmpc_codegen.generate import load_model
-    from rollmpc_codegen.scenario import SimulatedPlant
+    from rollmpc_codegen.host.build import build_host_controller
+    from rollmpc_codegen.pipeline import load_model
+    from rollmpc_codegen.sim.scenario import SimulatedPlant
 
     model, ctx = load_model(UAV, "float")
     plant = SimulatedPlant(model.config)
@@ -162,8 +162,8 @@ def test_host_stub_closes_the_loop_with_failsafe(host_stub, generated_f32, build
 
 
 def test_host_stub_uses_the_preview(host_stub, generated_f32, build_root):
-    from rollmpc_codegen.build import build_host_controller
-    from rollmpc_codegen.generate import load_model
+    from rollmpc_codegen.host.build import build_host_controller
+    from rollmpc_codegen.pipeline import load_model
 
     model, ctx = load_model(UAV, "float")
     direct = build_host_controller(ctx, build_root)

@@ -7,7 +7,7 @@ from pathlib import Path
 import pytest
 
 from conftest import ROOT
-from rollmpc_codegen.cli import main
+from rollmpc_codegen.cli.main import main
 
 CASES = [("uav_roll", "double", "uav_roll"), ("uav_roll", "float", "uav_roll_f32"),
          ("chain_of_masses", "double", "chain_of_masses"),

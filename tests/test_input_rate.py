@@ -19,11 +19,11 @@ import pytest
 
 from conftest import (ROOT, Built, config_error, edited_config,
                       sampled_qps_against_independent_solvers, simulate_and_bench)
-from rollmpc_codegen.build import build_host_controller
-from rollmpc_codegen.generate import load_model
-from rollmpc_codegen.scenario import scenario_reference
-from rollmpc_codegen.simulate import run_closed_loop
-from rollmpc_codegen.solver_ref import OPTIMAL
+from rollmpc_codegen.host.build import build_host_controller
+from rollmpc_codegen.pipeline import load_model
+from rollmpc_codegen.sim.scenario import scenario_reference
+from rollmpc_codegen.sim.simulate import run_closed_loop
+from rollmpc_codegen.reference.solver import OPTIMAL
 from test_bitexact import Lockstep
 
 ZONES = ROOT / "examples" / "thermal_zones.yaml"

@@ -6,8 +6,8 @@ import numpy as np
 import pytest
 
 from conftest import UAV
-from rollmpc_codegen.generate import load_model
-from rollmpc_codegen.qp import unpack_lower
+from rollmpc_codegen.pipeline import load_model
+from rollmpc_codegen.qp.storage import unpack_lower
 
 
 @pytest.fixture(scope="module")
@@ -75,7 +75,7 @@ def test_constraints_eq6_hold_exactly_for_the_prediction(model):
 
 def test_structured_dual_hessian_equals_dense(model):
     """H = L E^-1 L' is what the C reads through hq() from the packed blocks."""
-    from rollmpc_codegen.solver_ref import SolverRef
+    from rollmpc_codegen.reference.solver import SolverRef
 
     for mm in model.modes:
         H = mm.qp.dual_hessian()

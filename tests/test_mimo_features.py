@@ -21,13 +21,13 @@ import pytest
 import yaml
 
 from conftest import ROOT, Built, config_error
-from rollmpc_codegen.cli import main
+from rollmpc_codegen.cli.main import main
 from rollmpc_codegen.config import load
-from rollmpc_codegen.exact_qp import qp_data, solve_exact
-from rollmpc_codegen.generate import generate
-from rollmpc_codegen.scenario import preview, scenario_reference
-from rollmpc_codegen.simulate import run_closed_loop
-from rollmpc_codegen.solver_ref import OPTIMAL, SolverRef
+from rollmpc_codegen.qp.exact import qp_data, solve_exact
+from rollmpc_codegen.pipeline import generate
+from rollmpc_codegen.sim.scenario import preview, scenario_reference
+from rollmpc_codegen.sim.simulate import run_closed_loop
+from rollmpc_codegen.reference.solver import OPTIMAL, SolverRef
 from test_bitexact import Lockstep
 from test_compile import STRICT, _compile
 

@@ -15,13 +15,13 @@ import pytest
 
 from conftest import (ROOT, Built, config_error, edited_config,
                       sampled_qps_against_independent_solvers)
-from rollmpc_codegen import move_blocking
+from rollmpc_codegen.features import move_blocking
 from rollmpc_codegen.config import load
-from rollmpc_codegen.generate import load_model
-from rollmpc_codegen.render import render_sources
-from rollmpc_codegen.scenario import scenario_reference
-from rollmpc_codegen.simulate import run_closed_loop
-from rollmpc_codegen.solver_ref import OPTIMAL
+from rollmpc_codegen.pipeline import load_model
+from rollmpc_codegen.codegen.render import render_sources
+from rollmpc_codegen.sim.scenario import scenario_reference
+from rollmpc_codegen.sim.simulate import run_closed_loop
+from rollmpc_codegen.reference.solver import OPTIMAL
 from test_bitexact import Lockstep
 
 UAV_BLOCKED = ROOT / "examples" / "uav_roll_blocked.yaml"

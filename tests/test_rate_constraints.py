@@ -18,12 +18,12 @@ import pytest
 
 from conftest import (ROOT, Built, config_error, edit_bounds, edited_config,
                       sampled_qps_against_independent_solvers)
-from rollmpc_codegen.exact_qp import qp_data, solve_exact
-from rollmpc_codegen.generate import load_model
-from rollmpc_codegen.render import render_sources
-from rollmpc_codegen.scenario import preview, scenario_reference
-from rollmpc_codegen.simulate import run_closed_loop
-from rollmpc_codegen.solver_ref import INFEASIBLE, OPTIMAL, SolverRef
+from rollmpc_codegen.qp.exact import qp_data, solve_exact
+from rollmpc_codegen.pipeline import load_model
+from rollmpc_codegen.codegen.render import render_sources
+from rollmpc_codegen.sim.scenario import preview, scenario_reference
+from rollmpc_codegen.sim.simulate import run_closed_loop
+from rollmpc_codegen.reference.solver import INFEASIBLE, OPTIMAL, SolverRef
 from test_bitexact import Lockstep
 from test_input_rate import checked_closed_loop
 

@@ -14,7 +14,7 @@ from pathlib import Path
 
 import pytest
 
-from rollmpc_codegen import cli
+from rollmpc_codegen.cli import main as cli
 from test_config_errors import CASES, _assert_clean_failure, _assert_nothing_written
 
 BAD = Path(__file__).resolve().parent / "data" / "bad_configs"

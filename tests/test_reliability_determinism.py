@@ -18,10 +18,10 @@ import numpy as np
 import pytest
 
 from conftest import ROOT, UAV, require_tool, short_uav_config
-from rollmpc_codegen.build import build_host_controller
-from rollmpc_codegen.generate import generate, load_model
-from rollmpc_codegen.random_configs import random_config
-from rollmpc_codegen.simulate import run_closed_loop
+from rollmpc_codegen.host.build import build_host_controller
+from rollmpc_codegen.pipeline import generate, load_model
+from rollmpc_codegen.verify.random_configs import random_config
+from rollmpc_codegen.sim.simulate import run_closed_loop
 
 
 def _files(d):
@@ -31,7 +31,7 @@ def _files(d):
 def _generate_in_subprocess(config, out, precision, hash_seed: str) -> None:
     env = dict(os.environ, PYTHONHASHSEED=hash_seed)
     env["PYTHONPATH"] = os.pathsep.join([str(ROOT), env.get("PYTHONPATH", "")])
-    proc = subprocess.run([sys.executable, "-m", "rollmpc_codegen.cli", "generate", str(config),
+    proc = subprocess.run([sys.executable, "-m", "rollmpc_codegen.cli.main", "generate", str(config),
                            "--precision", precision, "-o", str(out)],
                           capture_output=True, text=True, env=env, timeout=300)
     assert proc.returncode == 0, proc.stderr

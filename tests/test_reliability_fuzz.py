@@ -20,13 +20,14 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from conftest import short_uav_config
-from rollmpc_codegen.build import build_host_controller
+from rollmpc_codegen.host.build import build_host_controller
 from rollmpc_codegen.config import parse
-from rollmpc_codegen.context import build_context, build_model
-from rollmpc_codegen.controller_ref import ControllerRef
-from rollmpc_codegen.generate import load_model
-from rollmpc_codegen.random_configs import random_controller
-from rollmpc_codegen.solver_ref import NONFINITE_INPUT, STATUS_NAMES, SolverRef
+from rollmpc_codegen.codegen.context import build_context
+from rollmpc_codegen.pipeline import build_model
+from rollmpc_codegen.reference.controller import ControllerRef
+from rollmpc_codegen.pipeline import load_model
+from rollmpc_codegen.verify.random_configs import random_controller
+from rollmpc_codegen.reference.solver import NONFINITE_INPUT, STATUS_NAMES, SolverRef
 
 SETTINGS = dict(deadline=None, derandomize=True, print_blob=True,
                 suppress_health_check=[HealthCheck.too_slow, HealthCheck.function_scoped_fixture])

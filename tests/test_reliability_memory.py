@@ -19,12 +19,12 @@ from __future__ import annotations
 import pytest
 
 from conftest import UAV, require_tool, short_uav_config
-from rollmpc_codegen.generate import generate
-from rollmpc_codegen.host_programs import (SANITIZE, SOAK_SUMMARY, VALGRIND_BUILD,
+from rollmpc_codegen.pipeline import generate
+from rollmpc_codegen.host.programs import (SANITIZE, SOAK_SUMMARY, VALGRIND_BUILD,
                                            VECTORS_SUMMARY, compile_program, run_program,
                                            write_soak_program)
-from rollmpc_codegen.stack_usage import analyse
-from rollmpc_codegen.testvectors import write_test_vectors
+from rollmpc_codegen.target.stack_usage import analyse
+from rollmpc_codegen.host.testvectors import write_test_vectors
 
 VALGRIND_HINT = "apt-get install -y --no-install-recommends valgrind"
 ARM_HINT = "apt-get install -y --no-install-recommends gcc-arm-none-eabi libnewlib-arm-none-eabi"

@@ -1,11 +1,11 @@
 """Issue 4, item 1: random feasible QPs through the generated C solver.
 
-Random controllers (rollmpc_codegen.random_configs: generic plants, pure delays whose
+Random controllers (rollmpc_codegen.verify.random_configs: generic plants, pure delays whose
 output rows copy input rows, twin outputs with dependent rows; n <= 100, up to 4n rows,
 cond(E) targeted decade by decade from 1e0 to 1e7) are built in double and float, and
 random states/previews of each are solved through ``P_solve_qp`` (cold, then warm on the
 next sample).  The reference is DAQP's active set refined by a long-double KKT solve
-(rollmpc_codegen.exact_qp).
+(rollmpc_codegen.qp.exact).
 
 Required (issue 4): OPTIMAL, and max|U - U*| / max(1, |U*|) <= 1e-8 in double for
 cond(E) <= 1e4, <= 1e-6 up to 1e7, and <= 1e-3 in float.
@@ -13,7 +13,7 @@ cond(E) <= 1e4, <= 1e-6 up to 1e7, and <= 1e-3 in float.
 The default suite runs a quick campaign: coverage of the issue's QP space, safe outputs
 (finite, inside the input bounds, documented status) for every QP, and the issue's
 status and accuracy bounds in double.  Float meets 1e-3 only where the float rounding of
-the stored data allows it (rollmpc_codegen.float_floor; docs/reliability.md, "Float"); the slow 10,000-QP test
+the stored data allows it (rollmpc_codegen.verify.float_floor; docs/reliability.md, "Float"); the slow 10,000-QP test
 asserts the double bounds on every QP and the float figures measured there (failures at
 most 2.5 % overall and 0.1 % for cond(E) <= 1e4), so a regression fails it.
 """
@@ -22,13 +22,13 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from rollmpc_codegen.exact_qp import qp_data, solve_exact
-from rollmpc_codegen.float_floor import stored_data_floor
-from rollmpc_codegen.generate import load_model
-from rollmpc_codegen.qp_campaign import (COND_DECADES, feasible_campaign, failures_json,
+from rollmpc_codegen.qp.exact import qp_data, solve_exact
+from rollmpc_codegen.verify.float_floor import stored_data_floor
+from rollmpc_codegen.pipeline import load_model
+from rollmpc_codegen.verify.qp_campaign import (COND_DECADES, feasible_campaign, failures_json,
                                          summarise_feasible)
-from rollmpc_codegen.random_configs import draw_instance, random_config
-from rollmpc_codegen.solver_ref import OPTIMAL
+from rollmpc_codegen.verify.random_configs import draw_instance, random_config
+from rollmpc_codegen.reference.solver import OPTIMAL
 
 QUICK_CONFIGS, QUICK_QPS, QUICK_N = COND_DECADES, 16, 40
 

@@ -19,9 +19,9 @@ import re
 import pytest
 
 from conftest import ROOT, require_tool, short_uav_config
-from rollmpc_codegen.generate import generate
-from rollmpc_codegen.misra import by_rule, load_deviations, run_cppcheck, unjustified
-from rollmpc_codegen.random_configs import random_config
+from rollmpc_codegen.pipeline import generate
+from rollmpc_codegen.verify.misra import by_rule, load_deviations, run_cppcheck, unjustified
+from rollmpc_codegen.verify.random_configs import random_config
 
 DEVIATIONS = ROOT / "tests" / "data" / "misra_deviations.txt"
 DOC = ROOT / "docs" / "reliability.md"

@@ -25,7 +25,7 @@ def target_tools():
 
 @pytest.fixture(scope="module")
 def float_model():
-    from rollmpc_codegen.generate import load_model
+    from rollmpc_codegen.pipeline import load_model
 
     return load_model(UAV, "float")
 
@@ -33,7 +33,7 @@ def float_model():
 def test_report_json_keys_and_bit_exact(target_tools, tmp_path, build_root, capsys):
     """960 steps: the first reference step enters the preview at step 900 and saturates
     the ailerons over the whole horizon."""
-    from rollmpc_codegen.cli import main
+    from rollmpc_codegen.cli.main import main
 
     out = tmp_path / "report.json"
     assert main(["report", str(UAV), "--precision", "float", "--steps", "960",
@@ -60,8 +60,8 @@ def test_report_json_keys_and_bit_exact(target_tools, tmp_path, build_root, caps
 
 
 def test_emulated_cycles_are_deterministic(target_tools, float_model, build_root):
-    from rollmpc_codegen.report import record_host_run, replay_on_target
-    from rollmpc_codegen.target import build_target
+    from rollmpc_codegen.target.report import record_host_run, replay_on_target
+    from rollmpc_codegen.target.build import build_target
 
     model, ctx = float_model
     build = build_target(ctx, build_root)
@@ -87,13 +87,13 @@ def test_emulated_cycles_are_deterministic(target_tools, float_model, build_root
     ("vmov", "s0, s1", 1), ("sdiv", "r0, r1, r2", 12), ("add", "r0, r1", 1)])
 def test_cycle_weights_follow_the_table(name, ops, cycles):
     pytest.importorskip("capstone", reason="pip install 'rollmpc-codegen[target]'")
-    from rollmpc_codegen.emulate import instruction_cycles
+    from rollmpc_codegen.target.emulate import instruction_cycles
 
     assert instruction_cycles(name, ops) == cycles
 
 
 def test_horizon_table_and_fits(target_tools, tmp_path, build_root, capsys):
-    from rollmpc_codegen.cli import main
+    from rollmpc_codegen.cli.main import main
 
     out = tmp_path / "h.json"
     assert main(["report", str(UAV), "--precision", "float", "--horizons", "10,20",
@@ -111,7 +111,7 @@ def test_horizon_table_and_fits(target_tools, tmp_path, build_root, capsys):
 
 @pytest.mark.parametrize("args", [["--horizons", "10,x"], ["--steps", "0"]])
 def test_bad_report_arguments_give_one_line(args, capsys):
-    from rollmpc_codegen.cli import main
+    from rollmpc_codegen.cli.main import main
 
     assert main(["report", str(UAV), *args]) == 2
     err = capsys.readouterr().err.strip().splitlines()
@@ -120,9 +120,9 @@ def test_bad_report_arguments_give_one_line(args, capsys):
 
 def test_instance_layout_matches_the_host(target_tools, float_model, build_root):
     """The final-state comparison of replay_on_target relies on identical struct layouts."""
-    from rollmpc_codegen.build import build_host_controller
-    from rollmpc_codegen.emulate import CortexM4
-    from rollmpc_codegen.target import build_target
+    from rollmpc_codegen.host.build import build_host_controller
+    from rollmpc_codegen.target.emulate import CortexM4
+    from rollmpc_codegen.target.build import build_target
 
     model, ctx = float_model
     em = CortexM4(build_target(ctx, build_root).elf)

@@ -20,15 +20,15 @@ import pytest
 import yaml
 
 from conftest import ROOT, Built
-from rollmpc_codegen.build import build_host_controller
+from rollmpc_codegen.host.build import build_host_controller
 from rollmpc_codegen.config import ConfigError, load, parse
-from rollmpc_codegen.exact_qp import qp_data, solve_exact
-from rollmpc_codegen.generate import generate, load_model
-from rollmpc_codegen.runtime_bounds import (BAD_ARGUMENT, BAD_BOUNDS, BOUND_NOT_CONFIGURED,
+from rollmpc_codegen.qp.exact import qp_data, solve_exact
+from rollmpc_codegen.pipeline import generate, load_model
+from rollmpc_codegen.features.runtime_bounds import (BAD_ARGUMENT, BAD_BOUNDS, BOUND_NOT_CONFIGURED,
                                             row_constants)
-from rollmpc_codegen.scenario import preview, scenario_reference
-from rollmpc_codegen.simulate import run_closed_loop
-from rollmpc_codegen.solver_ref import INFEASIBLE, NONFINITE_INPUT, OPTIMAL
+from rollmpc_codegen.sim.scenario import preview, scenario_reference
+from rollmpc_codegen.sim.simulate import run_closed_loop
+from rollmpc_codegen.reference.solver import INFEASIBLE, NONFINITE_INPUT, OPTIMAL
 from test_bitexact import Lockstep
 from test_compile import AUTOPILOT, CLANG_HINT, STRICT, _compile
 
@@ -274,7 +274,7 @@ def test_runtime_build_equals_baked_build(example, tmp_path):
 def test_simulate_cli_runs_the_example(tmp_path, build_root):
     """`rollmpc simulate` end to end on the example (the config's bounds; no regeneration
     is needed for other bounds, which the firmware sets through P_set_bounds)."""
-    from rollmpc_codegen.cli import main
+    from rollmpc_codegen.cli.main import main
 
     out = tmp_path / "s.json"
     assert main(["simulate", str(EXAMPLE), "--steps", "60", "--quiet", "--json", str(out),

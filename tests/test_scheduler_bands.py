@@ -25,17 +25,19 @@ import pytest
 import yaml
 
 from conftest import ROOT, UAV, Built, config_error, require_tool
-from rollmpc_codegen.band_scheduler import scheduled_mode
-from rollmpc_codegen.cli import main
+from rollmpc_codegen.reference.scheduler import scheduled_mode
+from rollmpc_codegen.cli.main import main
 from rollmpc_codegen.config import parse
-from rollmpc_codegen.context import ControllerModel, build_context, build_model
-from rollmpc_codegen.exact_qp import qp_data, solve_exact
-from rollmpc_codegen.generate import generate
-from rollmpc_codegen.qp_peers import DaqpPeer
-from rollmpc_codegen.render import render_sources
-from rollmpc_codegen.scenario import preview, scenario_reference
-from rollmpc_codegen.simulate import run_closed_loop
-from rollmpc_codegen.solver_ref import OPTIMAL, SolverRef
+from rollmpc_codegen.codegen.context import build_context
+from rollmpc_codegen.model.controller import ControllerModel
+from rollmpc_codegen.pipeline import build_model
+from rollmpc_codegen.qp.exact import qp_data, solve_exact
+from rollmpc_codegen.pipeline import generate
+from rollmpc_codegen.qp.peers import DaqpPeer
+from rollmpc_codegen.codegen.render import render_sources
+from rollmpc_codegen.sim.scenario import preview, scenario_reference
+from rollmpc_codegen.sim.simulate import run_closed_loop
+from rollmpc_codegen.reference.solver import OPTIMAL, SolverRef
 from test_bitexact import Lockstep
 from test_compile import AUTOPILOT, CLANG_HINT, STRICT, _compile
 

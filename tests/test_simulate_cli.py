@@ -11,10 +11,10 @@ import json
 import numpy as np
 import pytest
 
-from rollmpc_codegen.cli import main
-from rollmpc_codegen.closed_loop_metrics import (constraint_violations, reference_segments,
+from rollmpc_codegen.cli.main import main
+from rollmpc_codegen.sim.metrics import (constraint_violations, reference_segments,
                                                  settled_window)
-from rollmpc_codegen.simulate_cli import csv_header
+from rollmpc_codegen.cli.simulate import csv_header
 
 from conftest import UAV
 
@@ -157,7 +157,7 @@ def test_segments_and_settled_window():
 
 def test_constraint_violations_are_counted():
     from rollmpc_codegen.config import load
-    from rollmpc_codegen.simulate import ClosedLoopLog
+    from rollmpc_codegen.sim.simulate import ClosedLoopLog
 
     cfg = load(UAV)
     K = 4

@@ -2,7 +2,7 @@
 
 Every QP of the 6000-step scenario is replayed through the compiled C solver (warm starts
 carried over in order, as in the closed loop) and compared with an extended-precision KKT
-solution on the optimal active set (rollmpc_codegen.exact_qp). The float build is compared
+solution on the optimal active set (rollmpc_codegen.qp.exact). The float build is compared
 with the double build on the applied first move. No timing is asserted here: speed is
 measured by `rollmpc bench` and `rollmpc report`.
 """
@@ -11,9 +11,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from rollmpc_codegen.bench import record_qp_sequence
-from rollmpc_codegen.exact_qp import qp_data, solve_exact
-from rollmpc_codegen.solver_ref import OPTIMAL
+from rollmpc_codegen.host.bench import record_qp_sequence
+from rollmpc_codegen.qp.exact import qp_data, solve_exact
+from rollmpc_codegen.reference.solver import OPTIMAL
 
 
 @pytest.fixture(scope="module")

@@ -20,7 +20,7 @@
  *    dropping negative multipliers and adding violated rows until KKT holds.
  *
  * Every sum runs sequentially in a fixed order with no fused multiply-add, so the NumPy
- * reference (rollmpc_codegen.solver_ref) reproduces every output bit for bit.
+ * reference (rollmpc_codegen.reference.solver) reproduces every output bit for bit.
  */
 #include <math.h>
 #include "chain_soft_internal.h"
@@ -350,7 +350,7 @@ static int row_violated(const chain_soft_work *ws, const chain_soft_mode_data *m
 }
 
 /*
- * Soft output bounds (rollmpc_codegen/soft_constraints.py): a soft row r has the slack
+ * Soft output bounds (rollmpc_codegen/features/soft_constraints.py): a soft row r has the slack
  * s_r = max(0, (lam_r - l1) w), w = 1/(2 l2). In the working set it is tight (s_r = 0,
  * lam_r <= l1, like a hard row) or, flagged in ws->slack_on, slack: M_r th - gamma_r = s_r,
  * which adds w to its diagonal of H_WW and l1 w to its right-hand side.

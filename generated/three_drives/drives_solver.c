@@ -20,7 +20,7 @@
  *    dropping negative multipliers and adding violated rows until KKT holds.
  *
  * Every sum runs sequentially in a fixed order with no fused multiply-add, so the NumPy
- * reference (rollmpc_codegen.solver_ref) reproduces every output bit for bit.
+ * reference (rollmpc_codegen.reference.solver) reproduces every output bit for bit.
  */
 #include <math.h>
 #include "drives_internal.h"

@@ -1,0 +1,182 @@
+"""Stage 8: compile generated C on the host and load it through cffi (ABI mode).
+
+The host build uses ``-ffp-contract=off`` so that no multiply-add is fused: every
+operation rounds exactly as in the NumPy reference.
+"""
+from __future__ import annotations
+
+import hashlib
+import shutil
+import subprocess
+from dataclasses import dataclass
+from pathlib import Path
+
+import cffi
+import numpy as np
+
+from ..codegen.render import render_template
+
+STRICT_WARNINGS = ("-std=c99", "-Wall", "-Wextra", "-Wpedantic", "-Wconversion", "-Wshadow",
+                   "-Wdouble-promotion", "-Werror")
+EXACT_MATH = ("-ffp-contract=off",)
+
+
+class BuildError(RuntimeError):
+    """The C compiler failed; the message carries its output."""
+
+
+def c_sources(src_dir: Path, prefix: str) -> list[Path]:
+    return sorted(Path(src_dir).glob(f"{prefix}*.c"))
+
+
+def compile_shared(ctx: dict, src_dir: Path, build_dir: Path, compiler: str = "gcc",
+                   opt: str = "-O2", extra: tuple[str, ...] = (), timer: bool = True) -> Path:
+    """Build ``lib<prefix>.so`` from the generated sources in ``src_dir``.
+
+    The library lands in ``build_dir/<hash of sources and flags>/`` so repeated builds of
+    the same code are free.
+    """
+    prefix = ctx["prefix"]
+    sources = c_sources(src_dir, prefix)
+    flags = [opt, "-fPIC", "-shared", *STRICT_WARNINGS, *EXACT_MATH, *extra]
+    digest = hashlib.sha256()
+    for path in sources + sorted(Path(src_dir).glob(f"{prefix}*.h")):
+        digest.update(path.name.encode())
+        digest.update(path.read_bytes())
+    digest.update(" ".join([compiler, *flags, str(timer)]).encode())
+    out = Path(build_dir) / digest.hexdigest()[:16]
+    lib = out / f"lib{prefix}.so"
+    if lib.exists():
+        return lib
+    tmp = out.with_name(out.name + ".tmp")
+    shutil.rmtree(tmp, ignore_errors=True)
+    tmp.mkdir(parents=True)
+    extra_src = []
+    if timer:
+        (tmp / f"{prefix}_host_timer.h").write_text(render_template(ctx, "host/timer.h.j2"))
+        timer_c = tmp / f"{prefix}_host_timer.c"
+        timer_c.write_text(render_template(ctx, "host/timer.c.j2"))
+        extra_src.append(timer_c)
+        # the feature macro must precede the force-included header (it pulls in stdint.h)
+        flags += ["-D_POSIX_C_SOURCE=199309L", "-include", str(tmp / f"{prefix}_host_timer.h"),
+                  f"-I{tmp}"]
+    cmd = [compiler, *flags, f"-I{src_dir}", "-o", str(tmp / lib.name),
+           *map(str, sources), *map(str, extra_src), "-lm"]
+    proc = subprocess.run(cmd, capture_output=True, text=True)
+    if proc.returncode != 0:
+        raise BuildError(f"{' '.join(cmd)}\n{proc.stderr}")
+    shutil.rmtree(out, ignore_errors=True)
+    tmp.rename(out)
+    return lib
+
+
+@dataclass
+class HostController:
+    """A loaded host build of one generated controller."""
+
+    ffi: cffi.FFI
+    lib: object
+    ctx: dict
+
+    @classmethod
+    def load(cls, ctx: dict, lib_path: Path) -> "HostController":
+        ffi = cffi.FFI()
+        ffi.cdef(render_template(ctx, "host/cffi_cdef.h.j2"))
+        lib = ffi.dlopen(str(lib_path))
+        obj = cls(ffi=ffi, lib=lib, ctx=ctx)
+        obj.prefix = ctx["prefix"]
+        obj.dtype = np.float64 if ctx["real"] == "double" else np.float32
+        obj._fn = {name: getattr(lib, f"{obj.prefix}_{name}") for name in
+                   ("ctrl_size", "init", "step", "solve_qp", "last_info", "status_message")
+                   + (("set_bounds", "get_bounds") if ctx.get("runtime_bounds") else ())}
+        obj.ctrl = ffi.new("char[]", obj._fn["ctrl_size"]())
+        obj.u = np.zeros(ctx["n_actuators"], obj.dtype)
+        obj.init()
+        return obj
+
+    def _ptr(self, arr: np.ndarray):
+        return self.ffi.cast(f"{self.prefix}_real *", self.ffi.from_buffer(arr))
+
+    def init(self) -> None:
+        self._fn["init"](self.ctrl)
+
+    def step(self, y, sched, r) -> tuple[int, np.ndarray]:
+        y = np.ascontiguousarray(y, self.dtype)
+        r = np.ascontiguousarray(r, self.dtype)
+        sp = self.ffi.NULL
+        if sched is not None and len(sched):
+            sched = np.ascontiguousarray(sched, self.dtype)
+            sp = self._ptr(sched)
+        u = np.zeros(self.ctx["n_actuators"], self.dtype)
+        status = self._fn["step"](self.ctrl, self._ptr(y), sp, self._ptr(r), self._ptr(u))
+        return status, u
+
+    def solve_qp(self, mode: int, x, r) -> tuple[int, np.ndarray, int]:
+        x = np.ascontiguousarray(x, self.dtype)
+        r = np.ascontiguousarray(r, self.dtype)
+        n = self.ctx["modes"][mode]["n"] if 0 <= mode < len(self.ctx["modes"]) else 1
+        U = np.zeros(max(n, 1), self.dtype)
+        its = self.ffi.new("int *")
+        status = self._fn["solve_qp"](self.ctrl, mode, self._ptr(x), self._ptr(r), self._ptr(U), its)
+        return status, U, its[0]
+
+    def _bound_ptr(self, values):
+        """A P_real pointer to a copy of ``values`` (None -> NULL), and the copy."""
+        if values is None:
+            return self.ffi.NULL, None
+        arr = np.ascontiguousarray(np.atleast_1d(values), self.dtype)
+        return self._ptr(arr), arr
+
+    def set_bounds(self, mode: int, u_min, u_max, y_min, y_max) -> int:
+        """``P_set_bounds`` (configs with ``runtime_bounds: true``); None passes NULL."""
+        ptrs = [self._bound_ptr(v) for v in (u_min, u_max, y_min, y_max)]
+        return self._fn["set_bounds"](self.ctrl, mode, *(p for p, _ in ptrs))
+
+    def get_bounds(self, mode: int) -> tuple[int, dict]:
+        """``P_get_bounds``: (status, {u_min, u_max, y_min, y_max}) of one mode."""
+        nu = max(m["nu"] for m in self.ctx["modes"])
+        nu = self.ctx["modes"][mode]["nu"] if 0 <= mode < len(self.ctx["modes"]) else nu
+        out = {"u_min": np.zeros(nu, self.dtype), "u_max": np.zeros(nu, self.dtype),
+               "y_min": np.zeros(self.ctx["n_outputs"], self.dtype),
+               "y_max": np.zeros(self.ctx["n_outputs"], self.dtype)}
+        status = self._fn["get_bounds"](self.ctrl, mode, *(self._ptr(v) for v in out.values()))
+        return status, out
+
+    def info(self) -> dict:
+        p = self._fn["last_info"](self.ctrl)
+        out = {"status": p.status, "mode": p.mode, "iterations": p.iterations,
+               "polish_iterations": p.polish_iterations, "active": p.active,
+               "mode_switches": p.mode_switches, "solve_ticks": p.solve_ticks}
+        if self.ctx.get("has_soft_rows"):  # soft output bounds: the plan's slack
+            out.update(slack_max=float(p.slack_max), slack_rows=p.slack_rows)
+        return out
+
+    def status_message(self, status: int) -> str:
+        return self.ffi.string(self._fn["status_message"](status)).decode()
+
+
+def default_build_root() -> Path:
+    """Scratch space for host builds outside the source tree (cached by content hash)."""
+    import tempfile
+
+    return Path(tempfile.gettempdir()) / "rollmpc-build"
+
+
+def build_host_controller(ctx: dict, build_root: Path | None = None, compiler: str = "gcc",
+                          opt: str = "-O2", extra: tuple[str, ...] = ()) -> HostController:
+    """Render ``ctx`` into a scratch directory, compile it and load it."""
+    from ..codegen.render import render_sources
+
+    root = Path(build_root) if build_root is not None else default_build_root()
+    files = render_sources(ctx)
+    digest = hashlib.sha256("".join(files[k] for k in sorted(files)).encode()).hexdigest()[:16]
+    src = root / f"src-{ctx['prefix']}-{digest}"
+    if not src.exists():
+        tmp = src.with_name(src.name + ".tmp")
+        shutil.rmtree(tmp, ignore_errors=True)
+        tmp.mkdir(parents=True)
+        for name, text in files.items():
+            (tmp / name).write_text(text)
+        tmp.rename(src)
+    lib = compile_shared(ctx, src, root, compiler=compiler, opt=opt, extra=extra)
+    return HostController.load(ctx, lib)

@@ -1,0 +1,137 @@
+"""Stage 2: each mode's plant -> a discrete, well-scaled state-space realisation (ZOH).
+
+The controller's realisation is ``x = [x_g; y]`` when ``integrator: true``: the states
+of G(s) followed by one integrator per output, so that y (the roll angle) is a state
+and its rate ``C_g x_g + D_g u`` (the roll rate) is a known linear function of x.
+The realisation of G(s) is balanced (diagonal similarity) before sampling, so the
+observer and the x-dependent matrices are not needlessly ill-conditioned.  A
+transfer-function *matrix* is realised minimally by :mod:`rollmpc_codegen.model.tf_realisation`.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import control
+import numpy as np
+import scipy.linalg
+
+from . import tf_realisation
+from ..config import ConfigError, ModeConfig, PlantConfig
+
+
+@dataclass(frozen=True)
+class ContinuousPlant:
+    """Continuous realisation ``x' = A x + B u``, outputs ``y = C x`` and ``rate = Cr x + Dr u``.
+
+    ``Cr, Dr`` give dy/dt exactly (the pre-integrator signal) when the plant was built
+    with ``integrator: true``; otherwise they are None.
+    """
+
+    A: np.ndarray
+    B: np.ndarray
+    C: np.ndarray
+    Cr: np.ndarray | None
+    Dr: np.ndarray | None
+
+
+@dataclass(frozen=True)
+class DiscretePlant:
+    A: np.ndarray
+    B: np.ndarray
+    C: np.ndarray
+    Cr: np.ndarray | None  # rate output at the sampling instants (see ContinuousPlant)
+    Dr: np.ndarray | None
+    # offset-free tracking (disturbance_model.augment): the last nd states are constant
+    # disturbances, and u_s = input_target @ x is the input that cancels them
+    nd: int = 0
+    input_target: np.ndarray | None = None
+    # Δu weighting (input_rate.augment): the last n_prev states are the previous input
+    # u_{k-1} (u_prev+ = u), after the disturbance states
+    n_prev: int = 0
+
+    @property
+    def nx(self) -> int:
+        return self.A.shape[0]
+
+    @property
+    def nu(self) -> int:
+        return self.B.shape[1]
+
+    @property
+    def ny(self) -> int:
+        return self.C.shape[0]
+
+
+def _balanced(A: np.ndarray, B: np.ndarray, C: np.ndarray):
+    """Diagonal similarity that balances A (scipy/LAPACK gebal), applied to B and C."""
+    if A.size == 0:
+        return A, B, C
+    _, (scale, perm) = scipy.linalg.matrix_balance(A, permute=False, separate=True)
+    T = np.diag(scale)
+    Ti = np.diag(1.0 / scale)
+    return Ti @ A @ T, Ti @ B, C @ T
+
+
+def continuous_realisation(plant: PlantConfig, key: str) -> ContinuousPlant:
+    """Realise a continuous plant config; ``key`` names it in errors."""
+    if plant.tf_matrix is not None:  # MIMO: minimal realisation (tf_realisation)
+        A, B, C, D = tf_realisation.realise(plant.tf_matrix)
+        A, B, C = _balanced(A, B, C)
+    elif plant.kind == "transfer_function":
+        sys = control.tf2ss(control.tf(list(plant.num), list(plant.den)))
+        A, B, C, D = (np.atleast_2d(np.asarray(m, dtype=float)) for m in
+                      (sys.A, sys.B, sys.C, sys.D))
+        if A.size == 0:  # static gain (only legal with an integrator)
+            A = np.zeros((0, 0))
+            B = np.zeros((0, 1))
+            C = np.zeros((1, 0))
+        A, B, C = _balanced(A, B, C)
+    else:
+        A, B, C, D = plant.A, plant.B, plant.C, plant.D
+    if not plant.integrator:
+        return ContinuousPlant(A=A, B=B, C=C, Cr=None, Dr=None)
+    ng, ny, nu = A.shape[0], C.shape[0], B.shape[1]
+    Aa = np.block([[A, np.zeros((ng, ny))], [C, np.zeros((ny, ny))]])
+    Ba = np.vstack([B, D])
+    Ca = np.hstack([np.zeros((ny, ng)), np.eye(ny)])
+    Cr = np.hstack([C, np.zeros((ny, ny))])
+    return ContinuousPlant(A=Aa, B=Ba, C=Ca, Cr=Cr, Dr=np.asarray(D, dtype=float).reshape(ny, nu))
+
+
+def zoh(cont: ContinuousPlant, Ts: float) -> DiscretePlant:
+    """Exact zero-order-hold sampling (matrix exponential of the augmented system)."""
+    nx, nu = cont.B.shape
+    M = np.zeros((nx + nu, nx + nu))
+    M[:nx, :nx] = cont.A
+    M[:nx, nx:] = cont.B
+    expM = scipy.linalg.expm(M * Ts)
+    return DiscretePlant(A=expM[:nx, :nx], B=expM[:nx, nx:], C=cont.C.copy(),
+                         Cr=cont.Cr, Dr=cont.Dr)
+
+
+def _pbh_rank_deficient(A: np.ndarray, X: np.ndarray, left: bool) -> bool:
+    """PBH test: is some eigenvalue of A uncontrollable (X=B) / unobservable (X=C)?"""
+    n = A.shape[0]
+    scale = max(1.0, np.abs(A).max(), np.abs(X).max())
+    for lam in np.linalg.eigvals(A):
+        M = np.hstack([A - lam * np.eye(n), X]) if left else np.vstack([A - lam * np.eye(n), X])
+        s = np.linalg.svd(M, compute_uv=False)
+        if s[n - 1] <= 1e-9 * scale:
+            return True
+    return False
+
+
+def discretise(mode: ModeConfig, Ts: float, key: str) -> DiscretePlant:
+    """The mode's discrete model for prediction, checked for controllability/observability."""
+    plant = mode.plant
+    if plant.kind == "state_space" and plant.discrete:
+        disc = DiscretePlant(A=plant.A, B=plant.B, C=plant.C, Cr=None, Dr=None)
+    else:
+        disc = zoh(continuous_realisation(plant, key), Ts)
+    if not np.all(np.isfinite(disc.A)) or not np.all(np.isfinite(disc.B)):
+        raise ConfigError(f"{key}.plant", "sampling produced non-finite matrices")
+    if _pbh_rank_deficient(disc.A, disc.B, left=True):
+        raise ConfigError(f"{key}.plant", "the discrete model is not controllable")
+    if _pbh_rank_deficient(disc.A, disc.C, left=False):
+        raise ConfigError(f"{key}.plant", "the discrete model is not observable")
+    return disc

@@ -1,0 +1,64 @@
+"""The ``generate`` pipeline, one stage a folder:
+
+config/ (validated dataclasses) -> model/ (plant, observer; features/ augment it) -> qp/
+(condensed QP, stored data) -> codegen/ (context dict, rendered sources on disk).
+"""
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from . import config as config_mod
+from .codegen.context import build_context
+from .codegen.render import render_sources, write_atomically
+from .config import MAX_ROWS, ConfigError, ControllerConfig
+from .features import input_rate
+from .features.disturbance_model import prediction_model
+from .model.controller import ControllerModel, ModeModel
+from .qp.condense import condense
+from .qp.storage import mode_data
+
+
+def build_model(cfg: ControllerConfig) -> ControllerModel:
+    """Offline maths for every mode, in double, then cast to the storage precision."""
+    modes = []
+    for j, mode in enumerate(cfg.modes):
+        key = f"modes[{j}]"
+        # with its disturbances, and the previous input with Δu weighting (input_rate)
+        plant = input_rate.augment(prediction_model(mode, cfg.sample_time, key), mode)
+        qp = condense(plant, mode, cfg.horizon, key)
+        # the largest row quantity (int16 in the C): n + N ny, plus n Δu quantities
+        q_end = qp.n + qp.N * qp.ny + (qp.n if np.any(qp.row_kind == 2) else 0)
+        if qp.m > MAX_ROWS or qp.n > MAX_ROWS or q_end > MAX_ROWS:
+            raise ConfigError("horizon", f"the QP has {qp.m} rows; at most {MAX_ROWS} supported")
+        L, poles = input_rate.observer_gain(plant, mode, key)
+        act_index = [cfg.actuators.index(a) for a in mode.actuators]
+        # an overflow in the cast to float is reported just below, naming the key; numpy's
+        # own RuntimeWarning would only add a second, vaguer line on stderr
+        with np.errstate(over="ignore"):
+            data = mode_data(mode.name, act_index, plant, L, qp, mode.u_min, mode.u_max,
+                             cfg.precision, mode.soft_l1, mode.soft_l2)
+        for field in ("Kx", "EinvGt", "Sinv_p", "S_p", "Ew", "L", "A", "B"):
+            arr = getattr(data, field)
+            if not np.all(np.isfinite(arr)):
+                raise ConfigError(f"{key}.weights", f"{field} is not finite in "
+                                  f"{cfg.precision} precision (the problem is too badly scaled)")
+        modes.append(ModeModel(plant=plant, qp=qp, observer_gain=L, observer_poles=poles,
+                               data=data))
+    return ControllerModel(config=cfg, modes=tuple(modes))
+
+
+def load_model(config_path: str | Path, precision: str | None = None) -> tuple[ControllerModel, dict]:
+    """Validate the config and compute every static matrix; returns (model, context)."""
+    cfg = config_mod.load(config_path, precision)
+    model = build_model(cfg)
+    return model, build_context(model)
+
+
+def generate(config_path: str | Path, out_dir: str | Path,
+             precision: str | None = None) -> tuple[ControllerModel, dict]:
+    """Render the controller for ``config_path`` into ``out_dir`` (replaced atomically)."""
+    model, ctx = load_model(config_path, precision)
+    write_atomically(render_sources(ctx), Path(out_dir))
+    return model, ctx

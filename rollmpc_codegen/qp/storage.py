@@ -1,0 +1,234 @@
+"""Stage 5: the structured QP data the C stores, cast once to the storage precision.
+
+The dual Hessian H = M E^-1 M' is never stored densely (1.28 MB per mode in double for
+the paper's problem).  Every constraint row r is ``sign_r * a(q_r)' U`` for a *quantity*
+q_r: an input U_i (box rows, q in [0, n)) or a predicted output (Gamma U)_k
+(output rows, q = n + k).  Hence ``H_rs = sign_r sign_s Hq[q_r, q_s]`` with
+
+    Hq = [[E^-1,         E^-1 Gamma'       ],
+          [Gamma E^-1,   Gamma E^-1 Gamma' ]]
+
+stored as E^-1 Gamma' (dense), Gamma E^-1 Gamma' (packed lower, only when output rows
+exist) and E^-1 itself in Woodbury form (below).  The L/D/U split of the paper is
+implicit: D = diag(H), U = L' by symmetry.
+
+The primal polish never touches E itself: with a heavy terminal weight (P2 = 1e9) the
+float entries of E (~3e5) cannot also carry its stage part (~20).  E is kept split as
+``E = S + V' (2P) V``: S = 2(Psi + Gamma_s' Omega_s Gamma_s) over the stages 1..N-1
+(well conditioned), V = the terminal rows of Gamma, and (2P)^-1, so the polish solves
+the augmented system [S_FF V_F'; V_F -(2P)^-1] with a small Schur complement.  When P
+is not positive definite, the terminal term stays inside S and V is empty.
+
+With S^-1 (packed), Uv = V S^-1 and T = (2P)^-1 + V S^-1 V', Woodbury gives
+``E^-1 = S^-1 - Ew' Ew`` with ``Ew = chol(T)^-1 Uv`` (nt x n): E^-1 costs no storage of its
+own, and when few inputs are bound the polish solves with S^-1_BB instead of S_FF.
+
+The unconstrained solution uses ``theta0 = Kx x + (E^-1 Gamma') w`` with ``w = 2 Omega R``
+(``Kr = E^-1 F = (E^-1 Gamma')(2 Omega)``, so the reference gain needs no storage of its own).
+A held reference makes w constant over the stages 0..N-2, so the C sums the columns of
+E^-1 Gamma' per run of equal w and takes the longest run from the precomputed column sum
+``colsum`` (one n-vector per output): n (nx + ny) operations instead of n (nx + N ny).
+
+Δu rows (``modes[].bounds.du_min/du_max``, row kind 2 of :func:`.mpc.condense`) are on the
+quantity D_i = U_i - U_{i-nu} (D_i = U_i at stage 0, whose u_prev is in the right-hand
+side), numbered q = n + N ny + i.  Their Hq entries are differences of the ones above,
+``Hq(D_a, b) = Hq(a, b) - Hq(a - nu, b)`` (on either side), so they need no data.
+
+``out_bound`` (one value per predicted output) bounds ``|(Gamma th)_k| <= out_bound_k
+max_i |th_i|``; when that certifies every output row, the C skips the N^2/2 prediction.
+``row_next`` maps each row to the same constraint one stage later, for the shifted warm start.
+
+With move blocking (:mod:`.move_blocking`) n = p nu (one input vector per block) and
+Gamma is the blocked Gamma T; ``stage_block`` tells the C's prediction which block holds
+each stage, ``row_next`` maps an input row to the block holding its first stage + 1, and
+``out_bound`` stays that of the stage Markov parameters (sound, see move_blocking).
+
+Both the renderer and the NumPy reference read these arrays, so the numbers the C is
+compiled with and the numbers the reference computes with are the same by construction.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..features import move_blocking, soft_constraints
+from .condense import CondensedQP, solve_refined
+from ..model.plant import DiscretePlant
+
+
+def dtype_of(precision: str):
+    return np.float64 if precision == "double" else np.float32
+
+
+def packed_lower(S: np.ndarray) -> np.ndarray:
+    """Row-major packed lower triangle: element (i, j), j <= i, at i(i+1)/2 + j."""
+    n = S.shape[0]
+    return np.concatenate([S[i, :i + 1] for i in range(n)]) if n else np.zeros(0)
+
+
+def unpack_lower(p: np.ndarray, n: int) -> np.ndarray:
+    """Symmetric matrix from its packed lower triangle (same dtype)."""
+    S = np.zeros((n, n), dtype=p.dtype)
+    idx = 0
+    for i in range(n):
+        S[i, :i + 1] = p[idx:idx + i + 1]
+        S[:i + 1, i] = p[idx:idx + i + 1]
+        idx += i + 1
+    return S
+
+
+@dataclass(frozen=True)
+class ModeData:
+    """One mode's arrays exactly as the C stores them (dtype = storage precision)."""
+
+    name: str
+    nx: int
+    nu: int
+    ny: int
+    N: int
+    n: int  # decision variables
+    m: int  # constraint rows
+    n_yq: int  # output quantities N*ny
+    actuator_index: np.ndarray  # (nu,) physical actuator of each mode input
+    A: np.ndarray
+    B: np.ndarray
+    C: np.ndarray
+    L: np.ndarray  # observer gain (nx, ny)
+    Kx: np.ndarray  # (n, nx)
+    EinvGt: np.ndarray  # (n, N ny)
+    Sinv_p: np.ndarray  # packed lower S^-1
+    Ew: np.ndarray  # (nt, n) E^-1 = S^-1 - Ew' Ew
+    Uv: np.ndarray  # (nt, n) V S^-1
+    T: np.ndarray  # (nt, nt) (2P)^-1 + V S^-1 V'
+    S_p: np.ndarray  # packed lower stage Hessian (E without the terminal term when split)
+    V: np.ndarray  # (nt, n) terminal rows of Gamma (nt = ny when split, else 0)
+    P2inv: np.ndarray  # (nt, nt) (2P)^-1
+    GEinvGt_p: np.ndarray  # packed lower (N ny)(N ny + 1)/2, or empty without output rows
+    Omega2: np.ndarray  # (N, ny, ny): 2Q per stage, 2P at the last
+    Phi: np.ndarray  # (N ny, nx)
+    markov: np.ndarray  # (N, ny, nu)
+    row_q: np.ndarray  # (m,) quantity of each row
+    row_sign: np.ndarray  # (m,) +-1
+    row_c: np.ndarray  # (m,) constant part c of eq. (6)
+    row_next: np.ndarray  # (m,) the same constraint one stage later (itself at the last)
+    colsum: np.ndarray  # (ny, n) sum of the E^-1 Gamma' columns of the stages 0..N-2
+    out_bound: np.ndarray  # (N ny,) |(Gamma th)_k| <= out_bound_k max|th| (inflated)
+    u_min: np.ndarray  # (nu,)
+    u_max: np.ndarray
+    stage_block: np.ndarray | None = None  # (N,) block of each stage; None: unblocked
+    # soft output bounds (soft_constraints): per bound (2 j + side, side 1 = y_max) the
+    # penalty l1 and w = 1 / (2 l2) (0: hard); None without soft bounds
+    soft_l1: np.ndarray | None = None  # (2 ny,)
+    soft_w: np.ndarray | None = None  # (2 ny,)
+    w_cap: int = 0  # working-set capacity: n, plus the soft (output, stage) pairs
+
+    @property
+    def nt(self) -> int:
+        return self.V.shape[0]
+
+    @property
+    def has_output_rows(self) -> bool:
+        return bool(np.any((self.row_q >= self.n) & (self.row_q < self.n + self.n_yq)))
+
+    def soft_rows(self) -> tuple[np.ndarray, np.ndarray]:
+        """(l1, w) of every row, as the C's soft_of() reads them (0 for hard rows)."""
+        l1, w = np.zeros(self.m, self.Kx.dtype), np.zeros(self.m, self.Kx.dtype)
+        if self.soft_w is not None:
+            out = (self.row_q >= self.n) & (self.row_q < self.n + self.n_yq)
+            idx = 2 * ((self.row_q[out] - self.n) % self.ny) + (self.row_sign[out] > 0)
+            l1[out], w[out] = self.soft_l1[idx], self.soft_w[idx]
+        return l1, w
+
+    @property
+    def has_soft_rows(self) -> bool:
+        """Some output row is soft (soft_constraints)."""
+        return bool(np.any(self.soft_rows()[1] > 0))
+
+    @property
+    def has_rate_rows(self) -> bool:
+        """Δu rows (quantities n + N ny + i, see the module docstring)."""
+        return bool(np.any(self.row_q >= self.n + self.n_yq))
+
+
+def mode_data(name: str, actuator_index, plant: DiscretePlant, obs_gain: np.ndarray,
+              qp: CondensedQP, u_min, u_max, precision: str, soft_l1=None,
+              soft_l2=None) -> ModeData:
+    """The mode's stored arrays; soft_l1/soft_l2: the config's (ny, 2) soft penalties."""
+    dt = dtype_of(precision)
+    N, ny, nu = qp.N, qp.ny, qp.nu
+    EinvGt = solve_refined(qp.E, qp.Gamma.T)  # full double accuracy (see solve_refined)
+    has_out = bool(np.any(qp.row_kind == 1))
+    GEinvGt = ((qp.Gamma.astype(np.longdouble) @ EinvGt.astype(np.longdouble))
+               .astype(np.float64) if has_out else np.zeros((0, 0)))
+    GEinvGt = 0.5 * (GEinvGt + GEinvGt.T)
+    Omega2 = np.array([2.0 * qp.Omega[i * ny:(i + 1) * ny, i * ny:(i + 1) * ny]
+                       for i in range(N)])
+    S, V, P2inv = qp.terminal_split()
+    Sinv = solve_refined(S, np.eye(qp.n))
+    Sinv = 0.5 * (Sinv + Sinv.T)
+    Uv = solve_refined(S, V.T).T if V.shape[0] else np.zeros((0, qp.n))
+    T = P2inv + V @ Uv.T
+    T = 0.5 * (T + T.T)
+    Ew = (np.linalg.solve(np.linalg.cholesky(T), Uv) if V.shape[0]
+          else np.zeros((0, qp.n)))
+    offset = np.select([qp.row_kind == 1, qp.row_kind == 2], [qp.n, qp.n + N * ny], 0)
+    row_q = (offset + qp.row_index).astype(np.int32)
+    colsum = (EinvGt.astype(np.longdouble)[:, :(N - 1) * ny].reshape(qp.n, N - 1, ny)
+              .sum(axis=1).T.astype(np.float64))
+
+    def cast(a):
+        return np.ascontiguousarray(np.asarray(a, dtype=np.float64).astype(dt))
+
+    markov = cast(qp.markov)
+    soft = {"w_cap": qp.n}
+    if soft_l2 is not None:
+        l1, w = soft_constraints.storage(soft_l1, soft_l2)
+        soft = {"soft_l1": cast(l1), "soft_w": cast(w), "w_cap": soft_constraints.working_set_cap(
+            qp.n, qp.row_kind, qp.row_index, qp.soft_l2)}
+    return ModeData(**soft,
+        name=name, nx=qp.nx, nu=nu, ny=ny, N=N, n=qp.n, m=qp.m, n_yq=N * ny,
+        actuator_index=np.asarray(actuator_index, dtype=np.int32),
+        A=cast(plant.A), B=cast(plant.B), C=cast(plant.C), L=cast(obs_gain),
+        Kx=cast(qp.Kx), EinvGt=cast(EinvGt), Sinv_p=cast(packed_lower(Sinv)), Ew=cast(Ew),
+        Uv=cast(Uv), T=cast(T), S_p=cast(packed_lower(S)), V=cast(V), P2inv=cast(P2inv),
+        GEinvGt_p=cast(packed_lower(GEinvGt)), Omega2=cast(Omega2), Phi=cast(qp.Phi),
+        markov=markov, row_q=row_q, row_sign=qp.row_sign.astype(np.int32), row_c=cast(qp.c),
+        row_next=next_stage_rows(row_q, qp.row_sign, qp.n, nu, ny, N * ny, qp.blocks),
+        colsum=cast(colsum), out_bound=cast(output_bound(markov, dt)),
+        u_min=cast(u_min), u_max=cast(u_max),
+        stage_block=None if qp.blocks is None else move_blocking.stage_block(qp.blocks))
+
+
+def next_stage_rows(row_q: np.ndarray, row_sign: np.ndarray, n: int, nu: int,
+                    ny: int, nyq: int, blocks: tuple[int, ...] | None = None) -> np.ndarray:
+    """Row of the same constraint one stage later (a row of the last stage maps to itself);
+    with move blocking an input row maps to move_blocking.next_input_quantity's block."""
+    where = {(int(q), int(s)): r for r, (q, s) in enumerate(zip(row_q, row_sign))}
+    later = None if blocks is None else move_blocking.next_input_quantity(blocks, nu)
+    out = np.empty(row_q.size, dtype=np.int32)
+    for r, (q, s) in enumerate(zip(row_q, row_sign)):
+        # each kind stays in its own range: input rows [0, n), output rows [n, n + nyq),
+        # Δu rows [n + nyq, 2n + nyq); a last-stage row maps to itself
+        if q < n and later is not None:
+            out[r] = where.get((int(later[q]), int(s)), r)
+            continue
+        step, end = (nu, n) if q < n else ((ny, n + nyq) if q < n + nyq
+                                           else (nu, 2 * n + nyq))
+        nxt = int(q) + step
+        out[r] = where.get((nxt, int(s)), r) if nxt < end else r
+    return out
+
+
+def output_bound(markov: np.ndarray, dt) -> np.ndarray:
+    """g_k with |(Gamma th)_k| <= g_k max|th| for the stored (rounded) Markov parameters.
+
+    g_k = sum of |C A^l B| over the lags of output k's row of Gamma, inflated by
+    (1 + 8 N eps) so that the on-line product g_k * max|th| (one rounding) and the
+    rounding of the exact prediction (N ny nu terms) cannot defeat the certificate.
+    """
+    N, ny, nu = markov.shape
+    per_lag = np.abs(markov.astype(np.float64)).sum(axis=2)  # (N, ny)
+    g = np.cumsum(per_lag, axis=0).reshape(N * ny)
+    eps = float(np.finfo(dt).eps)
+    return g * (1.0 + 8.0 * N * max(nu, 1) * eps)

@@ -1,0 +1,126 @@
+"""NumPy reference of the generated switched controller (``P_step``), op by op.
+
+Mirrors ``templates/controller.c.j2``: the band scheduler with hysteresis (eq. 3
+generalised, :mod:`.band_scheduler`), the predictor
+observers of every mode, the QP of the active mode (:class:`SolverRef`), first-move
+extraction and the inactive actuators at 0.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from ..features import runtime_bounds
+from .scheduler import scheduled_mode
+from .solver import NONFINITE_INPUT, OPTIMAL, SolverRef, seqsum
+
+
+class ControllerRef:
+    def __init__(self, ctx: dict, mode_data: list):
+        self.ctx = ctx
+        self.md = mode_data
+        self.dt = mode_data[0].Kx.dtype.type
+        dt = self.dt
+        self.solvers = [SolverRef(md, ctx["solver"]) for md in mode_data]
+        sc = ctx["scheduler"]
+        if sc is not None:
+            # the C stores each threshold -/+ epsilon as one literal computed in double
+            self.below = tuple(dt(v) for v in sc["below"])
+            self.above = tuple(dt(v) for v in sc["above"])
+        self.reset()
+
+    def reset(self):
+        self.mode = self.ctx["initial_mode"]
+        self.xhat = [np.zeros(md.nx, md.Kx.dtype) for md in self.md]
+        for s in self.solvers:
+            s.lam[:] = 0
+        self.u_last = np.zeros(self.ctx["n_actuators"], self.md[0].Kx.dtype)
+        self.mode_switches = 0
+        self.last = {"status": 0, "iterations": 0, "polish_iterations": 0, "active": 0}
+        if self.ctx.get("runtime_bounds"):
+            self.config_bounds = [runtime_bounds.config_bounds(m, md.Kx.dtype)
+                                  for m, md in zip(self.ctx["modes"], self.md)]
+            self.bounds = [dict(b) for b in self.config_bounds]
+            for j in range(len(self.md)):
+                self._apply_bounds(j)
+
+    def _apply_bounds(self, j):
+        """Mode j's solver reads the live bounds, as the C's row_const() derives them."""
+        md, b, solver = self.md[j], self.bounds[j], self.solvers[j]
+        solver.row_c = runtime_bounds.row_constants(md.row_q, md.row_sign, md.n, md.nu, md.ny,
+                                                    dtype=md.Kx.dtype, **b)
+        solver.u_min, solver.u_max = b["u_min"], b["u_max"]
+
+    def set_bounds(self, mode, u_min, u_max, y_min, y_max):
+        """Mirror of ``P_set_bounds``: returns its status; changes nothing unless OPTIMAL.
+        None stands for a NULL pointer; the C reads nu(mode) and ny entries."""
+        if not 0 <= mode < len(self.md):
+            return runtime_bounds.BAD_ARGUMENT
+        md = self.md[mode]
+        sizes = (md.nu, md.nu, md.ny, md.ny)
+        new = [None if v is None else np.array(np.atleast_1d(v)[:size], md.Kx.dtype)
+               for v, size in zip((u_min, u_max, y_min, y_max), sizes)]
+        status = runtime_bounds.check_bounds(self.config_bounds[mode], *new)
+        if status != OPTIMAL:
+            return status
+        self.bounds[mode] = dict(zip(("u_min", "u_max", "y_min", "y_max"), new))
+        self._apply_bounds(mode)
+        if mode == self.mode:  # the held command obeys the new input bounds
+            lo, hi, act = new[0], new[1], md.actuator_index
+            v = self.u_last[act]
+            self.u_last[act] = np.where(v < lo, lo, np.where(v > hi, hi, v))
+        return OPTIMAL
+
+    def _schedule(self, s):
+        """The mode ``schedule()`` of the C returns for signal ``s`` (no state change)."""
+        return scheduled_mode(self.mode, s, self.below, self.above,
+                              self.ctx["scheduler"]["band_modes"])
+
+    def _observe(self, md, x, y, u_phys, use_y):
+        innov = np.empty(md.ny, md.Kx.dtype)
+        for a in range(md.ny):
+            yh = seqsum(md.C[a] * x)
+            innov[a] = y[a] - yh if use_y else 0
+        xn = np.empty(md.nx, md.Kx.dtype)
+        u_mode = u_phys[md.actuator_index]
+        for i in range(md.nx):
+            prods = [md.A[i] * x, md.B[i] * u_mode]
+            if use_y:
+                prods.append(md.L[i] * innov)
+            xn[i] = seqsum(np.concatenate(prods))
+        x[:] = xn
+
+    def step(self, y, sched, r):
+        """Returns (status, u) exactly as ``P_step``."""
+        dt = self.md[0].Kx.dtype
+        y = np.asarray(y, dt)
+        sched = np.asarray(sched if sched is not None else [], dt)
+        r = np.asarray(r, dt)
+        if not (np.all(np.isfinite(y)) and np.all(np.isfinite(sched))
+                and np.all(np.isfinite(r))):
+            u = self.u_last.copy()
+            for j, md in enumerate(self.md):
+                self._observe(md, self.xhat[j], y, u, False)
+            self.last = {"status": NONFINITE_INPUT, "iterations": 0,
+                         "polish_iterations": self.last["polish_iterations"],
+                         "active": self.last["active"]}
+            return NONFINITE_INPUT, u
+        if self.ctx["scheduler"] is not None:
+            j = self._schedule(sched[0])
+            if j != self.mode:
+                self.solvers[j].lam[:] = 0
+                self.mode = j
+                self.mode_switches += 1
+        md = self.md[self.mode]
+        status, U, its, pits, active = self.solvers[self.mode].solve(self.xhat[self.mode], r)
+        self.U = U
+        self.last = {"status": status, "iterations": its, "polish_iterations": pits,
+                     "active": active}
+        if self.ctx.get("has_soft_rows"):  # info.slack_max / slack_rows of P_step
+            solver = self.solvers[self.mode]
+            self.last.update(slack_max=float(solver.slack_max), slack_rows=solver.slack_rows)
+        u = np.zeros(self.ctx["n_actuators"], dt)
+        u[md.actuator_index] = U[:md.nu]
+        for j, mdj in enumerate(self.md):
+            self._observe(mdj, self.xhat[j], y, u, True)
+        self.u_last = u.copy()
+        return status, u

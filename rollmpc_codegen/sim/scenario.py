@@ -1,0 +1,98 @@
+"""The closed-loop scenario of section 4.1 and the simulated plant.
+
+Reference: 0, -20, 20, -40, 40, 0 deg, 10 s each (6000 samples at Ts = 10 ms), applied
+to every output, unless the config gives ``simulation.reference`` (levels, each a scalar
+for every output or one value per output, held ``segment`` seconds each); the
+controller receives the preview r_{k+1..k+N} (held at the last value past the end).
+
+Plant: every mode is a *channel* (its continuous model from the config, sampled exactly
+by ZOH); all channels act together and the measured outputs are their sum -- for the UAV,
+the roll angle is the integral of the roll rates produced by both aileron pairs. The
+scheduling signal is the summed pre-integrator output (the roll rate) or the output.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..config import ControllerConfig
+from ..model.plant import discretise
+
+PAPER_LEVELS_DEG = (0.0, -20.0, 20.0, -40.0, 40.0, 0.0)
+PAPER_SEGMENT_S = 10.0
+
+
+def paper_reference(sample_time: float, levels=PAPER_LEVELS_DEG,
+                    segment_s: float = PAPER_SEGMENT_S) -> np.ndarray:
+    """Piecewise-constant reference, one value (or row of ``levels``) per sample (6000 for
+    the paper)."""
+    per = int(round(segment_s / sample_time))
+    return np.repeat(np.asarray(levels, dtype=float), per, axis=0)
+
+
+def scenario_reference(cfg: ControllerConfig) -> np.ndarray:
+    """The reference of the closed-loop scenario, (samples, n_outputs).
+
+    ``simulation.reference`` of the config when given (each level held ``segment`` s),
+    else the paper's scenario applied to every output.
+    """
+    sim = cfg.simulation
+    if sim.reference_levels is None:
+        ref = paper_reference(cfg.sample_time)
+        return np.repeat(ref[:, None], cfg.n_outputs, axis=1)
+    return paper_reference(cfg.sample_time, np.asarray(sim.reference_levels, dtype=float),
+                           sim.reference_segment_s)
+
+
+def preview(ref: np.ndarray, k: int, N: int, n_outputs: int = 1) -> np.ndarray:
+    """r_{k+1|k} .. r_{k+N|k}, output-major per step, held at the end of the record."""
+    idx = np.minimum(np.arange(k + 1, k + N + 1), len(ref) - 1)
+    return np.repeat(ref[idx], n_outputs) if ref.ndim == 1 else ref[idx].ravel()
+
+
+@dataclass
+class Channel:
+    A: np.ndarray
+    B: np.ndarray
+    C: np.ndarray
+    Cr: np.ndarray | None
+    Dr: np.ndarray | None
+    actuators: np.ndarray  # physical actuator indices
+
+
+class SimulatedPlant:
+    """Sum of the modes' channels, each sampled exactly (ZOH) at the controller rate."""
+
+    def __init__(self, cfg: ControllerConfig):
+        self.cfg = cfg
+        self.channels = []
+        for j, mode in enumerate(cfg.modes):
+            # the true plant: the config's model, never augmented by a disturbance model
+            # (disturbance_model); a discrete state-space plant is used as given
+            disc = discretise(mode, cfg.sample_time, f"modes[{j}]")
+            acts = np.array([cfg.actuators.index(a) for a in mode.actuators])
+            self.channels.append(Channel(disc.A, disc.B, disc.C, disc.Cr, disc.Dr, acts))
+        self.reset()
+
+    def reset(self):
+        self.x = [np.zeros(ch.A.shape[0]) for ch in self.channels]
+        self.u_prev = np.zeros(len(self.cfg.actuators))
+
+    def outputs(self) -> np.ndarray:
+        return sum(ch.C @ x for ch, x in zip(self.channels, self.x))
+
+    def schedule_signal(self) -> np.ndarray:
+        if self.cfg.scheduler is None:
+            return np.zeros(0)
+        if self.cfg.simulation.schedule_source == "output":
+            return self.outputs()[:1]
+        rate = sum(ch.Cr @ x + ch.Dr @ self.u_prev[ch.actuators]
+                   for ch, x in zip(self.channels, self.x))
+        return np.atleast_1d(rate)[:1]
+
+    def advance(self, u: np.ndarray, disturbance: np.ndarray | None = None) -> None:
+        u_eff = np.asarray(u, float) + (0 if disturbance is None else disturbance)
+        for i, ch in enumerate(self.channels):
+            self.x[i] = ch.A @ self.x[i] + ch.B @ u_eff[ch.actuators]
+        self.u_prev = np.asarray(u, float).copy()
