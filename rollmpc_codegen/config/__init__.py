@@ -8,16 +8,18 @@ an indefinite Hessian, ...), always naming the key that caused it.
 """
 from __future__ import annotations
 
-import hashlib
 import math
 import re
 import sys
 from dataclasses import dataclass, replace
+from functools import cached_property
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 import yaml
+
+from .canonical import canonical_json, config_digest
 
 SOLVER_METHODS = ("hildreth", "hildreth_plus", "hildreth_plus_prime")
 PRECISIONS = ("double", "float")
@@ -178,7 +180,7 @@ class UnitsConfig:
         return f" [{found.pop()}]" if len(found) == 1 and "" not in found else ""
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class ControllerConfig:
     prefix: str
     precision: str
@@ -190,11 +192,24 @@ class ControllerConfig:
     scheduler: SchedulerConfig | None
     solver: SolverConfig
     simulation: SimulationConfig
-    config_hash: str
     # the instance carries the input/output bounds, changeable by P_set_bounds() between
     # samples (runtime_bounds.py; docs/features.md "Run-time bounds"); False: baked in
     runtime_bounds: bool = False
     units: UnitsConfig = UnitsConfig()  # labels only (the top-level `units` key)
+
+    @cached_property
+    def config_hash(self) -> str:
+        """The hash of the effective configuration (canonical.py), stamped into the C."""
+        return config_digest(self)
+
+    def __eq__(self, other: object) -> bool:
+        # field by field would compare numpy arrays; the canonical text compares exactly
+        if not isinstance(other, ControllerConfig):
+            return NotImplemented
+        return canonical_json(self) == canonical_json(other)
+
+    def __hash__(self) -> int:
+        return hash(self.config_hash)
 
     @property
     def n_outputs(self) -> int:
@@ -874,7 +889,7 @@ def _units(u: _Reader, outputs: tuple[str, ...], actuators: tuple[str, ...]) -> 
     return units
 
 
-def parse(data: Any, source_text: str = "") -> ControllerConfig:
+def parse(data: Any) -> ControllerConfig:
     """Validate a parsed YAML document into a :class:`ControllerConfig`."""
     r = _Reader(data, "")
     prefix = r.string("prefix", "rollmpc")
@@ -931,11 +946,10 @@ def parse(data: Any, source_text: str = "") -> ControllerConfig:
             if not m.plant.integrator:
                 raise ConfigError(f"modes[{i}].plant.integrator",
                                   "simulation.schedule_source output_rate needs integrator: true")
-    digest = hashlib.sha256(source_text.encode()).hexdigest()[:16]
     return ControllerConfig(prefix=prefix, precision=precision, sample_time=sample_time,
                             horizon=horizon, outputs=outputs, actuators=actuators, modes=modes,
                             scheduler=scheduler, solver=solver, simulation=simulation,
-                            config_hash=digest, runtime_bounds=runtime_bounds, units=units)
+                            runtime_bounds=runtime_bounds, units=units)
 
 
 def _yaml_problem(exc: yaml.YAMLError) -> tuple[str, str]:
@@ -993,5 +1007,4 @@ def load(path: str | Path, precision: str | None = None) -> ControllerConfig:
             raise ConfigError("precision", f"must be one of {', '.join(PRECISIONS)}")
         if isinstance(data, dict):
             data = dict(data, precision=precision)
-        text = text + f"\n# precision override: {precision}\n"
-    return parse(data, text)
+    return parse(data)
