@@ -49,16 +49,25 @@ def build_model(cfg: ControllerConfig) -> ControllerModel:
     return ControllerModel(config=cfg, modes=tuple(modes))
 
 
-def load_model(config_path: str | Path, precision: str | None = None) -> tuple[ControllerModel, dict]:
-    """Validate the config and compute every static matrix; returns (model, context)."""
-    cfg = config_mod.load(config_path, precision)
+def load_model_from_config(cfg: ControllerConfig) -> tuple[ControllerModel, dict]:
+    """Compute every static matrix of a validated config; returns (model, context)."""
     model = build_model(cfg)
     return model, build_context(model)
 
 
-def generate(config_path: str | Path, out_dir: str | Path,
-             precision: str | None = None) -> tuple[ControllerModel, dict]:
-    """Render the controller for ``config_path`` into ``out_dir`` (replaced atomically)."""
-    model, ctx = load_model(config_path, precision)
+def load_model(config_path: str | Path, precision: str | None = None) -> tuple[ControllerModel, dict]:
+    """Validate the config file and compute every static matrix; returns (model, context)."""
+    return load_model_from_config(config_mod.load(config_path, precision))
+
+
+def generate_config(cfg: ControllerConfig, out_dir: str | Path) -> tuple[ControllerModel, dict]:
+    """Render the controller of a validated config into ``out_dir`` (replaced atomically)."""
+    model, ctx = load_model_from_config(cfg)
     write_atomically(render_sources(ctx), Path(out_dir))
     return model, ctx
+
+
+def generate(config_path: str | Path, out_dir: str | Path,
+             precision: str | None = None) -> tuple[ControllerModel, dict]:
+    """Render the controller for the config file ``config_path`` into ``out_dir``."""
+    return generate_config(config_mod.load(config_path, precision), out_dir)
