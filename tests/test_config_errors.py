@@ -11,6 +11,7 @@ mutation.  The product spec asks, for ``rollmpc generate CONFIG -o OUT``:
 from __future__ import annotations
 
 import copy
+import json
 import math
 import os
 import re
@@ -480,3 +481,22 @@ def test_null_optional_key_means_default(mutate):
 
 def test_config_error_is_one_line():
     assert "\n" not in str(ConfigError("a\nb", "c\r\nd"))
+
+
+def test_config_error_loads_no_parser():
+    """move_blocking.py raises ConfigError and config/mode.py calls move_blocking: importing
+    the error alone must not load the parsers (the old config <-> move_blocking cycle),
+    and the package must still load completely afterwards."""
+    code = ("import json, sys\n"
+            "import rollmpc_codegen.features.move_blocking\n"
+            "print(json.dumps(sorted(m for m in sys.modules if 'codegen.config' in m)))\n"
+            "from rollmpc_codegen.config import load\n"
+            f"print(load({str(UAV)!r}).horizon)\n")
+    env = dict(os.environ,
+               PYTHONPATH=os.pathsep.join([str(ROOT), os.environ.get("PYTHONPATH", "")]))
+    proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                          env=env, timeout=120)
+    assert proc.returncode == 0, proc.stderr
+    loaded, horizon = proc.stdout.splitlines()
+    assert json.loads(loaded) == ["rollmpc_codegen.config", "rollmpc_codegen.config.errors"]
+    assert horizon == "100"
