@@ -13,7 +13,8 @@ from .errors import ConfigError
 from .mode import parse_mode
 from .reader import Reader
 from .scheduler import parse_scheduler
-from .schema import (DEFAULT_PRECISION, DEFAULT_PREFIX, PRECISIONS, ControllerConfig,
+from .schema import (DEFAULT_PRECISION, DEFAULT_PREFIX, MODE_KEYS, PRECISIONS, SCHEDULER_KEYS,
+                     SIMULATION_KEYS, SOLVER_KEYS, TOP_KEYS, UNITS_KEYS, ControllerConfig,
                      UnitsConfig)
 from .simulation import parse_simulation, parse_units
 from .solver import parse_solver
@@ -21,7 +22,7 @@ from .solver import parse_solver
 
 def parse(data: Any, source_text: str = "") -> ControllerConfig:
     """Validate a parsed YAML document into a :class:`ControllerConfig`."""
-    r = Reader(data, "")
+    r = Reader(data, "", TOP_KEYS)
     prefix = r.string("prefix", DEFAULT_PREFIX)
     if not re.match(r"^[a-z][a-z0-9_]{0,30}$", prefix):
         raise ConfigError("prefix", "must be a lower-case C identifier of at most 31 "
@@ -36,7 +37,7 @@ def parse(data: Any, source_text: str = "") -> ControllerConfig:
         raise ConfigError("modes", "must be a non-empty list of modes")
     default_blocks = blocks_of(r.raw("control_horizon", None), r.raw("move_blocking", None),
                                horizon, "")
-    modes = tuple(parse_mode(Reader(m, f"modes[{i}]"), outputs, actuators, horizon,
+    modes = tuple(parse_mode(Reader(m, f"modes[{i}]", MODE_KEYS), outputs, actuators, horizon,
                              default_blocks)
                   for i, m in enumerate(raw_modes))
     check_horizon(horizon, modes)
@@ -46,13 +47,14 @@ def parse(data: Any, source_text: str = "") -> ControllerConfig:
             raise ConfigError("scheduler", "a single-mode controller has no scheduler")
         scheduler = None
     else:
-        scheduler = parse_scheduler(r.sub("scheduler"), modes)
-    solver = parse_solver(r.sub("solver", {}))
+        scheduler = parse_scheduler(r.sub("scheduler", SCHEDULER_KEYS), modes)
+    solver = parse_solver(r.sub("solver", SOLVER_KEYS, {}))
     runtime_bounds = r.boolean("runtime_bounds", ControllerConfig.runtime_bounds)
     check_rate_bounds(runtime_bounds, modes)
-    simulation = parse_simulation(r.sub("simulation", {}), len(outputs), sample_time)
-    units = parse_units(r.sub("units"), outputs, actuators) if r.has("units") else UnitsConfig()
-    r.finish()
+    simulation = parse_simulation(r.sub("simulation", SIMULATION_KEYS, {}), len(outputs),
+                                  sample_time)
+    units = (parse_units(r.sub("units", UNITS_KEYS), outputs, actuators)
+             if r.has("units") else UnitsConfig())
     check_range(precision, modes, scheduler, solver)
     check_schedule_source(simulation, scheduler, modes)
     digest = hashlib.sha256(source_text.encode()).hexdigest()[:16]

@@ -8,7 +8,8 @@ from ..features.move_blocking import blocks_of, is_blocked
 from .errors import ConfigError
 from .plant import parse_plant
 from .reader import IDENTIFIER, Reader, check_psd, read_matrix, read_number, read_vector
-from .schema import DISTURBANCE_MODELS, OBSERVER_KINDS, UNBOUNDED, ModeConfig
+from .schema import (BOUND_KEYS, DISTURBANCE_MODELS, OBSERVER_KEYS, OBSERVER_KINDS, PENALTY_KEYS,
+                     PLANT_KEYS, SOFT_KEYS, UNBOUNDED, WEIGHT_KEYS, ModeConfig)
 
 
 def parse_mode(r: Reader, outputs: tuple[str, ...], actuators: tuple[str, ...], horizon: int,
@@ -22,7 +23,7 @@ def parse_mode(r: Reader, outputs: tuple[str, ...], actuators: tuple[str, ...], 
         if a not in actuators:
             raise ConfigError(f"{r.key('actuators')}[{i}]", f"unknown actuator {a!r}; "
                               f"declared actuators are {', '.join(actuators)}")
-    plant = parse_plant(r.sub("plant"))
+    plant = parse_plant(r.sub("plant", PLANT_KEYS))
     nu, ny = len(acts), len(outputs)
     if plant.kind == "transfer_function" and plant.tf_matrix is None and (nu, ny) != (1, 1):
         raise ConfigError(r.key("plant.transfer_function"),
@@ -41,13 +42,12 @@ def parse_mode(r: Reader, outputs: tuple[str, ...], actuators: tuple[str, ...], 
         if plant.C.shape[0] != ny:
             raise ConfigError(r.key("plant.state_space.C"),
                               f"must have {ny} rows (one per output)")
-    weights = _weights(r.sub("weights"), nu, ny)
-    bounds = _bounds(r.sub("bounds"), nu, ny)
-    observer = _observer(r.sub("observer"), nu, ny) if r.has("observer") else {}
+    weights = _weights(r.sub("weights", WEIGHT_KEYS), nu, ny)
+    bounds = _bounds(r.sub("bounds", BOUND_KEYS), nu, ny)
+    observer = _observer(r.sub("observer", OBSERVER_KEYS), nu, ny) if r.has("observer") else {}
     blocks = blocks_of(r.raw("control_horizon", None), r.raw("move_blocking", None), horizon,
                        r.path)
     blocks = default_blocks if blocks is None else blocks
-    r.finish()
     return ModeConfig(name=name, actuators=acts, plant=plant,
                       blocks=blocks if is_blocked(blocks) else None,
                       observer_poles=observer.pop("poles", None),
@@ -65,7 +65,6 @@ def _weights(w: Reader, nu: int, ny: int) -> dict:
     # R may be singular (e.g. 0: pure Δu weighting) when R_delta keeps Psi definite
     delta_definite = R_delta is not None and np.linalg.eigvalsh(R_delta).min() > 0
     R = check_psd(R, w.key("R"), strict=not delta_definite)
-    w.finish()
     return {"Q": Q, "R": R, "P": P, "R_delta": R_delta}
 
 
@@ -82,8 +81,7 @@ def _bounds(b: Reader, nu: int, ny: int) -> dict:
         if not y_min[i] < y_max[i]:
             raise ConfigError(b.key("y_min"), f"must be < y_max (entry {i})")
     du_min, du_max = _rate_bounds(b, nu)
-    soft = _soft_bounds(b.sub("soft"), y_min, y_max) if b.has("soft") else {}
-    b.finish()
+    soft = _soft_bounds(b.sub("soft", SOFT_KEYS), y_min, y_max) if b.has("soft") else {}
     return {"u_min": u_min, "u_max": u_max, "y_min": y_min, "y_max": y_max,
             "du_min": du_min, "du_max": du_max, **soft}
 
@@ -121,10 +119,9 @@ def _soft_bounds(s: Reader, y_min: np.ndarray, y_max: np.ndarray) -> dict:
     for side, (name, bound) in enumerate((("y_min", y_min), ("y_max", y_max))):
         if not s.has(name):
             continue
-        p = s.sub(name)
+        p = s.sub(name, PENALTY_KEYS)
         a = read_vector(p.raw("l1"), p.key("l1"), ny)
         c = read_vector(p.raw("l2"), p.key("l2"), ny)
-        p.finish()
         for i in range(ny):
             if a[i] < 0.0:
                 raise ConfigError(p.key("l1"), f"must be >= 0 (entry {i}: {a[i]})")
@@ -137,7 +134,6 @@ def _soft_bounds(s: Reader, y_min: np.ndarray, y_max: np.ndarray) -> dict:
             if c[i] > 0.0 and not np.isfinite(bound[i]):
                 raise ConfigError(s.key(name), f"output {i} has no finite {name} to soften")
         l1[:, side], l2[:, side] = a, c
-    s.finish()
     if not np.any(l2 > 0.0):
         raise ConfigError(s.path, "softens no bound (give y_min or y_max with l2 > 0)")
     return {"soft_l1": l1, "soft_l2": l2}
@@ -183,6 +179,5 @@ def _observer(o: Reader, nu: int, ny: int) -> dict:
         elif o.has("Qd"):
             raise ConfigError(o.key("Qd"), "only with a disturbance model (disturbance: "
                               "input or output)")
-    o.finish()
     return out
 

@@ -7,7 +7,7 @@ import numpy as np
 
 from .errors import ConfigError
 from .reader import Reader, read_matrix, read_vector
-from .schema import PlantConfig
+from .schema import STATE_SPACE_KEYS, TRANSFER_FUNCTION_KEYS, PlantConfig
 
 
 def _is_rows(value: Any) -> bool:
@@ -69,19 +69,15 @@ def parse_plant(r: Reader) -> PlantConfig:
         raise ConfigError(r.path, "give exactly one of transfer_function or state_space")
     integrator = r.boolean("integrator", PlantConfig.integrator)
     if kinds[0] == "transfer_function":
-        tf = r.sub("transfer_function")
+        tf = r.sub("transfer_function", TRANSFER_FUNCTION_KEYS)
         if _is_rows(tf.raw("num")):  # the matrix form: one row per output
             matrix = _tf_matrix(tf, integrator)
-            tf.finish()
-            r.finish()
             return PlantConfig(kind="transfer_function", tf_matrix=matrix,
                                integrator=integrator)
         num, den = _tf_element(tf.raw("num"), tf.raw("den"), tf.key("num"), tf.key("den"),
                                integrator, allow_zero=False)
-        tf.finish()
-        r.finish()
         return PlantConfig(kind="transfer_function", num=num, den=den, integrator=integrator)
-    ss = r.sub("state_space")
+    ss = r.sub("state_space", STATE_SPACE_KEYS)
     A = read_matrix(ss.raw("A"), ss.key("A"))
     nx = A.shape[0]
     if A.shape != (nx, nx):
@@ -98,10 +94,8 @@ def parse_plant(r: Reader) -> PlantConfig:
         raise ConfigError(ss.key("D"), "must be zero: MPC needs a strictly proper plant "
                           "(or integrator: true)")
     discrete = ss.boolean("discrete", PlantConfig.discrete)
-    ss.finish()
     if discrete and integrator:
         raise ConfigError(r.key("integrator"), "only for continuous plants")
-    r.finish()
     return PlantConfig(kind="state_space", A=A, B=B, C=C, D=D, discrete=discrete,
                        integrator=integrator)
 

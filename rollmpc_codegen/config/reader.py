@@ -2,6 +2,7 @@
 failure names its full key path (``modes[1].weights.P: must be ...``)."""
 from __future__ import annotations
 
+import difflib
 import math
 import re
 from typing import Any
@@ -11,28 +12,38 @@ import numpy as np
 from .errors import ConfigError
 
 IDENTIFIER = re.compile(r"^[A-Za-z_][A-Za-z0-9_]*$")
+LISTED_KEYS_MAX = 8  # an unknown key without a close match lists a section's keys up to this
 
 
 class Reader:
-    """Typed access to one YAML mapping; every failure names its full key path."""
+    """Typed access to one YAML mapping with the given ``keys``; every failure names its
+    full key path.
 
-    def __init__(self, data: Any, path: str):
+    Any other key is reported at once, before a value of the section is read: read later,
+    a misspelled key surfaces as another problem (``R_detla`` as "R must be positive
+    definite", ``horizn`` as "horizon: missing required key").
+    """
+
+    def __init__(self, data: Any, path: str, keys: tuple[str, ...]):
         if not isinstance(data, dict):
             raise ConfigError(path or "<top>", "must be a mapping")
         self.data = data
         self.path = path
-        self.used: set[str] = set()
+        self.keys = keys
+        for name in data:  # the first unknown key as written
+            if name not in keys:
+                raise ConfigError(self.key(str(name)), _unknown_key(str(name), keys))
 
     def key(self, name: str) -> str:
         return f"{self.path}.{name}" if self.path else name
 
     def has(self, name: str) -> bool:
         """Is an optional key given?  ``key:`` with no value counts as absent, as in raw()."""
-        self.used.add(name)
+        assert name in self.keys, f"{self.key(name)} is not declared in the schema"
         return self.data.get(name) is not None
 
-    def raw(self, name: str, default: Any = ..., required: bool = True) -> Any:
-        self.used.add(name)
+    def raw(self, name: str, default: Any = ...) -> Any:
+        assert name in self.keys, f"{self.key(name)} is not declared in the schema"
         if name not in self.data or self.data[name] is None:
             if default is not ...:
                 return default
@@ -95,15 +106,20 @@ class Reader:
         key = self.key(name)
         return check_psd(read_matrix(self.raw(name, default), key, shape), key, strict)
 
-    def sub(self, name: str, default: Any = ...) -> "Reader":
+    def sub(self, name: str, keys: tuple[str, ...], default: Any = ...) -> "Reader":
+        """The section ``name``, whose own keys are ``keys``."""
         value = self.raw(name, default)
-        return Reader(value, self.key(name))
+        return Reader(value, self.key(name), keys)
 
-    def finish(self) -> None:
-        # str(): YAML keys may be ints, bools or null, which do not sort with strings
-        unknown = sorted(set(self.data) - self.used, key=str)
-        if unknown:
-            raise ConfigError(self.key(str(unknown[0])), "unknown key")
+
+def _unknown_key(name: str, keys: tuple[str, ...]) -> str:
+    """The problem of an unknown key: the closest known key, else the known keys if few."""
+    close = difflib.get_close_matches(name, keys, n=1)
+    if close:
+        return f"unknown key (did you mean {close[0]}?)"
+    if len(keys) <= LISTED_KEYS_MAX:
+        return f"unknown key; valid keys are {', '.join(keys)}"
+    return "unknown key"
 
 
 def read_number(value: Any, key: str, positive: bool = False,

@@ -5,9 +5,7 @@ from dataclasses import replace
 
 from .errors import ConfigError
 from .reader import IDENTIFIER, Reader
-from .schema import DEFAULT_EPSILON, ModeConfig, SchedulerConfig
-
-_SHORTHAND_KEYS = ("lower", "upper", "inside", "outside")
+from .schema import BAND_KEYS, DEFAULT_EPSILON, SHORTHAND_KEYS, ModeConfig, SchedulerConfig
 
 
 def parse_scheduler(r: Reader, modes: tuple[ModeConfig, ...]) -> SchedulerConfig:
@@ -26,7 +24,7 @@ def parse_scheduler(r: Reader, modes: tuple[ModeConfig, ...]) -> SchedulerConfig
     signal = r.string("signal")
     if not IDENTIFIER.match(signal):  # it is written into C comments of the generated code
         raise ConfigError(r.key("signal"), f"must be an identifier-like name, got {signal!r}")
-    shorthand = [k for k in _SHORTHAND_KEYS if k in r.data]
+    shorthand = [k for k in SHORTHAND_KEYS if k in r.data]
     if r.has("bands"):
         if shorthand:
             raise ConfigError(r.key(shorthand[0]), "give either bands or the two-mode "
@@ -72,7 +70,6 @@ def parse_scheduler(r: Reader, modes: tuple[ModeConfig, ...]) -> SchedulerConfig
         initial = mode_index(r, "initial")
     else:  # the shorthand's inside mode, else the mode of the band that contains 0
         initial = default_initial if default_initial is not None else band_modes[sc.band_of(0.0)]
-    r.finish()
     return replace(sc, initial=initial)
 
 
@@ -91,7 +88,7 @@ def _bands(r: Reader, epsilon: float, mode_index) -> tuple[list, list, list, lis
     eps_keys: list[str] = []
     band_modes: list[int] = []
     for i, item in enumerate(raw):
-        b = Reader(item, f"{key}[{i}]")
+        b = Reader(item, f"{key}[{i}]", BAND_KEYS)
         band_modes.append(mode_index(b, "mode"))
         if i == len(raw) - 1:
             if b.has("below"):
@@ -112,7 +109,6 @@ def _bands(r: Reader, epsilon: float, mode_index) -> tuple[list, list, list, lis
             else:
                 epsilons.append(epsilon)
                 eps_keys.append(r.key("epsilon"))
-        b.finish()
     if len(set(band_modes)) == 1:
         raise ConfigError(key, "every band has the same mode: one mode needs no scheduler")
     for i in range(1, len(band_modes)):

@@ -1,5 +1,5 @@
-"""The configuration's schema: its frozen dataclasses, its choices and limits, and every
-default of a YAML key, declared once.
+"""The configuration's schema: its frozen dataclasses, the keys of each YAML section, its
+choices and limits, and every default of a key, declared once.
 
 A key's default is the default of its dataclass field; the few keys without a field of
 their own (``prefix``, ``precision``, ``scheduler.epsilon``, an absent bound, a solver
@@ -9,7 +9,7 @@ here, and so does every later stage (codegen/context.py: the precision's toleran
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, fields
 
 import numpy as np
 
@@ -207,3 +207,28 @@ class ControllerConfig:
     def n_schedule(self) -> int:
         return 0 if self.scheduler is None else 1
 
+
+
+# --------------------------------------------------------------------------- keys
+# The keys each YAML section accepts; the reader reports any other key before it reads
+# anything of that section.
+TOP_KEYS = ("prefix", "precision", "sample_time", "horizon", "control_horizon",
+            "move_blocking", "outputs", "actuators", "modes", "scheduler", "runtime_bounds",
+            "solver", "simulation", "units")
+MODE_KEYS = ("name", "actuators", "plant", "weights", "bounds", "observer", "control_horizon",
+             "move_blocking")
+PLANT_KEYS = ("transfer_function", "state_space", "integrator")
+TRANSFER_FUNCTION_KEYS = ("num", "den")
+STATE_SPACE_KEYS = ("A", "B", "C", "D", "discrete")
+WEIGHT_KEYS = ("Q", "R", "P", "R_delta")
+BOUND_KEYS = ("u_min", "u_max", "y_min", "y_max", "du_min", "du_max", "soft")
+SOFT_KEYS = ("y_min", "y_max")  # bounds.soft
+PENALTY_KEYS = ("l1", "l2")  # bounds.soft.y_min / y_max
+OBSERVER_KEYS = ("kind", "poles", "Qn", "Rn", "Qd", "disturbance")
+SHORTHAND_KEYS = ("lower", "upper", "inside", "outside")  # scheduler: the two-mode form
+SCHEDULER_KEYS = ("signal", "bands", "epsilon", "initial") + SHORTHAND_KEYS
+BAND_KEYS = ("mode", "below", "epsilon")
+SOLVER_KEYS = tuple(f.name for f in fields(SolverConfig))  # one key per setting
+SIMULATION_KEYS = ("schedule_source", "reference")
+REFERENCE_KEYS = ("levels", "segment")  # simulation.reference
+UNITS_KEYS = tuple(f.name for f in fields(UnitsConfig))

@@ -4,19 +4,17 @@ from __future__ import annotations
 
 from .errors import ConfigError
 from .reader import Reader, read_vector
-from .schema import NO_UNIT, SCHEDULE_SOURCES, SimulationConfig, UnitsConfig
+from .schema import NO_UNIT, REFERENCE_KEYS, SCHEDULE_SOURCES, SimulationConfig, UnitsConfig
 
 
 def parse_simulation(sim: Reader, n_outputs: int, sample_time: float) -> SimulationConfig:
     """``simulation``: the scheduling signal's source and the reference scenario."""
     schedule_source = sim.string("schedule_source", SimulationConfig.schedule_source,
                                  choices=SCHEDULE_SOURCES)
-    levels, segment = (_reference(sim.sub("reference"), n_outputs, sample_time)
-                       if sim.has("reference") else (None, None))
-    simulation = SimulationConfig(schedule_source=schedule_source, reference_levels=levels,
-                                  reference_segment_s=segment)
-    sim.finish()
-    return simulation
+    levels, segment = (_reference(sim.sub("reference", REFERENCE_KEYS), n_outputs,
+                                  sample_time) if sim.has("reference") else (None, None))
+    return SimulationConfig(schedule_source=schedule_source, reference_levels=levels,
+                            reference_segment_s=segment)
 
 
 def _reference(r: Reader, n_outputs: int,
@@ -30,7 +28,6 @@ def _reference(r: Reader, n_outputs: int,
     segment = r.number("segment", positive=True)
     if round(segment / sample_time) < 1:
         raise ConfigError(r.key("segment"), f"must be at least sample_time ({sample_time})")
-    r.finish()
     return levels, segment
 
 
@@ -47,9 +44,7 @@ def parse_units(u: Reader, outputs: tuple[str, ...],
                               f"(one per {name[:-1]})")
         return tuple(value)
 
-    units = UnitsConfig(outputs=per_signal("outputs", len(outputs)),
-                        actuators=per_signal("actuators", len(actuators)),
-                        schedule=u.string("schedule", UnitsConfig.schedule))
-    u.finish()
-    return units
+    return UnitsConfig(outputs=per_signal("outputs", len(outputs)),
+                       actuators=per_signal("actuators", len(actuators)),
+                       schedule=u.string("schedule", UnitsConfig.schedule))
 

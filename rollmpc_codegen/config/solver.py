@@ -32,7 +32,6 @@ def parse_solver(r: Reader) -> SolverConfig:
     if active_set and not polish and r.has("active_set"):
         raise ConfigError(r.key("active_set"), "needs polish: true (its working set is "
                           "finished by the polish step)")
-    r.finish()
     return SolverConfig(method=method, omega=omega, sigma=sigma, delta=delta,
                         max_iterations=max_iterations, warm_start=warm_start, polish=polish,
                         polish_first=polish_first,
