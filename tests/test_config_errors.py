@@ -11,6 +11,7 @@ mutation.  The product spec asks, for ``rollmpc generate CONFIG -o OUT``:
 from __future__ import annotations
 
 import copy
+import json
 import math
 import os
 import re
@@ -344,6 +345,45 @@ def test_bad_config_fails_cleanly(tmp_path, capsys, no_debug, mutate, key, probl
     _assert_nothing_written(out)
 
 
+# An unknown key is reported before anything else in its section, with the closest known
+# key (else the section's keys, when few): (mutation, the exact message).  Each mutation
+# also holds the problem the misspelling caused before (in the comment), read later.
+UNKNOWN_FIRST = [
+    pytest.param(both(drop("horizon"), set_("horizn", 100)),  # horizon: missing required key
+                 "horizn: unknown key (did you mean horizon?)", id="top"),
+    pytest.param(set_("modes[0].weights", {"Q": 10, "R": 0, "P": 1e6, "R_detla": 1}),
+                 # modes[0].weights.R: must be positive definite
+                 "modes[0].weights.R_detla: unknown key (did you mean R_delta?)", id="weights"),
+    pytest.param(set_("modes[1].bounds", {"u_min": -15, "u_mx": 15}),
+                 # modes[1].bounds.u_max: missing required key
+                 "modes[1].bounds.u_mx: unknown key (did you mean u_max?)", id="bounds"),
+    pytest.param(both(set_("solver.omega", 3.0), set_("solver.max_iter", 50)),
+                 # solver.omega: SOR needs 0 < omega < 2, got 3.0
+                 "solver.max_iter: unknown key (did you mean max_iterations?)", id="solver"),
+    pytest.param(both(set_("scheduler.upper", -20), set_("scheduler.epsilion", 1)),
+                 # scheduler.lower: must be < upper (-16.0 >= -20.0)
+                 "scheduler.epsilion: unknown key (did you mean epsilon?)", id="scheduler"),
+    pytest.param(set_("modes[0].weights.S", 1),  # no close match: the four keys
+                 "modes[0].weights.S: unknown key; valid keys are Q, R, P, R_delta",
+                 id="weights-no-match"),
+    pytest.param(set_("solver.tolerance", 1e-9),  # no close match among 14 keys: none listed
+                 "solver.tolerance: unknown key", id="solver-no-match"),
+]
+
+
+@pytest.mark.parametrize("mutate, message", UNKNOWN_FIRST)
+def test_unknown_key_is_reported_first(tmp_path, capsys, no_debug, mutate, message):
+    config = _write(tmp_path, mutate)
+    (tmp_path / "gen").mkdir()
+    out = tmp_path / "gen" / "out"
+    rc = cli.main(["generate", str(config), "-o", str(out)])
+    captured = capsys.readouterr()
+    key = message.split(":")[0]
+    _assert_clean_failure(rc, captured.err, key, "unknown key")
+    assert captured.err == f"rollmpc: error: {message}\n"
+    _assert_nothing_written(out)
+
+
 def test_case_ids_and_count():
     ids = [p.id for p in CASES]
     assert len(ids) == len(set(ids))
@@ -480,3 +520,22 @@ def test_null_optional_key_means_default(mutate):
 
 def test_config_error_is_one_line():
     assert "\n" not in str(ConfigError("a\nb", "c\r\nd"))
+
+
+def test_config_error_loads_no_parser():
+    """move_blocking.py raises ConfigError and config/mode.py calls move_blocking: importing
+    the error alone must not load the parsers (the old config <-> move_blocking cycle),
+    and the package must still load completely afterwards."""
+    code = ("import json, sys\n"
+            "import rollmpc_codegen.features.move_blocking\n"
+            "print(json.dumps(sorted(m for m in sys.modules if 'codegen.config' in m)))\n"
+            "from rollmpc_codegen.config import load\n"
+            f"print(load({str(UAV)!r}).horizon)\n")
+    env = dict(os.environ,
+               PYTHONPATH=os.pathsep.join([str(ROOT), os.environ.get("PYTHONPATH", "")]))
+    proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                          env=env, timeout=120)
+    assert proc.returncode == 0, proc.stderr
+    loaded, horizon = proc.stdout.splitlines()
+    assert json.loads(loaded) == ["rollmpc_codegen.config", "rollmpc_codegen.config.errors"]
+    assert horizon == "100"

@@ -27,7 +27,7 @@ from pathlib import Path
 
 from ..host.build import build_host_controller
 from ..sim.metrics import summarize
-from ..config import ConfigError
+from ..config.errors import ConfigError
 from ..pipeline import load_model
 from ..sim.simulate import ClosedLoopLog, progress_printer, run_closed_loop
 

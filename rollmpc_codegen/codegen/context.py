@@ -11,6 +11,7 @@ import json
 import numpy as np
 
 from .. import __version__
+from ..config.schema import default_dependence_tol, default_feasibility_tol
 from ..features.runtime_bounds import context_bounds
 from ..model.controller import ControllerModel
 
@@ -22,17 +23,6 @@ def _solver_flags(method: str) -> dict:
         "hildreth_plus": {"reduced": False, "warm": True, "sor": True},
         "hildreth_plus_prime": {"reduced": True, "warm": True, "sor": True},
     }[method]
-
-
-def default_feasibility_tol(precision: str) -> float:
-    """Relative primal feasibility tolerance: tol * max(1, |gamma_r|)."""
-    return 1e-9 if precision == "double" else 1e-4
-
-
-def default_dependence_tol(precision: str) -> float:
-    """A row is dependent on the working set when its pivot H_pp - H_pW H_WW^-1 H_Wp is
-    below tol * H_pp (about 1e6 roundoffs of the storage precision)."""
-    return 1e-10 if precision == "double" else 1e-5
 
 
 def _arr(a) -> list:

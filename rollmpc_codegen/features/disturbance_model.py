@@ -31,7 +31,7 @@ from dataclasses import replace
 
 import numpy as np
 
-from ..config import ConfigError
+from ..config.errors import ConfigError
 from ..model.plant import DiscretePlant, discretise
 
 

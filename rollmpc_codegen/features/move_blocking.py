@@ -27,7 +27,7 @@ from typing import Any
 
 import numpy as np
 
-from ..config import ConfigError
+from ..config.errors import ConfigError
 
 
 def blocks_of(control_horizon: Any, move_blocking: Any, horizon: int,

@@ -201,7 +201,7 @@ def _constraints(mode: ModeConfig, Phi, Gamma, N: int, nu: int, ny: int):
     ``du_min``/``du_max`` only) bound u_i - u_{i-1}; at stage 0 that is u_0 - u_prev with
     u_prev = the last nu states (input_rate.augment), so W carries sign * 1 on it.  With
     move blocking the input rows of block j (U_b,j) sit at its first stage, and Gamma is
-    the blocked Gamma T (blocking and Δu rows are not combined: config.py rejects it).
+    the blocked Gamma T (blocking and Δu rows are not combined: config/checks.py rejects it).
     """
     n = Gamma.shape[1]
     first = (np.arange(N) if mode.blocks is None

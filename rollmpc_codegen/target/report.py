@@ -405,7 +405,7 @@ def horizons_markdown(table: dict) -> str:
 
 # ----------------------------------------------------------------------------- CLI
 def _parse_horizons(text: str) -> list[int]:
-    from ..config import ConfigError
+    from ..config.errors import ConfigError
 
     try:
         values = [int(t) for t in text.split(",") if t.strip()]
@@ -420,7 +420,7 @@ def _parse_horizons(text: str) -> list[int]:
 def report_command(args) -> int:
     """Entry point of ``rollmpc report`` (see cli.py)."""
     from .. import config as config_mod
-    from ..config import ConfigError
+    from ..config.errors import ConfigError
 
     if args.steps is not None and args.steps < 1:
         raise ConfigError("--steps", "must be >= 1")

@@ -1,0 +1,62 @@
+"""The top level of a configuration: its own keys, then each section in turn, then the
+checks across sections, into one :class:`ControllerConfig`."""
+from __future__ import annotations
+
+import re
+from typing import Any
+
+from ..features.move_blocking import blocks_of
+from .checks import (check_horizon, check_range, check_rate_bounds, check_schedule_source,
+                     check_unique_names)
+from .errors import ConfigError
+from .mode import parse_mode
+from .reader import Reader
+from .scheduler import parse_scheduler
+from .schema import (DEFAULT_PRECISION, DEFAULT_PREFIX, MODE_KEYS, PRECISIONS, SCHEDULER_KEYS,
+                     SIMULATION_KEYS, SOLVER_KEYS, TOP_KEYS, UNITS_KEYS, ControllerConfig,
+                     UnitsConfig)
+from .simulation import parse_simulation, parse_units
+from .solver import parse_solver
+
+
+def parse(data: Any) -> ControllerConfig:
+    """Validate a parsed YAML document into a :class:`ControllerConfig`."""
+    r = Reader(data, "", TOP_KEYS)
+    prefix = r.string("prefix", DEFAULT_PREFIX)
+    if not re.match(r"^[a-z][a-z0-9_]{0,30}$", prefix):
+        raise ConfigError("prefix", "must be a lower-case C identifier of at most 31 "
+                          f"characters, got {prefix!r}")
+    precision = r.string("precision", DEFAULT_PRECISION, choices=PRECISIONS)
+    sample_time = r.number("sample_time", positive=True)
+    horizon = r.integer("horizon", minimum=1)
+    outputs = r.names("outputs")
+    actuators = r.names("actuators")
+    raw_modes = r.raw("modes")
+    if not isinstance(raw_modes, list) or not raw_modes:
+        raise ConfigError("modes", "must be a non-empty list of modes")
+    default_blocks = blocks_of(r.raw("control_horizon", None), r.raw("move_blocking", None),
+                               horizon, "")
+    modes = tuple(parse_mode(Reader(m, f"modes[{i}]", MODE_KEYS), outputs, actuators, horizon,
+                             default_blocks)
+                  for i, m in enumerate(raw_modes))
+    check_horizon(horizon, modes)
+    check_unique_names(modes)
+    if len(modes) == 1:
+        if r.has("scheduler"):
+            raise ConfigError("scheduler", "a single-mode controller has no scheduler")
+        scheduler = None
+    else:
+        scheduler = parse_scheduler(r.sub("scheduler", SCHEDULER_KEYS), modes)
+    solver = parse_solver(r.sub("solver", SOLVER_KEYS, {}))
+    runtime_bounds = r.boolean("runtime_bounds", ControllerConfig.runtime_bounds)
+    check_rate_bounds(runtime_bounds, modes)
+    simulation = parse_simulation(r.sub("simulation", SIMULATION_KEYS, {}), len(outputs),
+                                  sample_time)
+    units = (parse_units(r.sub("units", UNITS_KEYS), outputs, actuators)
+             if r.has("units") else UnitsConfig())
+    check_range(precision, modes, scheduler, solver)
+    check_schedule_source(simulation, scheduler, modes)
+    return ControllerConfig(prefix=prefix, precision=precision, sample_time=sample_time,
+                            horizon=horizon, outputs=outputs, actuators=actuators, modes=modes,
+                            scheduler=scheduler, solver=solver, simulation=simulation,
+                            runtime_bounds=runtime_bounds, units=units)

@@ -1,0 +1,250 @@
+"""The configuration's schema: its frozen dataclasses, the keys of each YAML section, its
+choices and limits, and every default of a key, declared once.
+
+A key's default is the default of its dataclass field; the few keys without a field of
+their own (``prefix``, ``precision``, ``scheduler.epsilon``, an absent bound, a solver
+tolerance left to the precision) have a named default below.  The parsers read them from
+here, and so does every later stage (codegen/context.py: the precision's tolerances).
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, fields
+from functools import cached_property
+
+import numpy as np
+
+from .canonical import canonical_json, config_digest
+
+SOLVER_METHODS = ("hildreth", "hildreth_plus", "hildreth_plus_prime")
+PRECISIONS = ("double", "float")
+SCHEDULE_SOURCES = ("output_rate", "output")
+OBSERVER_KINDS = ("poles", "kalman")
+DISTURBANCE_MODELS = ("none", "input", "output")
+# The C indexes QP rows and variables with int16_t and counts iterations with int.
+MAX_ROWS = 32767
+MAX_C_INT = 2**31 - 1
+FLOAT_MAX = float(np.finfo(np.float32).max)
+
+# --------------------------------------------------------------------------- defaults
+DEFAULT_PREFIX = "rollmpc"
+DEFAULT_PRECISION = "double"
+DEFAULT_EPSILON = 0.5  # scheduler.epsilon: the hysteresis margin of every threshold
+UNBOUNDED = math.inf  # an absent output or Δu bound: -UNBOUNDED .. UNBOUNDED, no QP rows
+NO_UNIT = ""  # units: a signal without a unit (none is shown)
+
+
+def default_feasibility_tol(precision: str) -> float:
+    """Relative primal feasibility tolerance: tol * max(1, |gamma_r|)."""
+    return 1e-9 if precision == "double" else 1e-4
+
+
+def default_dependence_tol(precision: str) -> float:
+    """A row is dependent on the working set when its pivot H_pp - H_pW H_WW^-1 H_Wp is
+    below tol * H_pp (about 1e6 roundoffs of the storage precision)."""
+    return 1e-10 if precision == "double" else 1e-5
+
+
+# --------------------------------------------------------------------------- dataclasses
+@dataclass(frozen=True)
+class PlantConfig:
+    """A continuous or discrete LTI plant of one mode (before any realisation)."""
+
+    kind: str  # "transfer_function" | "state_space"
+    num: tuple[float, ...] = ()
+    den: tuple[float, ...] = ()
+    A: np.ndarray | None = None
+    B: np.ndarray | None = None
+    C: np.ndarray | None = None
+    D: np.ndarray | None = None
+    discrete: bool = False  # state space only: already sampled at sample_time
+    integrator: bool = False  # append 1/s to every output (eq. 1)
+    # transfer-function matrix (ny x nu): ((num_ij, den_ij) per input j) per output i;
+    # None for the SISO form (num, den above) and for state space
+    tf_matrix: tuple[tuple[tuple[tuple[float, ...], tuple[float, ...]], ...], ...] | None = None
+
+
+@dataclass(frozen=True)
+class ModeConfig:
+    name: str
+    actuators: tuple[str, ...]
+    plant: PlantConfig
+    Q: np.ndarray  # ny x ny stage output weight
+    R: np.ndarray  # nu x nu input weight
+    P: np.ndarray  # ny x ny terminal output weight
+    u_min: np.ndarray
+    u_max: np.ndarray
+    y_min: np.ndarray  # -inf where unbounded
+    y_max: np.ndarray
+    observer_poles: tuple[complex, ...] | None  # None -> documented default
+    observer_kind: str = "poles"  # "poles" (placement) | "kalman" (steady-state Kalman)
+    observer_Qn: np.ndarray | None = None  # kalman: input-noise covariance (nu x nu)
+    observer_Rn: np.ndarray | None = None  # kalman: measurement-noise covariance (ny x ny)
+    observer_Qd: np.ndarray | None = None  # kalman + disturbance: its random-walk covariance
+    disturbance: str = "none"  # offset-free model: "none" | "input" | "output"
+    # Δu weighting (nu x nu PSD): (u_k - u_{k-1})' R_delta (u_k - u_{k-1}) over the
+    # horizon, u_{-1} = the previous command (input_rate); None when absent or zero
+    R_delta: np.ndarray | None = None
+    # Δu constraints (input-rate limits, input_rate): du_min <= u_k - u_{k-1} <= du_max,
+    # k = 0..N-1, u_{-1} = the previous command; +-inf = absent (no rows)
+    du_min: np.ndarray | None = None
+    du_max: np.ndarray | None = None
+    # move blocking (move_blocking.py): block lengths summing to the horizon, from the
+    # mode's or the top level's control_horizon / move_blocking; None = one block per stage
+    blocks: tuple[int, ...] | None = None
+    # soft output bounds (soft_constraints.py), ``bounds.soft``: per output (rows) and side
+    # (column 0 = y_min, 1 = y_max), the penalty l1 s + l2 s^2 of the slack s >= 0 added
+    # to J; l2 = 0 keeps that bound hard. None: every bound is hard
+    soft_l1: np.ndarray | None = None  # (ny, 2)
+    soft_l2: np.ndarray | None = None  # (ny, 2)
+
+    @property
+    def has_rate_bounds(self) -> bool:
+        """Whether the mode has any finite Δu bound (then u_prev is part of the state)."""
+        return self.du_min is not None and bool(
+            np.any(np.isfinite(self.du_min)) or np.any(np.isfinite(self.du_max)))
+
+
+@dataclass(frozen=True)
+class SchedulerConfig:
+    """Band scheduling with hysteresis, the generalisation of eq. (3) (docs/features.md).
+
+    k bands split the signal at k-1 increasing thresholds t_1 < .. < t_{k-1}: band b is
+    t_{b-1} <= s < t_b (t_0 = -inf, t_k = +inf) and is served by one mode (``band_modes``
+    lists them from the lowest band, 0-based, as every tuple here).  The active mode becomes
+    band b's mode only when s is inside band b by more than the margin of each of its
+    thresholds, t_{b-1} + eps_{b-1} < s < t_b - eps_b; within a margin of a threshold the
+    current mode is kept.  The two-mode shorthand (lower, upper, inside, outside) is the
+    three bands (outside, inside, outside), which is eq. (3) exactly.
+    """
+
+    signal: str
+    thresholds: tuple[float, ...]  # k-1, strictly increasing
+    epsilons: tuple[float, ...]  # k-1 hysteresis margins, one per threshold
+    band_modes: tuple[int, ...]  # k mode indices, one per band (a mode may serve several)
+    initial: int  # mode index at P_init
+
+    @property
+    def below(self) -> tuple[float, ...]:
+        """t_i - eps_i: s below it is firmly below threshold i (computed once, in double)."""
+        return tuple(t - e for t, e in zip(self.thresholds, self.epsilons))
+
+    @property
+    def above(self) -> tuple[float, ...]:
+        """t_i + eps_i: s above it is firmly above threshold i."""
+        return tuple(t + e for t, e in zip(self.thresholds, self.epsilons))
+
+    def band_of(self, value: float) -> int:
+        """The band containing ``value`` (t_{b-1} <= value < t_b), without hysteresis."""
+        return sum(1 for t in self.thresholds if value >= t)
+
+
+@dataclass(frozen=True)
+class SolverConfig:
+    method: str = "hildreth_plus_prime"
+    omega: float = 1.2
+    sigma: float = 0.2
+    delta: float = 1e-13
+    max_iterations: int = 1000
+    warm_start: bool = True
+    polish: bool = True
+    polish_first: bool = True
+    polish_every: int = 10
+    polish_max: int = 8
+    feasibility_tol: float | None = None  # None -> precision default
+    active_set: bool = True  # dual active-set (Goldfarb-Idnani) solve before any sweep
+    active_set_max: int = 500  # its cap on add/drop steps
+    dependence_tol: float | None = None  # None -> precision default
+
+
+@dataclass(frozen=True)
+class SimulationConfig:
+    schedule_source: str = "output_rate"
+    # the piecewise-constant reference of ``rollmpc simulate/bench/report``: one row of
+    # n_outputs values per level, each held reference_segment_s seconds; None -> the
+    # paper's scenario (scenario.paper_reference, applied to every output)
+    reference_levels: tuple[tuple[float, ...], ...] | None = None
+    reference_segment_s: float | None = None
+
+
+@dataclass(frozen=True)
+class UnitsConfig:
+    """Units of the signals, for labels only (``rollmpc simulate``'s summary and --plot);
+    "" = no unit shown.  The top-level ``units`` key; the generated C never sees them."""
+
+    outputs: tuple[str, ...] = ()  # one per output, or () for none
+    actuators: tuple[str, ...] = ()  # one per actuator, or () for none
+    schedule: str = NO_UNIT  # the scheduling signal's unit
+
+    def label(self, signals: str) -> str:
+        """`` [u]`` when every one of the ``signals`` (outputs, actuators or schedule) has
+        the unit u, else "" (no unit, or mixed units)."""
+        value = getattr(self, signals)
+        found = {value} if isinstance(value, str) else set(value)
+        return f" [{found.pop()}]" if len(found) == 1 and NO_UNIT not in found else ""
+
+
+@dataclass(frozen=True, eq=False)
+class ControllerConfig:
+    prefix: str
+    precision: str
+    sample_time: float
+    horizon: int
+    outputs: tuple[str, ...]
+    actuators: tuple[str, ...]
+    modes: tuple[ModeConfig, ...]
+    scheduler: SchedulerConfig | None
+    solver: SolverConfig
+    simulation: SimulationConfig
+    # the instance carries the input/output bounds, changeable by P_set_bounds() between
+    # samples (runtime_bounds.py; docs/features.md "Run-time bounds"); False: baked in
+    runtime_bounds: bool = False
+    units: UnitsConfig = UnitsConfig()  # labels only (the top-level `units` key)
+
+    @cached_property
+    def config_hash(self) -> str:
+        """The hash of the effective configuration (canonical.py), stamped into the C."""
+        return config_digest(self)
+
+    def __eq__(self, other: object) -> bool:
+        # field by field would compare numpy arrays; the canonical text compares exactly
+        if not isinstance(other, ControllerConfig):
+            return NotImplemented
+        return canonical_json(self) == canonical_json(other)
+
+    def __hash__(self) -> int:
+        return hash(self.config_hash)
+
+    @property
+    def n_outputs(self) -> int:
+        return len(self.outputs)
+
+    @property
+    def n_schedule(self) -> int:
+        return 0 if self.scheduler is None else 1
+
+
+
+# --------------------------------------------------------------------------- keys
+# The keys each YAML section accepts; the reader reports any other key before it reads
+# anything of that section.
+TOP_KEYS = ("prefix", "precision", "sample_time", "horizon", "control_horizon",
+            "move_blocking", "outputs", "actuators", "modes", "scheduler", "runtime_bounds",
+            "solver", "simulation", "units")
+MODE_KEYS = ("name", "actuators", "plant", "weights", "bounds", "observer", "control_horizon",
+             "move_blocking")
+PLANT_KEYS = ("transfer_function", "state_space", "integrator")
+TRANSFER_FUNCTION_KEYS = ("num", "den")
+STATE_SPACE_KEYS = ("A", "B", "C", "D", "discrete")
+WEIGHT_KEYS = ("Q", "R", "P", "R_delta")
+BOUND_KEYS = ("u_min", "u_max", "y_min", "y_max", "du_min", "du_max", "soft")
+SOFT_KEYS = ("y_min", "y_max")  # bounds.soft
+PENALTY_KEYS = ("l1", "l2")  # bounds.soft.y_min / y_max
+OBSERVER_KEYS = ("kind", "poles", "Qn", "Rn", "Qd", "disturbance")
+SHORTHAND_KEYS = ("lower", "upper", "inside", "outside")  # scheduler: the two-mode form
+SCHEDULER_KEYS = ("signal", "bands", "epsilon", "initial") + SHORTHAND_KEYS
+BAND_KEYS = ("mode", "below", "epsilon")
+SOLVER_KEYS = tuple(f.name for f in fields(SolverConfig))  # one key per setting
+SIMULATION_KEYS = ("schedule_source", "reference")
+REFERENCE_KEYS = ("levels", "segment")  # simulation.reference
+UNITS_KEYS = tuple(f.name for f in fields(UnitsConfig))
