@@ -11,7 +11,8 @@ import numpy as np
 
 from . import config as config_mod
 from .codegen.context import build_context
-from .codegen.render import render_sources, write_atomically
+from .codegen.output import check_output_dir, write_output
+from .codegen.render import render_sources
 from .config import MAX_ROWS, ConfigError, ControllerConfig
 from .features import input_rate
 from .features.disturbance_model import prediction_model
@@ -56,9 +57,14 @@ def load_model(config_path: str | Path, precision: str | None = None) -> tuple[C
     return model, build_context(model)
 
 
-def generate(config_path: str | Path, out_dir: str | Path,
-             precision: str | None = None) -> tuple[ControllerModel, dict]:
-    """Render the controller for ``config_path`` into ``out_dir`` (replaced atomically)."""
+def generate(config_path: str | Path, out_dir: str | Path, precision: str | None = None,
+             force: bool = False) -> tuple[ControllerModel, dict]:
+    """Render the controller for ``config_path`` into ``out_dir``.
+
+    Only rollmpc's own files there are replaced (codegen/output.py); ``force`` also writes
+    into a non-empty directory rollmpc did not write, keeping its other files.
+    """
+    check_output_dir(out_dir, force)  # refuse before the maths, not after
     model, ctx = load_model(config_path, precision)
-    write_atomically(render_sources(ctx), Path(out_dir))
+    write_output(render_sources(ctx), out_dir, force)
     return model, ctx
