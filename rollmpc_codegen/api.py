@@ -208,11 +208,15 @@ class Design:
             self._built[cfg.precision] = load_model_from_config(cfg)
         return self._built[cfg.precision]
 
-    def generate(self, out_dir: str | Path, precision: str | None = None) -> Path:
-        """Write the generated C into ``out_dir`` (the files of ``rollmpc generate``)."""
-        from .codegen.render import render_sources, write_atomically
+    def generate(self, out_dir: str | Path, precision: str | None = None,
+                 force: bool = False) -> Path:
+        """Write the generated C into ``out_dir`` (the files of ``rollmpc generate``, and
+        its rules: only rollmpc's own files are replaced; ``force`` as ``--force``)."""
+        from .codegen.output import check_output_dir, write_output
+        from .codegen.render import render_sources
 
-        write_atomically(render_sources(self.build(precision)[1]), Path(out_dir))
+        check_output_dir(out_dir, force)
+        write_output(render_sources(self.build(precision)[1]), out_dir, force)
         return Path(out_dir)
 
     def compile(self, precision: str | None = None, build_dir: str | Path | None = None,

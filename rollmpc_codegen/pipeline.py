@@ -11,7 +11,8 @@ import numpy as np
 
 from . import config as config_mod
 from .codegen.context import build_context
-from .codegen.render import render_sources, write_atomically
+from .codegen.output import check_output_dir, write_output
+from .codegen.render import render_sources
 from .config import MAX_ROWS, ConfigError, ControllerConfig
 from .features import input_rate
 from .features.disturbance_model import prediction_model
@@ -60,14 +61,21 @@ def load_model(config_path: str | Path, precision: str | None = None) -> tuple[C
     return load_model_from_config(config_mod.load(config_path, precision))
 
 
-def generate_config(cfg: ControllerConfig, out_dir: str | Path) -> tuple[ControllerModel, dict]:
-    """Render the controller of a validated config into ``out_dir`` (replaced atomically)."""
+def generate_config(cfg: ControllerConfig, out_dir: str | Path,
+                    force: bool = False) -> tuple[ControllerModel, dict]:
+    """Render the controller of a validated config into ``out_dir``.
+
+    Only rollmpc's own files there are replaced (codegen/output.py); ``force`` also writes
+    into a non-empty directory rollmpc did not write, keeping its other files.
+    """
+    check_output_dir(out_dir, force)  # refuse before the maths, not after
     model, ctx = load_model_from_config(cfg)
-    write_atomically(render_sources(ctx), Path(out_dir))
+    write_output(render_sources(ctx), out_dir, force)
     return model, ctx
 
 
-def generate(config_path: str | Path, out_dir: str | Path,
-             precision: str | None = None) -> tuple[ControllerModel, dict]:
+def generate(config_path: str | Path, out_dir: str | Path, precision: str | None = None,
+             force: bool = False) -> tuple[ControllerModel, dict]:
     """Render the controller for the config file ``config_path`` into ``out_dir``."""
-    return generate_config(config_mod.load(config_path, precision), out_dir)
+    check_output_dir(out_dir, force)  # a bad output path costs no maths
+    return generate_config(config_mod.load(config_path, precision), out_dir, force)

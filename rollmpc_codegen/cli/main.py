@@ -23,8 +23,9 @@ def default_out_dir(config: str, precision: str | None) -> Path:
 def cmd_generate(args) -> int:
     from ..pipeline import generate
 
-    out = Path(args.output) if args.output else default_out_dir(args.config, args.precision)
-    model, ctx = generate(args.config, out, args.precision)
+    # `-o ''` reaches the writer, which refuses it (it is not the default directory)
+    out = args.output if args.output is not None else default_out_dir(args.config, args.precision)
+    model, ctx = generate(args.config, out, args.precision, args.force)
     sizes = ", ".join(f"{m['name']}: n={m['n']} m={m['m']}" for m in ctx["modes"])
     print(f"rollmpc: wrote {out}/ ({ctx['precision']}; {sizes})")
     return 0
@@ -45,7 +46,7 @@ def cmd_report(args) -> int:
 def cmd_testvectors(args) -> int:
     from ..host.testvectors import write_test_vectors
 
-    path = write_test_vectors(args.config, Path(args.output), args.precision, args.steps)
+    path = write_test_vectors(args.config, args.output, args.precision, args.steps, args.force)
     print(f"rollmpc: wrote {path}")
     return 0
 
@@ -66,7 +67,14 @@ def cmd_bench(args) -> int:
 def _add_build_dir(p: argparse.ArgumentParser) -> None:
     p.add_argument("--build-dir", default=None,
                    help="scratch directory for the host C builds (default: "
-                   "$TMPDIR/rollmpc-build, cached by content hash)")
+                   "$XDG_CACHE_HOME/rollmpc/build or ~/.cache/rollmpc/build, cached by "
+                   "content hash; must be writable by you only)")
+
+
+def _add_force(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--force", action="store_true",
+                   help="also write into a directory rollmpc did not write: files named like "
+                   "a generated file are overwritten, no other file is touched")
 
 
 def _add_precision(p: argparse.ArgumentParser) -> None:
@@ -82,6 +90,7 @@ def parser() -> argparse.ArgumentParser:
     g.add_argument("config")
     g.add_argument("-o", "--output", help="output directory (default generated/<config "
                    "name>, with _f32 for float)")
+    _add_force(g)
     _add_precision(g)
     g.set_defaults(func=cmd_generate)
 
@@ -154,6 +163,7 @@ def parser() -> argparse.ArgumentParser:
     t = sub.add_parser("testvectors", help="emit the host C test program with reference vectors")
     t.add_argument("config")
     t.add_argument("-o", "--output", required=True, help="output directory")
+    _add_force(t)
     _add_precision(t)
     t.add_argument("--steps", type=int, default=6000,
                    help="closed-loop steps to record (default: the whole scenario)")

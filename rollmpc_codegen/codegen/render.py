@@ -1,15 +1,11 @@
-"""Stage 7: render the context through the jinja2 templates into an output directory.
+"""Stage 7: render the context through the jinja2 templates (file name -> text).
 
-One template per generated file.  Output is written to a temporary sibling directory
-and renamed into place only when every file rendered, so a failure never leaves a
-half-written output directory behind.
+One template per generated file.  Nothing is written here: :mod:`.output` puts the
+rendered files on disk.
 """
 from __future__ import annotations
 
 import math
-import os
-import shutil
-import tempfile
 from pathlib import Path
 
 import jinja2
@@ -99,27 +95,3 @@ def render_template(ctx: dict, template: str, **extra) -> str:
     """Render one auxiliary template (host timer, C test harness) with the context."""
     return environment(ctx["precision"]).get_template(template).render(ctx, **extra)
 
-
-def write_atomically(files: dict[str, str], out_dir: Path) -> None:
-    """Write ``files`` as the whole content of ``out_dir``, replacing it only on success."""
-    out_dir = Path(out_dir)
-    if out_dir.exists() and not out_dir.is_dir():
-        raise FileExistsError(f"{out_dir} exists and is not a directory")
-    out_dir.parent.mkdir(parents=True, exist_ok=True)
-    tmp = Path(tempfile.mkdtemp(prefix=f".{out_dir.name}.", dir=out_dir.parent))
-    tmp.chmod(0o755)
-    try:
-        for name, text in files.items():
-            (tmp / name).write_text(text)
-        if out_dir.exists():
-            old = out_dir.with_name(f".{out_dir.name}.old")
-            if old.exists():
-                shutil.rmtree(old)
-            os.rename(out_dir, old)
-            os.rename(tmp, out_dir)
-            shutil.rmtree(old)
-        else:
-            os.rename(tmp, out_dir)
-    except BaseException:
-        shutil.rmtree(tmp, ignore_errors=True)
-        raise

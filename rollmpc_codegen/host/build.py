@@ -1,12 +1,12 @@
 """Stage 8: compile generated C on the host and load it through cffi (ABI mode).
 
 The host build uses ``-ffp-contract=off`` so that no multiply-add is fused: every
-operation rounds exactly as in the NumPy reference.
+operation rounds exactly as in the NumPy reference.  Builds are cached in a private
+directory and checked before they are loaded (:mod:`.build_cache`).
 """
 from __future__ import annotations
 
 import hashlib
-import shutil
 import subprocess
 from dataclasses import dataclass
 from pathlib import Path
@@ -15,6 +15,7 @@ import cffi
 import numpy as np
 
 from ..codegen.render import render_template
+from .build_cache import private_root, publish, source_dir, staging, verified
 
 STRICT_WARNINGS = ("-std=c99", "-Wall", "-Wextra", "-Wpedantic", "-Wconversion", "-Wshadow",
                    "-Wdouble-promotion", "-Werror")
@@ -34,8 +35,9 @@ def compile_shared(ctx: dict, src_dir: Path, build_dir: Path, compiler: str = "g
     """Build ``lib<prefix>.so`` from the generated sources in ``src_dir``.
 
     The library lands in ``build_dir/<hash of sources and flags>/`` so repeated builds of
-    the same code are free.
+    the same code are free; a cached library is reused only if its record verifies.
     """
+    root = private_root(build_dir)
     prefix = ctx["prefix"]
     sources = c_sources(src_dir, prefix)
     flags = [opt, "-fPIC", "-shared", *STRICT_WARNINGS, *EXACT_MATH, *extra]
@@ -44,30 +46,27 @@ def compile_shared(ctx: dict, src_dir: Path, build_dir: Path, compiler: str = "g
         digest.update(path.name.encode())
         digest.update(path.read_bytes())
     digest.update(" ".join([compiler, *flags, str(timer)]).encode())
-    out = Path(build_dir) / digest.hexdigest()[:16]
-    lib = out / f"lib{prefix}.so"
-    if lib.exists():
-        return lib
-    tmp = out.with_name(out.name + ".tmp")
-    shutil.rmtree(tmp, ignore_errors=True)
-    tmp.mkdir(parents=True)
-    extra_src = []
-    if timer:
-        (tmp / f"{prefix}_host_timer.h").write_text(render_template(ctx, "host/timer.h.j2"))
-        timer_c = tmp / f"{prefix}_host_timer.c"
-        timer_c.write_text(render_template(ctx, "host/timer.c.j2"))
-        extra_src.append(timer_c)
-        # the feature macro must precede the force-included header (it pulls in stdint.h)
-        flags += ["-D_POSIX_C_SOURCE=199309L", "-include", str(tmp / f"{prefix}_host_timer.h"),
-                  f"-I{tmp}"]
-    cmd = [compiler, *flags, f"-I{src_dir}", "-o", str(tmp / lib.name),
-           *map(str, sources), *map(str, extra_src), "-lm"]
-    proc = subprocess.run(cmd, capture_output=True, text=True)
-    if proc.returncode != 0:
-        raise BuildError(f"{' '.join(cmd)}\n{proc.stderr}")
-    shutil.rmtree(out, ignore_errors=True)
-    tmp.rename(out)
-    return lib
+    key = digest.hexdigest()
+    out, lib_name = root / key[:16], f"lib{prefix}.so"
+    cached = verified(out, lib_name, key)
+    if cached is not None:
+        return cached
+    with staging(root, out.name) as tmp:
+        extra_src = []
+        if timer:
+            (tmp / f"{prefix}_host_timer.h").write_text(render_template(ctx, "host/timer.h.j2"))
+            timer_c = tmp / f"{prefix}_host_timer.c"
+            timer_c.write_text(render_template(ctx, "host/timer.c.j2"))
+            extra_src.append(timer_c)
+            # the feature macro must precede the force-included header (it pulls in stdint.h)
+            flags += ["-D_POSIX_C_SOURCE=199309L",
+                      "-include", str(tmp / f"{prefix}_host_timer.h"), f"-I{tmp}"]
+        cmd = [compiler, *flags, f"-I{src_dir}", "-o", str(tmp / lib_name),
+               *map(str, sources), *map(str, extra_src), "-lm"]
+        proc = subprocess.run(cmd, capture_output=True, text=True)
+        if proc.returncode != 0:
+            raise BuildError(f"{' '.join(cmd)}\n{proc.stderr}")
+        return publish(tmp, out, lib_name, key)
 
 
 @dataclass
@@ -155,28 +154,14 @@ class HostController:
         return self.ffi.string(self._fn["status_message"](status)).decode()
 
 
-def default_build_root() -> Path:
-    """Scratch space for host builds outside the source tree (cached by content hash)."""
-    import tempfile
-
-    return Path(tempfile.gettempdir()) / "rollmpc-build"
-
-
 def build_host_controller(ctx: dict, build_root: Path | None = None, compiler: str = "gcc",
                           opt: str = "-O2", extra: tuple[str, ...] = ()) -> HostController:
-    """Render ``ctx`` into a scratch directory, compile it and load it."""
+    """Render ``ctx`` into the build cache (the default root when None), compile it and load it."""
     from ..codegen.render import render_sources
 
-    root = Path(build_root) if build_root is not None else default_build_root()
+    root = private_root(build_root)
     files = render_sources(ctx)
     digest = hashlib.sha256("".join(files[k] for k in sorted(files)).encode()).hexdigest()[:16]
-    src = root / f"src-{ctx['prefix']}-{digest}"
-    if not src.exists():
-        tmp = src.with_name(src.name + ".tmp")
-        shutil.rmtree(tmp, ignore_errors=True)
-        tmp.mkdir(parents=True)
-        for name, text in files.items():
-            (tmp / name).write_text(text)
-        tmp.rename(src)
+    src = source_dir(root, f"src-{ctx['prefix']}-{digest}", files)
     lib = compile_shared(ctx, src, root, compiler=compiler, opt=opt, extra=extra)
     return HostController.load(ctx, lib)

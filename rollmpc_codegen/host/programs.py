@@ -20,7 +20,8 @@ from pathlib import Path
 
 from .build import EXACT_MATH, STRICT_WARNINGS
 from ..pipeline import load_model
-from ..codegen.render import render_sources, render_template, write_atomically
+from ..codegen.output import write_output
+from ..codegen.render import render_sources, render_template
 
 SANITIZE = ("-O1", "-g", "-fno-omit-frame-pointer",
             "-fsanitize=address,undefined,float-cast-overflow", "-fno-sanitize-recover=all")
@@ -37,13 +38,12 @@ def soak_parameters(cfg) -> dict:
 
 
 def write_soak_program(config: str | Path, out_dir: Path, precision: str | None = None) -> Path:
-    """Generated sources + ``<prefix>_soak.c`` in ``out_dir`` (replaced atomically)."""
+    """Generated sources + ``<prefix>_soak.c`` in ``out_dir`` (codegen/output.py)."""
     model, ctx = load_model(config, precision)
     files = render_sources(ctx)
     files[f"{ctx['prefix']}_soak.c"] = render_template(
         ctx, "host/soak.c.j2", **soak_parameters(model.config))
-    write_atomically(files, Path(out_dir))
-    return Path(out_dir)
+    return write_output(files, out_dir)
 
 
 def compile_program(src_dir: Path, exe: Path, flags: tuple[str, ...], cc: str = "gcc") -> Path:

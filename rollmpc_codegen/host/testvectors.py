@@ -13,7 +13,8 @@ import numpy as np
 
 from ..reference.controller import ControllerRef
 from ..pipeline import load_model
-from ..codegen.render import render_sources, render_template, write_atomically
+from ..codegen.output import check_output_dir, write_output
+from ..codegen.render import render_sources, render_template
 from ..sim.scenario import scenario_reference
 from ..sim.simulate import run_closed_loop
 from ..reference.solver import SolverRef
@@ -50,8 +51,10 @@ def qp_cases_from_log(model, ctx, log, xs, count: int = 12) -> list[dict]:
     return cases
 
 
-def write_test_vectors(config: str | Path, out_dir: Path, precision: str | None = None,
-                       steps: int = 6000) -> Path:
+def write_test_vectors(config: str | Path, out_dir: str | Path, precision: str | None = None,
+                       steps: int = 6000, force: bool = False) -> Path:
+    """Generated sources + ``<prefix>_test_vectors.c`` in ``out_dir`` (codegen/output.py)."""
+    check_output_dir(out_dir, force)
     model, ctx = load_model(config, precision)
     ref_ctrl = ControllerRef(ctx, [m.data for m in model.modes])
     xs = []
@@ -75,5 +78,4 @@ def write_test_vectors(config: str | Path, out_dir: Path, precision: str | None 
         y=log.y.astype(dt), sched=log.sched.astype(dt),
         u=np.array(log.u_raw, dtype=dt), status=log.status,
         qp_cases=qp_cases_from_log(model, ctx, log, xs))
-    write_atomically(files, Path(out_dir))
-    return Path(out_dir)
+    return write_output(files, out_dir, force)

@@ -22,6 +22,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from ..host.build import STRICT_WARNINGS, BuildError
+from ..host.build_cache import private_root, publish, staging, verified
 from ..codegen.render import render_sources, render_template
 
 CROSS_CC = "arm-none-eabi-gcc"
@@ -76,8 +77,10 @@ def build_target(ctx: dict, build_root: Path, flash_kib: int = EMU_FLASH_KIB,
                  extra_cflags: tuple[str, ...] = ()) -> TargetBuild:
     """Render, cross-compile (warnings are errors) and link the target harness image.
 
-    Cached under ``build_root/target-<hash of sources, flags and memory>``.
+    Cached under ``build_root/target-<hash of sources, flags and memory>``; a cached image
+    is reused only if its record verifies (host/build_cache.py).
     """
+    root = private_root(build_root)
     cc = require_cross_compiler()
     prefix = ctx["prefix"]
     files = render_sources(ctx)
@@ -91,26 +94,24 @@ def build_target(ctx: dict, build_root: Path, flash_kib: int = EMU_FLASH_KIB,
         digest.update(name.encode())
         digest.update(files[name].encode())
     digest.update(" ".join([cc, *cflags, *TARGET_LDFLAGS]).encode())
-    out = Path(build_root) / f"target-{prefix}-{digest.hexdigest()[:16]}"
-    elf = out / f"{prefix}_target.elf"
-    if elf.exists():
+    key = digest.hexdigest()
+    out, elf_name = root / f"target-{prefix}-{key[:16]}", f"{prefix}_target.elf"
+    elf = verified(out, elf_name, key)
+    if elf is not None:
         return TargetBuild(elf=elf, build_dir=out, prefix=prefix,
                            su_files=sorted(out.glob("*.su")))
-    tmp = out.with_name(out.name + ".tmp")
-    shutil.rmtree(tmp, ignore_errors=True)
-    tmp.mkdir(parents=True)
-    for name, text in files.items():
-        (tmp / name).write_text(text)
-    objs = []
-    for src in sorted(tmp.glob("*.c")):
-        obj = src.with_suffix(".o")
-        _run([cc, *cflags, f"-I{tmp}", "-c", str(src), "-o", str(obj)])
-        objs.append(obj)
-    _run([cc, *CORTEX_M4F, *TARGET_LDFLAGS, "-T", str(tmp / f"{prefix}_target.ld"),
-          f"-Wl,-Map={tmp / (prefix + '_target.map')}", "-o", str(tmp / elf.name),
-          *map(str, objs), "-lm", "-lgcc"])
-    shutil.rmtree(out, ignore_errors=True)
-    tmp.rename(out)
+    with staging(root, out.name) as tmp:
+        for name, text in files.items():
+            (tmp / name).write_text(text)
+        objs = []
+        for src in sorted(tmp.glob("*.c")):
+            obj = src.with_suffix(".o")
+            _run([cc, *cflags, f"-I{tmp}", "-c", str(src), "-o", str(obj)])
+            objs.append(obj)
+        _run([cc, *CORTEX_M4F, *TARGET_LDFLAGS, "-T", str(tmp / f"{prefix}_target.ld"),
+              f"-Wl,-Map={tmp / (prefix + '_target.map')}", "-o", str(tmp / elf_name),
+              *map(str, objs), "-lm", "-lgcc"])
+        elf = publish(tmp, out, elf_name, key)
     return TargetBuild(elf=elf, build_dir=out, prefix=prefix, su_files=sorted(out.glob("*.su")))
 
 

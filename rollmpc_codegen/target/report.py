@@ -30,7 +30,8 @@ import numpy as np
 import yaml
 
 from .. import __version__
-from ..host.build import build_host_controller, default_build_root
+from ..host.build import build_host_controller
+from ..host.build_cache import private_root
 from .emulate import CortexM4
 from ..pipeline import load_model
 from ..codegen.render import render_sources
@@ -433,7 +434,7 @@ def report_command(args) -> int:
         except ImportError:
             raise RuntimeError(f"{package} is missing; install with: pip install "
                                "'rollmpc-codegen[target]'") from None
-    root = Path(args.build_dir) if args.build_dir else default_build_root()
+    root = private_root(args.build_dir or None)  # it receives configs too, not only builds
     progress = not args.quiet
     extra = tuple(args.extra_cflags.split()) if args.extra_cflags else ()
     if args.horizons:
