@@ -12,7 +12,8 @@ import numpy as np
 import pytest
 
 from conftest import UAV
-from rollmpc_codegen.host.bench import QpSequence, parse_variants, select_qps
+from rollmpc_codegen.cli.bench import parse_variants
+from rollmpc_codegen.host.bench_record import QpSequence, select_qps
 from rollmpc_codegen.cli.main import main
 
 VARIANTS = ["default", "hildreth_plus_prime", "daqp", "osqp"]
