@@ -9,11 +9,14 @@ from ..config import ConfigError
 from .options import (add_build_dir, add_outputs, add_precision, add_quiet, check_outputs,
                       check_steps, progress_of, require_plot, write_json)
 
-# the rows of host.bench.ROWS; only the parser's help text repeats them (it must not import
-# the library)
-VARIANTS_HELP = ("comma-separated rows to run (default: all): "
-                 "hildreth,hildreth_plus,hildreth_plus_prime,default,quadprog,daqp,osqp,"
-                 "osqp_tight (quadprog, the reference, always runs)")
+# the rows of host.bench (ROWS, OURS_AND_PEERS, PAPER_VARIANTS); only the parser's help
+# text repeats them (building the parser must not import the library)
+VARIANTS_HELP = ("comma-separated rows to run, of hildreth, hildreth_plus, "
+                 "hildreth_plus_prime, default, quadprog, daqp, osqp, osqp_tight (default: "
+                 "default,quadprog,daqp,osqp, each peer where installed; quadprog, the "
+                 "reference, always runs)")
+PAPER_HELP = ("also run the paper's variants hildreth, hildreth_plus, hildreth_plus_prime "
+              "(slow: up to 2 s per QP on the UAV)")
 
 
 def add_parser(sub) -> None:
@@ -24,6 +27,7 @@ def add_parser(sub) -> None:
     add_outputs(b, json="write the table and the machine description as JSON",
                 plot="per-QP solve times (Fig. 3 style) as a PNG")
     b.add_argument("--variants", default=None, help=VARIANTS_HELP)
+    b.add_argument("--paper", action="store_true", help=PAPER_HELP)
     b.add_argument("--max-qps", type=int, default=None,
                    help="replay at most this many QPs: evenly spread blocks of 20 "
                    "consecutive ones (default: every QP)")
@@ -40,7 +44,7 @@ def add_parser(sub) -> None:
 
 
 def parse_variants(text: str | None) -> list[str]:
-    """The rows of ``--variants`` in the table's order, with the reference (None: all)."""
+    """The rows of ``--variants`` in the table's order, with the reference (None: every row)."""
     from ..host.bench import ROWS, table_rows
 
     if text is None:
@@ -55,10 +59,11 @@ def parse_variants(text: str | None) -> list[str]:
     return rows
 
 
-def _check_args(args) -> list[str]:
+def _check_args(args) -> list[str] | None:
+    """The rows of ``--variants`` (None: the default rows); ConfigError on a bad option."""
     from ..host.bench_record import TRANSIENT_SAMPLES
 
-    keys = parse_variants(args.variants)
+    keys = None if args.variants is None else parse_variants(args.variants)
     if args.repeat < 1:
         raise ConfigError("--repeat", f"must be >= 1, got {args.repeat}")
     if args.max_qps is not None and args.max_qps < 1:
@@ -113,13 +118,24 @@ def reduced_set_text(rs: dict) -> str:
             f"of quadprog).")
 
 
+def note_missing_peers() -> None:
+    """The default rows leave out the peers that are not installed: say so on stderr."""
+    from ..host.bench import OURS_AND_PEERS, default_variants
+
+    for key in sorted(set(OURS_AND_PEERS) - set(default_variants()), key=OURS_AND_PEERS.index):
+        print(f"rollmpc bench: {key} is not installed, its row is left out "
+              "(pip install 'rollmpc-codegen[peers]')", file=sys.stderr)
+
+
 def run(args) -> int:
     from ..host.bench import run_bench
 
     keys = _check_args(args)
     require_plot(args)
+    if keys is None:
+        note_missing_peers()
     result = run_bench(args.config, precision=args.precision, variants=keys,
-                       max_qps=args.max_qps, repeat=args.repeat,
+                       paper=args.paper, max_qps=args.max_qps, repeat=args.repeat,
                        include_transient=args.include_transient, steps=args.steps,
                        build_dir=args.build_dir, progress=progress_of(args))
     s = result.summary

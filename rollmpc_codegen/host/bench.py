@@ -8,11 +8,11 @@ progress goes to an optional callback factory, see ``sim.simulate.start_phase``)
    transient, are skipped unless ``include_transient``).
 2. **Replay** the same QPs, in order (:mod:`rollmpc_codegen.host.bench_replay`), through
    * the generated solver variants, each built from a config variant with
-     ``build_host_controller``: plain Hildreth (cold), Hildreth+ W and Hildreth+' W
-     exactly as the paper describes them (``polish: false``), and the default config as
-     shipped;
+     ``build_host_controller``: the default config as shipped and, with ``paper``, plain
+     Hildreth (cold), Hildreth+ W and Hildreth+' W exactly as the paper describes them
+     (``polish: false``; slow: on the UAV up to 2 s per QP);
    * quadprog (the reference for the error columns), DAQP and OSQP
-     (:mod:`rollmpc_codegen.qp.peers`).
+     (:mod:`rollmpc_codegen.qp.peers`; by default those installed).
    ``repeat`` R replays everything R times, each from a fresh start (the replays are
    deterministic), and keeps each QP's minimum time: on a shared machine this removes the
    OS preemptions that otherwise dominate the maxima of the fast rows.
@@ -35,7 +35,7 @@ from .bench_record import TRANSIENT_SAMPLES, record_qp_sequence, select_qps
 from .bench_replay import Replay, fastest_of, replay_c, replay_peer, variant_context
 from .bench_summary import reduced_set_check, row_summary
 from .build import EXACT_MATH, build_host_controller
-from ..extras import require_module
+from ..extras import installed, require_module
 from ..pipeline import load_model
 from ..qp.peers import DaqpPeer, OsqpPeer, QuadprogPeer, c_stdout_silenced
 from ..sim.scenario import scenario_reference
@@ -56,6 +56,9 @@ PEERS = {
 }
 ROWS = (*C_VARIANTS, *PEERS)
 REFERENCE_ROW = "quadprog"  # the error columns' reference: it always runs
+OURS_AND_PEERS = ("default", "quadprog", "daqp", "osqp")  # the rows run by default
+# the paper's algorithms, run only when asked for: on the UAV up to 2 s per QP
+PAPER_VARIANTS = ("hildreth", "hildreth_plus", "hildreth_plus_prime")
 
 
 def table_rows(keys: Iterable[str]) -> list[str]:
@@ -70,6 +73,13 @@ def table_rows(keys: Iterable[str]) -> list[str]:
 def peer_module(key: str) -> str:
     """The Python module a peer row needs (``osqp_tight`` -> ``osqp``)."""
     return key.split("_")[0]
+
+
+def default_variants() -> list[str]:
+    """Ours and the peers of OURS_AND_PEERS that are installed (the reference is needed
+    anyway: without quadprog the run fails, naming it)."""
+    return [k for k in OURS_AND_PEERS
+            if k not in PEERS or k == REFERENCE_ROW or installed(peer_module(k))]
 
 
 def machine_info() -> dict:
@@ -113,13 +123,16 @@ class BenchResult:
 
 
 def run_bench(config: str | Path, *, precision: str | None = None,
-              variants: Iterable[str] = ROWS, max_qps: int | None = None, repeat: int = 1,
-              include_transient: bool = False, steps: int | None = None,
-              build_dir: str | Path | None = None, progress=None) -> BenchResult:
-    """Table 2 for ``config`` (see the module docstring) on the rows ``variants`` (plus
-    quadprog, the reference); ``max_qps`` samples the QPs in blocks, ``steps`` shortens the
+              variants: Iterable[str] | None = None, paper: bool = False,
+              max_qps: int | None = None, repeat: int = 1, include_transient: bool = False,
+              steps: int | None = None, build_dir: str | Path | None = None,
+              progress=None) -> BenchResult:
+    """Table 2 for ``config`` (see the module docstring) on the rows ``variants`` (default:
+    :func:`default_variants`), with the paper's variants too when ``paper``, and quadprog,
+    the reference, always; ``max_qps`` samples the QPs in blocks, ``steps`` shortens the
     recorded scenario, ``build_dir`` holds the host builds (default: a cache in $TMPDIR)."""
-    keys = table_rows(variants)
+    keys = table_rows([*(default_variants() if variants is None else variants),
+                       *(PAPER_VARIANTS if paper else ())])
     for key in keys:
         if key in PEERS:
             require_module(peer_module(key), "peers", f"the {key} row")
