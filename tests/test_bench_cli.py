@@ -11,8 +11,9 @@ import json
 import numpy as np
 import pytest
 
-from conftest import UAV
-from rollmpc_codegen.host.bench import QpSequence, parse_variants, select_qps
+from conftest import UAV, cli
+from rollmpc_codegen.cli.bench import parse_variants
+from rollmpc_codegen.host.bench_record import QpSequence, select_qps
 from rollmpc_codegen.cli.main import main
 
 VARIANTS = ["default", "hildreth_plus_prime", "daqp", "osqp"]
@@ -106,6 +107,32 @@ def test_bad_arguments_one_line_exit_2(extra, word, capsys, monkeypatch, tmp_pat
 def test_variant_parsing_keeps_order_and_the_reference():
     assert parse_variants("daqp,default") == ["default", "quadprog", "daqp"]
     assert len(parse_variants(None)) == 8
+
+
+@pytest.mark.parametrize("extra, rows", [
+    ([], ["default", "quadprog", "daqp", "osqp"]),  # ours and the peers: fast
+    (["--paper"], ["hildreth", "hildreth_plus", "hildreth_plus_prime", "default",
+                   "quadprog", "daqp", "osqp"]),
+    (["--paper", "--variants", "daqp"], ["hildreth", "hildreth_plus",
+                                         "hildreth_plus_prime", "quadprog", "daqp"]),
+])
+def test_default_rows_and_paper_flag(extra, rows, tmp_path):
+    """Without --variants the paper's slow variants stay out; --paper adds its three."""
+    for module in ("quadprog", "daqp", "osqp"):
+        pytest.importorskip(module, reason="install with: pip install 'rollmpc-codegen[peers]'")
+    out = tmp_path / "bench.json"
+    rc, stdout, err = cli(["bench", str(UAV), "--quiet", "--steps", "40", "--max-qps", "3",
+                           "--json", str(out), "--build-dir", str(tmp_path / "build"), *extra])
+    assert rc == 0, err
+    assert [r["key"] for r in json.loads(out.read_text())["rows"]] == rows
+    assert "Hildreth (cold)" in stdout if "--paper" in extra else "Hildreth" not in stdout
+
+
+def test_default_rows_leave_out_missing_peers_but_not_the_reference(monkeypatch):
+    from rollmpc_codegen.host import bench
+
+    monkeypatch.setattr(bench, "installed", lambda module: module not in ("daqp", "quadprog"))
+    assert bench.default_variants() == ["default", "quadprog", "osqp"]
 
 
 def test_qp_selection_skips_the_transient_and_samples_evenly():

@@ -9,7 +9,7 @@ import yaml
 
 from conftest import ROOT, UAV, cli, config_error
 from rollmpc_codegen.sim import figures as paper_figures
-from rollmpc_codegen.cli import simulate as simulate_cli
+from rollmpc_codegen.sim import scenario_run as simulate_cli
 from rollmpc_codegen.host.build import BuildError
 from rollmpc_codegen.config import UnitsConfig, load
 from rollmpc_codegen.sim.simulate import ClosedLoopLog

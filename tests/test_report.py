@@ -60,7 +60,7 @@ def test_report_json_keys_and_bit_exact(target_tools, tmp_path, build_root, caps
 
 
 def test_emulated_cycles_are_deterministic(target_tools, float_model, build_root):
-    from rollmpc_codegen.target.report import record_host_run, replay_on_target
+    from rollmpc_codegen.target.replay import record_host_run, replay_on_target
     from rollmpc_codegen.target.build import build_target
 
     model, ctx = float_model

@@ -11,7 +11,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from rollmpc_codegen.host.bench import record_qp_sequence
+from rollmpc_codegen.host.bench_record import record_qp_sequence
 from rollmpc_codegen.qp.exact import qp_data, solve_exact
 from rollmpc_codegen.reference.solver import OPTIMAL
 

@@ -1,8 +1,5 @@
-"""``rollmpc simulate``: the paper's closed loop (section 4.1, Fig. 2) on the generated C.
-
-The controller is the generated C, compiled on the host and called through cffi; the
-plant is :class:`rollmpc_codegen.sim.scenario.SimulatedPlant`; the loop is
-:func:`rollmpc_codegen.sim.simulate.run_closed_loop`.
+"""``rollmpc simulate``: the paper's closed loop (section 4.1, Fig. 2) on the generated C
+(:func:`rollmpc_codegen.sim.scenario_run.run_scenario`), printed and written.
 
 Outputs (each optional):
 
@@ -21,15 +18,35 @@ progress bar to stderr (``--quiet`` disables it).
 from __future__ import annotations
 
 import csv
-import json
 import sys
 from pathlib import Path
+from typing import TYPE_CHECKING
 
-from ..host.build import build_host_controller
-from ..sim.metrics import summarize
 from ..config.errors import ConfigError
-from ..pipeline import load_model
-from ..sim.simulate import ClosedLoopLog, progress_printer, run_closed_loop
+from .options import (add_build_dir, add_outputs, add_precision, add_quiet, check_outputs,
+                      check_steps, progress_of, require_plot, write_json)
+
+if TYPE_CHECKING:
+    from ..sim.simulate import ClosedLoopLog
+
+OUTPUTS = ("csv", "json", "plot")
+
+
+def add_parser(sub) -> None:
+    s = sub.add_parser("simulate", help="closed loop of the generated C on the paper scenario")
+    s.add_argument("config")
+    add_precision(s)
+    add_outputs(s, csv="per-sample log", json="summary metrics", plot="Fig. 2 style PNG")
+    s.add_argument("--baseline", choices=["none", "lqr"], default="none",
+                   help="also simulate an LQR-with-saturation baseline (plotted alongside)")
+    s.add_argument("--noise", type=float, default=0.0, help="measurement noise std (output units)")
+    s.add_argument("--disturbance", type=float, default=0.0,
+                   help="constant input disturbance on every actuator (actuator units)")
+    s.add_argument("--seed", type=int, default=0)
+    s.add_argument("--steps", type=int, default=None, help="samples (default: whole scenario)")
+    add_quiet(s, "no progress bar")
+    add_build_dir(s)
+    s.set_defaults(func=run)
 
 
 def csv_header(ctx: dict) -> list[str]:
@@ -60,34 +77,24 @@ def write_csv(path: str | Path, ctx: dict, log: ClosedLoopLog) -> Path:
 
 
 def _check_args(args) -> None:
-    if args.steps is not None and args.steps < 1:
-        raise ConfigError("--steps", f"must be >= 1, got {args.steps}")
+    check_steps(args)
     if not args.noise >= 0:
         raise ConfigError("--noise", f"must be >= 0, got {args.noise}")
     if not abs(args.disturbance) < float("inf"):
         raise ConfigError("--disturbance", f"must be finite, got {args.disturbance}")
-    for opt in ("csv", "json", "plot"):
-        target = getattr(args, opt)
-        if target is not None and Path(target).is_dir():
-            raise ConfigError(f"--{opt}", f"{target} is a directory")
+    check_outputs(args, OUTPUTS)
 
 
-def _run(cfg, controller, args, label: str) -> ClosedLoopLog:
-    from ..sim.scenario import scenario_reference
-
-    steps = args.steps if args.steps is not None else len(scenario_reference(cfg))
-    progress = None if args.quiet else progress_printer(steps, label)
-    return run_closed_loop(cfg, controller, steps=steps, noise_std=args.noise,
-                           disturbance=args.disturbance, seed=args.seed, progress=progress,
-                           info=controller.info)
+def solver_text(ctx: dict) -> str:
+    """The solver as configured, e.g. ``hildreth_plus_prime + polish``."""
+    return f"{ctx['solver']['method']}{' + polish' if ctx['solver']['polish'] else ''}"
 
 
-def _print_summary(cfg, ctx: dict, s: dict, base: dict | None) -> None:
+def print_summary(cfg, ctx: dict, s: dict) -> None:
     names = [m.name for m in cfg.modes]
     y_unit, u_unit = cfg.units.label("outputs"), cfg.units.label("actuators")
     print(f"rollmpc simulate: {s['samples']} samples ({s['duration_s']:g} s), "
-          f"{ctx['precision']}, solver {ctx['solver']['method']}"
-          f"{' + polish' if ctx['solver']['polish'] else ''}")
+          f"{ctx['precision']}, solver {solver_text(ctx)}")
     errs = ", ".join(f"{x['settled_error']:.3g}" for x in s["segments"])
     print(f"  settled |y - r| per segment{y_unit}: {errs} (max {s['max_settled_error']:.3g})")
     over = ", ".join(f"{x['overshoot']:.3g}" for x in s["segments"])
@@ -106,6 +113,7 @@ def _print_summary(cfg, ctx: dict, s: dict, base: dict | None) -> None:
     if st["median"] is not None:
         print(f"  non-optimal: {s['non_optimal']}; max iterations: {s['max_iterations']}; "
               f"solve time median {st['median']:.1f} us, max {st['max']:.1f} us")
+    base = s.get("baseline")
     if base is not None:
         errs = ", ".join(f"{x['settled_error']:.3g}" for x in base["segments"])
         print(f"  LQR baseline: settled |y - r| per segment{y_unit}: {errs}; "
@@ -113,49 +121,28 @@ def _print_summary(cfg, ctx: dict, s: dict, base: dict | None) -> None:
               f"constraint violations {base['constraint_violations']['total']}")
 
 
-def require_module(module: str, extra: str, what: str) -> None:
-    """Fail before any work when an optional dependency is missing (one line, exit 1)."""
-    import importlib.util
+def run(args) -> int:
+    from ..sim.scenario_run import run_scenario
 
-    if importlib.util.find_spec(module) is None:
-        raise RuntimeError(f"{what} needs {module}: pip install 'rollmpc-codegen[{extra}]'")
-
-
-def simulate_command(args) -> int:
     _check_args(args)
-    if args.plot:
-        require_module("matplotlib", "plot", "--plot")
-    model, ctx = load_model(args.config, args.precision)
-    cfg = model.config
-    build_root = Path(args.build_dir) if getattr(args, "build_dir", None) else None
-    controller = build_host_controller(ctx, build_root)
-    log = _run(cfg, controller, args, f"simulate ({ctx['precision']})")
-    summary = {"config": str(args.config), "precision": ctx["precision"],
-               "solver": dict(ctx["solver"]), "modes": [m.name for m in cfg.modes],
-               "sample_time": cfg.sample_time, "horizon": cfg.horizon,
-               "noise_std": args.noise, "disturbance": args.disturbance, "seed": args.seed,
-               **summarize(cfg, log)}
-    base_log = None
-    if args.baseline == "lqr":
-        from ..sim.lqr_baseline import LqrController
-
-        base_log = _run(cfg, LqrController(model, ctx), args, "LQR baseline")
-        summary["baseline"] = {"kind": "lqr_saturated", **summarize(cfg, base_log)}
+    require_plot(args)
+    result = run_scenario(args.config, precision=args.precision, steps=args.steps,
+                          noise_std=args.noise, disturbance=args.disturbance, seed=args.seed,
+                          baseline=None if args.baseline == "none" else args.baseline,
+                          build_dir=args.build_dir, progress=progress_of(args))
+    ctx = result.ctx
     if args.csv:
-        write_csv(args.csv, ctx, log)
+        write_csv(args.csv, ctx, result.log)
     if args.json:
-        path = Path(args.json)
-        path.parent.mkdir(parents=True, exist_ok=True)
-        path.write_text(json.dumps(summary, indent=1) + "\n")
+        write_json(args.json, result.summary)
     if args.plot:
         from ..sim.figures import plot_closed_loop
 
-        plot_closed_loop(args.plot, cfg, log, base_log,
+        plot_closed_loop(args.plot, result.config, result.log, result.baseline_log,
                          title=f"{Path(args.config).name}: closed loop of the generated C "
-                               f"({ctx['precision']}, {ctx['solver']['method']}"
-                               f"{' + polish' if ctx['solver']['polish'] else ''})")
-    _print_summary(cfg, ctx, summary, summary.get("baseline"))
-    for opt in ("csv", "json", "plot"):
+                               f"({ctx['precision']}, {solver_text(ctx)})")
+    print_summary(result.config, ctx, result.summary)
+    for opt in OUTPUTS:
         if getattr(args, opt):
             print(f"rollmpc: wrote {getattr(args, opt)}")
     sys.stdout.flush()

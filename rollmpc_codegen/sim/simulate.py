@@ -34,8 +34,17 @@ class ClosedLoopLog:
 
 
 def progress_printer(total: int, label: str, stream=None):
-    """A callback(k) that prints a one-line progress bar to stderr about every 5 %."""
+    """A callback(k) that prints a one-line progress bar to stderr about every 5 %.
+
+    This is also the progress factory the long-running library functions take (their
+    ``progress`` keyword, see :func:`start_phase`).  A phase of ``total`` 0 has no steps:
+    its label is printed at once, on a line of its own.
+    """
     stream = stream or sys.stderr
+    if total == 0:
+        stream.write(f"{label}\n")
+        stream.flush()
+        return None
     step = max(1, total // 20)
 
     def report(k: int) -> None:
@@ -48,6 +57,16 @@ def progress_printer(total: int, label: str, stream=None):
             stream.flush()
 
     return report
+
+
+def start_phase(progress, total: int, label: str):
+    """The per-step callback(k) of one phase of a long run, or None.
+
+    ``progress`` is a factory ``progress(total, label) -> callback(k) | None`` (e.g.
+    :func:`progress_printer`) or None (silent): library functions report progress only
+    through it and print nothing themselves.
+    """
+    return progress(total, label) if progress else None
 
 
 def run_closed_loop(cfg: ControllerConfig, controller, reference: np.ndarray | None = None,

@@ -1,0 +1,76 @@
+"""The option groups several ``rollmpc`` subcommands share, and their checks.
+
+Only argparse and the standard library are imported here: building the parser must stay
+fast, the library is imported by the subcommand that runs.
+"""
+from __future__ import annotations
+
+import argparse
+import json
+from pathlib import Path
+
+from ..config import PRECISIONS, ConfigError
+
+
+def add_precision(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--precision", choices=PRECISIONS, default=None,
+                   help="override the config's precision")
+
+
+def add_build_dir(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--build-dir", default=None,
+                   help="scratch directory for the host C builds (default: "
+                   "$XDG_CACHE_HOME/rollmpc/build or ~/.cache/rollmpc/build, cached by "
+                   "content hash; must be writable by you only)")
+
+
+def add_force(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--force", action="store_true",
+                   help="also write into a directory rollmpc did not write: files named like "
+                   "a generated file are overwritten, no other file is touched")
+
+
+def add_quiet(p: argparse.ArgumentParser, help: str = "no progress on stderr") -> None:
+    p.add_argument("--quiet", action="store_true", help=help)
+
+
+def progress_of(args):
+    """The progress factory the library functions take: a bar on stderr unless --quiet."""
+    from ..sim.simulate import progress_printer
+
+    return None if args.quiet else progress_printer
+
+
+def add_outputs(p: argparse.ArgumentParser, **helps: str) -> None:
+    """The files a run writes besides its stdout: ``--<name>`` for each of ``helps``
+    (json, csv, plot), with the subcommand's own help text."""
+    for name, text in helps.items():
+        p.add_argument(f"--{name}", help=text)
+
+
+def check_outputs(args, names: tuple[str, ...]) -> None:
+    """Fail before any work when an output path is a directory."""
+    for opt in names:
+        target = getattr(args, opt)
+        if target is not None and Path(target).is_dir():
+            raise ConfigError(f"--{opt}", f"{target} is a directory")
+
+
+def check_steps(args) -> None:
+    if args.steps is not None and args.steps < 1:
+        raise ConfigError("--steps", f"must be >= 1, got {args.steps}")
+
+
+def require_plot(args) -> None:
+    """``--plot`` needs matplotlib: fail before any work (one line, exit 1)."""
+    if args.plot:
+        from ..extras import require_module
+
+        require_module("matplotlib", "plot", "--plot")
+
+
+def write_json(path: str | Path, data: dict) -> Path:
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    path.write_text(json.dumps(data, indent=1) + "\n")
+    return path

@@ -1,0 +1,125 @@
+"""``rollmpc report``: the target report (:func:`rollmpc_codegen.target.report.run_report`)
+as a short summary on stdout, or with ``--horizons`` the per-horizon table (markdown, as
+docs/target.md shows it) and the fits; ``--json`` writes the whole report."""
+from __future__ import annotations
+
+from ..config.errors import ConfigError
+from .options import add_build_dir, add_outputs, add_precision, add_quiet, progress_of, write_json
+
+
+def add_parser(sub) -> None:
+    rp = sub.add_parser("report", help="flash, RAM, stack and cycles on an emulated "
+                        "Cortex-M4F, bit-exact against the host build")
+    rp.add_argument("config")
+    add_precision(rp)
+    add_outputs(rp, json="write the report as JSON")
+    rp.add_argument("--horizons", default=None,
+                    help="comma-separated horizons (e.g. 25,50,100,200): tabulate generation "
+                    "time, flash, RAM and cycles per horizon instead")
+    rp.add_argument("--steps", type=int, default=None,
+                    help="scenario samples to replay (default: the whole scenario)")
+    rp.add_argument("--sample-every", type=int, default=20,
+                    help="count cycles on every n-th step besides the hardest (default 20)")
+    rp.add_argument("--hardest", type=int, default=10,
+                    help="count the top 3n steps by host solve time and the top n by polish "
+                    "corrections, active rows and sweeps (default 10)")
+    rp.add_argument("--host-repeats", type=int, default=5,
+                    help="host runs whose smallest solve time per step ranks the hardest "
+                    "steps (default 5)")
+    rp.add_argument("--extra-cflags", default=None,
+                    help="extra flags for the target build, appended to the firmware flags "
+                    "(e.g. --extra-cflags=-fno-builtin or --extra-cflags=-ffp-contract=fast)")
+    add_quiet(rp)
+    add_build_dir(rp)
+    rp.set_defaults(func=run)
+
+
+def parse_horizons(text: str) -> list[int]:
+    try:
+        values = [int(t) for t in text.split(",") if t.strip()]
+    except ValueError:
+        raise ConfigError("--horizons", f"must be a comma-separated list of integers, "
+                          f"got {text!r}") from None
+    if not values or min(values) < 1:
+        raise ConfigError("--horizons", "needs at least one horizon >= 1")
+    return sorted(set(values))
+
+
+def summary_text(rep: dict) -> str:
+    """Short human summary with the verdict at 168 MHz."""
+    b = rep["budget"]
+    verdict = "fits" if b["worst_fits"] else "DOES NOT fit"
+    top = ", ".join(f"{r['function']} {100 * r['share']:.0f}%"
+                    for r in rep["worst_step_top_functions"][:4])
+    lines = [
+        f"rollmpc report: {rep['precision']}, N = {rep['horizon']}, {rep['toolchain']}",
+        f"  flash {rep['flash_bytes']:,} B   static RAM {rep['ram_bytes']:,} B "
+        f"(controller instance {rep['ctrl_bytes']:,} B)   stack {rep['stack_bytes']} B "
+        f"(-fstack-usage worst path; measured {rep['stack_measured_bytes']} B of "
+        f"{rep['stack_entry_bytes']} B predicted with the harness)",
+        f"  steps emulated {rep['steps_emulated']}, counted {rep['steps_counted']} "
+        f"({len(rep['hardest_steps'])} hardest + every {rep['sample_every']}th); "
+        f"bit-exact vs host: {'yes' if rep['bit_exact_vs_host'] else 'NO'}"
+        + ("" if rep["bit_exact_vs_host"] else f" ({rep['mismatches']} mismatches)"),
+        f"  worst step {rep['worst_step']} (mode {rep['worst_step_mode']}): "
+        f"{rep['worst_step_cycles']:,} cycles, {rep['worst_step_instructions']:,} "
+        f"instructions; median {rep['median_step_cycles']:,} cycles",
+        f"  needs {rep['cpu_mhz_for_10ms']} MHz for Ts = {1000 * rep['sample_time']:g} ms; "
+        f"at {b['cpu_mhz']:g} MHz the worst step {verdict} "
+        f"({b['worst_load_percent']}% of {b['cycles_per_sample']:,} cycles)",
+        f"  worst step by function: {top}",
+    ]
+    goals = ", ".join(f"{k}: {'met' if v else 'MISSED'}" for k, v in rep["goals"].items())
+    lines.append(f"  goals (issue 7, paper config in float): {goals}")
+    return "\n".join(lines)
+
+
+def horizons_markdown(table: dict) -> str:
+    """The per-horizon table and the fits as markdown (what docs/target.md shows)."""
+    lines = ["| N | generation (s) | flash (B) | static RAM (B) | stack (B) | worst step "
+             "(cycles) | median step (cycles) | MHz for 10 ms | bit-exact |",
+             "|---:|---:|---:|---:|---:|---:|---:|---:|:---:|"]
+    for r in table["rows"]:
+        lines.append(f"| {r['horizon']} | {r['generation_s']:.2f} | {r['flash_bytes']:,} | "
+                     f"{r['ram_bytes']:,} | {r['stack_bytes']} | {r['worst_step_cycles']:,} | "
+                     f"{r['median_step_cycles']:,} | {r['cpu_mhz_for_10ms']} | "
+                     f"{'yes' if r['bit_exact_vs_host'] else 'NO'} |")
+    lines.append("")
+    lines.append("Fitted growth (least squares on log-log over all horizons; in brackets "
+                 "the slope between the two largest): " + ", ".join(
+                     f"{k} ∝ N^{v['exponent']} [{v['exponent_last_pair']}]"
+                     for k, v in table["fits"].items()))
+    return "\n".join(lines)
+
+
+def print_horizons(table: dict) -> None:
+    from ..target.measure import CPU_MHZ
+
+    print(horizons_markdown(table))
+    last = table["largest_measured_horizon_within_10ms_at_168MHz"]
+    print(f"\nlargest measured horizon within 10 ms at {CPU_MHZ:g} MHz: {last}; "
+          f"fitted limit N ~ {table['fitted_horizon_limit_10ms_at_168MHz']}")
+    for part in table["parts"]:
+        print(f"  {part['part']}: fits memory for N in {part['horizons_that_fit_memory']}")
+
+
+def run(args) -> int:
+    from ..target.report import run_report
+
+    if args.steps is not None and args.steps < 1:
+        raise ConfigError("--steps", "must be >= 1")
+    if args.sample_every < 1 or args.hardest < 0 or args.host_repeats < 1:
+        raise ConfigError("--sample-every/--hardest/--host-repeats", "must be >= 1, >= 0, >= 1")
+    horizons = parse_horizons(args.horizons) if args.horizons else None
+    result = run_report(args.config, precision=args.precision, horizons=horizons,
+                        steps=args.steps, sample_every=args.sample_every,
+                        hardest=args.hardest, host_repeats=args.host_repeats,
+                        extra_cflags=tuple(args.extra_cflags.split()) if args.extra_cflags
+                        else (), build_dir=args.build_dir, progress=progress_of(args))
+    if horizons:
+        print_horizons(result["horizons"])
+    else:
+        print(summary_text(result))
+    if args.json:
+        write_json(args.json, result)
+    return 0

@@ -1,0 +1,69 @@
+"""The paper's closed loop (section 4.1, Fig. 2) on the generated C, as one library call
+(``rollmpc simulate`` prints and writes what :func:`run_scenario` returns).
+
+The controller is the generated C, compiled on the host and called through cffi; the
+plant is :class:`rollmpc_codegen.sim.scenario.SimulatedPlant`; the loop is
+:func:`rollmpc_codegen.sim.simulate.run_closed_loop`; the metrics are those of
+:func:`rollmpc_codegen.sim.metrics.summarize`.  The optional baseline is the saturated LQR
+of :mod:`rollmpc_codegen.sim.lqr_baseline`, run on the same scenario.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+
+from ..config import ControllerConfig
+from ..host.build import build_host_controller
+from ..pipeline import load_model
+from .metrics import summarize
+from .scenario import scenario_reference
+from .simulate import ClosedLoopLog, run_closed_loop, start_phase
+
+BASELINES = ("lqr",)
+
+
+@dataclass
+class ScenarioRun:
+    """One closed loop: ``summary`` is the JSON document (the run's settings and every
+    metric, with ``baseline`` holding the baseline's), the logs are per sample."""
+
+    config: ControllerConfig
+    ctx: dict
+    log: ClosedLoopLog
+    summary: dict
+    baseline_log: ClosedLoopLog | None = None
+
+
+def run_scenario(config: str | Path, *, precision: str | None = None,
+                 steps: int | None = None, noise_std: float = 0.0, disturbance: float = 0.0,
+                 seed: int = 0, baseline: str | None = None,
+                 build_dir: str | Path | None = None, progress=None) -> ScenarioRun:
+    """Simulate ``steps`` samples (default: the whole scenario) of the generated C for
+    ``config``, with seeded measurement noise and a constant input disturbance
+    (``run_closed_loop``); ``baseline="lqr"`` also runs the saturated LQR."""
+    if baseline is not None and baseline not in BASELINES:
+        raise ValueError(f"unknown baseline {baseline!r}; choose from {', '.join(BASELINES)}")
+    model, ctx = load_model(config, precision)
+    cfg = model.config
+    steps = steps if steps is not None else len(scenario_reference(cfg))
+
+    def run(controller, label: str) -> ClosedLoopLog:
+        return run_closed_loop(cfg, controller, steps=steps, noise_std=noise_std,
+                               disturbance=disturbance, seed=seed,
+                               progress=start_phase(progress, steps, label),
+                               info=controller.info)
+
+    controller = build_host_controller(ctx, Path(build_dir) if build_dir else None)
+    log = run(controller, f"simulate ({ctx['precision']})")
+    summary = {"config": str(config), "precision": ctx["precision"],
+               "solver": dict(ctx["solver"]), "modes": [m.name for m in cfg.modes],
+               "sample_time": cfg.sample_time, "horizon": cfg.horizon,
+               "noise_std": noise_std, "disturbance": disturbance, "seed": seed,
+               **summarize(cfg, log)}
+    base_log = None
+    if baseline == "lqr":
+        from .lqr_baseline import LqrController
+
+        base_log = run(LqrController(model, ctx), "LQR baseline")
+        summary["baseline"] = {"kind": "lqr_saturated", **summarize(cfg, base_log)}
+    return ScenarioRun(config=cfg, ctx=ctx, log=log, summary=summary, baseline_log=base_log)

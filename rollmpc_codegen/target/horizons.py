@@ -1,0 +1,103 @@
+"""``rollmpc report --horizons``: the measurement of :mod:`rollmpc_codegen.target.measure`
+repeated with the config's horizon overridden, the growth of each figure in N fitted
+(log-log least squares), the horizon that still fits a 10 ms step at 168 MHz, and which
+common autopilot parts hold each horizon in memory.
+"""
+from __future__ import annotations
+
+import math
+import time
+from pathlib import Path
+
+import numpy as np
+import yaml
+
+from ..codegen.render import render_sources
+from ..pipeline import load_model
+from ..sim.simulate import start_phase
+from .measure import measure
+
+# Memory assumed for common autopilot parts: flash, and the largest contiguous RAM region
+# a statically allocated controller instance can live in (the instance is one struct).
+PARTS = (
+    {"part": "STM32F405/F407 (M4F, 168 MHz)", "flash_kib": 1024, "ram_kib": 128,
+     "ram_note": "192 KiB = 128 KiB SRAM + 64 KiB CCM; one struct must fit 128 KiB"},
+    {"part": "STM32F427/F429 (M4F, 180 MHz; Pixhawk FMUv2/v3)", "flash_kib": 2048,
+     "ram_kib": 192, "ram_note": "256 KiB = 192 KiB SRAM + 64 KiB CCM"},
+    {"part": "STM32F765/F767 (M7 double FPU, 216 MHz; FMUv5)", "flash_kib": 2048,
+     "ram_kib": 512, "ram_note": "512 KiB (DTCM + SRAM1 + SRAM2, contiguous)"},
+    {"part": "STM32H743/H753 (M7 double FPU, 480 MHz; FMUv6)", "flash_kib": 2048,
+     "ram_kib": 512, "ram_note": "1 MiB total; largest region AXI SRAM 512 KiB"},
+)
+
+
+def config_with_horizon(config: Path, horizon: int, out_dir: Path) -> Path:
+    """A copy of ``config`` with ``horizon`` overridden, written to ``out_dir``."""
+    data = yaml.safe_load(Path(config).read_text())
+    data["horizon"] = int(horizon)
+    out_dir.mkdir(parents=True, exist_ok=True)
+    path = out_dir / f"{Path(config).stem}_N{horizon}.yaml"
+    path.write_text(yaml.safe_dump(data, sort_keys=False))
+    return path
+
+
+def loglog_fit(n: list[float], values: list[float]) -> dict:
+    """values ~ a * n^b by least squares on the logs; {"a", "exponent"}."""
+    x, y = np.log(np.asarray(n, float)), np.log(np.asarray(values, float))
+    if len(x) < 2:
+        return {"a": float(values[0]) if values else 0.0, "exponent": None}
+    b, log_a = np.polyfit(x, y, 1)
+    return {"a": float(np.exp(log_a)), "exponent": round(float(b), 3)}
+
+
+def horizon_limit(ns: list[int], cycles: list[int], budget: float) -> int | None:
+    """Horizon whose worst step just meets ``budget``: log-log interpolation between the
+    two measured horizons that bracket it (else extrapolation from the nearest pair)."""
+    pts = sorted(zip(ns, cycles))
+    if len(pts) < 2:
+        return None
+    pairs = list(zip(pts, pts[1:]))
+    pair = next(((a, b) for a, b in pairs if a[1] <= budget < b[1]),
+                pairs[-1] if pts[-1][1] <= budget else pairs[0])
+    (n0, c0), (n1, c1) = pair
+    slope = math.log(c1 / c0) / math.log(n1 / n0)
+    return int(n0 * (budget / c0) ** (1.0 / slope)) if slope > 0 else None
+
+
+def horizon_table(config: Path, horizons: list[int], precision: str | None, build_root: Path,
+                  progress=None, **measure_options) -> dict:
+    """Per horizon: generation time, flash, RAM, worst/median cycles; growth fits; parts.
+    ``measure_options`` are the keywords of :func:`rollmpc_codegen.target.measure.measure`."""
+    rows = []
+    for h in horizons:
+        start_phase(progress, 0, f"report: horizon {h}")
+        path = config_with_horizon(config, h, Path(build_root) / "horizons")
+        t0 = time.perf_counter()
+        model, ctx = load_model(path, precision)
+        render_sources(ctx)
+        gen_s = time.perf_counter() - t0
+        rep = measure(model, ctx, build_root, progress=progress, **measure_options)
+        rows.append({"horizon": h, "generation_s": round(gen_s, 2),
+                     **{k: rep[k] for k in ("flash_bytes", "ram_bytes", "ctrl_bytes",
+                                            "stack_bytes", "worst_step_cycles",
+                                            "worst_step_instructions", "median_step_cycles",
+                                            "cpu_mhz_for_10ms", "bit_exact_vs_host")},
+                     "budget_cycles": rep["budget"]["cycles_per_sample"],
+                     "fits_10ms_at_168MHz": rep["budget"]["worst_fits"]})
+    ns = [r["horizon"] for r in rows]
+    keys = ("generation_s", "flash_bytes", "ram_bytes", "worst_step_cycles",
+            "median_step_cycles")
+    fits = {key: loglog_fit(ns, [r[key] for r in rows]) for key in keys}
+    for key in keys:  # the slope between the two largest horizons (the asymptotic trend)
+        fits[key]["exponent_last_pair"] = (loglog_fit(ns[-2:], [r[key] for r in rows[-2:]])
+                                           ["exponent"] if len(rows) > 1 else None)
+    n_max = horizon_limit(ns, [r["worst_step_cycles"] for r in rows], rows[0]["budget_cycles"])
+    parts = []
+    for part in PARTS:
+        ok = [r["horizon"] for r in rows if r["flash_bytes"] <= part["flash_kib"] * 1024
+              and r["ram_bytes"] <= part["ram_kib"] * 1024]
+        parts.append({**part, "horizons_that_fit_memory": ok})
+    fitting = [r["horizon"] for r in rows if r["fits_10ms_at_168MHz"]]
+    return {"rows": rows, "fits": fits, "parts": parts,
+            "largest_measured_horizon_within_10ms_at_168MHz": max(fitting) if fitting else None,
+            "fitted_horizon_limit_10ms_at_168MHz": n_max}

@@ -1,0 +1,162 @@
+"""Steps 1 to 3 of ``rollmpc report`` (:mod:`rollmpc_codegen.target.report`): record a
+host run, choose the steps to count, and replay the run on the emulated Cortex-M4F.
+
+1. Host run: the host build of the same precision (through cffi) closes the loop on the
+   scenario; every input it was given (y, sched, r) and every output (u, status,
+   diagnostics, solve time) is recorded.
+2. Step choice: the hardest steps by the host's solve time (the smallest of several runs:
+   the host clock is noisy), polish corrections, active rows and sweeps, plus a sampled
+   sweep (every ``sample_every``-th step).
+3. Target run: the target image (``target.build_target``) replays the recorded inputs from
+   step 0 on Unicorn (``emulate.CortexM4``), so the observers and warm starts carry the same
+   state as on the host. Every step is compared bit for bit with the host; instructions
+   and estimated cycles are counted on the chosen steps only (the block hook is slow).
+
+``progress`` is a factory as in ``sim.simulate.start_phase`` (None or False: silent).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from ..host.build import build_host_controller
+from ..sim.scenario import scenario_reference
+from ..sim.simulate import run_closed_loop, start_phase
+from .emulate import CortexM4
+
+# the diagnostics compared per step, in the order of the harness' {prefix}_target_info
+INFO_FIELDS = ("status", "mode", "iterations", "polish_iterations", "active", "mode_switches")
+
+
+@dataclass
+class HostRecord:
+    """Everything the host build saw and returned, per step."""
+
+    y: list = field(default_factory=list)
+    sched: list = field(default_factory=list)
+    r: list = field(default_factory=list)
+    u: list = field(default_factory=list)
+    info: list = field(default_factory=list)
+    final_state: bytes = b""
+
+
+class _RecordingController:
+    """Wraps a HostController: records the exact (dtype-converted) inputs and outputs."""
+
+    def __init__(self, host, record: HostRecord):
+        self.host, self.record = host, record
+
+    def step(self, y, sched, r):
+        dt = self.host.dtype
+        y = np.ascontiguousarray(y, dt)
+        r = np.ascontiguousarray(r, dt)
+        sched = np.ascontiguousarray(sched if sched is not None else [], dt)
+        status, u = self.host.step(y, sched, r)
+        info = self.host.info()
+        self.record.y.append(y)
+        self.record.sched.append(sched)
+        self.record.r.append(r)
+        self.record.u.append(np.asarray(u, dt).copy())
+        self.record.info.append(info)
+        return status, u
+
+
+def record_host_run(model, ctx: dict, build_root: Path, steps: int | None,
+                    progress=None, repeats: int = 1) -> HostRecord:
+    """Close the loop with the host build and record every step.
+
+    With ``repeats`` > 1 the (deterministic) closed loop runs again and each step keeps its
+    smallest solve time: the host clock on a shared machine is noisy, and the minimum is
+    what ranks the hardest steps.
+    """
+    record = HostRecord()
+    total = steps or len(scenario_reference(model.config))
+    for run in range(max(1, repeats)):
+        host = build_host_controller(ctx, build_root)
+        label = f"report: host run {run + 1}/{max(1, repeats)}"
+        cb = start_phase(progress, total, label)
+        if run == 0:
+            run_closed_loop(model.config, _RecordingController(host, record), steps=steps,
+                            progress=cb)
+            record.final_state = bytes(host.ffi.buffer(host.ctrl))
+            continue
+        timings = HostRecord()
+        run_closed_loop(model.config, _RecordingController(host, timings), steps=steps,
+                        progress=cb)
+        for info, again in zip(record.info, timings.info):
+            info["solve_ticks"] = min(info["solve_ticks"], again["solve_ticks"])
+    return record
+
+
+def select_steps(record: HostRecord, hardest: int, sample_every: int) -> tuple[list, list]:
+    """(hardest steps, sampled sweep). Hardest: the union of the top ``3 * hardest`` steps
+    by the host's solve time (the closest proxy of target cycles) and the top ``hardest``
+    by polish corrections, active rows and sweeps. Sweep: every ``sample_every``-th step."""
+    n = len(record.info)
+    hard: set[int] = set()
+    for key, top in (("solve_ticks", 3 * hardest), ("polish_iterations", hardest),
+                     ("active", hardest), ("iterations", hardest)):
+        values = np.array([inf[key] for inf in record.info], dtype=np.int64)
+        if values.max(initial=0) <= 0:
+            continue
+        order = np.argsort(-values, kind="stable")[:top]
+        hard.update(int(k) for k in order if values[k] > 0)
+    sweep = list(range(0, n, max(1, sample_every)))
+    return sorted(hard), sweep
+
+
+@dataclass
+class TargetRun:
+    counts: dict  # step -> emulate.Counts
+    mismatches: list  # (step, what, host, target)
+    steps: int
+    state_equal: bool
+    stack_measured: int
+
+
+def replay_on_target(build, ctx: dict, record: HostRecord, count_steps: set[int],
+                     progress=None) -> TargetRun:
+    """Replay the recorded inputs from step 0 on the emulated M4F; compare every output."""
+    p = ctx["prefix"]
+    dt = np.float32 if ctx["real"] == "float" else np.float64
+    em = CortexM4(build.elf)
+    ctrl_size, real_size, info_at, info_size = map(
+        int, np.frombuffer(em.read(f"{p}_target_layout"), np.uint32))
+    if ctrl_size != len(record.final_state) or real_size != np.dtype(dt).itemsize:
+        raise RuntimeError(f"{p}_ctrl differs between host ({len(record.final_state)} B) and "
+                           f"target ({ctrl_size} B)")
+    em.call(f"{p}_target_init")
+    n = len(record.u)
+    cb = start_phase(progress, n, "report: target run ")
+    counts, mismatches = {}, []
+    for k in range(n):
+        em.write(f"{p}_target_y", record.y[k])
+        if ctx["n_schedule"]:
+            em.write(f"{p}_target_sched", record.sched[k])
+        em.write(f"{p}_target_r", record.r[k])
+        status, c = em.call(f"{p}_target_step", count=k in count_steps)
+        if c is not None:
+            counts[k] = c
+        u = np.frombuffer(em.read(f"{p}_target_u"), dt)
+        info = np.frombuffer(em.read(f"{p}_target_info"), np.int32)
+        host_info = record.info[k]
+        if u.tobytes() != record.u[k].tobytes():
+            mismatches.append((k, "u", record.u[k].tolist(), u.tolist()))
+        if int(np.int32(status)) != host_info["status"]:
+            mismatches.append((k, "status", host_info["status"], int(np.int32(status))))
+        for i, name in enumerate(INFO_FIELDS):
+            if int(info[i]) != host_info[name]:
+                mismatches.append((k, name, host_info[name], int(info[i])))
+        if cb:
+            cb(k)
+    # the whole instance after the last step, but for the diagnostics (compared above;
+    # their solve time is the host's clock)
+    target_state = bytearray(em.read(f"{p}_target_ctrl"))
+    host_state = bytearray(record.final_state)
+    target_state[info_at:info_at + info_size] = host_state[info_at:info_at + info_size] = \
+        bytes(info_size)
+    return TargetRun(counts=counts, mismatches=mismatches, steps=n,
+                     state_equal=target_state == host_state,
+                     stack_measured=em.stack_high_water())
