@@ -57,7 +57,7 @@ from ..qp.peers import DaqpPeer, OsqpPeer, QuadprogPeer, c_stdout_silenced, qp_v
 from ..sim.scenario import scenario_reference
 from ..sim.simulate import progress_printer, run_closed_loop
 from ..cli.simulate import require_module
-from ..reference.solver import STATUS_NAMES
+from ..status import STATUS_NAMES
 from ..sim.switched_observer import SwitchedObserver
 
 TRANSIENT_SAMPLES = 32  # the paper's Table 2 uses samples 33..6000
