@@ -17,6 +17,7 @@ from .config import MAX_ROWS, ConfigError, ControllerConfig
 from .features import input_rate
 from .features.disturbance_model import prediction_model
 from .model.controller import ControllerModel, ModeModel
+from .qp.arrays import STORED_ARRAYS
 from .qp.condense import condense
 from .qp.storage import mode_data
 
@@ -40,10 +41,9 @@ def build_model(cfg: ControllerConfig) -> ControllerModel:
         with np.errstate(over="ignore"):
             data = mode_data(mode.name, act_index, plant, L, qp, mode.u_min, mode.u_max,
                              cfg.precision, mode.soft_l1, mode.soft_l2)
-        for field in ("Kx", "EinvGt", "Sinv_p", "S_p", "Ew", "L", "A", "B"):
-            arr = getattr(data, field)
-            if not np.all(np.isfinite(arr)):
-                raise ConfigError(f"{key}.weights", f"{field} is not finite in "
+        for array in STORED_ARRAYS:
+            if array.finite_checked and not np.all(np.isfinite(getattr(data, array.name))):
+                raise ConfigError(f"{key}.weights", f"{array.name} is not finite in "
                                   f"{cfg.precision} precision (the problem is too badly scaled)")
         modes.append(ModeModel(plant=plant, qp=qp, observer_gain=L, observer_poles=poles,
                                data=data))

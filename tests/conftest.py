@@ -134,7 +134,8 @@ def sampled_qps_against_independent_solvers(built: Built, states: list, referenc
     daqp = pytest.importorskip("daqp", reason="install with: pip install 'rollmpc-codegen[peers]'")
     from rollmpc_codegen.qp.exact import qp_data, solve_exact
     from rollmpc_codegen.sim.scenario import preview
-    from rollmpc_codegen.reference.solver import OPTIMAL, SolverRef
+    from rollmpc_codegen.reference.solver import SolverRef
+    from rollmpc_codegen.status import OPTIMAL
 
     qp, ny = built.model.modes[0].qp, built.ctx["n_outputs"]
     rng = np.random.default_rng(seed)

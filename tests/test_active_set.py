@@ -15,7 +15,8 @@ import pytest
 from conftest import Built, short_uav_config
 from rollmpc_codegen.qp.exact import qp_data, relative_error, solve_exact
 from rollmpc_codegen.verify.qp_campaign import error_bound
-from rollmpc_codegen.reference.solver import INFEASIBLE, OPTIMAL, SolverRef
+from rollmpc_codegen.reference.solver import SolverRef
+from rollmpc_codegen.status import INFEASIBLE, OPTIMAL
 
 N = 20
 QPS = 48

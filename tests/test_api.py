@@ -6,8 +6,7 @@ import pytest
 
 from conftest import Built, variant_config
 from rollmpc_codegen.sim.scenario import paper_reference, preview
-from rollmpc_codegen.reference.solver import (BAD_ARGUMENT, MAX_ITER, NONFINITE_INPUT, OPTIMAL,
-                                        STATUS_NAMES)
+from rollmpc_codegen.status import BAD_ARGUMENT, MAX_ITER, NONFINITE_INPUT, OPTIMAL, STATUS_NAMES
 
 N = 100
 

@@ -11,7 +11,8 @@ import pytest
 
 from rollmpc_codegen.sim.scenario import paper_reference, preview
 from rollmpc_codegen.sim.simulate import run_closed_loop
-from rollmpc_codegen.reference.solver import OPTIMAL, SolverRef
+from rollmpc_codegen.reference.solver import SolverRef
+from rollmpc_codegen.status import OPTIMAL
 
 
 class Lockstep:

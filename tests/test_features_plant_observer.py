@@ -33,7 +33,7 @@ from rollmpc_codegen.model.observer import process_noise
 from rollmpc_codegen.model.plant import continuous_realisation
 from rollmpc_codegen.sim.scenario import SimulatedPlant, scenario_reference
 from rollmpc_codegen.sim.simulate import run_closed_loop
-from rollmpc_codegen.reference.solver import OPTIMAL
+from rollmpc_codegen.status import OPTIMAL
 from rollmpc_codegen.model.tf_realisation import (column_realisation, frequency_response,
                                             matrix_response)
 from test_bitexact import Lockstep

@@ -23,7 +23,7 @@ from rollmpc_codegen.host.build import build_host_controller
 from rollmpc_codegen.pipeline import load_model
 from rollmpc_codegen.sim.scenario import scenario_reference
 from rollmpc_codegen.sim.simulate import run_closed_loop
-from rollmpc_codegen.reference.solver import OPTIMAL
+from rollmpc_codegen.status import OPTIMAL
 from test_bitexact import Lockstep
 
 ZONES = ROOT / "examples" / "thermal_zones.yaml"

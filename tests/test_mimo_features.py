@@ -27,7 +27,8 @@ from rollmpc_codegen.qp.exact import qp_data, solve_exact
 from rollmpc_codegen.pipeline import generate
 from rollmpc_codegen.sim.scenario import preview, scenario_reference
 from rollmpc_codegen.sim.simulate import run_closed_loop
-from rollmpc_codegen.reference.solver import OPTIMAL, SolverRef
+from rollmpc_codegen.reference.solver import SolverRef
+from rollmpc_codegen.status import OPTIMAL
 from test_bitexact import Lockstep
 from test_compile import STRICT, _compile
 

@@ -21,7 +21,7 @@ from rollmpc_codegen.pipeline import load_model
 from rollmpc_codegen.codegen.render import render_sources
 from rollmpc_codegen.sim.scenario import scenario_reference
 from rollmpc_codegen.sim.simulate import run_closed_loop
-from rollmpc_codegen.reference.solver import OPTIMAL
+from rollmpc_codegen.status import OPTIMAL
 from test_bitexact import Lockstep
 
 UAV_BLOCKED = ROOT / "examples" / "uav_roll_blocked.yaml"

@@ -14,7 +14,8 @@ import numpy as np
 import pytest
 
 from conftest import Built, short_uav_config
-from rollmpc_codegen.reference.solver import MAX_ITER, OPTIMAL, SolverRef
+from rollmpc_codegen.reference.solver import SolverRef
+from rollmpc_codegen.status import MAX_ITER, OPTIMAL
 
 N = 20
 QUICK = [("hildreth_plus_prime", cap) for cap in (1, 2, 3, 5)] + \

@@ -27,7 +27,8 @@ from rollmpc_codegen.pipeline import build_model
 from rollmpc_codegen.reference.controller import ControllerRef
 from rollmpc_codegen.pipeline import load_model
 from rollmpc_codegen.verify.random_configs import random_controller
-from rollmpc_codegen.reference.solver import NONFINITE_INPUT, STATUS_NAMES, SolverRef
+from rollmpc_codegen.reference.solver import SolverRef
+from rollmpc_codegen.status import NONFINITE_INPUT, STATUS_NAMES
 
 SETTINGS = dict(deadline=None, derandomize=True, print_blob=True,
                 suppress_health_check=[HealthCheck.too_slow, HealthCheck.function_scoped_fixture])

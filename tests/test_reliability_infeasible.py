@@ -20,7 +20,7 @@ import yaml
 from conftest import Built, short_uav_config
 from rollmpc_codegen.qp.exact import infeasibility_margin, qp_data, solve_exact
 from rollmpc_codegen.verify.qp_campaign import (infeasible_campaign, summarise_infeasible)
-from rollmpc_codegen.reference.solver import NONFINITE_INPUT, OPTIMAL
+from rollmpc_codegen.status import NONFINITE_INPUT, OPTIMAL
 
 N = 20
 

@@ -20,7 +20,7 @@ from rollmpc_codegen.host.build import build_host_controller
 from rollmpc_codegen.reference.controller import ControllerRef
 from rollmpc_codegen.pipeline import load_model
 from rollmpc_codegen.verify.qp_campaign import restore_state, snapshot_state
-from rollmpc_codegen.reference.solver import BAD_ARGUMENT, NONFINITE_INPUT, OPTIMAL
+from rollmpc_codegen.status import BAD_ARGUMENT, NONFINITE_INPUT, OPTIMAL
 
 N = 20
 BAD = [np.nan, np.inf, -np.inf]

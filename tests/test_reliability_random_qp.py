@@ -28,7 +28,7 @@ from rollmpc_codegen.pipeline import load_model
 from rollmpc_codegen.verify.qp_campaign import (COND_DECADES, feasible_campaign, failures_json,
                                          summarise_feasible)
 from rollmpc_codegen.verify.random_configs import draw_instance, random_config
-from rollmpc_codegen.reference.solver import OPTIMAL
+from rollmpc_codegen.status import OPTIMAL
 
 QUICK_CONFIGS, QUICK_QPS, QUICK_N = COND_DECADES, 16, 40
 

@@ -24,11 +24,11 @@ from rollmpc_codegen.host.build import build_host_controller
 from rollmpc_codegen.config import ConfigError, load, parse
 from rollmpc_codegen.qp.exact import qp_data, solve_exact
 from rollmpc_codegen.pipeline import generate, load_model
-from rollmpc_codegen.features.runtime_bounds import (BAD_ARGUMENT, BAD_BOUNDS, BOUND_NOT_CONFIGURED,
-                                            row_constants)
+from rollmpc_codegen.features.runtime_bounds import row_constants
 from rollmpc_codegen.sim.scenario import preview, scenario_reference
 from rollmpc_codegen.sim.simulate import run_closed_loop
-from rollmpc_codegen.reference.solver import INFEASIBLE, NONFINITE_INPUT, OPTIMAL
+from rollmpc_codegen.status import (BAD_ARGUMENT, BAD_BOUNDS, BOUND_NOT_CONFIGURED, INFEASIBLE,
+                                    NONFINITE_INPUT, OPTIMAL)
 from test_bitexact import Lockstep
 from test_compile import AUTOPILOT, CLANG_HINT, STRICT, _compile
 

@@ -37,7 +37,8 @@ from rollmpc_codegen.qp.peers import DaqpPeer
 from rollmpc_codegen.codegen.render import render_sources
 from rollmpc_codegen.sim.scenario import preview, scenario_reference
 from rollmpc_codegen.sim.simulate import run_closed_loop
-from rollmpc_codegen.reference.solver import OPTIMAL, SolverRef
+from rollmpc_codegen.reference.solver import SolverRef
+from rollmpc_codegen.status import OPTIMAL
 from test_bitexact import Lockstep
 from test_compile import AUTOPILOT, CLANG_HINT, STRICT, _compile
 

@@ -23,7 +23,8 @@ from rollmpc_codegen.codegen.render import render_sources
 from rollmpc_codegen.sim.scenario import preview, scenario_reference
 from rollmpc_codegen.sim.simulate import run_closed_loop
 from rollmpc_codegen.features.soft_constraints import explicit_qp, slacks
-from rollmpc_codegen.reference.solver import INFEASIBLE, OPTIMAL, SolverRef
+from rollmpc_codegen.reference.solver import SolverRef
+from rollmpc_codegen.status import INFEASIBLE, OPTIMAL
 from test_bitexact import Lockstep
 
 SOFT = ROOT / "examples" / "chain_soft.yaml"

@@ -13,7 +13,7 @@ import pytest
 
 from rollmpc_codegen.host.bench_record import record_qp_sequence
 from rollmpc_codegen.qp.exact import qp_data, solve_exact
-from rollmpc_codegen.reference.solver import OPTIMAL
+from rollmpc_codegen.status import OPTIMAL
 
 
 @pytest.fixture(scope="module")

@@ -43,7 +43,7 @@ static void observe(chain_work *ws, const chain_mode_data *md, chain_real *x,
             acc += md->A[i * md->nx + l] * x[l];
         }
         for (l = 0; l < md->nu; ++l) {
-            acc += md->B[i * md->nu + l] * u_phys[md->actuator[l]];
+            acc += md->B[i * md->nu + l] * u_phys[md->actuator_index[l]];
         }
         if (use_y) {
             for (a = 0; a < md->ny; ++a) {
@@ -139,7 +139,7 @@ int chain_step(chain_ctrl *c, const chain_real *y, const chain_real *sched,
         u[i] = R_(0.0);
     }
     for (i = 0; i < md->nu; ++i) {
-        u[md->actuator[i]] = c->U[i];
+        u[md->actuator_index[i]] = c->U[i];
     }
     for (j = 0; j < CHAIN_N_MODES; ++j) {
         observe(&c->work, &chain_modes[j], c->xhat[j], y, u, 1);
@@ -187,7 +187,7 @@ const char *chain_status_message(int status)
     case CHAIN_OPTIMAL: return "optimal";
     case CHAIN_MAX_ITER: return "iteration cap reached";
     case CHAIN_INACCURATE: return "converged by delta but constraints violated";
-    case CHAIN_INFEASIBLE: return "infeasible: dual multipliers diverged";
+    case CHAIN_INFEASIBLE: return "infeasible: constraints cannot all hold (proven, or multipliers diverged)";
     case CHAIN_NONFINITE_INPUT: return "non-finite input; last command held";
     case CHAIN_NUMERICAL: return "non-finite intermediate result; safe fallback";
     case CHAIN_BAD_ARGUMENT: return "bad argument";

@@ -50,7 +50,7 @@ static void observe(chain_rb_work *ws, const chain_rb_mode_data *md, chain_rb_re
             acc += md->A[i * md->nx + l] * x[l];
         }
         for (l = 0; l < md->nu; ++l) {
-            acc += md->B[i * md->nu + l] * u_phys[md->actuator[l]];
+            acc += md->B[i * md->nu + l] * u_phys[md->actuator_index[l]];
         }
         if (use_y) {
             for (a = 0; a < md->ny; ++a) {
@@ -151,7 +151,7 @@ int chain_rb_step(chain_rb_ctrl *c, const chain_rb_real *y, const chain_rb_real 
         u[i] = R_(0.0);
     }
     for (i = 0; i < md->nu; ++i) {
-        u[md->actuator[i]] = c->U[i];
+        u[md->actuator_index[i]] = c->U[i];
     }
     for (j = 0; j < CHAIN_RB_N_MODES; ++j) {
         observe(&c->work, &chain_rb_modes[j], c->xhat[j], y, u, 1);
@@ -247,7 +247,7 @@ int chain_rb_set_bounds(chain_rb_ctrl *c, int mode, const chain_rb_real *u_min,
     }
     if (mode == c->mode) { /* the held command obeys the new input bounds too */
         for (i = 0; i < md->nu; ++i) {
-            chain_rb_real *v = &c->u_last[md->actuator[i]];
+            chain_rb_real *v = &c->u_last[md->actuator_index[i]];
             *v = (*v < b->u_min[i]) ? b->u_min[i] : ((*v > b->u_max[i]) ? b->u_max[i] : *v);
         }
     }
@@ -284,7 +284,7 @@ const char *chain_rb_status_message(int status)
     case CHAIN_RB_OPTIMAL: return "optimal";
     case CHAIN_RB_MAX_ITER: return "iteration cap reached";
     case CHAIN_RB_INACCURATE: return "converged by delta but constraints violated";
-    case CHAIN_RB_INFEASIBLE: return "infeasible: dual multipliers diverged";
+    case CHAIN_RB_INFEASIBLE: return "infeasible: constraints cannot all hold (proven, or multipliers diverged)";
     case CHAIN_RB_NONFINITE_INPUT: return "non-finite input; last command held";
     case CHAIN_RB_NUMERICAL: return "non-finite intermediate result; safe fallback";
     case CHAIN_RB_BAD_ARGUMENT: return "bad argument";

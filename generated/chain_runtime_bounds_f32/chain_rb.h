@@ -25,18 +25,30 @@ extern "C" {
 
 /** Status codes. 0 is optimal; every other code still yields finite, in-limit commands. */
 typedef enum {
-    CHAIN_RB_OPTIMAL = 0,        /**< QP solved; all constraints hold within tolerance. */
-    CHAIN_RB_MAX_ITER = 1,       /**< Iteration cap hit; command is the best in-limit estimate. */
-    CHAIN_RB_INACCURATE = 2,     /**< Stopped by the delta test with constraints still violated. */
-    CHAIN_RB_INFEASIBLE = 3,     /**< The constraints cannot all hold (proven by the dual active set, or the sweeps' multipliers diverged); command is the clamped unconstrained optimum or the best estimate. */
-    CHAIN_RB_NONFINITE_INPUT = 4,/**< NaN or Inf in an input; last command held. */
-    CHAIN_RB_NUMERICAL = 5,      /**< Non-finite intermediate result; safe fallback command. */
-    CHAIN_RB_BAD_ARGUMENT = 6,   /**< NULL pointer or mode index out of range. */
-    CHAIN_RB_BAD_BOUNDS = 7,     /**< chain_rb_set_bounds(): a bound not finite, lower >= upper,
-                                      or input bounds without 0; nothing changed. */
-    CHAIN_RB_BOUND_NOT_CONFIGURED = 8 /**< chain_rb_set_bounds(): a finite value for an output
-                                      bound the config left infinite (it has no constraint
-                                      rows); nothing changed. */
+    /** KKT conditions hold within the feasibility tolerance. Command: the solution. */
+    CHAIN_RB_OPTIMAL = 0,
+    /** The sweep cap was hit. Command: best estimate, clamped to the limits. */
+    CHAIN_RB_MAX_ITER = 1,
+    /** Stopped by the δ test with rows still violated. Command: best estimate, clamped. */
+    CHAIN_RB_INACCURATE = 2,
+    /** The dual active set proved that the constraints cannot all hold (a violated row that
+     *  depends on the working set, which no row can leave), or the sweeps' multipliers
+     *  diverged. Command: the unconstrained optimum (active set) or the best estimate
+     *  (sweeps), clamped. */
+    CHAIN_RB_INFEASIBLE = 3,
+    /** NaN/Inf in `y`, `sched`, `r` (or `x`). Command: last command held
+     *  (`chain_rb_solve_qp`: 0). */
+    CHAIN_RB_NONFINITE_INPUT = 4,
+    /** A non-finite intermediate. Command: clamped unconstrained solution, else 0. */
+    CHAIN_RB_NUMERICAL = 5,
+    /** NULL pointer or bad mode index. Command: last command held. */
+    CHAIN_RB_BAD_ARGUMENT = 6,
+    /** `chain_rb_set_bounds` only: NaN, a non-finite configured bound, lower >= upper, or
+     *  input bounds without 0. Command: nothing changed. */
+    CHAIN_RB_BAD_BOUNDS = 7,
+    /** `chain_rb_set_bounds` only: a finite value for an output bound the config left
+     *  infinite (no rows). Command: nothing changed. */
+    CHAIN_RB_BOUND_NOT_CONFIGURED = 8
 } chain_rb_status;
 
 /** Diagnostics of the last solve, readable by the caller. */

@@ -34,11 +34,21 @@ typedef float chain_soft_real;
 #define CHAIN_SOFT_W_MAX 100
 #define CHAIN_SOFT_CHOL_MAX 5050
 
-/* Solver: method hildreth_plus_prime + polish (polish first). */
+/*
+ * Solver variant: method hildreth_plus_prime + polish (polish first).
+ * Informational: the variant was selected when this code was generated, and the code of
+ * the other variants is not in chain_soft_solver.c, so editing these switches does not
+ * select another one. The C still reads REDUCED, WARM_START and POLISH in a few places:
+ * an edit there would run a variant nobody generated or checked against the reference.
+ * Regenerate instead.
+ */
 #define CHAIN_SOFT_SOLVER_REDUCED 1
 #define CHAIN_SOFT_SOLVER_WARM_START 1
 #define CHAIN_SOFT_SOLVER_POLISH 1
 #define CHAIN_SOFT_SOLVER_POLISH_FIRST 1
+#define CHAIN_SOFT_SOLVER_ACTIVE_SET 1
+
+/* Solver parameters from the config. */
 #define CHAIN_SOFT_SOLVER_OMEGA 1.20000005f
 #define CHAIN_SOFT_SOLVER_SIGMA 0.200000003f
 #define CHAIN_SOFT_SOLVER_DELTA 9.99999982e-14f
@@ -46,7 +56,6 @@ typedef float chain_soft_real;
 #define CHAIN_SOFT_SOLVER_MAX_ITER 1000
 #define CHAIN_SOFT_SOLVER_POLISH_EVERY 10
 #define CHAIN_SOFT_SOLVER_POLISH_MAX 8
-#define CHAIN_SOFT_SOLVER_ACTIVE_SET 1
 #define CHAIN_SOFT_SOLVER_ACTIVE_SET_MAX 500
 #define CHAIN_SOFT_SOLVER_DEPENDENCE_TOL 9.99999975e-06f
 

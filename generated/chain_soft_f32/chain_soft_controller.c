@@ -43,7 +43,7 @@ static void observe(chain_soft_work *ws, const chain_soft_mode_data *md, chain_s
             acc += md->A[i * md->nx + l] * x[l];
         }
         for (l = 0; l < md->nu; ++l) {
-            acc += md->B[i * md->nu + l] * u_phys[md->actuator[l]];
+            acc += md->B[i * md->nu + l] * u_phys[md->actuator_index[l]];
         }
         if (use_y) {
             for (a = 0; a < md->ny; ++a) {
@@ -143,7 +143,7 @@ int chain_soft_step(chain_soft_ctrl *c, const chain_soft_real *y, const chain_so
         u[i] = R_(0.0);
     }
     for (i = 0; i < md->nu; ++i) {
-        u[md->actuator[i]] = c->U[i];
+        u[md->actuator_index[i]] = c->U[i];
     }
     for (j = 0; j < CHAIN_SOFT_N_MODES; ++j) {
         observe(&c->work, &chain_soft_modes[j], c->xhat[j], y, u, 1);
@@ -191,7 +191,7 @@ const char *chain_soft_status_message(int status)
     case CHAIN_SOFT_OPTIMAL: return "optimal";
     case CHAIN_SOFT_MAX_ITER: return "iteration cap reached";
     case CHAIN_SOFT_INACCURATE: return "converged by delta but constraints violated";
-    case CHAIN_SOFT_INFEASIBLE: return "infeasible: dual multipliers diverged";
+    case CHAIN_SOFT_INFEASIBLE: return "infeasible: constraints cannot all hold (proven, or multipliers diverged)";
     case CHAIN_SOFT_NONFINITE_INPUT: return "non-finite input; last command held";
     case CHAIN_SOFT_NUMERICAL: return "non-finite intermediate result; safe fallback";
     case CHAIN_SOFT_BAD_ARGUMENT: return "bad argument";

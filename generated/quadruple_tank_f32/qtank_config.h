@@ -32,11 +32,21 @@ typedef float qtank_real;
 #define QTANK_NT_MAX 2
 #define QTANK_CHOL_MAX 820
 
-/* Solver: method hildreth_plus_prime + polish (polish first). */
+/*
+ * Solver variant: method hildreth_plus_prime + polish (polish first).
+ * Informational: the variant was selected when this code was generated, and the code of
+ * the other variants is not in qtank_solver.c, so editing these switches does not
+ * select another one. The C still reads REDUCED, WARM_START and POLISH in a few places:
+ * an edit there would run a variant nobody generated or checked against the reference.
+ * Regenerate instead.
+ */
 #define QTANK_SOLVER_REDUCED 1
 #define QTANK_SOLVER_WARM_START 1
 #define QTANK_SOLVER_POLISH 1
 #define QTANK_SOLVER_POLISH_FIRST 1
+#define QTANK_SOLVER_ACTIVE_SET 1
+
+/* Solver parameters from the config. */
 #define QTANK_SOLVER_OMEGA 1.20000005f
 #define QTANK_SOLVER_SIGMA 0.200000003f
 #define QTANK_SOLVER_DELTA 9.99999982e-14f
@@ -44,7 +54,6 @@ typedef float qtank_real;
 #define QTANK_SOLVER_MAX_ITER 1000
 #define QTANK_SOLVER_POLISH_EVERY 10
 #define QTANK_SOLVER_POLISH_MAX 8
-#define QTANK_SOLVER_ACTIVE_SET 1
 #define QTANK_SOLVER_ACTIVE_SET_MAX 500
 #define QTANK_SOLVER_DEPENDENCE_TOL 9.99999975e-06f
 

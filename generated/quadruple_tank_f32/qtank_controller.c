@@ -43,7 +43,7 @@ static void observe(qtank_work *ws, const qtank_mode_data *md, qtank_real *x,
             acc += md->A[i * md->nx + l] * x[l];
         }
         for (l = 0; l < md->nu; ++l) {
-            acc += md->B[i * md->nu + l] * u_phys[md->actuator[l]];
+            acc += md->B[i * md->nu + l] * u_phys[md->actuator_index[l]];
         }
         if (use_y) {
             for (a = 0; a < md->ny; ++a) {
@@ -139,7 +139,7 @@ int qtank_step(qtank_ctrl *c, const qtank_real *y, const qtank_real *sched,
         u[i] = R_(0.0);
     }
     for (i = 0; i < md->nu; ++i) {
-        u[md->actuator[i]] = c->U[i];
+        u[md->actuator_index[i]] = c->U[i];
     }
     for (j = 0; j < QTANK_N_MODES; ++j) {
         observe(&c->work, &qtank_modes[j], c->xhat[j], y, u, 1);
@@ -187,7 +187,7 @@ const char *qtank_status_message(int status)
     case QTANK_OPTIMAL: return "optimal";
     case QTANK_MAX_ITER: return "iteration cap reached";
     case QTANK_INACCURATE: return "converged by delta but constraints violated";
-    case QTANK_INFEASIBLE: return "infeasible: dual multipliers diverged";
+    case QTANK_INFEASIBLE: return "infeasible: constraints cannot all hold (proven, or multipliers diverged)";
     case QTANK_NONFINITE_INPUT: return "non-finite input; last command held";
     case QTANK_NUMERICAL: return "non-finite intermediate result; safe fallback";
     case QTANK_BAD_ARGUMENT: return "bad argument";

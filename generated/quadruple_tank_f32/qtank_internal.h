@@ -7,31 +7,44 @@
 
 #include "qtank.h"
 
-/** Static data of one mode (all arrays row-major; "_p" = packed lower triangle). */
+/**
+ * Static data of one mode (all arrays row-major; "_p" = packed lower triangle), declared
+ * member by member in rollmpc_codegen/qp/arrays.py.
+ */
 typedef struct {
-    int nx, nu, ny, n, m, nyq, nt;
-    const int16_t *actuator;        /**< [nu] physical actuator of each mode input. */
-    const qtank_real *A, *B, *C, *L; /**< Discrete model and observer gain. */
-    const qtank_real *Kx;      /**< [n][nx] unconstrained state gain. */
-    const qtank_real *EinvGt;  /**< [n][nyq] E^-1 Gamma'. */
-    const qtank_real *Sinv_p;  /**< S^-1, packed. */
-    const qtank_real *Ew;      /**< [nt][n]: E^-1 = S^-1 - Ew' Ew (Woodbury). */
-    const qtank_real *Uv;      /**< [nt][n] V S^-1. */
-    const qtank_real *T;       /**< [nt][nt] (2P)^-1 + V S^-1 V'. */
-    const qtank_real *S_p;     /**< Stage Hessian S (E = S + V'(2P)V), packed. */
-    const qtank_real *V;       /**< [nt][n] terminal rows of Gamma (nt = 0: none). */
-    const qtank_real *P2inv;   /**< [nt][nt] (2P)^-1. */
-    const qtank_real *GEinvGt_p; /**< Gamma E^-1 Gamma', packed (output rows only). */
-    const qtank_real *Omega2;  /**< [N][ny][ny] 2Q per stage, 2P last. */
-    const qtank_real *Phi;     /**< [nyq][nx]. */
-    const qtank_real *markov;  /**< [N][ny][nu] C A^i B. */
-    const int16_t *row_q;             /**< [m] quantity of each row (U index, or n + Y index). */
-    const int8_t *row_sign;           /**< [m] -1 lower / +1 upper bound row. */
-    const qtank_real *row_c;   /**< [m] constant right-hand side c. */
-    const int16_t *row_next;          /**< [m] same constraint one stage later (shifted warm start). */
-    const qtank_real *colsum;  /**< [ny][n] sum of the E^-1 Gamma' columns of stages 0..N-2. */
-    const qtank_real *out_bound; /**< [nyq] |(Gamma th)_k| <= out_bound[k] max|th|. */
-    const qtank_real *u_min, *u_max; /**< [nu] input bounds. */
+    int nx;                             /**< States (with disturbance and u_prev states). */
+    int nu;                             /**< Inputs of the mode. */
+    int ny;                             /**< Outputs of the mode. */
+    int n;                              /**< Decision variables (N nu, or blocks * nu). */
+    int m;                              /**< Constraint rows. */
+    int nyq;                            /**< Predicted outputs N ny. */
+    int nt;                             /**< Terminal rows of the E split (0: P stays in S). */
+    const int16_t *actuator_index;      /**< [nu] physical actuator of each mode input. */
+    const qtank_real *A;                /**< [nx][nx] discrete state matrix. */
+    const qtank_real *B;                /**< [nx][nu] discrete input matrix. */
+    const qtank_real *C;                /**< [ny][nx] output matrix. */
+    const qtank_real *L;                /**< [nx][ny] observer gain. */
+    const qtank_real *Kx;               /**< [n][nx] unconstrained state gain. */
+    const qtank_real *EinvGt;           /**< [n][nyq] E^-1 Gamma'. */
+    const qtank_real *Sinv_p;           /**< [n(n+1)/2] packed S^-1. */
+    const qtank_real *Ew;               /**< [nt][n] E^-1 = S^-1 - Ew' Ew (Woodbury). */
+    const qtank_real *Uv;               /**< [nt][n] V S^-1. */
+    const qtank_real *T;                /**< [nt][nt] (2P)^-1 + V S^-1 V'. */
+    const qtank_real *S_p;              /**< [n(n+1)/2] packed stage Hessian S (E = S + V'(2P)V). */
+    const qtank_real *V;                /**< [nt][n] terminal rows of Gamma (nt = 0: none). */
+    const qtank_real *P2inv;            /**< [nt][nt] (2P)^-1. */
+    const qtank_real *GEinvGt_p;        /**< [nyq(nyq+1)/2] packed Gamma E^-1 Gamma' (null: no output rows). */
+    const qtank_real *Omega2;           /**< [N][ny][ny] 2Q per stage, 2P at the last. */
+    const qtank_real *Phi;              /**< [nyq][nx] free response of the predicted outputs. */
+    const qtank_real *markov;           /**< [N][ny][nu] Markov parameters C A^i B. */
+    const int16_t *row_q;               /**< [m] quantity of each row (U index, n + Y index, or n + nyq + Δu index). */
+    const int8_t *row_sign;             /**< [m] -1 lower / +1 upper bound row. */
+    const qtank_real *row_c;            /**< [m] constant right-hand side c. */
+    const int16_t *row_next;            /**< [m] same constraint one stage later (shifted warm start). */
+    const qtank_real *colsum;           /**< [ny][n] sum of the E^-1 Gamma' columns of stages 0..N-2. */
+    const qtank_real *out_bound;        /**< [nyq] |(Gamma th)_k| <= out_bound[k] max|th|. */
+    const qtank_real *u_min;            /**< [nu] input lower bounds. */
+    const qtank_real *u_max;            /**< [nu] input upper bounds. */
 } qtank_mode_data;
 
 extern const qtank_mode_data qtank_modes[QTANK_N_MODES];

@@ -43,7 +43,7 @@ static void observe(zones_work *ws, const zones_mode_data *md, zones_real *x,
             acc += md->A[i * md->nx + l] * x[l];
         }
         for (l = 0; l < md->nu; ++l) {
-            acc += md->B[i * md->nu + l] * u_phys[md->actuator[l]];
+            acc += md->B[i * md->nu + l] * u_phys[md->actuator_index[l]];
         }
         if (use_y) {
             for (a = 0; a < md->ny; ++a) {
@@ -139,7 +139,7 @@ int zones_step(zones_ctrl *c, const zones_real *y, const zones_real *sched,
         u[i] = R_(0.0);
     }
     for (i = 0; i < md->nu; ++i) {
-        u[md->actuator[i]] = c->U[i];
+        u[md->actuator_index[i]] = c->U[i];
     }
     for (j = 0; j < ZONES_N_MODES; ++j) {
         observe(&c->work, &zones_modes[j], c->xhat[j], y, u, 1);
@@ -187,7 +187,7 @@ const char *zones_status_message(int status)
     case ZONES_OPTIMAL: return "optimal";
     case ZONES_MAX_ITER: return "iteration cap reached";
     case ZONES_INACCURATE: return "converged by delta but constraints violated";
-    case ZONES_INFEASIBLE: return "infeasible: dual multipliers diverged";
+    case ZONES_INFEASIBLE: return "infeasible: constraints cannot all hold (proven, or multipliers diverged)";
     case ZONES_NONFINITE_INPUT: return "non-finite input; last command held";
     case ZONES_NUMERICAL: return "non-finite intermediate result; safe fallback";
     case ZONES_BAD_ARGUMENT: return "bad argument";

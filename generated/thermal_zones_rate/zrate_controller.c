@@ -43,7 +43,7 @@ static void observe(zrate_work *ws, const zrate_mode_data *md, zrate_real *x,
             acc += md->A[i * md->nx + l] * x[l];
         }
         for (l = 0; l < md->nu; ++l) {
-            acc += md->B[i * md->nu + l] * u_phys[md->actuator[l]];
+            acc += md->B[i * md->nu + l] * u_phys[md->actuator_index[l]];
         }
         if (use_y) {
             for (a = 0; a < md->ny; ++a) {
@@ -139,7 +139,7 @@ int zrate_step(zrate_ctrl *c, const zrate_real *y, const zrate_real *sched,
         u[i] = R_(0.0);
     }
     for (i = 0; i < md->nu; ++i) {
-        u[md->actuator[i]] = c->U[i];
+        u[md->actuator_index[i]] = c->U[i];
     }
     for (j = 0; j < ZRATE_N_MODES; ++j) {
         observe(&c->work, &zrate_modes[j], c->xhat[j], y, u, 1);
@@ -187,7 +187,7 @@ const char *zrate_status_message(int status)
     case ZRATE_OPTIMAL: return "optimal";
     case ZRATE_MAX_ITER: return "iteration cap reached";
     case ZRATE_INACCURATE: return "converged by delta but constraints violated";
-    case ZRATE_INFEASIBLE: return "infeasible: dual multipliers diverged";
+    case ZRATE_INFEASIBLE: return "infeasible: constraints cannot all hold (proven, or multipliers diverged)";
     case ZRATE_NONFINITE_INPUT: return "non-finite input; last command held";
     case ZRATE_NUMERICAL: return "non-finite intermediate result; safe fallback";
     case ZRATE_BAD_ARGUMENT: return "bad argument";

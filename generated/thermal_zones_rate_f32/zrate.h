@@ -25,13 +25,24 @@ extern "C" {
 
 /** Status codes. 0 is optimal; every other code still yields finite, in-limit commands. */
 typedef enum {
-    ZRATE_OPTIMAL = 0,        /**< QP solved; all constraints hold within tolerance. */
-    ZRATE_MAX_ITER = 1,       /**< Iteration cap hit; command is the best in-limit estimate. */
-    ZRATE_INACCURATE = 2,     /**< Stopped by the delta test with constraints still violated. */
-    ZRATE_INFEASIBLE = 3,     /**< The constraints cannot all hold (proven by the dual active set, or the sweeps' multipliers diverged); command is the clamped unconstrained optimum or the best estimate. */
-    ZRATE_NONFINITE_INPUT = 4,/**< NaN or Inf in an input; last command held. */
-    ZRATE_NUMERICAL = 5,      /**< Non-finite intermediate result; safe fallback command. */
-    ZRATE_BAD_ARGUMENT = 6    /**< NULL pointer or mode index out of range. */
+    /** KKT conditions hold within the feasibility tolerance. Command: the solution. */
+    ZRATE_OPTIMAL = 0,
+    /** The sweep cap was hit. Command: best estimate, clamped to the limits. */
+    ZRATE_MAX_ITER = 1,
+    /** Stopped by the δ test with rows still violated. Command: best estimate, clamped. */
+    ZRATE_INACCURATE = 2,
+    /** The dual active set proved that the constraints cannot all hold (a violated row that
+     *  depends on the working set, which no row can leave), or the sweeps' multipliers
+     *  diverged. Command: the unconstrained optimum (active set) or the best estimate
+     *  (sweeps), clamped. */
+    ZRATE_INFEASIBLE = 3,
+    /** NaN/Inf in `y`, `sched`, `r` (or `x`). Command: last command held (`zrate_solve_qp`:
+     *  0). */
+    ZRATE_NONFINITE_INPUT = 4,
+    /** A non-finite intermediate. Command: clamped unconstrained solution, else 0. */
+    ZRATE_NUMERICAL = 5,
+    /** NULL pointer or bad mode index. Command: last command held. */
+    ZRATE_BAD_ARGUMENT = 6
 } zrate_status;
 
 /** Diagnostics of the last solve, readable by the caller. */

@@ -83,7 +83,7 @@ static void observe(drives_work *ws, const drives_mode_data *md, drives_real *x,
             acc += md->A[i * md->nx + l] * x[l];
         }
         for (l = 0; l < md->nu; ++l) {
-            acc += md->B[i * md->nu + l] * u_phys[md->actuator[l]];
+            acc += md->B[i * md->nu + l] * u_phys[md->actuator_index[l]];
         }
         if (use_y) {
             for (a = 0; a < md->ny; ++a) {
@@ -186,7 +186,7 @@ int drives_step(drives_ctrl *c, const drives_real *y, const drives_real *sched,
         u[i] = R_(0.0);
     }
     for (i = 0; i < md->nu; ++i) {
-        u[md->actuator[i]] = c->U[i];
+        u[md->actuator_index[i]] = c->U[i];
     }
     for (j = 0; j < DRIVES_N_MODES; ++j) {
         observe(&c->work, &drives_modes[j], c->xhat[j], y, u, 1);
@@ -234,7 +234,7 @@ const char *drives_status_message(int status)
     case DRIVES_OPTIMAL: return "optimal";
     case DRIVES_MAX_ITER: return "iteration cap reached";
     case DRIVES_INACCURATE: return "converged by delta but constraints violated";
-    case DRIVES_INFEASIBLE: return "infeasible: dual multipliers diverged";
+    case DRIVES_INFEASIBLE: return "infeasible: constraints cannot all hold (proven, or multipliers diverged)";
     case DRIVES_NONFINITE_INPUT: return "non-finite input; last command held";
     case DRIVES_NUMERICAL: return "non-finite intermediate result; safe fallback";
     case DRIVES_BAD_ARGUMENT: return "bad argument";

@@ -8,20 +8,22 @@
 #include "drives_internal.h"
 
 /* ---- mode 0: fine (nx=2, nu=1, n=25, m=100 rows, cond(E)=83.4) ---- */
-static const int16_t m0_actuator[1] = { 0 };
-static const float m0_A[4] = {
+static const int16_t drives_mode0_actuator_index[1] = {
+    0
+};
+static const drives_real drives_mode0_A[4] = {
     0.670320034f, 0.0f, 0.989039838f, 1.0f
 };
-static const float m0_B[2] = {
+static const drives_real drives_mode0_B[2] = {
     0.0164839979f, 0.0105480067f
 };
-static const float m0_C[2] = {
+static const drives_real drives_mode0_C[2] = {
     0.0f, 1.0f
 };
-static const float m0_L[2] = {
+static const drives_real drives_mode0_L[2] = {
     0.101214252f, 0.970320046f
 };
-static const float m0_Kx[50] = {
+static const drives_real drives_mode0_Kx[50] = {
     -7.58137512f, -2.92293143f, -6.79294872f, -2.46789598f, -5.94943905f, -2.06491017f,
     -5.12325573f, -1.71503711f, -4.35486412f, -1.41582119f, -3.66411138f, -1.16293597f,
     -3.05789924f, -0.951235414f, -2.5353272f, -0.775403321f, -2.09108448f, -0.630334675f,
@@ -32,7 +34,7 @@ static const float m0_Kx[50] = {
     -0.181525201f, -0.0504802428f, -0.144330651f, -0.0400968343f, -0.0993715376f, -0.0275916737f,
     -0.0384629406f, -0.0106773386f
 };
-static const float m0_EinvGt[625] = {
+static const drives_real drives_mode0_EinvGt[625] = {
     0.00450307177f, 0.0107614296f, 0.0137206893f, 0.0146203693f, 0.0142889339f, 0.0132716782f,
     0.0119202854f, 0.0104552712f, 0.00900931749f, 0.00765713537f, 0.00643591629f, 0.00535920123f,
     0.00442618178f, 0.00362785975f, 0.00295104366f, 0.002380891f, 0.00190247293f, 0.00150170468f,
@@ -139,7 +141,7 @@ static const float m0_EinvGt[625] = {
     -0.00211079651f, -0.00252101617f, -0.00298253889f, -0.00348719931f, -0.00401635421f, -0.00453494024f,
     0.000291251316f
 };
-static const float m0_Sinv_p[325] = {
+static const drives_real drives_mode0_Sinv_p[325] = {
     0.426964045f, -0.066470556f, 0.437324882f, -0.0588673204f, -0.0572922155f, 0.445456237f,
     -0.0511087514f, -0.0508951619f, -0.0502287261f, 0.451593071f, -0.0437087715f, -0.0442863367f,
     -0.0448494181f, -0.0449748524f, 0.456092656f, -0.0369405821f, -0.0379369967f, -0.0391704217f,
@@ -196,24 +198,24 @@ static const float m0_Sinv_p[325] = {
     0.0f, 0.0f, 0.0f, 0.0f, 0.0f, 0.0f,
     0.5f
 };
-static const float m0_Ew[25] = {
+static const drives_real drives_mode0_Ew[25] = {
     0.00720577361f, 0.00789694581f, 0.00887797028f, 0.0102183316f, 0.0119934343f, 0.0142888976f,
     0.0172039475f, 0.0208539683f, 0.025372019f, 0.0309089255f, 0.0376311205f, 0.0457150936f,
     0.055336494f, 0.0666511729f, 0.0797640681f, 0.0946800262f, 0.111228012f, 0.128946602f,
     0.146913216f, 0.163492411f, 0.17596826f, 0.180011123f, 0.168909073f, 0.13246575f,
     0.0554267168f
 };
-static const float m0_Uv[25] = {
+static const drives_real drives_mode0_Uv[25] = {
     0.000685649051f, 0.000751415966f, 0.000844763068f, 0.000972302165f, 0.00114120811f, 0.0013596277f,
     0.00163700269f, 0.00198431197f, 0.00241421699f, 0.00294106873f, 0.0035807041f, 0.00434991624f,
     0.00526541844f, 0.00634204131f, 0.00758976908f, 0.00900906324f, 0.0105836494f, 0.0122696217f,
     0.0139791938f, 0.0155567499f, 0.0167438611f, 0.0171285495f, 0.0160721596f, 0.0126044778f,
     0.00527400337f
 };
-static const float m0_T[1] = {
+static const drives_real drives_mode0_T[1] = {
     0.0090540424f
 };
-static const float m0_S_p[325] = {
+static const drives_real drives_mode0_S_p[325] = {
     3.45684338f, 1.41490984f, 3.38485527f, 1.36306906f, 1.34292483f, 3.31287313f,
     1.30458939f, 1.29108834f, 1.2709471f, 3.2408998f, 1.24166346f, 1.23261535f,
     1.21911716f, 1.19898033f, 3.16893959f, 1.1757623f, 1.16969907f, 1.16065395f,
@@ -270,17 +272,17 @@ static const float m0_S_p[325] = {
     0.0f, 0.0f, 0.0f, 0.0f, 0.0f, 0.0f,
     2.0f
 };
-static const float m0_V[25] = {
+static const drives_real drives_mode0_V[25] = {
     0.0599966496f, 0.059995003f, 0.0599925444f, 0.0599888787f, 0.0599834099f, 0.0599752516f,
     0.059963081f, 0.0599449202f, 0.0599178337f, 0.0598774217f, 0.0598171316f, 0.0597271957f,
     0.0595930219f, 0.059392862f, 0.0590942539f, 0.0586487874f, 0.0579842292f, 0.0569928214f,
     0.0555138178f, 0.0533073992f, 0.0500158146f, 0.0451053455f, 0.0377797857f, 0.0268513374f,
     0.0105480067f
 };
-static const float m0_P2inv[1] = {
+static const drives_real drives_mode0_P2inv[1] = {
     0.000500000024f
 };
-static const float m0_GEinvGt_p[325] = {
+static const drives_real drives_mode0_GEinvGt_p[325] = {
     4.74984336e-05f, 0.000113511625f, 0.000318766339f, 0.000144725927f, 0.000459370436f, 0.000759715971f,
     0.000154215755f, 0.00051325612f, 0.000929208356f, 0.00126030913f, 0.000150719774f, 0.000514381682f,
     0.000972407172f, 0.00141837855f, 0.00173826481f, 0.000139989759f, 0.000485231431f, 0.000940796162f,
@@ -337,14 +339,14 @@ static const float m0_GEinvGt_p[325] = {
     0.000200113311f, 0.000239004017f, 0.000282758527f, 0.000330602692f, 0.000380769023f, 0.000429933396f,
     0.000472388027f
 };
-static const float m0_Omega2[25] = {
+static const drives_real drives_mode0_Omega2[25] = {
     20.0f, 20.0f, 20.0f, 20.0f, 20.0f, 20.0f,
     20.0f, 20.0f, 20.0f, 20.0f, 20.0f, 20.0f,
     20.0f, 20.0f, 20.0f, 20.0f, 20.0f, 20.0f,
     20.0f, 20.0f, 20.0f, 20.0f, 20.0f, 20.0f,
     2000.0f
 };
-static const float m0_Phi[50] = {
+static const drives_real drives_mode0_Phi[50] = {
     0.989039838f, 1.0f, 1.65201306f, 1.0f, 2.09641743f, 1.0f,
     2.39431047f, 1.0f, 2.59399414f, 1.0f, 2.72784615f, 1.0f,
     2.81756973f, 1.0f, 2.87771344f, 1.0f, 2.91802883f, 1.0f,
@@ -355,14 +357,14 @@ static const float m0_Phi[50] = {
     2.99954772f, 1.0f, 2.99969697f, 1.0f, 2.99979687f, 1.0f,
     2.99986386f, 1.0f
 };
-static const float m0_markov[25] = {
+static const drives_real drives_mode0_markov[25] = {
     0.0105480067f, 0.0268513374f, 0.0377797857f, 0.0451053455f, 0.0500158146f, 0.0533073992f,
     0.0555138178f, 0.0569928214f, 0.0579842292f, 0.0586487874f, 0.0590942539f, 0.059392862f,
     0.0595930219f, 0.0597271957f, 0.0598171316f, 0.0598774217f, 0.0599178337f, 0.0599449202f,
     0.059963081f, 0.0599752516f, 0.0599834099f, 0.0599888787f, 0.0599925444f, 0.059995003f,
     0.0599966496f
 };
-static const int16_t m0_row_q[100] = {
+static const int16_t drives_mode0_row_q[100] = {
     0, 0, 1, 1, 25, 25, 2, 2, 26, 26, 3, 3, 27, 27, 4, 4,
     28, 28, 5, 5, 29, 29, 6, 6, 30, 30, 7, 7, 31, 31, 8, 8,
     32, 32, 9, 9, 33, 33, 10, 10, 34, 34, 11, 11, 35, 35, 12, 12,
@@ -371,7 +373,7 @@ static const int16_t m0_row_q[100] = {
     44, 44, 21, 21, 45, 45, 22, 22, 46, 46, 23, 23, 47, 47, 24, 24,
     48, 48, 49, 49
 };
-static const int8_t m0_row_sign[100] = {
+static const int8_t drives_mode0_row_sign[100] = {
     -1, 1, -1, 1, -1, 1, -1, 1, -1, 1, -1, 1, -1, 1, -1, 1,
     -1, 1, -1, 1, -1, 1, -1, 1, -1, 1, -1, 1, -1, 1, -1, 1,
     -1, 1, -1, 1, -1, 1, -1, 1, -1, 1, -1, 1, -1, 1, -1, 1,
@@ -380,7 +382,7 @@ static const int8_t m0_row_sign[100] = {
     -1, 1, -1, 1, -1, 1, -1, 1, -1, 1, -1, 1, -1, 1, -1, 1,
     -1, 1, -1, 1
 };
-static const float m0_row_c[100] = {
+static const drives_real drives_mode0_row_c[100] = {
     1.0f, 1.0f, 1.0f, 1.0f, 10.0f, 10.0f,
     1.0f, 1.0f, 10.0f, 10.0f, 1.0f, 1.0f,
     10.0f, 10.0f, 1.0f, 1.0f, 10.0f, 10.0f,
@@ -399,7 +401,7 @@ static const float m0_row_c[100] = {
     1.0f, 1.0f, 10.0f, 10.0f, 1.0f, 1.0f,
     10.0f, 10.0f, 10.0f, 10.0f
 };
-static const int16_t m0_row_next[100] = {
+static const int16_t drives_mode0_row_next[100] = {
     2, 3, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15, 16, 17, 18, 19,
     20, 21, 22, 23, 24, 25, 26, 27, 28, 29, 30, 31, 32, 33, 34, 35,
     36, 37, 38, 39, 40, 41, 42, 43, 44, 45, 46, 47, 48, 49, 50, 51,
@@ -408,38 +410,44 @@ static const int16_t m0_row_next[100] = {
     84, 85, 86, 87, 88, 89, 90, 91, 92, 93, 94, 95, 96, 97, 94, 95,
     98, 99, 98, 99
 };
-static const float m0_colsum[25] = {
+static const drives_real drives_mode0_colsum[25] = {
     0.142360151f, 0.119245179f, 0.0985803902f, 0.0803824216f, 0.064488858f, 0.0506383963f,
     0.0385215953f, 0.0278120097f, 0.0181844737f, 0.00932534505f, 0.000938315818f, -0.0072514941f,
     -0.0154927503f, -0.024000058f, -0.0329403393f, -0.0424099974f, -0.0523982234f, -0.0627299845f,
     -0.0729795843f, -0.082341969f, -0.0894435048f, -0.0920666084f, -0.0867519751f, -0.0682273284f,
     -0.028591264f
 };
-static const float m0_out_bound[25] = {
+static const drives_real drives_mode0_out_bound[25] = {
     0.0105482582f, 0.0374002345f, 0.0751809254f, 0.120287344f, 0.170304343f, 0.223613024f,
     0.279128164f, 0.336122334f, 0.394107968f, 0.452758133f, 0.511853814f, 0.571248055f,
     0.630842507f, 0.690571129f, 0.750389695f, 0.810268521f, 0.870187819f, 0.930134177f,
     0.990098655f, 1.05007541f, 1.11006021f, 1.1700505f, 1.23004448f, 1.29004097f,
     1.35003901f
 };
-static const float m0_u_min[1] = { -1.0f };
-static const float m0_u_max[1] = { 1.0f };
+static const drives_real drives_mode0_u_min[1] = {
+    -1.0f
+};
+static const drives_real drives_mode0_u_max[1] = {
+    1.0f
+};
 
 /* ---- mode 1: medium (nx=2, nu=1, n=25, m=100 rows, cond(E)=242) ---- */
-static const int16_t m1_actuator[1] = { 1 };
-static const float m1_A[4] = {
+static const int16_t drives_mode1_actuator_index[1] = {
+    1
+};
+static const drives_real drives_mode1_A[4] = {
     0.818730772f, 0.0f, 1.45015395f, 1.0f
 };
-static const float m1_B[2] = {
+static const drives_real drives_mode1_B[2] = {
     0.0181269255f, 0.0149846021f
 };
-static const float m1_C[2] = {
+static const drives_real drives_mode1_C[2] = {
     0.0f, 1.0f
 };
-static const float m1_L[2] = {
+static const drives_real drives_mode1_L[2] = {
     0.149783075f, 1.11873078f
 };
-static const float m1_Kx[50] = {
+static const drives_real drives_mode1_Kx[50] = {
     -10.7321234f, -1.99601293f, -9.27261639f, -1.54809093f, -7.78393793f, -1.16634452f,
     -6.36234093f, -0.849843025f, -5.06669617f, -0.594198883f, -3.92808485f, -0.393023282f,
     -2.95766091f, -0.238991052f, -2.15293336f, -0.124589607f, -1.50265455f, -0.0426182821f,
@@ -450,7 +458,7 @@ static const float m1_Kx[50] = {
     0.153540522f, 0.0275532082f, 0.118171595f, 0.0204551574f, 0.0767294168f, 0.0129932342f,
     0.0276583321f, 0.00463699643f
 };
-static const float m1_EinvGt[625] = {
+static const drives_real drives_mode1_EinvGt[625] = {
     0.00298404857f, 0.00754905446f, 0.0100891748f, 0.0111616701f, 0.0112149548f, 0.0106005054f,
     0.00958624668f, 0.00837011449f, 0.00709295506f, 0.00585024618f, 0.00470236735f, 0.00368332863f,
     0.00280798948f, 0.00207787054f, 0.0014857091f, 0.00101892813f, 0.000662189792f, 0.000399196782f,
@@ -557,7 +565,7 @@ static const float m1_EinvGt[625] = {
     -0.00108842191f, -0.00142211374f, -0.00180760969f, -0.00223828037f, -0.00269996561f, -0.00316821178f,
     0.00014119978f
 };
-static const float m1_Sinv_p[325] = {
+static const drives_real drives_mode1_Sinv_p[325] = {
     0.199157774f, -0.0446825847f, 0.209187239f, -0.0380786397f, -0.0361353606f, 0.216471285f,
     -0.0315673798f, -0.0309930183f, -0.030096909f, 0.221477136f, -0.0254937708f, -0.0258453991f,
     -0.0261166859f, -0.0260544419f, 0.224741653f, -0.0200576298f, -0.0209927447f, -0.0220095925f,
@@ -614,24 +622,24 @@ static const float m1_Sinv_p[325] = {
     0.0f, 0.0f, 0.0f, 0.0f, 0.0f, 0.0f,
     0.25f
 };
-static const float m1_Ew[25] = {
+static const drives_real drives_mode1_Ew[25] = {
     -0.00409652991f, -0.00373568852f, -0.00327007193f, -0.00264135608f, -0.0017680811f, -0.000545717485f,
     0.00115290959f, 0.00347628142f, 0.0065912283f, 0.0106774764f, 0.0159186274f, 0.0224882998f,
     0.0305299517f, 0.0401287042f, 0.0512733385f, 0.0638065413f, 0.0773615688f, 0.0912835822f,
     0.104534581f, 0.11558158f, 0.122268952f, 0.12167795f, 0.109978944f, 0.0822856799f,
     0.0325255506f
 };
-static const float m1_Uv[25] = {
+static const drives_real drives_mode1_Uv[25] = {
     -0.000471820415f, -0.00043026029f, -0.000376632612f, -0.000304219866f, -0.000203639851f, -6.28533526e-05f,
     0.000132787085f, 0.000400382909f, 0.000759148912f, 0.00122978503f, 0.00183343794f, 0.00259010401f,
     0.0035163064f, 0.00462184893f, 0.00590543915f, 0.00734895887f, 0.00891016796f, 0.0105136437f,
     0.0120398365f, 0.0133121815f, 0.0140824039f, 0.0140143344f, 0.0126668941f, 0.00947730523f,
     0.00374615053f
 };
-static const float m1_T[1] = {
+static const drives_real drives_mode1_T[1] = {
     0.0132654263f
 };
-static const float m1_S_p[325] = {
+static const drives_real drives_mode1_S_p[325] = {
     12.4857998f, 8.21124077f, 11.9830866f, 7.89551115f, 7.70955038f, 11.4824181f,
     7.54648829f, 7.39507055f, 7.21012926f, 10.9842405f, 7.17071342f, 7.04757452f,
     6.89717293f, 6.71347141f, 10.4890985f, 6.77365351f, 6.67366457f, 6.55153751f,
@@ -688,17 +696,17 @@ static const float m1_S_p[325] = {
     0.0f, 0.0f, 0.0f, 0.0f, 0.0f, 0.0f,
     4.0f
 };
-static const float m1_V[25] = {
+static const drives_real drives_mode1_V[25] = {
     0.158806562f, 0.158542335f, 0.158219591f, 0.15782541f, 0.157343954f, 0.156755894f,
     0.156037644f, 0.155160367f, 0.154088855f, 0.152780116f, 0.151181608f, 0.149229184f,
     0.146844506f, 0.143931836f, 0.140374303f, 0.136029109f, 0.130721897f, 0.124239646f,
     0.116322204f, 0.10665182f, 0.094840385f, 0.0804138631f, 0.0627932698f, 0.0412714332f,
     0.0149846021f
 };
-static const float m1_P2inv[1] = {
+static const drives_real drives_mode1_P2inv[1] = {
     0.000500000024f
 };
-static const float m1_GEinvGt_p[325] = {
+static const drives_real drives_mode1_GEinvGt_p[325] = {
     4.47147831e-05f, 0.000113119582f, 0.000330884941f, 0.000151182277f, 0.000495580782f, 0.000842037785f,
     0.000167253194f, 0.000574300124f, 0.00106107187f, 0.00146764691f, 0.000168051629f, 0.000592392054f,
     0.00114249554f, 0.00168967922f, 0.00209927745f, 0.000158844356f, 0.000569900149f, 0.00112946623f,
@@ -755,14 +763,14 @@ static const float m1_GEinvGt_p[325] = {
     0.000145272032f, 0.000189810002f, 0.000241262271f, 0.000298744038f, 0.000360365317f, 0.000422862329f,
     0.000481154013f
 };
-static const float m1_Omega2[25] = {
+static const drives_real drives_mode1_Omega2[25] = {
     20.0f, 20.0f, 20.0f, 20.0f, 20.0f, 20.0f,
     20.0f, 20.0f, 20.0f, 20.0f, 20.0f, 20.0f,
     20.0f, 20.0f, 20.0f, 20.0f, 20.0f, 20.0f,
     20.0f, 20.0f, 20.0f, 20.0f, 20.0f, 20.0f,
     2000.0f
 };
-static const float m1_Phi[50] = {
+static const drives_real drives_mode1_Phi[50] = {
     1.45015395f, 1.0f, 2.63743973f, 1.0f, 3.60950685f, 1.0f,
     4.40536833f, 1.0f, 5.0569644f, 1.0f, 5.59044647f, 1.0f,
     6.02722406f, 1.0f, 6.38482809f, 1.0f, 6.67760897f, 1.0f,
@@ -773,14 +781,14 @@ static const float m1_Phi[50] = {
     7.90178108f, 1.0f, 7.91958523f, 1.0f, 7.93416214f, 1.0f,
     7.94609642f, 1.0f
 };
-static const float m1_markov[25] = {
+static const drives_real drives_mode1_markov[25] = {
     0.0149846021f, 0.0412714332f, 0.0627932698f, 0.0804138631f, 0.094840385f, 0.10665182f,
     0.116322204f, 0.124239646f, 0.130721897f, 0.136029109f, 0.140374303f, 0.143931836f,
     0.146844506f, 0.149229184f, 0.151181608f, 0.152780116f, 0.154088855f, 0.155160367f,
     0.156037644f, 0.156755894f, 0.157343954f, 0.15782541f, 0.158219591f, 0.158542335f,
     0.158806562f
 };
-static const int16_t m1_row_q[100] = {
+static const int16_t drives_mode1_row_q[100] = {
     0, 0, 1, 1, 25, 25, 2, 2, 26, 26, 3, 3, 27, 27, 4, 4,
     28, 28, 5, 5, 29, 29, 6, 6, 30, 30, 7, 7, 31, 31, 8, 8,
     32, 32, 9, 9, 33, 33, 10, 10, 34, 34, 11, 11, 35, 35, 12, 12,
@@ -789,7 +797,7 @@ static const int16_t m1_row_q[100] = {
     44, 44, 21, 21, 45, 45, 22, 22, 46, 46, 23, 23, 47, 47, 24, 24,
     48, 48, 49, 49
 };
-static const int8_t m1_row_sign[100] = {
+static const int8_t drives_mode1_row_sign[100] = {
     -1, 1, -1, 1, -1, 1, -1, 1, -1, 1, -1, 1, -1, 1, -1, 1,
     -1, 1, -1, 1, -1, 1, -1, 1, -1, 1, -1, 1, -1, 1, -1, 1,
     -1, 1, -1, 1, -1, 1, -1, 1, -1, 1, -1, 1, -1, 1, -1, 1,
@@ -798,7 +806,7 @@ static const int8_t m1_row_sign[100] = {
     -1, 1, -1, 1, -1, 1, -1, 1, -1, 1, -1, 1, -1, 1, -1, 1,
     -1, 1, -1, 1
 };
-static const float m1_row_c[100] = {
+static const drives_real drives_mode1_row_c[100] = {
     1.0f, 1.0f, 1.0f, 1.0f, 10.0f, 10.0f,
     1.0f, 1.0f, 10.0f, 10.0f, 1.0f, 1.0f,
     10.0f, 10.0f, 1.0f, 1.0f, 10.0f, 10.0f,
@@ -817,7 +825,7 @@ static const float m1_row_c[100] = {
     1.0f, 1.0f, 10.0f, 10.0f, 1.0f, 1.0f,
     10.0f, 10.0f, 10.0f, 10.0f
 };
-static const int16_t m1_row_next[100] = {
+static const int16_t drives_mode1_row_next[100] = {
     2, 3, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15, 16, 17, 18, 19,
     20, 21, 22, 23, 24, 25, 26, 27, 28, 29, 30, 31, 32, 33, 34, 35,
     36, 37, 38, 39, 40, 41, 42, 43, 44, 45, 46, 47, 48, 49, 50, 51,
@@ -826,38 +834,44 @@ static const int16_t m1_row_next[100] = {
     84, 85, 86, 87, 88, 89, 90, 91, 92, 93, 94, 95, 96, 97, 94, 95,
     98, 99, 98, 99
 };
-static const float m1_colsum[25] = {
+static const drives_real drives_mode1_colsum[25] = {
     0.101579033f, 0.0790262818f, 0.0597368293f, 0.0436388142f, 0.0304775033f, 0.0198880713f,
     0.011449052f, 0.00472035818f, -0.000730467436f, -0.00531048467f, -0.00938916951f, -0.0132892383f,
     -0.0172782391f, -0.0215589032f, -0.0262565333f, -0.0314018875f, -0.0369082242f, -0.0425415263f,
     -0.0478831008f, -0.0522843748f, -0.0548142828f, -0.0542004444f, -0.0487667732f, -0.0363714881f,
     -0.014351828f
 };
-static const float m1_out_bound[25] = {
+static const drives_real drives_mode1_out_bound[25] = {
     0.0149849597f, 0.0562573783f, 0.119052142f, 0.199467927f, 0.29431057f, 0.400964946f,
     0.517289937f, 0.64153254f, 0.772257507f, 0.908289909f, 1.04866755f, 1.19260275f,
     1.33945084f, 1.48868358f, 1.63986874f, 1.79265249f, 1.94674504f, 2.10190916f,
     2.25795054f, 2.41471004f, 2.57205772f, 2.72988701f, 2.8881104f, 3.04665637f,
     3.20546675f
 };
-static const float m1_u_min[1] = { -1.0f };
-static const float m1_u_max[1] = { 1.0f };
+static const drives_real drives_mode1_u_min[1] = {
+    -1.0f
+};
+static const drives_real drives_mode1_u_max[1] = {
+    1.0f
+};
 
 /* ---- mode 2: coarse (nx=2, nu=1, n=25, m=100 rows, cond(E)=325) ---- */
-static const int16_t m2_actuator[1] = { 2 };
-static const float m2_A[4] = {
+static const int16_t drives_mode2_actuator_index[1] = {
+    2
+};
+static const drives_real drives_mode2_A[4] = {
     0.923116326f, 0.0f, 1.53767312f, 1.0f
 };
-static const float m2_B[2] = {
+static const drives_real drives_mode2_B[2] = {
     0.0192209128f, 0.0155817317f
 };
-static const float m2_C[2] = {
+static const drives_real drives_mode2_C[2] = {
     0.0f, 1.0f
 };
-static const float m2_L[2] = {
+static const drives_real drives_mode2_L[2] = {
     0.211984172f, 1.2231164f
 };
-static const float m2_Kx[50] = {
+static const drives_real drives_mode2_Kx[50] = {
     -10.9041033f, -1.26144028f, -9.50228977f, -0.972241223f, -8.10605526f, -0.72255224f,
     -6.76781416f, -0.511447966f, -5.52371216f, -0.336749941f, -4.39658308f, -0.195446074f,
     -3.39862919f, -0.0840310156f, -2.53380656f, 0.0012249907f, -1.79989052f, 0.0640697852f,
@@ -868,7 +882,7 @@ static const float m2_Kx[50] = {
     0.350758344f, 0.0565112047f, 0.263281852f, 0.0410375893f, 0.164901748f, 0.0251694266f,
     0.0569829829f, 0.00861043483f
 };
-static const float m2_EinvGt[625] = {
+static const drives_real drives_mode2_EinvGt[625] = {
     0.00123670569f, 0.00329909986f, 0.00468250504f, 0.00551501708f, 0.00591189181f, 0.00597451814f,
     0.00579020102f, 0.00543254847f, 0.00496228365f, 0.00442833314f, 0.00386908092f, 0.00331368763f,
     0.00278340862f, 0.00229285751f, 0.00185117754f, 0.00146310253f, 0.00112988835f, 0.00085011631f,
@@ -975,7 +989,7 @@ static const float m2_EinvGt[625] = {
     -0.000507612596f, -0.000644525921f, -0.000797617598f, -0.000964589242f, -0.0011415896f, -0.00132285012f,
     5.7885165e-05f
 };
-static const float m2_Sinv_p[325] = {
+static const drives_real drives_mode2_Sinv_p[325] = {
     0.0794294849f, -0.018138608f, 0.0835855454f, -0.0156544931f, -0.0145530608f, 0.086679019f,
     -0.013229128f, -0.0126263471f, -0.0119403088f, 0.0888860077f, -0.0109417373f, -0.0107272491f,
     -0.0104674129f, -0.0101162968f, 0.0903940201f, -0.00884525105f, -0.00892299321f, -0.00898486376f,
@@ -1032,24 +1046,24 @@ static const float m2_Sinv_p[325] = {
     0.0f, 0.0f, 0.0f, 0.0f, 0.0f, 0.0f,
     0.100000001f
 };
-static const float m2_Ew[25] = {
+static const drives_real drives_mode2_Ew[25] = {
     -0.00778032467f, -0.00628856197f, -0.00465369783f, -0.0028372719f, -0.000790219347f, 0.00154369778f,
     0.00422402658f, 0.00730919139f, 0.0108513469f, 0.0148903616f, 0.0194467977f, 0.0245137513f,
     0.03004748f, 0.035956759f, 0.0420910046f, 0.0482272841f, 0.0540564284f, 0.0591686293f,
     0.0630390942f, 0.0650144666f, 0.0643010736f, 0.059956152f, 0.0508838072f, 0.0358374268f,
     0.0134309428f
 };
-static const float m2_Uv[25] = {
+static const drives_real drives_mode2_Uv[25] = {
     -0.000902624161f, -0.00072955928f, -0.000539892644f, -0.000329162373f, -9.16762583e-05f, 0.000179090071f,
     0.000490044884f, 0.000847966236f, 0.00125890481f, 0.0017274858f, 0.00225609471f, 0.00284393062f,
     0.00348591898f, 0.00417147623f, 0.00488313287f, 0.00559502514f, 0.00627128547f, 0.00686437078f,
     0.00731339725f, 0.00754256826f, 0.00745980442f, 0.00695573445f, 0.00590321794f, 0.00415763166f,
     0.00155817322f
 };
-static const float m2_T[1] = {
+static const drives_real drives_mode2_T[1] = {
     0.0134591749f
 };
-static const float m2_S_p[325] = {
+static const drives_real drives_mode2_S_p[325] = {
     38.088253f, 26.8793812f, 35.7905426f, 25.5899239f, 24.6161404f, 33.5612564f,
     24.232111f, 23.3640232f, 22.4236336f, 31.4049225f, 22.8177452f, 22.0466633f,
     21.2113609f, 20.306488f, 29.326252f, 21.3582554f, 20.6761169f, 19.9371643f,
@@ -1106,17 +1120,17 @@ static const float m2_S_p[325] = {
     0.0f, 0.0f, 0.0f, 0.0f, 0.0f, 0.0f,
     10.0f
 };
-static const float m2_V[25] = {
+static const drives_real drives_mode2_V[25] = {
     0.343641609f, 0.338947684f, 0.333862811f, 0.328354448f, 0.322387278f, 0.315923154f,
     0.308920652f, 0.301334918f, 0.293117374f, 0.28421545f, 0.274572074f, 0.264125556f,
     0.252808988f, 0.240549877f, 0.227269739f, 0.212883547f, 0.197299153f, 0.180416808f,
     0.162128359f, 0.142316729f, 0.120855048f, 0.0976058766f, 0.0724203587f, 0.0451372117f,
     0.0155817317f
 };
-static const float m2_P2inv[1] = {
+static const drives_real drives_mode2_P2inv[1] = {
     0.000500000024f
 };
-static const float m2_GEinvGt_p[325] = {
+static const drives_real drives_mode2_GEinvGt_p[325] = {
     1.92700172e-05f, 5.14056883e-05f, 0.000156404756f, 7.29615349e-05f, 0.000246050564f, 0.000432691944f,
     8.59335196e-05f, 0.000302221975f, 0.000571495271f, 0.000816076179f, 9.2117516e-05f, 0.000331705582f,
     0.000651138136f, 0.000982580008f, 0.00125693227f, 9.30933384e-05f, 0.000340511411f, 0.000684387691f,
@@ -1173,14 +1187,14 @@ static const float m2_GEinvGt_p[325] = {
     0.000162887081f, 0.000206821001f, 0.00025594639f, 0.000309525669f, 0.000366323075f, 0.000424487487f,
     0.000481425319f
 };
-static const float m2_Omega2[25] = {
+static const drives_real drives_mode2_Omega2[25] = {
     20.0f, 20.0f, 20.0f, 20.0f, 20.0f, 20.0f,
     20.0f, 20.0f, 20.0f, 20.0f, 20.0f, 20.0f,
     20.0f, 20.0f, 20.0f, 20.0f, 20.0f, 20.0f,
     20.0f, 20.0f, 20.0f, 20.0f, 20.0f, 20.0f,
     2000.0f
 };
-static const float m2_Phi[50] = {
+static const drives_real drives_mode2_Phi[50] = {
     1.53767312f, 1.0f, 2.95712423f, 1.0f, 4.2674427f, 1.0f,
     5.47701931f, 1.0f, 6.59359884f, 1.0f, 7.62433195f, 1.0f,
     8.57581902f, 1.0f, 9.45415115f, 1.0f, 10.2649546f, 1.0f,
@@ -1191,14 +1205,14 @@ static const float m2_Phi[50] = {
     16.559103f, 1.0f, 16.8236523f, 1.0f, 17.0678616f, 1.0f,
     17.2932949f, 1.0f
 };
-static const float m2_markov[25] = {
+static const drives_real drives_mode2_markov[25] = {
     0.0155817317f, 0.0451372117f, 0.0724203587f, 0.0976058766f, 0.120855048f, 0.142316729f,
     0.162128359f, 0.180416808f, 0.197299153f, 0.212883547f, 0.227269739f, 0.240549877f,
     0.252808988f, 0.264125556f, 0.274572074f, 0.28421545f, 0.293117374f, 0.301334918f,
     0.308920652f, 0.315923154f, 0.322387278f, 0.328354448f, 0.333862811f, 0.338947684f,
     0.343641609f
 };
-static const int16_t m2_row_q[100] = {
+static const int16_t drives_mode2_row_q[100] = {
     0, 0, 1, 1, 25, 25, 2, 2, 26, 26, 3, 3, 27, 27, 4, 4,
     28, 28, 5, 5, 29, 29, 6, 6, 30, 30, 7, 7, 31, 31, 8, 8,
     32, 32, 9, 9, 33, 33, 10, 10, 34, 34, 11, 11, 35, 35, 12, 12,
@@ -1207,7 +1221,7 @@ static const int16_t m2_row_q[100] = {
     44, 44, 21, 21, 45, 45, 22, 22, 46, 46, 23, 23, 47, 47, 24, 24,
     48, 48, 49, 49
 };
-static const int8_t m2_row_sign[100] = {
+static const int8_t drives_mode2_row_sign[100] = {
     -1, 1, -1, 1, -1, 1, -1, 1, -1, 1, -1, 1, -1, 1, -1, 1,
     -1, 1, -1, 1, -1, 1, -1, 1, -1, 1, -1, 1, -1, 1, -1, 1,
     -1, 1, -1, 1, -1, 1, -1, 1, -1, 1, -1, 1, -1, 1, -1, 1,
@@ -1216,7 +1230,7 @@ static const int8_t m2_row_sign[100] = {
     -1, 1, -1, 1, -1, 1, -1, 1, -1, 1, -1, 1, -1, 1, -1, 1,
     -1, 1, -1, 1
 };
-static const float m2_row_c[100] = {
+static const drives_real drives_mode2_row_c[100] = {
     1.0f, 1.0f, 1.0f, 1.0f, 10.0f, 10.0f,
     1.0f, 1.0f, 10.0f, 10.0f, 1.0f, 1.0f,
     10.0f, 10.0f, 1.0f, 1.0f, 10.0f, 10.0f,
@@ -1235,7 +1249,7 @@ static const float m2_row_c[100] = {
     1.0f, 1.0f, 10.0f, 10.0f, 1.0f, 1.0f,
     10.0f, 10.0f, 10.0f, 10.0f
 };
-static const int16_t m2_row_next[100] = {
+static const int16_t drives_mode2_row_next[100] = {
     2, 3, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15, 16, 17, 18, 19,
     20, 21, 22, 23, 24, 25, 26, 27, 28, 29, 30, 31, 32, 33, 34, 35,
     36, 37, 38, 39, 40, 41, 42, 43, 44, 45, 46, 47, 48, 49, 50, 51,
@@ -1244,40 +1258,131 @@ static const int16_t m2_row_next[100] = {
     84, 85, 86, 87, 88, 89, 90, 91, 92, 93, 94, 95, 96, 97, 94, 95,
     98, 99, 98, 99
 };
-static const float m2_colsum[25] = {
+static const drives_real drives_mode2_colsum[25] = {
     0.0664252043f, 0.0513223298f, 0.0381332785f, 0.0267952159f, 0.0171780679f, 0.00910699554f,
     0.00238106446f, -0.00321139139f, -0.00788024254f, -0.0118233357f, -0.0152180968f, -0.0182144921f,
     -0.0209289603f, -0.0234389547f, -0.0257778391f, -0.0279299375f, -0.0298256576f, -0.0313366614f,
     -0.0322712325f, -0.0323700421f, -0.0313027166f, -0.0286656804f, -0.0239819679f, -0.0167038161f,
     -0.00621903827f
 };
-static const float m2_out_bound[25] = {
+static const drives_real drives_mode2_out_bound[25] = {
     0.0155821033f, 0.0607203916f, 0.133142471f, 0.23075068f, 0.351608604f, 0.49392873f,
     0.656060934f, 0.836482048f, 1.03378594f, 1.24667454f, 1.47394967f, 1.71450531f,
     1.96732032f, 2.23145223f, 2.5060308f, 2.79025292f, 3.08337736f, 3.38471961f,
     3.69364762f, 4.00957823f, 4.33197308f, 4.66033554f, 4.99420643f, 5.33316183f,
     5.6768117f
 };
-static const float m2_u_min[1] = { -1.0f };
-static const float m2_u_max[1] = { 1.0f };
+static const drives_real drives_mode2_u_min[1] = {
+    -1.0f
+};
+static const drives_real drives_mode2_u_max[1] = {
+    1.0f
+};
 
 const drives_mode_data drives_modes[DRIVES_N_MODES] = {
-    { 2, 1, 1, 25, 100, 25, 1,
-      m0_actuator, m0_A, m0_B, m0_C, m0_L, m0_Kx,
-      m0_EinvGt, m0_Sinv_p, m0_Ew, m0_Uv, m0_T, m0_S_p, m0_V, m0_P2inv, m0_GEinvGt_p,
-      m0_Omega2, m0_Phi, m0_markov, m0_row_q, m0_row_sign,
-      m0_row_c, m0_row_next, m0_colsum, m0_out_bound,
-      m0_u_min, m0_u_max },
-    { 2, 1, 1, 25, 100, 25, 1,
-      m1_actuator, m1_A, m1_B, m1_C, m1_L, m1_Kx,
-      m1_EinvGt, m1_Sinv_p, m1_Ew, m1_Uv, m1_T, m1_S_p, m1_V, m1_P2inv, m1_GEinvGt_p,
-      m1_Omega2, m1_Phi, m1_markov, m1_row_q, m1_row_sign,
-      m1_row_c, m1_row_next, m1_colsum, m1_out_bound,
-      m1_u_min, m1_u_max },
-    { 2, 1, 1, 25, 100, 25, 1,
-      m2_actuator, m2_A, m2_B, m2_C, m2_L, m2_Kx,
-      m2_EinvGt, m2_Sinv_p, m2_Ew, m2_Uv, m2_T, m2_S_p, m2_V, m2_P2inv, m2_GEinvGt_p,
-      m2_Omega2, m2_Phi, m2_markov, m2_row_q, m2_row_sign,
-      m2_row_c, m2_row_next, m2_colsum, m2_out_bound,
-      m2_u_min, m2_u_max }
+    {   /* mode 0: fine */
+        .nx = 2,
+        .nu = 1,
+        .ny = 1,
+        .n = 25,
+        .m = 100,
+        .nyq = 25,
+        .nt = 1,
+        .actuator_index = drives_mode0_actuator_index,
+        .A = drives_mode0_A,
+        .B = drives_mode0_B,
+        .C = drives_mode0_C,
+        .L = drives_mode0_L,
+        .Kx = drives_mode0_Kx,
+        .EinvGt = drives_mode0_EinvGt,
+        .Sinv_p = drives_mode0_Sinv_p,
+        .Ew = drives_mode0_Ew,
+        .Uv = drives_mode0_Uv,
+        .T = drives_mode0_T,
+        .S_p = drives_mode0_S_p,
+        .V = drives_mode0_V,
+        .P2inv = drives_mode0_P2inv,
+        .GEinvGt_p = drives_mode0_GEinvGt_p,
+        .Omega2 = drives_mode0_Omega2,
+        .Phi = drives_mode0_Phi,
+        .markov = drives_mode0_markov,
+        .row_q = drives_mode0_row_q,
+        .row_sign = drives_mode0_row_sign,
+        .row_c = drives_mode0_row_c,
+        .row_next = drives_mode0_row_next,
+        .colsum = drives_mode0_colsum,
+        .out_bound = drives_mode0_out_bound,
+        .u_min = drives_mode0_u_min,
+        .u_max = drives_mode0_u_max,
+    },
+    {   /* mode 1: medium */
+        .nx = 2,
+        .nu = 1,
+        .ny = 1,
+        .n = 25,
+        .m = 100,
+        .nyq = 25,
+        .nt = 1,
+        .actuator_index = drives_mode1_actuator_index,
+        .A = drives_mode1_A,
+        .B = drives_mode1_B,
+        .C = drives_mode1_C,
+        .L = drives_mode1_L,
+        .Kx = drives_mode1_Kx,
+        .EinvGt = drives_mode1_EinvGt,
+        .Sinv_p = drives_mode1_Sinv_p,
+        .Ew = drives_mode1_Ew,
+        .Uv = drives_mode1_Uv,
+        .T = drives_mode1_T,
+        .S_p = drives_mode1_S_p,
+        .V = drives_mode1_V,
+        .P2inv = drives_mode1_P2inv,
+        .GEinvGt_p = drives_mode1_GEinvGt_p,
+        .Omega2 = drives_mode1_Omega2,
+        .Phi = drives_mode1_Phi,
+        .markov = drives_mode1_markov,
+        .row_q = drives_mode1_row_q,
+        .row_sign = drives_mode1_row_sign,
+        .row_c = drives_mode1_row_c,
+        .row_next = drives_mode1_row_next,
+        .colsum = drives_mode1_colsum,
+        .out_bound = drives_mode1_out_bound,
+        .u_min = drives_mode1_u_min,
+        .u_max = drives_mode1_u_max,
+    },
+    {   /* mode 2: coarse */
+        .nx = 2,
+        .nu = 1,
+        .ny = 1,
+        .n = 25,
+        .m = 100,
+        .nyq = 25,
+        .nt = 1,
+        .actuator_index = drives_mode2_actuator_index,
+        .A = drives_mode2_A,
+        .B = drives_mode2_B,
+        .C = drives_mode2_C,
+        .L = drives_mode2_L,
+        .Kx = drives_mode2_Kx,
+        .EinvGt = drives_mode2_EinvGt,
+        .Sinv_p = drives_mode2_Sinv_p,
+        .Ew = drives_mode2_Ew,
+        .Uv = drives_mode2_Uv,
+        .T = drives_mode2_T,
+        .S_p = drives_mode2_S_p,
+        .V = drives_mode2_V,
+        .P2inv = drives_mode2_P2inv,
+        .GEinvGt_p = drives_mode2_GEinvGt_p,
+        .Omega2 = drives_mode2_Omega2,
+        .Phi = drives_mode2_Phi,
+        .markov = drives_mode2_markov,
+        .row_q = drives_mode2_row_q,
+        .row_sign = drives_mode2_row_sign,
+        .row_c = drives_mode2_row_c,
+        .row_next = drives_mode2_row_next,
+        .colsum = drives_mode2_colsum,
+        .out_bound = drives_mode2_out_bound,
+        .u_min = drives_mode2_u_min,
+        .u_max = drives_mode2_u_max,
+    }
 };

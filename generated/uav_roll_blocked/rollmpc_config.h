@@ -43,11 +43,21 @@ typedef char rollmpc_double_tree_built_with_single_precision_constants[
 #define ROLLMPC_NT_MAX 1
 #define ROLLMPC_CHOL_MAX 210
 
-/* Solver: method hildreth_plus_prime + polish (polish first). */
+/*
+ * Solver variant: method hildreth_plus_prime + polish (polish first).
+ * Informational: the variant was selected when this code was generated, and the code of
+ * the other variants is not in rollmpc_solver.c, so editing these switches does not
+ * select another one. The C still reads REDUCED, WARM_START and POLISH in a few places:
+ * an edit there would run a variant nobody generated or checked against the reference.
+ * Regenerate instead.
+ */
 #define ROLLMPC_SOLVER_REDUCED 1
 #define ROLLMPC_SOLVER_WARM_START 1
 #define ROLLMPC_SOLVER_POLISH 1
 #define ROLLMPC_SOLVER_POLISH_FIRST 1
+#define ROLLMPC_SOLVER_ACTIVE_SET 1
+
+/* Solver parameters from the config. */
 #define ROLLMPC_SOLVER_OMEGA 1.2
 #define ROLLMPC_SOLVER_SIGMA 0.2
 #define ROLLMPC_SOLVER_DELTA 1e-13
@@ -55,7 +65,6 @@ typedef char rollmpc_double_tree_built_with_single_precision_constants[
 #define ROLLMPC_SOLVER_MAX_ITER 1000
 #define ROLLMPC_SOLVER_POLISH_EVERY 10
 #define ROLLMPC_SOLVER_POLISH_MAX 8
-#define ROLLMPC_SOLVER_ACTIVE_SET 1
 #define ROLLMPC_SOLVER_ACTIVE_SET_MAX 500
 #define ROLLMPC_SOLVER_DEPENDENCE_TOL 1e-10
 

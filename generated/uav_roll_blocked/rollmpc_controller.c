@@ -83,7 +83,7 @@ static void observe(rollmpc_work *ws, const rollmpc_mode_data *md, rollmpc_real 
             acc += md->A[i * md->nx + l] * x[l];
         }
         for (l = 0; l < md->nu; ++l) {
-            acc += md->B[i * md->nu + l] * u_phys[md->actuator[l]];
+            acc += md->B[i * md->nu + l] * u_phys[md->actuator_index[l]];
         }
         if (use_y) {
             for (a = 0; a < md->ny; ++a) {
@@ -186,7 +186,7 @@ int rollmpc_step(rollmpc_ctrl *c, const rollmpc_real *y, const rollmpc_real *sch
         u[i] = R_(0.0);
     }
     for (i = 0; i < md->nu; ++i) {
-        u[md->actuator[i]] = c->U[i];
+        u[md->actuator_index[i]] = c->U[i];
     }
     for (j = 0; j < ROLLMPC_N_MODES; ++j) {
         observe(&c->work, &rollmpc_modes[j], c->xhat[j], y, u, 1);
@@ -234,7 +234,7 @@ const char *rollmpc_status_message(int status)
     case ROLLMPC_OPTIMAL: return "optimal";
     case ROLLMPC_MAX_ITER: return "iteration cap reached";
     case ROLLMPC_INACCURATE: return "converged by delta but constraints violated";
-    case ROLLMPC_INFEASIBLE: return "infeasible: dual multipliers diverged";
+    case ROLLMPC_INFEASIBLE: return "infeasible: constraints cannot all hold (proven, or multipliers diverged)";
     case ROLLMPC_NONFINITE_INPUT: return "non-finite input; last command held";
     case ROLLMPC_NUMERICAL: return "non-finite intermediate result; safe fallback";
     case ROLLMPC_BAD_ARGUMENT: return "bad argument";

@@ -8,22 +8,24 @@
 #include "rollmpc_internal.h"
 
 /* ---- mode 0: inner (nx=4, nu=1, n=20, m=240 rows, cond(E)=5.62e+03) ---- */
-static const int16_t m0_actuator[1] = { 0 };
-static const float m0_A[16] = {
+static const int16_t rollmpc_mode0_actuator_index[1] = {
+    0
+};
+static const rollmpc_real rollmpc_mode0_A[16] = {
     0.499039203f, -0.377365857f, -0.113909036f, 0.0f, 0.235167041f, 0.933436811f,
     -0.0202940479f, 0.0f, 0.0209486932f, 0.156279683f, 0.998860538f, 0.0f,
     -0.0281147156f, -0.142486259f, 2.78057432f, 1.0f
 };
-static const float m0_B[4] = {
+static const rollmpc_real rollmpc_mode0_B[4] = {
     0.000459310628f, 8.18308326e-05f, 4.59454213e-06f, -7.35648791e-06f
 };
-static const float m0_C[4] = {
+static const rollmpc_real rollmpc_mode0_C[4] = {
     0.0f, 0.0f, 0.0f, 1.0f
 };
-static const float m0_L[4] = {
+static const rollmpc_real rollmpc_mode0_L[4] = {
     -0.0330573134f, 0.0262372494f, -0.00398575794f, 0.0313365422f
 };
-static const float m0_Kx[80] = {
+static const rollmpc_real rollmpc_mode0_Kx[80] = {
     -25.6470013f, -47.6152954f, -84.3779068f, -1.49947619f, -25.563179f, -47.4435501f,
     -84.0320663f, -1.48953533f, -25.4753475f, -47.2647514f, -83.6764755f, -1.47967386f,
     -25.3837109f, -47.0794601f, -83.3121643f, -1.46989536f, -25.2392902f, -46.7900352f,
@@ -39,7 +41,7 @@ static const float m0_Kx[80] = {
     -11.0143404f, -20.3193817f, -35.7181778f, -0.606943309f, -2.29890633f, -4.24101162f,
     -7.45492792f, -0.126670137f
 };
-static const float m0_EinvGt[2000] = {
+static const rollmpc_real rollmpc_mode0_EinvGt[2000] = {
     -3.61937424e-07f, -9.36512549e-07f, 1.2067585e-06f, 7.81980816e-06f, 1.92602874e-05f, 3.5043824e-05f,
     5.42507732e-05f, 7.58074239e-05f, 9.86662199e-05f, 0.000121908495f, 0.000144792022f, 0.000166760918f,
     0.000187432976f, 0.000206574448f, 0.000224070682f, 0.000239896151f, 0.000254087441f, 0.000266720977f,
@@ -375,7 +377,7 @@ static const float m0_EinvGt[2000] = {
     -5.71694982e-05f, -5.48265598e-05f, -5.07851873e-05f, -4.48176579e-05f, -3.67822067e-05f, -2.6613392e-05f,
     -1.43082725e-05f, 8.85100278e-08f
 };
-static const float m0_Sinv_p[210] = {
+static const rollmpc_real rollmpc_mode0_Sinv_p[210] = {
     0.0496505201f, -0.000346577493f, 0.0496561565f, -0.00034352584f, -0.000340962084f, 0.0496617518f,
     -0.000340328814f, -0.000337929989f, -0.000335384568f, 0.04966731f, -0.00033525849f, -0.000333095726f,
     -0.000330794748f, -0.000328350492f, 0.0246756095f, -0.000328079623f, -0.000326207286f, -0.0003242112f,
@@ -412,22 +414,22 @@ static const float m0_Sinv_p[210] = {
     -1.17408581e-06f, -1.18147909e-06f, -1.18977869e-06f, -1.19876745e-06f, -1.21045605e-06f, -1.22385313e-06f,
     -1.23526115e-06f, -1.23546499e-06f, -1.19976528e-06f, -1.07385529e-06f, -7.0207517e-07f, 0.00416657515f
 };
-static const float m0_Ew[20] = {
+static const rollmpc_real rollmpc_mode0_Ew[20] = {
     0.0212312322f, 0.0212485325f, 0.0212669205f, 0.021286441f, 0.0213181004f, 0.0213644542f,
     0.0214159805f, 0.0214728266f, 0.0215688422f, 0.0217143651f, 0.0218793079f, 0.0220604707f,
     0.0223021358f, 0.0225935262f, 0.0228835233f, 0.0230330434f, 0.0226591509f, 0.0209059324f,
     0.0153701464f, 0.00333057134f
 };
-static const float m0_Uv[20] = {
+static const rollmpc_real rollmpc_mode0_Uv[20] = {
     0.000399458309f, 0.000399783807f, 0.000400129764f, 0.000400497054f, 0.000401092693f, 0.000401964848f,
     0.000402934296f, 0.000404003833f, 0.000405810337f, 0.000408548309f, 0.000411651621f, 0.000415060174f,
     0.000419606979f, 0.000425089413f, 0.000430545624f, 0.000433358742f, 0.000426324114f, 0.00039333789f,
     0.000289184012f, 6.26635519e-05f
 };
-static const float m0_T[1] = {
+static const rollmpc_real rollmpc_mode0_T[1] = {
     0.000353991258f
 };
-static const float m0_S_p[210] = {
+static const rollmpc_real rollmpc_mode0_S_p[210] = {
     20.1759281f, 0.174645767f, 20.1734314f, 0.173295751f, 0.172149777f, 20.1709366f,
     0.17187959f, 0.170800254f, 0.169654757f, 20.1684418f, 0.33925724f, 0.337289602f,
     0.335196435f, 0.332973063f, 40.658741f, 0.332861036f, 0.331128865f, 0.329282999f,
@@ -464,16 +466,16 @@ static const float m0_S_p[210] = {
     0.0308526177f, 0.0307870619f, 0.0307028648f, 0.0305947214f, 0.0456197076f, 0.0451618172f,
     0.0591299608f, 0.0571572259f, 0.0666474551f, 0.0570504479f, 0.0428935215f, 240.005417f
 };
-static const float m0_V[20] = {
+static const rollmpc_real rollmpc_mode0_V[20] = {
     0.0111743612f, 0.0111724064f, 0.0111703249f, 0.0111681093f, 0.0223289914f, 0.0223182887f,
     0.0223061591f, 0.022292411f, 0.0445360094f, 0.0444556549f, 0.0443524495f, 0.0442198887f,
     0.0659959689f, 0.0654347017f, 0.0859153345f, 0.0834973603f, 0.098488003f, 0.0867212489f,
     0.0730035305f, 0.0152791357f
 };
-static const float m0_P2inv[1] = {
+static const rollmpc_real rollmpc_mode0_P2inv[1] = {
     4.99999999e-07f
 };
-static const float m0_GEinvGt_p[5050] = {
+static const rollmpc_real rollmpc_mode0_GEinvGt_p[5050] = {
     2.66258825e-12f, 6.88944344e-12f, 2.04885796e-11f, -8.87750463e-12f, -1.60826543e-11f, 5.00819837e-11f,
     -5.7526324e-11f, -1.57726929e-10f, 1.75719009e-10f, 1.29296207e-09f, -1.41688078e-10f, -4.241347e-10f,
     3.14717891e-10f, 3.2369516e-09f, 8.83125661e-09f, -2.57799476e-10f, -8.0871132e-10f, 4.35528336e-10f,
@@ -1317,7 +1319,7 @@ static const float m0_GEinvGt_p[5050] = {
     4.56088316e-07f, 4.61593203e-07f, 4.66960955e-07f, 4.72166363e-07f, 4.77189474e-07f, 4.82016617e-07f,
     4.86640374e-07f, 4.9105887e-07f, 4.95274662e-07f, 4.99293776e-07f
 };
-static const float m0_Omega2[100] = {
+static const rollmpc_real rollmpc_mode0_Omega2[100] = {
     20.0f, 20.0f, 20.0f, 20.0f, 20.0f, 20.0f,
     20.0f, 20.0f, 20.0f, 20.0f, 20.0f, 20.0f,
     20.0f, 20.0f, 20.0f, 20.0f, 20.0f, 20.0f,
@@ -1336,7 +1338,7 @@ static const float m0_Omega2[100] = {
     20.0f, 20.0f, 20.0f, 20.0f, 20.0f, 20.0f,
     20.0f, 20.0f, 20.0f, 2000000.0f
 };
-static const float m0_Phi[400] = {
+static const rollmpc_real rollmpc_mode0_Phi[400] = {
     -0.0281147156f, -0.142486259f, 2.78057432f, 1.0f, -0.0174037311f, 0.169668645f,
     5.56407452f, 1.0f, 0.119660705f, 0.892008066f, 8.33684826f, 1.0f,
     0.416017652f, 1.94787109f, 11.07619f, 1.0f, 0.86960119f, 3.24972105f,
@@ -1405,7 +1407,7 @@ static const float m0_Phi[400] = {
     58.1735764f, 1.0f, 17.8774471f, 33.0327682f, 58.1815681f, 1.0f,
     17.8804779f, 33.0377731f, 58.1890793f, 1.0f
 };
-static const float m0_markov[100] = {
+static const rollmpc_real rollmpc_mode0_markov[100] = {
     -7.35648791e-06f, -1.91541785e-05f, 2.40982954e-05f, 0.000158902709f, 0.000394010771f, 0.00072119612f,
     0.00112324499f, 0.00157952926f, 0.0020696125f, 0.00257534394f, 0.00308186095f, 0.00357784703f,
     0.00405533006f, 0.00450922782f, 0.00493678916f, 0.0053370297f, 0.00571022043f, 0.0060574552f,
@@ -1424,7 +1426,7 @@ static const float m0_markov[100] = {
     0.0111514665f, 0.0111546917f, 0.0111577213f, 0.0111605665f, 0.0111632403f, 0.0111657511f,
     0.0111681093f, 0.0111703249f, 0.0111724064f, 0.0111743612f
 };
-static const int16_t m0_row_q[240] = {
+static const int16_t rollmpc_mode0_row_q[240] = {
     0, 0, 1, 1, 20, 20, 2, 2, 21, 21, 3, 3, 22, 22, 4, 4,
     23, 23, 24, 24, 5, 5, 25, 25, 26, 26, 6, 6, 27, 27, 28, 28,
     7, 7, 29, 29, 30, 30, 8, 8, 31, 31, 32, 32, 33, 33, 34, 34,
@@ -1441,7 +1443,7 @@ static const int16_t m0_row_q[240] = {
     105, 105, 106, 106, 19, 19, 107, 107, 108, 108, 109, 109, 110, 110, 111, 111,
     112, 112, 113, 113, 114, 114, 115, 115, 116, 116, 117, 117, 118, 118, 119, 119
 };
-static const int8_t m0_row_sign[240] = {
+static const int8_t rollmpc_mode0_row_sign[240] = {
     -1, 1, -1, 1, -1, 1, -1, 1, -1, 1, -1, 1, -1, 1, -1, 1,
     -1, 1, -1, 1, -1, 1, -1, 1, -1, 1, -1, 1, -1, 1, -1, 1,
     -1, 1, -1, 1, -1, 1, -1, 1, -1, 1, -1, 1, -1, 1, -1, 1,
@@ -1458,7 +1460,7 @@ static const int8_t m0_row_sign[240] = {
     -1, 1, -1, 1, -1, 1, -1, 1, -1, 1, -1, 1, -1, 1, -1, 1,
     -1, 1, -1, 1, -1, 1, -1, 1, -1, 1, -1, 1, -1, 1, -1, 1
 };
-static const float m0_row_c[240] = {
+static const rollmpc_real rollmpc_mode0_row_c[240] = {
     15.0f, 15.0f, 15.0f, 15.0f, 270.0f, 270.0f,
     15.0f, 15.0f, 270.0f, 270.0f, 15.0f, 15.0f,
     270.0f, 270.0f, 15.0f, 15.0f, 270.0f, 270.0f,
@@ -1500,7 +1502,7 @@ static const float m0_row_c[240] = {
     270.0f, 270.0f, 270.0f, 270.0f, 270.0f, 270.0f,
     270.0f, 270.0f, 270.0f, 270.0f, 270.0f, 270.0f
 };
-static const int16_t m0_row_next[240] = {
+static const int16_t rollmpc_mode0_row_next[240] = {
     2, 3, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15, 16, 17, 14, 15,
     18, 19, 22, 23, 20, 21, 24, 25, 28, 29, 26, 27, 30, 31, 34, 35,
     32, 33, 36, 37, 40, 41, 38, 39, 42, 43, 44, 45, 46, 47, 50, 51,
@@ -1517,13 +1519,13 @@ static const int16_t m0_row_next[240] = {
     210, 211, 214, 215, 212, 213, 216, 217, 218, 219, 220, 221, 222, 223, 224, 225,
     226, 227, 228, 229, 230, 231, 232, 233, 234, 235, 236, 237, 238, 239, 238, 239
 };
-static const float m0_colsum[20] = {
+static const rollmpc_real rollmpc_mode0_colsum[20] = {
     0.0185517482f, 0.0180087276f, 0.017466791f, 0.0169259887f, 0.016117176f, 0.0150429718f,
     0.0139741115f, 0.012910895f, 0.0113280425f, 0.00923885033f, 0.00717722066f, 0.00514600379f,
     0.00265791337f, -0.000242934024f, -0.00346168014f, -0.00683088833f, -0.00994133484f, -0.0119428402f,
     -0.0104990415f, -0.002517496f
 };
-static const float m0_out_bound[100] = {
+static const rollmpc_real rollmpc_mode0_out_bound[100] = {
     7.35718959e-06f, 2.65131948e-05f, 5.06137876e-05f, 0.000209531645f, 0.000603579974f, 0.0013248449f,
     0.00244819699f, 0.004027877f, 0.00609768694f, 0.00867327675f, 0.0117554311f, 0.015333619f,
     0.0193893369f, 0.0238989946f, 0.028836254f, 0.0341737941f, 0.0398845561f, 0.0459425896f,
@@ -1542,9 +1544,13 @@ static const float m0_out_bound[100] = {
     0.785471082f, 0.796626866f, 0.80778563f, 0.818947256f, 0.830111563f, 0.841278374f,
     0.852447569f, 0.86361891f, 0.874792397f, 0.885967851f
 };
-static const float m0_u_min[1] = { -15.0f };
-static const float m0_u_max[1] = { 15.0f };
-static const int16_t m0_stage_block[100] = {
+static const rollmpc_real rollmpc_mode0_u_min[1] = {
+    -15.0f
+};
+static const rollmpc_real rollmpc_mode0_u_max[1] = {
+    15.0f
+};
+static const int16_t rollmpc_mode0_stage_block[100] = {
     0, 1, 2, 3, 4, 4, 5, 5, 6, 6, 7, 7, 8, 8, 8, 8,
     9, 9, 9, 9, 10, 10, 10, 10, 11, 11, 11, 11, 12, 12, 12, 12,
     12, 12, 13, 13, 13, 13, 13, 13, 14, 14, 14, 14, 14, 14, 14, 14,
@@ -1555,24 +1561,26 @@ static const int16_t m0_stage_block[100] = {
 };
 
 /* ---- mode 1: outer (nx=5, nu=1, n=20, m=240 rows, cond(E)=1.73e+07) ---- */
-static const int16_t m1_actuator[1] = { 1 };
-static const float m1_A[25] = {
+static const int16_t rollmpc_mode1_actuator_index[1] = {
+    1
+};
+static const rollmpc_real rollmpc_mode1_A[25] = {
     0.357118547f, -0.325754941f, -0.184868425f, -0.0964380652f, 0.0f, 0.417862147f,
     0.881143808f, -0.06820447f, -0.0359151103f, 0.0f, 0.0389046744f, 0.153254434f,
     0.996110141f, -0.00205673929f, 0.0f, 0.00111397076f, 0.00626007328f, 0.0799190849f,
     0.999957144f, 0.0f, 0.623043418f, -1.54744136f, 7.83488178f, 7.99833727f,
     1.0f
 };
-static const float m1_B[5] = {
+static const rollmpc_real rollmpc_mode1_B[5] = {
     0.000204034252f, 7.59856921e-05f, 4.3514483e-06f, 9.07268216e-08f, 0.0001357492f
 };
-static const float m1_C[5] = {
+static const rollmpc_real rollmpc_mode1_C[5] = {
     0.0f, 0.0f, 0.0f, 0.0f, 1.0f
 };
-static const float m1_L[5] = {
+static const rollmpc_real rollmpc_mode1_L[5] = {
     -0.0107264528f, 0.00474630948f, 0.00246124784f, -0.000631514471f, -0.0156703498f
 };
-static const float m1_Kx[100] = {
+static const rollmpc_real rollmpc_mode1_Kx[100] = {
     -58.1187973f, -70.9151459f, -188.117188f, -107.771629f, -1.09905481f, -57.6582642f,
     -70.3133316f, -186.250656f, -106.382576f, -1.08284903f, -57.1676865f, -69.6751251f,
     -184.310684f, -104.951485f, -1.06682503f, -56.649025f, -69.003624f, -182.30574f,
@@ -1591,7 +1599,7 @@ static const float m1_Kx[100] = {
     -18.4954929f, -22.3531876f, -58.8956413f, -30.6137123f, -0.348474175f, -3.93665409f,
     -4.75797558f, -12.5373135f, -6.51915073f, -0.0741988569f
 };
-static const float m1_EinvGt[2000] = {
+static const rollmpc_real rollmpc_mode1_EinvGt[2000] = {
     6.66462984e-06f, 8.72047531e-06f, 8.11361042e-06f, 1.57021695e-05f, 3.51123163e-05f, 6.5778353e-05f,
     0.000105129417f, 0.00014999228f, 0.000197397865f, 0.000244948722f, 0.000290922559f, 0.0003342134f,
     0.000374215713f, 0.000410677923f, 0.000443583616f, 0.000473057502f, 0.000499296701f, 0.000522508461f,
@@ -1927,7 +1935,7 @@ static const float m1_EinvGt[2000] = {
     -0.000113275841f, -0.000109242268f, -0.00010169181f, -9.00861851e-05f, -7.41342301e-05f, -5.37470187e-05f,
     -2.89835189e-05f, 8.4002881e-11f
 };
-static const float m1_Sinv_p[210] = {
+static const rollmpc_real rollmpc_mode1_Sinv_p[210] = {
     0.0492626466f, -0.000730361673f, 0.0492759943f, -0.000722854689f, -0.000717122515f, 0.0492891259f,
     -0.000714855385f, -0.000709731597f, -0.000704106467f, 0.0493020304f, -0.000701948884f, -0.000697687559f,
     -0.000692961155f, -0.000687751046f, 0.0243210606f, -0.000683407357f, -0.000680192432f, -0.00067657308f,
@@ -1964,22 +1972,22 @@ static const float m1_Sinv_p[210] = {
     -2.25626991e-06f, -2.31387139e-06f, -2.39013502e-06f, -2.48672677e-06f, -2.6387961e-06f, -2.86403065e-06f,
     -3.17958074e-06f, -3.56822898e-06f, -3.91829599e-06f, -3.90262085e-06f, -2.72619627e-06f, 0.00416629668f
 };
-static const float m1_Ew[20] = {
+static const rollmpc_real rollmpc_mode1_Ew[20] = {
     0.0129413158f, 0.0129498448f, 0.0129614174f, 0.012976286f, 0.0130058052f, 0.0130584231f,
     0.0131286373f, 0.0132183135f, 0.0133962343f, 0.0137143377f, 0.0141406488f, 0.0146865444f,
     0.0155575639f, 0.0168707035f, 0.0187653564f, 0.0212219488f, 0.0237667244f, 0.0247490928f,
     0.0198534261f, 0.0045865397f
 };
-static const float m1_Uv[20] = {
+static const rollmpc_real rollmpc_mode1_Uv[20] = {
     0.000353296578f, 0.000353529409f, 0.000353845331f, 0.000354251242f, 0.000355057127f, 0.000356493576f,
     0.000358410412f, 0.000360858568f, 0.000365715794f, 0.00037439997f, 0.000386038213f, 0.00040094112f,
     0.000424719852f, 0.000460568437f, 0.000512292259f, 0.000579356973f, 0.000648829096f, 0.000675647636f,
     0.000541996444f, 0.000125212056f
 };
-static const float m1_T[1] = {
+static const rollmpc_real rollmpc_mode1_T[1] = {
     0.000745284255f
 };
-static const float m1_S_p[210] = {
+static const rollmpc_real rollmpc_mode1_S_p[210] = {
     20.5021286f, 0.49909842f, 20.4963245f, 0.4958148f, 0.493293315f, 20.4905186f,
     0.492283702f, 0.490008265f, 0.487485528f, 20.4847088f, 0.97303164f, 0.96917969f,
     0.964863002f, 0.960060656f, 41.903698f, 0.956198096f, 0.953196585f, 0.949780285f,
@@ -2016,16 +2024,16 @@ static const float m1_S_p[210] = {
     0.101005122f, 0.101443261f, 0.102004088f, 0.10269469f, 0.155609205f, 0.157767355f,
     0.213696435f, 0.215840489f, 0.264234155f, 0.235066071f, 0.178802997f, 240.022842f
 };
-static const float m1_V[20] = {
+static const rollmpc_real rollmpc_mode1_V[20] = {
     0.0170318224f, 0.0170350131f, 0.0170387141f, 0.017042961f, 0.0341010466f, 0.0341256037f,
     0.0341560394f, 0.0341930613f, 0.0685272068f, 0.0687725991f, 0.0690959841f, 0.0695055276f,
     0.105220757f, 0.106611431f, 0.144515336f, 0.146623284f, 0.182021394f, 0.168025509f,
     0.14516075f, 0.0311170891f
 };
-static const float m1_P2inv[1] = {
+static const rollmpc_real rollmpc_mode1_P2inv[1] = {
     4.99999986e-10f
 };
-static const float m1_GEinvGt_p[5050] = {
+static const rollmpc_real rollmpc_mode1_GEinvGt_p[5050] = {
     9.04718189e-10f, 1.1837975e-09f, 2.45362219e-09f, 1.10141607e-09f, 2.6248268e-09f, 3.79417076e-09f,
     2.13155715e-09f, 3.89027788e-09f, 5.21930321e-09f, 8.81542839e-09f, 4.766469e-09f, 8.36805203e-09f,
     9.69235625e-09f, 1.64482508e-08f, 3.34652803e-08f, 8.92935859e-09f, 1.64495262e-08f, 1.92370297e-08f,
@@ -2869,7 +2877,7 @@ static const float m1_GEinvGt_p[5050] = {
     4.47946374e-10f, 4.54801558e-10f, 4.61484739e-10f, 4.6793297e-10f, 4.74096484e-10f, 4.79942586e-10f,
     4.85454732e-10f, 4.90629593e-10f, 4.95473662e-10f, 4.99999653e-10f
 };
-static const float m1_Omega2[100] = {
+static const rollmpc_real rollmpc_mode1_Omega2[100] = {
     20.0f, 20.0f, 20.0f, 20.0f, 20.0f, 20.0f,
     20.0f, 20.0f, 20.0f, 20.0f, 20.0f, 20.0f,
     20.0f, 20.0f, 20.0f, 20.0f, 20.0f, 20.0f,
@@ -2888,7 +2896,7 @@ static const float m1_Omega2[100] = {
     20.0f, 20.0f, 20.0f, 20.0f, 20.0f, 20.0f,
     20.0f, 20.0f, 20.0f, 2e+09f
 };
-static const float m1_Phi[500] = {
+static const rollmpc_real rollmpc_mode1_Phi[500] = {
     0.623043418f, -1.54744136f, 7.83488178f, 7.99833727f, 1.0f, 0.512649953f,
     -1.86311877f, 16.2688675f, 15.975709f, 1.0f, 0.678324819f, -0.762830079f,
     25.3495312f, 23.9573746f, 1.0f, 1.55943096f, 1.59433079f, 34.9270859f,
@@ -2974,7 +2982,7 @@ static const float m1_Phi[500] = {
     173.272415f, 92.5640411f, 1.0f, 54.4972343f, 65.9563522f, 173.255203f,
     92.5763474f, 1.0f
 };
-static const float m1_markov[100] = {
+static const rollmpc_real rollmpc_mode1_markov[100] = {
     0.0001357492f, 0.000180106741f, 0.00017101955f, 0.000328667287f, 0.000729947235f, 0.00136779994f,
     0.00219408842f, 0.00314754155f, 0.00416984828f, 0.0052133007f, 0.00624300307f, 0.00723601738f,
     0.00817909371f, 0.00906604901f, 0.00989537593f, 0.0106683318f, 0.0113875689f, 0.0120562408f,
@@ -2993,7 +3001,7 @@ static const float m1_markov[100] = {
     0.0170822181f, 0.0170738194f, 0.0170662235f, 0.0170593821f, 0.0170532539f, 0.0170477945f,
     0.017042961f, 0.0170387141f, 0.0170350131f, 0.0170318224f
 };
-static const int16_t m1_row_q[240] = {
+static const int16_t rollmpc_mode1_row_q[240] = {
     0, 0, 1, 1, 20, 20, 2, 2, 21, 21, 3, 3, 22, 22, 4, 4,
     23, 23, 24, 24, 5, 5, 25, 25, 26, 26, 6, 6, 27, 27, 28, 28,
     7, 7, 29, 29, 30, 30, 8, 8, 31, 31, 32, 32, 33, 33, 34, 34,
@@ -3010,7 +3018,7 @@ static const int16_t m1_row_q[240] = {
     105, 105, 106, 106, 19, 19, 107, 107, 108, 108, 109, 109, 110, 110, 111, 111,
     112, 112, 113, 113, 114, 114, 115, 115, 116, 116, 117, 117, 118, 118, 119, 119
 };
-static const int8_t m1_row_sign[240] = {
+static const int8_t rollmpc_mode1_row_sign[240] = {
     -1, 1, -1, 1, -1, 1, -1, 1, -1, 1, -1, 1, -1, 1, -1, 1,
     -1, 1, -1, 1, -1, 1, -1, 1, -1, 1, -1, 1, -1, 1, -1, 1,
     -1, 1, -1, 1, -1, 1, -1, 1, -1, 1, -1, 1, -1, 1, -1, 1,
@@ -3027,7 +3035,7 @@ static const int8_t m1_row_sign[240] = {
     -1, 1, -1, 1, -1, 1, -1, 1, -1, 1, -1, 1, -1, 1, -1, 1,
     -1, 1, -1, 1, -1, 1, -1, 1, -1, 1, -1, 1, -1, 1, -1, 1
 };
-static const float m1_row_c[240] = {
+static const rollmpc_real rollmpc_mode1_row_c[240] = {
     15.0f, 15.0f, 15.0f, 15.0f, 270.0f, 270.0f,
     15.0f, 15.0f, 270.0f, 270.0f, 15.0f, 15.0f,
     270.0f, 270.0f, 15.0f, 15.0f, 270.0f, 270.0f,
@@ -3069,7 +3077,7 @@ static const float m1_row_c[240] = {
     270.0f, 270.0f, 270.0f, 270.0f, 270.0f, 270.0f,
     270.0f, 270.0f, 270.0f, 270.0f, 270.0f, 270.0f
 };
-static const int16_t m1_row_next[240] = {
+static const int16_t rollmpc_mode1_row_next[240] = {
     2, 3, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15, 16, 17, 14, 15,
     18, 19, 22, 23, 20, 21, 24, 25, 28, 29, 26, 27, 30, 31, 34, 35,
     32, 33, 36, 37, 40, 41, 38, 39, 42, 43, 44, 45, 46, 47, 50, 51,
@@ -3086,13 +3094,13 @@ static const int16_t m1_row_next[240] = {
     210, 211, 214, 215, 212, 213, 216, 217, 218, 219, 220, 221, 222, 223, 224, 225,
     226, 227, 228, 229, 230, 231, 232, 233, 234, 235, 236, 237, 238, 239, 238, 239
 };
-static const float m1_colsum[20] = {
+static const rollmpc_real rollmpc_mode1_colsum[20] = {
     0.0312506072f, 0.0304246936f, 0.0296022985f, 0.0287835672f, 0.0275630746f, 0.0259487536f,
     0.0243501104f, 0.0227667671f, 0.0204199944f, 0.0173305646f, 0.0142748263f, 0.0112341987f,
     0.00742366444f, 0.00279684388f, -0.00270794122f, -0.00903448276f, -0.0156259593f, -0.0206127781f,
     -0.018938018f, -0.00469034538f
 };
-static const float m1_out_bound[100] = {
+static const rollmpc_real rollmpc_mode1_out_bound[100] = {
     0.000135762151f, 0.000315886049f, 0.000486921926f, 0.000815620529f, 0.00154563738f, 0.0029135677f,
     0.00510786567f, 0.0082557071f, 0.0124259535f, 0.0176397506f, 0.0238833502f, 0.0311200563f,
     0.0392999314f, 0.0483668447f, 0.058263164f, 0.0689325109f, 0.0803211704f, 0.0923785567f,
@@ -3111,9 +3119,13 @@ static const float m1_out_bound[100] = {
     1.35660148f, 1.3736769f, 1.39074481f, 1.4078058f, 1.42486072f, 1.44191015f,
     1.45895469f, 1.47599506f, 1.49303162f, 1.51006508f
 };
-static const float m1_u_min[1] = { -15.0f };
-static const float m1_u_max[1] = { 15.0f };
-static const int16_t m1_stage_block[100] = {
+static const rollmpc_real rollmpc_mode1_u_min[1] = {
+    -15.0f
+};
+static const rollmpc_real rollmpc_mode1_u_max[1] = {
+    15.0f
+};
+static const int16_t rollmpc_mode1_stage_block[100] = {
     0, 1, 2, 3, 4, 4, 5, 5, 6, 6, 7, 7, 8, 8, 8, 8,
     9, 9, 9, 9, 10, 10, 10, 10, 11, 11, 11, 11, 12, 12, 12, 12,
     12, 12, 13, 13, 13, 13, 13, 13, 14, 14, 14, 14, 14, 14, 14, 14,
@@ -3124,16 +3136,76 @@ static const int16_t m1_stage_block[100] = {
 };
 
 const rollmpc_mode_data rollmpc_modes[ROLLMPC_N_MODES] = {
-    { 4, 1, 1, 20, 240, 100, 1,
-      m0_actuator, m0_A, m0_B, m0_C, m0_L, m0_Kx,
-      m0_EinvGt, m0_Sinv_p, m0_Ew, m0_Uv, m0_T, m0_S_p, m0_V, m0_P2inv, m0_GEinvGt_p,
-      m0_Omega2, m0_Phi, m0_markov, m0_row_q, m0_row_sign,
-      m0_row_c, m0_row_next, m0_colsum, m0_out_bound,
-      m0_u_min, m0_u_max, m0_stage_block },
-    { 5, 1, 1, 20, 240, 100, 1,
-      m1_actuator, m1_A, m1_B, m1_C, m1_L, m1_Kx,
-      m1_EinvGt, m1_Sinv_p, m1_Ew, m1_Uv, m1_T, m1_S_p, m1_V, m1_P2inv, m1_GEinvGt_p,
-      m1_Omega2, m1_Phi, m1_markov, m1_row_q, m1_row_sign,
-      m1_row_c, m1_row_next, m1_colsum, m1_out_bound,
-      m1_u_min, m1_u_max, m1_stage_block }
+    {   /* mode 0: inner */
+        .nx = 4,
+        .nu = 1,
+        .ny = 1,
+        .n = 20,
+        .m = 240,
+        .nyq = 100,
+        .nt = 1,
+        .actuator_index = rollmpc_mode0_actuator_index,
+        .A = rollmpc_mode0_A,
+        .B = rollmpc_mode0_B,
+        .C = rollmpc_mode0_C,
+        .L = rollmpc_mode0_L,
+        .Kx = rollmpc_mode0_Kx,
+        .EinvGt = rollmpc_mode0_EinvGt,
+        .Sinv_p = rollmpc_mode0_Sinv_p,
+        .Ew = rollmpc_mode0_Ew,
+        .Uv = rollmpc_mode0_Uv,
+        .T = rollmpc_mode0_T,
+        .S_p = rollmpc_mode0_S_p,
+        .V = rollmpc_mode0_V,
+        .P2inv = rollmpc_mode0_P2inv,
+        .GEinvGt_p = rollmpc_mode0_GEinvGt_p,
+        .Omega2 = rollmpc_mode0_Omega2,
+        .Phi = rollmpc_mode0_Phi,
+        .markov = rollmpc_mode0_markov,
+        .row_q = rollmpc_mode0_row_q,
+        .row_sign = rollmpc_mode0_row_sign,
+        .row_c = rollmpc_mode0_row_c,
+        .row_next = rollmpc_mode0_row_next,
+        .colsum = rollmpc_mode0_colsum,
+        .out_bound = rollmpc_mode0_out_bound,
+        .u_min = rollmpc_mode0_u_min,
+        .u_max = rollmpc_mode0_u_max,
+        .stage_block = rollmpc_mode0_stage_block,
+    },
+    {   /* mode 1: outer */
+        .nx = 5,
+        .nu = 1,
+        .ny = 1,
+        .n = 20,
+        .m = 240,
+        .nyq = 100,
+        .nt = 1,
+        .actuator_index = rollmpc_mode1_actuator_index,
+        .A = rollmpc_mode1_A,
+        .B = rollmpc_mode1_B,
+        .C = rollmpc_mode1_C,
+        .L = rollmpc_mode1_L,
+        .Kx = rollmpc_mode1_Kx,
+        .EinvGt = rollmpc_mode1_EinvGt,
+        .Sinv_p = rollmpc_mode1_Sinv_p,
+        .Ew = rollmpc_mode1_Ew,
+        .Uv = rollmpc_mode1_Uv,
+        .T = rollmpc_mode1_T,
+        .S_p = rollmpc_mode1_S_p,
+        .V = rollmpc_mode1_V,
+        .P2inv = rollmpc_mode1_P2inv,
+        .GEinvGt_p = rollmpc_mode1_GEinvGt_p,
+        .Omega2 = rollmpc_mode1_Omega2,
+        .Phi = rollmpc_mode1_Phi,
+        .markov = rollmpc_mode1_markov,
+        .row_q = rollmpc_mode1_row_q,
+        .row_sign = rollmpc_mode1_row_sign,
+        .row_c = rollmpc_mode1_row_c,
+        .row_next = rollmpc_mode1_row_next,
+        .colsum = rollmpc_mode1_colsum,
+        .out_bound = rollmpc_mode1_out_bound,
+        .u_min = rollmpc_mode1_u_min,
+        .u_max = rollmpc_mode1_u_max,
+        .stage_block = rollmpc_mode1_stage_block,
+    }
 };

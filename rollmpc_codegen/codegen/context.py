@@ -14,6 +14,8 @@ from .. import __version__
 from ..config.schema import default_dependence_tol, default_feasibility_tol
 from ..features.runtime_bounds import context_bounds
 from ..model.controller import ControllerModel
+from ..qp.arrays import REAL, declared_for
+from ..status import UNKNOWN_MESSAGE, context_statuses
 
 
 def _solver_flags(method: str) -> dict:
@@ -33,31 +35,26 @@ def build_context(model: ControllerModel) -> dict:
     cfg = model.config
     s = cfg.solver
     flags = _solver_flags(s.method)
+    features = {
+        # some mode holds its input over blocks of stages (move_blocking.py): the C then
+        # stores each mode's stage -> block map; without blocking its text is unchanged
+        "move_blocking": any(mm.qp.blocks is not None for mm in model.modes),
+        # soft output rows in some mode (soft_constraints.py): slack states in the solver,
+        # the slack in the info struct, working sets beyond n rows (else the C is unchanged)
+        "has_soft_rows": any(mm.data.has_soft_rows for mm in model.modes),
+    }
     modes = []
     for mm in model.modes:
         d = mm.data
         modes.append({
-            "name": d.name, "nx": d.nx, "nu": d.nu, "ny": d.ny, "n": d.n, "m": d.m,
-            "nyq": d.n_yq, "has_output_rows": d.has_output_rows,
-            "actuator_index": _arr(d.actuator_index),
+            "name": d.name, "has_output_rows": d.has_output_rows,
             "observer_poles": [[p.real, p.imag] for p in mm.observer_poles],
-            "A": _arr(d.A), "B": _arr(d.B), "C": _arr(d.C), "L": _arr(d.L),
-            "Kx": _arr(d.Kx), "EinvGt": _arr(d.EinvGt), "Sinv_p": _arr(d.Sinv_p), "Ew": _arr(d.Ew), "Uv": _arr(d.Uv), "T": _arr(d.T),
-            "S_p": _arr(d.S_p), "V": _arr(d.V), "P2inv": _arr(d.P2inv), "nt": d.nt,
-            "GEinvGt_p": _arr(d.GEinvGt_p), "Omega2": _arr(d.Omega2),
-            "Phi": _arr(d.Phi), "markov": _arr(d.markov), "row_q": _arr(d.row_q),
-            "row_sign": _arr(d.row_sign), "row_c": _arr(d.row_c),
-            "row_next": _arr(d.row_next), "colsum": _arr(d.colsum),
-            "out_bound": _arr(d.out_bound),
-            "u_min": _arr(d.u_min), "u_max": _arr(d.u_max),
             "cond_E": float(np.linalg.cond(mm.qp.E)),
+            **stored_values(d, features),
         })
-    blocking = any(mm.qp.blocks is not None for mm in model.modes)
-    if blocking:  # every mode's block lengths and stage -> block map (identity: unblocked)
+    if features["move_blocking"]:  # every mode's block lengths (stage_block is stored)
         for entry, mm in zip(modes, model.modes):
-            sb = mm.data.stage_block
-            entry.update({"blocks": list(mm.qp.blocks or (1,) * cfg.horizon),
-                          "stage_block": _arr(np.arange(cfg.horizon) if sb is None else sb)})
+            entry["blocks"] = list(mm.qp.blocks or (1,) * cfg.horizon)
     if cfg.runtime_bounds:  # the output bounds P_init gives the instance (None: unbounded)
         for entry, mode_cfg in zip(modes, cfg.modes):
             entry.update(context_bounds(mode_cfg))
@@ -70,16 +67,8 @@ def build_context(model: ControllerModel) -> dict:
                  "epsilons": list(sc.epsilons), "below": list(sc.below),
                  "above": list(sc.above), "band_modes": list(sc.band_modes),
                  "n_bands": len(sc.band_modes), "initial": sc.initial}
-    soft = any(mm.data.has_soft_rows for mm in model.modes)
-    if soft:  # per-bound penalties and the working-set capacity (soft_constraints.py)
-        for entry, mm in zip(modes, model.modes):
-            d = mm.data
-            zeros = np.zeros(2 * d.ny)
-            entry.update({"soft_l1": _arr(zeros if d.soft_l1 is None else d.soft_l1),
-                          "soft_w": _arr(zeros if d.soft_w is None else d.soft_w),
-                          "w_cap": d.w_cap})
     n_max = max(m["n"] for m in modes)
-    w_max = max(mm.data.w_cap for mm in model.modes) if soft else n_max
+    w_max = max(m["w_cap"] for m in modes) if features["has_soft_rows"] else n_max
     return {
         "generator": {"name": "rollmpc-codegen", "version": __version__},
         "config_hash": cfg.config_hash,
@@ -98,14 +87,11 @@ def build_context(model: ControllerModel) -> dict:
         "initial_mode": 0 if sched is None else sched["initial"],
         "scheduler": sched,
         "runtime_bounds": cfg.runtime_bounds,
+        "statuses": context_statuses(cfg.prefix, cfg.runtime_bounds),
+        "unknown_status_message": UNKNOWN_MESSAGE,
         # Δu rows in some mode: the solver's third row kind (else the C is unchanged)
         "has_rate_rows": any(mm.data.has_rate_rows for mm in model.modes),
-        # some mode holds its input over blocks of stages (move_blocking.py): the C then
-        # stores each mode's stage -> block map; without blocking its text is unchanged
-        "move_blocking": blocking,
-        # soft output rows in some mode (soft_constraints.py): slack states in the solver,
-        # the slack in the info struct, working sets beyond n rows (else the C is unchanged)
-        "has_soft_rows": soft,
+        **features,
         "solver": {
             "method": s.method, "reduced": flags["reduced"], "warm_start": flags["warm"]
             and s.warm_start, "omega": s.omega if flags["sor"] else 1.0, "sigma": s.sigma,
@@ -124,8 +110,28 @@ def build_context(model: ControllerModel) -> dict:
             "nt_max": max(m["nt"] for m in modes),
             "w_max": w_max, "chol_max": w_max * (w_max + 1) // 2,
         },
+        # the members of P_mode_data (qp/arrays.py); each mode lists the arrays it defines
+        "mode_struct": stored_members(features, cfg.prefix),
         "modes": modes,
     }
+
+
+def stored_members(features: dict, prefix: str) -> dict:
+    """The sizes and arrays of P_mode_data that exist with these features."""
+    sizes, arrays = declared_for(features)
+    return {
+        "sizes": [{"name": s.name, "doc": s.doc} for s in sizes],
+        "arrays": [{"name": a.name, "real": a.ctype == REAL, "doc": a.describe(),
+                    "ctype": f"{prefix}_real" if a.ctype == REAL else a.ctype}
+                   for a in arrays],
+    }
+
+
+def stored_values(d, features: dict) -> dict:
+    """One mode's sizes and stored arrays (JSON lists), and the names of those it defines."""
+    sizes, arrays = declared_for(features)
+    return ({s.name: s.of(d) for s in sizes} | {a.name: _arr(a.stored(d)) for a in arrays}
+            | {"defined": [a.name for a in arrays if a.exists_in(d)]})
 
 
 def context_json(ctx: dict) -> str:

@@ -24,14 +24,9 @@ import math
 
 import numpy as np
 
-from ..reference.solver import BAD_ARGUMENT, OPTIMAL
+from ..status import BAD_ARGUMENT, BAD_BOUNDS, BOUND_NOT_CONFIGURED, OPTIMAL
 
-# Status codes of P_set_bounds() beyond the solver's (api.h.j2, runtime_bounds only).
-BAD_BOUNDS = 7  # a value not finite, lower >= upper, or input bounds not containing 0
-BOUND_NOT_CONFIGURED = 8  # a finite value for an output bound the config left infinite
-
-__all__ = ["BAD_ARGUMENT", "BAD_BOUNDS", "BOUND_NOT_CONFIGURED", "OPTIMAL", "check_bounds",
-           "config_bounds", "context_bounds", "row_constants"]
+__all__ = ["check_bounds", "config_bounds", "context_bounds", "row_constants"]
 
 
 def context_bounds(mode_cfg) -> dict:

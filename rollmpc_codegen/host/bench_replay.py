@@ -25,7 +25,7 @@ from ..codegen.context import build_context
 from ..config import ControllerConfig
 from ..model.controller import ControllerModel
 from ..pipeline import build_model
-from ..reference.solver import STATUS_NAMES
+from ..status import STATUS_NAMES
 
 
 @dataclass

@@ -53,6 +53,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..features import move_blocking, soft_constraints
+from .arrays import STORED_ARRAYS
 from .condense import CondensedQP, solve_refined
 from ..model.plant import DiscretePlant
 
@@ -80,7 +81,11 @@ def unpack_lower(p: np.ndarray, n: int) -> np.ndarray:
 
 @dataclass(frozen=True)
 class ModeData:
-    """One mode's arrays exactly as the C stores them (dtype = storage precision)."""
+    """One mode's arrays exactly as the C stores them (dtype = storage precision).
+
+    The shape, C type and meaning of each stored array are declared once, in
+    :data:`.arrays.STORED_ARRAYS`; construction checks every shape against it.
+    """
 
     name: str
     nx: int
@@ -90,38 +95,43 @@ class ModeData:
     n: int  # decision variables
     m: int  # constraint rows
     n_yq: int  # output quantities N*ny
-    actuator_index: np.ndarray  # (nu,) physical actuator of each mode input
+    actuator_index: np.ndarray
     A: np.ndarray
     B: np.ndarray
     C: np.ndarray
-    L: np.ndarray  # observer gain (nx, ny)
-    Kx: np.ndarray  # (n, nx)
-    EinvGt: np.ndarray  # (n, N ny)
-    Sinv_p: np.ndarray  # packed lower S^-1
-    Ew: np.ndarray  # (nt, n) E^-1 = S^-1 - Ew' Ew
-    Uv: np.ndarray  # (nt, n) V S^-1
-    T: np.ndarray  # (nt, nt) (2P)^-1 + V S^-1 V'
-    S_p: np.ndarray  # packed lower stage Hessian (E without the terminal term when split)
-    V: np.ndarray  # (nt, n) terminal rows of Gamma (nt = ny when split, else 0)
-    P2inv: np.ndarray  # (nt, nt) (2P)^-1
-    GEinvGt_p: np.ndarray  # packed lower (N ny)(N ny + 1)/2, or empty without output rows
-    Omega2: np.ndarray  # (N, ny, ny): 2Q per stage, 2P at the last
-    Phi: np.ndarray  # (N ny, nx)
-    markov: np.ndarray  # (N, ny, nu)
-    row_q: np.ndarray  # (m,) quantity of each row
-    row_sign: np.ndarray  # (m,) +-1
-    row_c: np.ndarray  # (m,) constant part c of eq. (6)
-    row_next: np.ndarray  # (m,) the same constraint one stage later (itself at the last)
-    colsum: np.ndarray  # (ny, n) sum of the E^-1 Gamma' columns of the stages 0..N-2
-    out_bound: np.ndarray  # (N ny,) |(Gamma th)_k| <= out_bound_k max|th| (inflated)
-    u_min: np.ndarray  # (nu,)
+    L: np.ndarray
+    Kx: np.ndarray
+    EinvGt: np.ndarray
+    Sinv_p: np.ndarray
+    Ew: np.ndarray
+    Uv: np.ndarray
+    T: np.ndarray
+    S_p: np.ndarray
+    V: np.ndarray
+    P2inv: np.ndarray
+    GEinvGt_p: np.ndarray  # empty without output rows
+    Omega2: np.ndarray
+    Phi: np.ndarray
+    markov: np.ndarray
+    row_q: np.ndarray
+    row_sign: np.ndarray
+    row_c: np.ndarray
+    row_next: np.ndarray
+    colsum: np.ndarray
+    out_bound: np.ndarray
+    u_min: np.ndarray
     u_max: np.ndarray
-    stage_block: np.ndarray | None = None  # (N,) block of each stage; None: unblocked
-    # soft output bounds (soft_constraints): per bound (2 j + side, side 1 = y_max) the
-    # penalty l1 and w = 1 / (2 l2) (0: hard); None without soft bounds
-    soft_l1: np.ndarray | None = None  # (2 ny,)
-    soft_w: np.ndarray | None = None  # (2 ny,)
+    stage_block: np.ndarray | None = None  # None: unblocked
+    soft_l1: np.ndarray | None = None  # None: without soft bounds
+    soft_w: np.ndarray | None = None
     w_cap: int = 0  # working-set capacity: n, plus the soft (output, stage) pairs
+
+    def __post_init__(self):
+        for array in STORED_ARRAYS:
+            value = getattr(self, array.name)
+            if value is not None and array.exists_in(self) and value.shape != array.shape(self):
+                raise ValueError(f"{self.name}.{array.name} has shape {value.shape}, "
+                                 f"declared {array.shape(self)}")
 
     @property
     def nt(self) -> int:

@@ -11,7 +11,8 @@ import numpy as np
 
 from ..features import runtime_bounds
 from .scheduler import scheduled_mode
-from .solver import NONFINITE_INPUT, OPTIMAL, SolverRef, seqsum
+from ..status import BAD_ARGUMENT, NONFINITE_INPUT, OPTIMAL
+from .solver import SolverRef, seqsum
 
 
 class ControllerRef:
@@ -54,7 +55,7 @@ class ControllerRef:
         """Mirror of ``P_set_bounds``: returns its status; changes nothing unless OPTIMAL.
         None stands for a NULL pointer; the C reads nu(mode) and ny entries."""
         if not 0 <= mode < len(self.md):
-            return runtime_bounds.BAD_ARGUMENT
+            return BAD_ARGUMENT
         md = self.md[mode]
         sizes = (md.nu, md.nu, md.ny, md.ny)
         new = [None if v is None else np.array(np.atleast_1d(v)[:size], md.Kx.dtype)

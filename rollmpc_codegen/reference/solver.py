@@ -17,12 +17,7 @@ import numpy as np
 
 from ..qp.storage import ModeData, unpack_lower
 from ..features.soft_constraints import slacks
-
-# Status codes of the generated C (api.h.j2).
-OPTIMAL, MAX_ITER, INACCURATE, INFEASIBLE, NONFINITE_INPUT, NUMERICAL, BAD_ARGUMENT = range(7)
-STATUS_NAMES = {OPTIMAL: "optimal", MAX_ITER: "max_iter", INACCURATE: "inaccurate",
-                INFEASIBLE: "infeasible", NONFINITE_INPUT: "nonfinite_input",
-                NUMERICAL: "numerical", BAD_ARGUMENT: "bad_argument"}
+from ..status import INACCURATE, INFEASIBLE, MAX_ITER, NUMERICAL, OPTIMAL
 
 
 def seqsum(products: np.ndarray, start=None) -> np.generic:

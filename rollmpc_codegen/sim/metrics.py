@@ -29,7 +29,7 @@ import numpy as np
 
 from ..config import ControllerConfig
 from .simulate import ClosedLoopLog
-from ..reference.solver import OPTIMAL, STATUS_NAMES
+from ..status import OPTIMAL, STATUS_NAMES
 
 
 def _time(k, ts: float) -> float:

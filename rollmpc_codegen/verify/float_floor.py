@@ -25,7 +25,8 @@ import numpy as np
 
 from ..qp.exact import relative_error
 from ..qp.storage import ModeData
-from ..reference.solver import OPTIMAL, SolverRef
+from ..reference.solver import SolverRef
+from ..status import OPTIMAL
 
 FLOOR_CLASSES = ("above_1e-3", "1e-4_to_1e-3", "below_1e-4", "not_optimal")
 

@@ -31,7 +31,7 @@ from ..qp.exact import infeasibility_margin, qp_data, relative_error, solve_exac
 from .float_floor import FLOOR_CLASSES, floor_class, stored_data_floor
 from ..pipeline import load_model
 from .random_configs import COND_DECADES, RandomConfig, draw_instance, random_config
-from ..reference.solver import OPTIMAL, STATUS_NAMES
+from ..status import OPTIMAL, STATUS_NAMES
 
 PRECISIONS = ("double", "float")
 FLOAT_BOUND = 1e-3

@@ -1,0 +1,67 @@
+"""The status codes of the generated C, each declared once.
+
+Each :class:`Status` carries its code, the ``P_status_message()`` text, what it means and
+what the command holds after it.  From these, :mod:`.codegen.context` passes the list on to
+the templates, which render the C enum (``api.h.j2``) and the message table
+(``controller.c.j2``).  The NumPy reference returns the same codes.  The README's status
+table repeats the texts, and tests/test_status.py keeps it in step.
+"""
+from __future__ import annotations
+
+from enum import IntEnum
+
+UNKNOWN_MESSAGE = "unknown status"  # P_status_message() of any other code
+
+
+class Status(IntEnum):
+    """Return codes of P_step(), P_solve_qp() and P_set_bounds(); 0 is optimal."""
+
+    def __new__(cls, code: int, message: str, meaning: str, command: str,
+                runtime_bounds_only: bool = False):
+        status = int.__new__(cls, code)
+        status._value_ = code
+        status.message, status.meaning, status.command = message, meaning, command
+        status.runtime_bounds_only = runtime_bounds_only  # P_set_bounds() only
+        return status
+
+    OPTIMAL = (0, "optimal", "KKT conditions hold within the feasibility tolerance",
+               "the solution")
+    MAX_ITER = (1, "iteration cap reached", "the sweep cap was hit",
+                "best estimate, clamped to the limits")
+    INACCURATE = (2, "converged by delta but constraints violated",
+                  "stopped by the δ test with rows still violated", "best estimate, clamped")
+    # the dual active set proves it (add_to_set(): a dependent row and none can leave, Farkas);
+    # the sweeps only see their multipliers pass P_LAMBDA_LIMIT
+    INFEASIBLE = (3, "infeasible: constraints cannot all hold (proven, or multipliers diverged)",
+                  "the dual active set proved that the constraints cannot all hold (a violated "
+                  "row that depends on the working set, which no row can leave), or the sweeps' "
+                  "multipliers diverged", "the unconstrained optimum (active set) or the best "
+                  "estimate (sweeps), clamped")
+    NONFINITE_INPUT = (4, "non-finite input; last command held",
+                       "NaN/Inf in `y`, `sched`, `r` (or `x`)",
+                       "last command held (`P_solve_qp`: 0)")
+    NUMERICAL = (5, "non-finite intermediate result; safe fallback", "a non-finite intermediate",
+                 "clamped unconstrained solution, else 0")
+    BAD_ARGUMENT = (6, "bad argument", "NULL pointer or bad mode index", "last command held")
+    BAD_BOUNDS = (7, "bad bounds; nothing changed", "`P_set_bounds` only: NaN, a non-finite "
+                  "configured bound, lower >= upper, or input bounds without 0", "nothing changed",
+                  True)
+    BOUND_NOT_CONFIGURED = (8, "bound not in the config (no constraint rows); nothing changed",
+                            "`P_set_bounds` only: a finite value for an output bound the config "
+                            "left infinite (no rows)", "nothing changed", True)
+
+
+# the codes as module names, for the reference's and the tests' comparisons
+(OPTIMAL, MAX_ITER, INACCURATE, INFEASIBLE, NONFINITE_INPUT, NUMERICAL, BAD_ARGUMENT, BAD_BOUNDS,
+ BOUND_NOT_CONFIGURED) = Status
+
+# every build's codes (the runtime_bounds ones exist only in a runtime build) -> short name
+STATUS_NAMES = {s: s.name.lower() for s in Status if not s.runtime_bounds_only}
+
+
+def context_statuses(prefix: str, runtime_bounds: bool) -> list[dict]:
+    """The codes of one build for the templates (the README's ``P_`` becomes the prefix)."""
+    return [{"name": s.name, "code": int(s), "message": s.message,
+             "doc": f"{s.meaning[0].upper()}{s.meaning[1:]}. Command: {s.command}."
+             .replace("P_", f"{prefix}_")}
+            for s in Status if runtime_bounds or not s.runtime_bounds_only]
