@@ -93,7 +93,7 @@ check-long: venv
 
 ## reliability: measure the figures of docs/reliability.md into build/reliability/*.json
 reliability: venv
-	$(PY) -m rollmpc_codegen.verify.reliability --out build/reliability
+	$(PY) -m rollmpc_codegen.verify --out build/reliability
 
 clean:
 	rm -rf build

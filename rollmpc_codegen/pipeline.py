@@ -8,6 +8,7 @@ from __future__ import annotations
 from pathlib import Path
 
 import numpy as np
+from threadpoolctl import threadpool_limits
 
 from . import config as config_mod
 from .codegen.context import build_context
@@ -23,7 +24,15 @@ from .qp.storage import mode_data
 
 
 def build_model(cfg: ControllerConfig) -> ControllerModel:
-    """Offline maths for every mode, in double, then cast to the storage precision."""
+    """Offline maths for every mode, in double, then cast to the storage precision.
+
+    On one BLAS thread: a threaded BLAS sums in an order that depends on the thread count,
+    and the generated files must be byte-identical on every machine."""
+    with threadpool_limits(limits=1, user_api="blas"):
+        return _build_model(cfg)
+
+
+def _build_model(cfg: ControllerConfig) -> ControllerModel:
     modes = []
     for j, mode in enumerate(cfg.modes):
         key = f"modes[{j}]"

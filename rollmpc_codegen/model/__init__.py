@@ -1,1 +1,3 @@
-"""model"""
+"""Stage 2 of the pipeline: each mode's plant as a discrete, well-scaled realisation
+(``plant``, ``tf_realisation``), its observer gain (``observer``), and the frozen model of the
+whole controller (``controller``)."""

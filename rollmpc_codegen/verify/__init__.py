@@ -1,1 +1,3 @@
-"""verify"""
+"""The reliability tooling of docs/reliability.md: random configs and QP campaigns against an
+extended-precision reference, the float stored-data floor, MISRA deviations; run it as
+``python -m rollmpc_codegen.verify`` (measurement only: nothing here is on the generate path)."""

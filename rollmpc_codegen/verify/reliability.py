@@ -1,6 +1,6 @@
 """Measure the figures of docs/reliability.md (issue 4) and write them as JSON.
 
-    python -m rollmpc_codegen.verify.reliability [--out build/reliability] [--only qp,infeasible,...]
+    python -m rollmpc_codegen.verify [--out build/reliability] [--only qp,infeasible,...]
 
 (``make reliability``.)  Sections:
 
@@ -179,7 +179,7 @@ def replay(failures: Path, first: int = 10) -> int:
 
 
 def main(argv: list[str] | None = None) -> int:
-    ap = argparse.ArgumentParser(prog="python -m rollmpc_codegen.verify.reliability",
+    ap = argparse.ArgumentParser(prog="python -m rollmpc_codegen.verify",
                                  description=__doc__.splitlines()[0])
     ap.add_argument("--out", default="build/reliability", help="output directory")
     ap.add_argument("--only", default=",".join(SECTIONS),
@@ -216,6 +216,3 @@ def main(argv: list[str] | None = None) -> int:
         print(f"reliability: {section} done in {summary['seconds']} s -> {out / section}.json")
     return 0
 
-
-if __name__ == "__main__":
-    sys.exit(main())
