@@ -10,8 +10,9 @@ from __future__ import annotations
 import numpy as np
 
 from ..features import runtime_bounds
+from .linalg import seqsum
 from .scheduler import scheduled_mode
-from .solver import NONFINITE_INPUT, OPTIMAL, SolverRef, seqsum
+from .solver import NONFINITE_INPUT, OPTIMAL, SolverRef
 
 
 class ControllerRef:
