@@ -10,7 +10,7 @@ so a new bound needs no regeneration.  What a bound change cannot do is add or r
 rows: a bound the config leaves infinite has no rows, and a configured bound stays finite.
 
 The C keeps, per mode, only the bound vectors (2 (nu + ny) reals) and derives each row's
-constant on line from ``row_q``/``row_sign`` (``row_const()`` in solver.c.j2): the per-row
+constant on line from ``row_q``/``row_sign`` (``row_const()`` in solver/bounds.c.j2): the per-row
 copy would cost m reals per mode (200 for the chain of masses, 4 x 200 B in float).
 
 This module is the reference of the C's bound handling: :func:`check_bounds` mirrors the

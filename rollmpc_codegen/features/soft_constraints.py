@@ -18,7 +18,7 @@ So a soft row in the working set is in one of two states:
   w on the row's diagonal and l1 w on its right-hand side.
 
 The sweeps take the piecewise coordinate maximum, the polish and the dual active set
-switch a row's state where its multiplier crosses l1 (templates/solver.c.j2).  A working
+switch a row's state where its multiplier crosses l1 (templates/solver/).  A working
 set can then hold more than n rows (slack rows do not compete for the n degrees of
 freedom of U): its capacity is n plus the soft (output, stage) pairs, :func:`working_set_cap`.
 

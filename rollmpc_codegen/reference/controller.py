@@ -12,7 +12,8 @@ import numpy as np
 from ..features import runtime_bounds
 from .scheduler import scheduled_mode
 from ..status import BAD_ARGUMENT, NONFINITE_INPUT, OPTIMAL
-from .solver import SolverRef, seqsum
+from .linalg import seqsum
+from .solver import SolverRef
 
 
 class ControllerRef:

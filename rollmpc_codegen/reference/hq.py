@@ -1,0 +1,58 @@
+"""Mirror of ``templates/solver/hq.c.j2`` (and ``s_at()`` of ``dot.c.j2``).
+
+The C reads the dual Hessian H = M E^-1 M' element by element through the quantity
+Hessian Hq (``hq()``, ``h_rows()``, ``em_col()``) and never stores it.  The reference
+tabulates the same elements once per mode, each formed by the same operations in the same
+order, so every read agrees bit for bit.
+"""
+from __future__ import annotations
+
+from typing import NamedTuple
+
+import numpy as np
+
+from ..qp.storage import ModeData, unpack_lower
+
+
+class HessianReads(NamedTuple):
+    """Every element the C reads, tabulated in the storage dtype."""
+    Sinv: np.ndarray   # S^-1, unpacked from Sinv_p (primal_solve_bound())
+    S: np.ndarray      # S, unpacked from S_p (s_at())
+    H: np.ndarray      # H_rs for rows r, s (h_rows())
+    Hdiag: np.ndarray  # H_rr
+    EM: np.ndarray     # (E^-1 M_s')_i, inputs i by rows s (em_col())
+
+
+def hessian_reads(md: ModeData) -> HessianReads:
+    """The tables of one mode, Hq's blocks assembled exactly as ``hq()`` forms them."""
+    n, nyq = md.n, md.n_yq
+    # E^-1 exactly as hq() forms it: S^-1(a, b) - sum_o Ew[o, a] Ew[o, b]
+    acc = np.zeros((n, n), md.Kx.dtype)
+    for o in range(md.nt):
+        acc = acc + np.outer(md.Ew[o], md.Ew[o])
+    Sinv = unpack_lower(md.Sinv_p, n)
+    Einv = Sinv - acc
+    GEG = (unpack_lower(md.GEinvGt_p, nyq) if md.has_output_rows
+           else np.zeros((nyq, nyq), md.Kx.dtype))
+    Hq = np.block([[Einv, md.EinvGt], [md.EinvGt.T, GEG]])
+    if md.has_rate_rows:
+        Hq = _rate_extended(Hq, n, md.nu)
+    q, sg = md.row_q, md.row_sign
+    same = sg[:, None] == sg[None, :]
+    Hrows = Hq[np.ix_(q, q)]
+    EM = Hq[:n][:, q]
+    return HessianReads(Sinv=Sinv, S=unpack_lower(md.S_p, n),
+                        H=np.where(same, Hrows, -Hrows), Hdiag=Hq[q, q],
+                        EM=np.where(sg[None, :] > 0, EM, -EM))
+
+
+def _rate_extended(Hq: np.ndarray, n: int, nu: int) -> np.ndarray:
+    """Hq with the n Δu quantities D_i = U_i - U_{i-nu} (D_i = U_i at stage 0) appended on
+    both sides, exactly as hq() forms them: columns first (hq_side()), then rows."""
+    def diff(M, axis):
+        base = np.take(M, np.arange(n), axis=axis)
+        prev = np.take(M, np.arange(n - nu), axis=axis)
+        tail = np.take(base, np.arange(nu, n), axis=axis) - prev
+        return np.concatenate((np.take(base, np.arange(nu), axis=axis), tail), axis=axis)
+    X = np.hstack((Hq, diff(Hq, 1)))
+    return np.vstack((X, diff(X, 0)))

@@ -1,0 +1,37 @@
+"""Mirror of ``templates/solver/soft_rows.c.j2``: the slack states of soft output rows.
+
+``soft_of()`` is the per-row table ``soft_l1``/``soft_w`` (``ModeData.soft_rows()``, w = 0
+on hard rows) and ``multiplier_slack()`` is
+:func:`rollmpc_codegen.features.soft_constraints.slacks`.  :class:`SoftRowsMixin` is part of
+:class:`~.solver.SolverRef`; it reads ``soft_l1``, ``soft_w``, ``tol`` and ``zero`` and
+keeps the working-set rows' states in ``slack_on`` (``ws->slack_on``).
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from ..features.soft_constraints import slacks as multiplier_slacks
+
+
+class SoftRowsMixin:
+    def slack_in_set(self, W, z):
+        """Mirror of slack_in_set() for the working set: (z - l1) w where slack, else 0."""
+        sl = (z - self.soft_l1[W]) * self.soft_w[W]
+        return np.where(self.slack_on[W], sl, self.zero)
+
+    def set_state(self, W, lam_of_W):
+        """Mirror of set_state() for rows joining with these multipliers."""
+        self.slack_on[W] = (self.soft_w[W] > 0) & (lam_of_W > self.soft_l1[W])
+
+    def switch_states(self, W, z):
+        """Mirror of switch_states(): flip the rows whose multiplier crossed l1; count."""
+        l1, on = self.soft_l1[W], self.slack_on[W]
+        flip = (self.soft_w[W] > 0) & np.where(on, z < l1, z > l1)
+        self.slack_on[W[flip]] = ~on[flip]
+        return int(np.count_nonzero(flip))
+
+    def violated_beyond_slack(self, excess, scale, lam):
+        """Mirror of violated_beyond_slack() from the rows' excess and tolerance scale at th
+        (:meth:`row_excess`): how many exceed the slack of their multiplier."""
+        sl = multiplier_slacks(lam, self.soft_l1, self.soft_w)
+        return int(np.count_nonzero(excess - sl > self.tol * scale))

@@ -1,0 +1,70 @@
+"""Mirror of ``templates/solver/unconstrained.c.j2``: th0 and the output prediction.
+
+:class:`UnconstrainedMixin` is part of :class:`~.solver.SolverRef`; it reads ``md``,
+``has_out`` and the prediction data of :func:`output_prediction`.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from ..qp.storage import ModeData
+from .linalg import seqsum, seqsum_rows
+
+
+def output_prediction(md: ModeData) -> tuple[np.ndarray, np.ndarray | None]:
+    """(Gamma over the stages, the input index of each stage's inputs or None): the data
+    ``predict_outputs()`` reads, Gamma in the storage dtype with each row used only up to
+    its nonzero prefix."""
+    N, ny, nu, nyq = md.N, md.ny, md.nu, md.n_yq
+    Gam = np.zeros((nyq, N * nu), md.Kx.dtype)  # over the stages (n with no blocks)
+    # move blocking: the C reads th[stage_block[t] nu + b] for stage t (U = T th)
+    expand = (None if md.stage_block is None else
+              (md.stage_block[:, None] * nu + np.arange(nu)[None, :]).reshape(-1))
+    for k in range(nyq):
+        stage, a = divmod(k, ny)
+        for t in range(stage + 1):
+            Gam[k, t * nu:(t + 1) * nu] = md.markov[stage - t, a, :]
+    return Gam, expand
+
+
+class UnconstrainedMixin:
+    def unconstrained(self, x, r):
+        """Mirror of unconstrained(): (th0, px = Phi x or None), th0 summed per run of
+        equal w (see reference_runs())."""
+        md, ny = self.md, self.md.ny
+        rr = r.reshape(md.N, ny)
+        w = np.empty(md.n_yq, md.Kx.dtype)
+        for k in range(md.n_yq):
+            stage, a = divmod(k, ny)
+            w[k] = seqsum(md.Omega2[stage, a, :] * rr[stage])
+        W = w.reshape(md.N, ny)
+        last = md.N - 1
+        # reference_runs()
+        starts = [st for st in range(last) if st == 0 or np.any(W[st] != W[st - 1])]
+        bounds = list(zip(starts, starts[1:] + [last]))
+        lengths = [e - b for b, e in bounds]
+        longest = int(np.argmax(lengths)) if lengths else -1
+        G = md.EinvGt.reshape(md.n, md.N, ny)
+        acc = seqsum_rows(md.Kx * x[None, :])
+        for a in range(ny):
+            other = np.zeros(md.n, md.Kx.dtype)
+            for j, (b, e) in enumerate(bounds):
+                if j != longest:
+                    s = seqsum_rows(G[:, b:e, a])
+                    acc = acc + W[b, a] * s
+                    other = other + s
+            if longest >= 0:
+                acc = acc + W[bounds[longest][0], a] * (md.colsum[a] - other)
+            acc = acc + G[:, last, a] * W[last, a]
+        px = seqsum_rows(md.Phi * x[None, :]) if self.has_out else None
+        return acc, px
+
+    def predict_outputs(self, th):
+        """Mirror of predict_outputs(): Gamma th (Gamma T th with move blocking)."""
+        md = self.md
+        out = np.empty(md.n_yq, md.Kx.dtype)
+        th = th if self.expand is None else th[self.expand]
+        for k in range(md.n_yq):
+            width = (k // md.ny + 1) * md.nu
+            out[k] = seqsum(self.Gam[k, :width] * th[:width])
+        return out
