@@ -161,7 +161,7 @@ class Mode:
 
 class Design:
     """A whole controller: modes, the shared signals, and any other top-level YAML key
-    (``prefix, precision, scheduler, solver, simulation, units, runtime_bounds,
+    (``prefix, precision, scheduler, solver, simulation, units, target, runtime_bounds,
     control_horizon, move_blocking``) as keywords; ``None`` leaves a key out.
 
     A mode is a :class:`Mode` or its YAML mapping. Validated on construction

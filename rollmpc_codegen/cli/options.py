@@ -56,6 +56,26 @@ def check_outputs(args, names: tuple[str, ...]) -> None:
             raise ConfigError(f"--{opt}", f"{target} is a directory")
 
 
+def add_perturbations(p: argparse.ArgumentParser) -> None:
+    """What the simulated plant is perturbed by (sim/simulate.py, sim/mismatch.py)."""
+    p.add_argument("--noise", type=float, default=0.0, help="measurement noise std (output units)")
+    p.add_argument("--disturbance", type=float, default=0.0,
+                   help="constant input disturbance on every actuator (actuator units)")
+    p.add_argument("--mismatch", type=float, default=0.0,
+                   help="plant mismatch F in [0, 1): each mode's plant gain and poles scaled "
+                   "by 1 + d, d uniform in [-F, F] from the seed")
+    p.add_argument("--seed", type=int, default=0, help="seed of the noise and the mismatch")
+
+
+def check_perturbations(args) -> None:
+    if not args.noise >= 0:
+        raise ConfigError("--noise", f"must be >= 0, got {args.noise}")
+    if not abs(args.disturbance) < float("inf"):
+        raise ConfigError("--disturbance", f"must be finite, got {args.disturbance}")
+    if not 0 <= args.mismatch < 1:
+        raise ConfigError("--mismatch", f"must be in [0, 1), got {args.mismatch}")
+
+
 def check_steps(args) -> None:
     if args.steps is not None and args.steps < 1:
         raise ConfigError("--steps", f"must be >= 1, got {args.steps}")

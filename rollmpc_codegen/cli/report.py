@@ -1,10 +1,12 @@
 """``rollmpc report``: the target report (:func:`rollmpc_codegen.target.report.run_report`)
-as a short summary on stdout, or with ``--horizons`` the per-horizon table (markdown, as
-docs/target.md shows it) and the fits; ``--json`` writes the whole report."""
+as a short summary on stdout (with ``--flights``, a line per flight), or with
+``--horizons`` the per-horizon table (markdown, as docs/target.md shows it) and the fits;
+``--json`` writes the whole report."""
 from __future__ import annotations
 
 from ..config.errors import ConfigError
-from .options import add_build_dir, add_outputs, add_precision, add_quiet, progress_of, write_json
+from .options import (add_build_dir, add_outputs, add_perturbations, add_precision, add_quiet,
+                      check_perturbations, check_steps, progress_of, write_json)
 
 
 def add_parser(sub) -> None:
@@ -17,7 +19,12 @@ def add_parser(sub) -> None:
                     help="comma-separated horizons (e.g. 25,50,100,200): tabulate generation "
                     "time, flash, RAM and cycles per horizon instead")
     rp.add_argument("--steps", type=int, default=None,
-                    help="scenario samples to replay (default: the whole scenario)")
+                    help="samples to replay, of the scenario or of each flight (default: the "
+                    "scenario's length)")
+    rp.add_argument("--flights", type=int, default=0,
+                    help="replay K random flights instead of the scenario: levels drawn "
+                    "within the output bounds, flight i seeded with --seed + i (default 0)")
+    add_perturbations(rp)
     rp.add_argument("--sample-every", type=int, default=20,
                     help="count cycles on every n-th step besides the hardest (default 20)")
     rp.add_argument("--hardest", type=int, default=10,
@@ -46,11 +53,13 @@ def parse_horizons(text: str) -> list[int]:
 
 
 def summary_text(rep: dict) -> str:
-    """Short human summary with the verdict at 168 MHz."""
+    """Short human summary with the verdict at the config's clock and sample time."""
     b = rep["budget"]
     verdict = "fits" if b["worst_fits"] else "DOES NOT fit"
     top = ", ".join(f"{r['function']} {100 * r['share']:.0f}%"
                     for r in rep["worst_step_top_functions"][:4])
+    where = ("" if rep["worst_flight"] is None else f"flight {rep['worst_flight']}, ") + \
+        f"step {rep['worst_step']}"
     lines = [
         f"rollmpc report: {rep['precision']}, N = {rep['horizon']}, {rep['toolchain']}",
         f"  flash {rep['flash_bytes']:,} B   static RAM {rep['ram_bytes']:,} B "
@@ -61,28 +70,35 @@ def summary_text(rep: dict) -> str:
         f"({len(rep['hardest_steps'])} hardest + every {rep['sample_every']}th); "
         f"bit-exact vs host: {'yes' if rep['bit_exact_vs_host'] else 'NO'}"
         + ("" if rep["bit_exact_vs_host"] else f" ({rep['mismatches']} mismatches)"),
-        f"  worst step {rep['worst_step']} (mode {rep['worst_step_mode']}): "
+    ]
+    for f in rep.get("flights", []):
+        lines.append(f"  flight {f['flight']} (seed {f['seed']}): worst step {f['worst_step']} "
+                     f"{f['worst_step_cycles']:,} cycles, median {f['median_step_cycles']:,}"
+                     + ("" if f["bit_exact_vs_host"] else ", NOT bit-exact"))
+    lines += [
+        f"  worst step ({where}, mode {rep['worst_step_mode']}): "
         f"{rep['worst_step_cycles']:,} cycles, {rep['worst_step_instructions']:,} "
         f"instructions; median {rep['median_step_cycles']:,} cycles",
-        f"  needs {rep['cpu_mhz_for_10ms']} MHz for Ts = {1000 * rep['sample_time']:g} ms; "
+        f"  needs {rep['cpu_mhz_needed']} MHz for Ts = {1000 * rep['sample_time']:g} ms; "
         f"at {b['cpu_mhz']:g} MHz the worst step {verdict} "
         f"({b['worst_load_percent']}% of {b['cycles_per_sample']:,} cycles)",
         f"  worst step by function: {top}",
     ]
-    goals = ", ".join(f"{k}: {'met' if v else 'MISSED'}" for k, v in rep["goals"].items())
-    lines.append(f"  goals (issue 7, paper config in float): {goals}")
+    if rep["goals"]:
+        goals = ", ".join(f"{k}: {'met' if v else 'MISSED'}" for k, v in rep["goals"].items())
+        lines.append(f"  memory goals (the config's target: section): {goals}")
     return "\n".join(lines)
 
 
 def horizons_markdown(table: dict) -> str:
     """The per-horizon table and the fits as markdown (what docs/target.md shows)."""
     lines = ["| N | generation (s) | flash (B) | static RAM (B) | stack (B) | worst step "
-             "(cycles) | median step (cycles) | MHz for 10 ms | bit-exact |",
+             "(cycles) | median step (cycles) | MHz needed | bit-exact |",
              "|---:|---:|---:|---:|---:|---:|---:|---:|:---:|"]
     for r in table["rows"]:
         lines.append(f"| {r['horizon']} | {r['generation_s']:.2f} | {r['flash_bytes']:,} | "
                      f"{r['ram_bytes']:,} | {r['stack_bytes']} | {r['worst_step_cycles']:,} | "
-                     f"{r['median_step_cycles']:,} | {r['cpu_mhz_for_10ms']} | "
+                     f"{r['median_step_cycles']:,} | {r['cpu_mhz_needed']} | "
                      f"{'yes' if r['bit_exact_vs_host'] else 'NO'} |")
     lines.append("")
     lines.append("Fitted growth (least squares on log-log over all horizons; in brackets "
@@ -93,12 +109,11 @@ def horizons_markdown(table: dict) -> str:
 
 
 def print_horizons(table: dict) -> None:
-    from ..target.measure import CPU_MHZ
-
     print(horizons_markdown(table))
-    last = table["largest_measured_horizon_within_10ms_at_168MHz"]
-    print(f"\nlargest measured horizon within 10 ms at {CPU_MHZ:g} MHz: {last}; "
-          f"fitted limit N ~ {table['fitted_horizon_limit_10ms_at_168MHz']}")
+    b = table["budget"]
+    print(f"\nlargest measured horizon within Ts = {1000 * b['sample_time']:g} ms at "
+          f"{b['cpu_mhz']:g} MHz: {table['largest_measured_horizon_within_budget']}; "
+          f"fitted limit N ~ {table['fitted_horizon_limit']}")
     for part in table["parts"]:
         print(f"  {part['part']}: fits memory for N in {part['horizons_that_fit_memory']}")
 
@@ -106,13 +121,17 @@ def print_horizons(table: dict) -> None:
 def run(args) -> int:
     from ..target.report import run_report
 
-    if args.steps is not None and args.steps < 1:
-        raise ConfigError("--steps", "must be >= 1")
+    check_steps(args)
+    check_perturbations(args)
+    if args.flights < 0:
+        raise ConfigError("--flights", f"must be >= 0, got {args.flights}")
     if args.sample_every < 1 or args.hardest < 0 or args.host_repeats < 1:
         raise ConfigError("--sample-every/--hardest/--host-repeats", "must be >= 1, >= 0, >= 1")
     horizons = parse_horizons(args.horizons) if args.horizons else None
     result = run_report(args.config, precision=args.precision, horizons=horizons,
-                        steps=args.steps, sample_every=args.sample_every,
+                        steps=args.steps, flights=args.flights, seed=args.seed,
+                        noise_std=args.noise, disturbance=args.disturbance,
+                        mismatch=args.mismatch, sample_every=args.sample_every,
                         hardest=args.hardest, host_repeats=args.host_repeats,
                         extra_cflags=tuple(args.extra_cflags.split()) if args.extra_cflags
                         else (), build_dir=args.build_dir, progress=progress_of(args))

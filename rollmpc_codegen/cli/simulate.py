@@ -22,9 +22,9 @@ import sys
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from ..config.errors import ConfigError
-from .options import (add_build_dir, add_outputs, add_precision, add_quiet, check_outputs,
-                      check_steps, progress_of, require_plot, write_json)
+from .options import (add_build_dir, add_outputs, add_perturbations, add_precision, add_quiet,
+                      check_outputs, check_perturbations, check_steps, progress_of,
+                      require_plot, write_json)
 
 if TYPE_CHECKING:
     from ..sim.simulate import ClosedLoopLog
@@ -39,10 +39,7 @@ def add_parser(sub) -> None:
     add_outputs(s, csv="per-sample log", json="summary metrics", plot="Fig. 2 style PNG")
     s.add_argument("--baseline", choices=["none", "lqr"], default="none",
                    help="also simulate an LQR-with-saturation baseline (plotted alongside)")
-    s.add_argument("--noise", type=float, default=0.0, help="measurement noise std (output units)")
-    s.add_argument("--disturbance", type=float, default=0.0,
-                   help="constant input disturbance on every actuator (actuator units)")
-    s.add_argument("--seed", type=int, default=0)
+    add_perturbations(s)
     s.add_argument("--steps", type=int, default=None, help="samples (default: whole scenario)")
     add_quiet(s, "no progress bar")
     add_build_dir(s)
@@ -78,10 +75,7 @@ def write_csv(path: str | Path, ctx: dict, log: ClosedLoopLog) -> Path:
 
 def _check_args(args) -> None:
     check_steps(args)
-    if not args.noise >= 0:
-        raise ConfigError("--noise", f"must be >= 0, got {args.noise}")
-    if not abs(args.disturbance) < float("inf"):
-        raise ConfigError("--disturbance", f"must be finite, got {args.disturbance}")
+    check_perturbations(args)
     check_outputs(args, OUTPUTS)
 
 
@@ -127,7 +121,8 @@ def run(args) -> int:
     _check_args(args)
     require_plot(args)
     result = run_scenario(args.config, precision=args.precision, steps=args.steps,
-                          noise_std=args.noise, disturbance=args.disturbance, seed=args.seed,
+                          noise_std=args.noise, disturbance=args.disturbance,
+                          mismatch=args.mismatch, seed=args.seed,
                           baseline=None if args.baseline == "none" else args.baseline,
                           build_dir=args.build_dir, progress=progress_of(args))
     ctx = result.ctx

@@ -9,7 +9,8 @@ an indefinite Hessian, ...), always naming the key that caused it.
 Modules: ``errors`` (ConfigError), ``schema`` (dataclasses, choices, limits, every
 default), ``reader`` (typed reading with key paths), ``yaml_loader`` (:func:`load`),
 ``controller`` (:func:`parse`, the top level), one parser per section (``plant``,
-``mode``, ``scheduler``, ``solver``, ``simulation``) and ``checks`` (across sections).
+``mode``, ``scheduler``, ``solver``, ``simulation``, ``target``) and ``checks`` (across
+sections).
 
 The public names below are imported on first use (PEP 562), not here: a module that
 only raises ConfigError (features/move_blocking.py, which ``mode`` itself uses) imports
@@ -25,8 +26,8 @@ _HOME = {  # public name -> the module that declares it
     "load": "yaml_loader",
     "parse": "controller",
     **dict.fromkeys(("ControllerConfig", "ModeConfig", "PlantConfig", "SchedulerConfig",
-                     "SolverConfig", "SimulationConfig", "UnitsConfig", "PRECISIONS",
-                     "SOLVER_METHODS", "SCHEDULE_SOURCES", "OBSERVER_KINDS",
+                     "SolverConfig", "SimulationConfig", "UnitsConfig", "TargetConfig",
+                     "PRECISIONS", "SOLVER_METHODS", "SCHEDULE_SOURCES", "OBSERVER_KINDS",
                      "DISTURBANCE_MODELS", "MAX_ROWS", "MAX_C_INT", "FLOAT_MAX"), "schema"),
 }
 __all__ = sorted(_HOME)

@@ -13,10 +13,11 @@ from .mode import parse_mode
 from .reader import Reader
 from .scheduler import parse_scheduler
 from .schema import (DEFAULT_PRECISION, DEFAULT_PREFIX, MODE_KEYS, PRECISIONS, SCHEDULER_KEYS,
-                     SIMULATION_KEYS, SOLVER_KEYS, TOP_KEYS, UNITS_KEYS, ControllerConfig,
-                     UnitsConfig)
+                     SIMULATION_KEYS, SOLVER_KEYS, TARGET_KEYS, TOP_KEYS, UNITS_KEYS,
+                     ControllerConfig, UnitsConfig)
 from .simulation import parse_simulation, parse_units
 from .solver import parse_solver
+from .target import parse_target
 
 
 def parse(data: Any) -> ControllerConfig:
@@ -54,9 +55,10 @@ def parse(data: Any) -> ControllerConfig:
                                   sample_time)
     units = (parse_units(r.sub("units", UNITS_KEYS), outputs, actuators)
              if r.has("units") else UnitsConfig())
+    target = parse_target(r.sub("target", TARGET_KEYS, {}))
     check_range(precision, modes, scheduler, solver)
     check_schedule_source(simulation, scheduler, modes)
     return ControllerConfig(prefix=prefix, precision=precision, sample_time=sample_time,
                             horizon=horizon, outputs=outputs, actuators=actuators, modes=modes,
                             scheduler=scheduler, solver=solver, simulation=simulation,
-                            runtime_bounds=runtime_bounds, units=units)
+                            runtime_bounds=runtime_bounds, units=units, target=target)

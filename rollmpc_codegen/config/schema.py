@@ -184,6 +184,16 @@ class UnitsConfig:
         return f" [{found.pop()}]" if len(found) == 1 and NO_UNIT not in found else ""
 
 
+@dataclass(frozen=True)
+class TargetConfig:
+    """The microcontroller ``rollmpc report`` judges the design on (the top-level
+    ``target`` key); the generated C never sees it.  ``None``: no verdict on that figure."""
+
+    cpu_mhz: float = 168.0  # core clock: the cycle budget per sample is cpu_mhz * 1e6 * Ts
+    flash_kib: float | None = None  # flash the image must fit (KiB)
+    ram_kib: float | None = None  # static RAM the image, and the instance alone, must fit
+
+
 @dataclass(frozen=True, eq=False)
 class ControllerConfig:
     prefix: str
@@ -200,6 +210,7 @@ class ControllerConfig:
     # samples (runtime_bounds.py; docs/features.md "Run-time bounds"); False: baked in
     runtime_bounds: bool = False
     units: UnitsConfig = UnitsConfig()  # labels only (the top-level `units` key)
+    target: TargetConfig = TargetConfig()  # what `rollmpc report` judges on
 
     @cached_property
     def config_hash(self) -> str:
@@ -230,7 +241,7 @@ class ControllerConfig:
 # anything of that section.
 TOP_KEYS = ("prefix", "precision", "sample_time", "horizon", "control_horizon",
             "move_blocking", "outputs", "actuators", "modes", "scheduler", "runtime_bounds",
-            "solver", "simulation", "units")
+            "solver", "simulation", "units", "target")
 MODE_KEYS = ("name", "actuators", "plant", "weights", "bounds", "observer", "control_horizon",
              "move_blocking")
 PLANT_KEYS = ("transfer_function", "state_space", "integrator")
@@ -248,3 +259,4 @@ SOLVER_KEYS = tuple(f.name for f in fields(SolverConfig))  # one key per setting
 SIMULATION_KEYS = ("schedule_source", "reference")
 REFERENCE_KEYS = ("levels", "segment")  # simulation.reference
 UNITS_KEYS = tuple(f.name for f in fields(UnitsConfig))
+TARGET_KEYS = tuple(f.name for f in fields(TargetConfig))

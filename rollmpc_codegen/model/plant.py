@@ -72,8 +72,8 @@ def _balanced(A: np.ndarray, B: np.ndarray, C: np.ndarray):
     return Ti @ A @ T, Ti @ B, C @ T
 
 
-def continuous_realisation(plant: PlantConfig, key: str) -> ContinuousPlant:
-    """Realise a continuous plant config; ``key`` names it in errors."""
+def g_realisation(plant: PlantConfig) -> tuple[np.ndarray, ...]:
+    """(A, B, C, D) of the continuous G(s) of a plant config, before any integrator."""
     if plant.tf_matrix is not None:  # MIMO: minimal realisation (tf_realisation)
         A, B, C, D = tf_realisation.realise(plant.tf_matrix)
         A, B, C = _balanced(A, B, C)
@@ -88,7 +88,13 @@ def continuous_realisation(plant: PlantConfig, key: str) -> ContinuousPlant:
         A, B, C = _balanced(A, B, C)
     else:
         A, B, C, D = plant.A, plant.B, plant.C, plant.D
-    if not plant.integrator:
+    return A, B, C, D
+
+
+def with_integrator(A: np.ndarray, B: np.ndarray, C: np.ndarray, D: np.ndarray,
+                    integrator: bool) -> ContinuousPlant:
+    """G(s) = (A, B, C, D), with one integrator appended per output when ``integrator``."""
+    if not integrator:
         return ContinuousPlant(A=A, B=B, C=C, Cr=None, Dr=None)
     ng, ny, nu = A.shape[0], C.shape[0], B.shape[1]
     Aa = np.block([[A, np.zeros((ng, ny))], [C, np.zeros((ny, ny))]])
@@ -96,6 +102,11 @@ def continuous_realisation(plant: PlantConfig, key: str) -> ContinuousPlant:
     Ca = np.hstack([np.zeros((ny, ng)), np.eye(ny)])
     Cr = np.hstack([C, np.zeros((ny, ny))])
     return ContinuousPlant(A=Aa, B=Ba, C=Ca, Cr=Cr, Dr=np.asarray(D, dtype=float).reshape(ny, nu))
+
+
+def continuous_realisation(plant: PlantConfig, key: str) -> ContinuousPlant:
+    """Realise a continuous plant config (G(s), then its integrators); ``key`` names it."""
+    return with_integrator(*g_realisation(plant), plant.integrator)
 
 
 def zoh(cont: ContinuousPlant, Ts: float) -> DiscretePlant:

@@ -4,11 +4,17 @@ Reference: 0, -20, 20, -40, 40, 0 deg, 10 s each (6000 samples at Ts = 10 ms), a
 to every output, unless the config gives ``simulation.reference`` (levels, each a scalar
 for every output or one value per output, held ``segment`` seconds each); the
 controller receives the preview r_{k+1..k+N} (held at the last value past the end).
+A random flight (``rollmpc report --flights``) keeps the scenario's segment length and
+draws each level uniformly within the output bounds (:func:`random_reference`).
 
 Plant: every mode is a *channel* (its continuous model from the config, sampled exactly
 by ZOH); all channels act together and the measured outputs are their sum -- for the UAV,
 the roll angle is the integral of the roll rates produced by both aileron pairs. The
 scheduling signal is the summed pre-integrator output (the roll rate) or the output.
+With a :class:`~rollmpc_codegen.sim.mismatch.PlantMismatch` each channel is the mode's
+plant perturbed as that module says; the controller's model stays nominal.
+
+Every random draw of a run comes from its seed through :func:`random_stream`.
 """
 from __future__ import annotations
 
@@ -18,9 +24,26 @@ import numpy as np
 
 from ..config import ControllerConfig
 from ..model.plant import discretise
+from .mismatch import PlantMismatch
 
 PAPER_LEVELS_DEG = (0.0, -20.0, 20.0, -40.0, 40.0, 0.0)
 PAPER_SEGMENT_S = 10.0
+# the independent random streams of one seed; "noise" is numpy's default_rng(seed) itself
+# (the measurement noise of `rollmpc simulate --seed` since the beginning)
+RANDOM_STREAMS = ("noise", "mismatch", "reference")
+
+
+def random_stream(seed: int, stream: str) -> np.random.Generator:
+    """The generator of one of ``seed``'s :data:`RANDOM_STREAMS`."""
+    index = RANDOM_STREAMS.index(stream)
+    return np.random.default_rng(seed if index == 0 else [seed, index])
+
+
+def plant_mismatch(cfg: ControllerConfig, fraction: float, seed: int) -> PlantMismatch | None:
+    """The plant mismatch of a run seeded ``seed`` (None when ``fraction`` is 0)."""
+    if not fraction:
+        return None
+    return PlantMismatch.draw(len(cfg.modes), fraction, random_stream(seed, "mismatch"))
 
 
 def paper_reference(sample_time: float, levels=PAPER_LEVELS_DEG,
@@ -45,6 +68,34 @@ def scenario_reference(cfg: ControllerConfig) -> np.ndarray:
                            sim.reference_segment_s)
 
 
+def reference_range(cfg: ControllerConfig) -> tuple[np.ndarray, np.ndarray]:
+    """(low, high) per output of a random flight's levels: the output bounds every mode
+    keeps (the tightest); an unbounded side is the largest |level| of the config's
+    scenario, moved to twice that beyond the other side's bound when that is past it."""
+    amplitude = np.abs(scenario_reference(cfg)).max(axis=0)
+    amplitude = np.where(amplitude > 0, amplitude, 1.0)
+    y_min = np.max([m.y_min for m in cfg.modes], axis=0)
+    y_max = np.min([m.y_max for m in cfg.modes], axis=0)
+    low = np.where(np.isfinite(y_min), y_min, np.minimum(-amplitude, y_max - 2 * amplitude))
+    high = np.where(np.isfinite(y_max), y_max, np.maximum(amplitude, y_min + 2 * amplitude))
+    if not np.all(low < high):
+        raise ValueError("the modes' output bounds leave no common range for a reference")
+    return low, high
+
+
+def random_reference(cfg: ControllerConfig, rng: np.random.Generator,
+                     samples: int) -> tuple[np.ndarray, np.ndarray]:
+    """(levels, reference) of a random flight of at least ``samples`` samples: the
+    scenario's segment length and at least its number of levels, each level drawn
+    uniformly in :func:`reference_range` (one value per output)."""
+    segment = cfg.simulation.reference_segment_s or PAPER_SEGMENT_S
+    per = int(round(segment / cfg.sample_time))
+    count = -(-max(samples, len(scenario_reference(cfg))) // per)
+    low, high = reference_range(cfg)
+    levels = rng.uniform(low, high, size=(count, cfg.n_outputs))
+    return levels, paper_reference(cfg.sample_time, levels, segment)
+
+
 def preview(ref: np.ndarray, k: int, N: int, n_outputs: int = 1) -> np.ndarray:
     """r_{k+1|k} .. r_{k+N|k}, output-major per step, held at the end of the record."""
     idx = np.minimum(np.arange(k + 1, k + N + 1), len(ref) - 1)
@@ -62,15 +113,17 @@ class Channel:
 
 
 class SimulatedPlant:
-    """Sum of the modes' channels, each sampled exactly (ZOH) at the controller rate."""
+    """Sum of the modes' channels, each sampled exactly (ZOH) at the controller rate;
+    ``mismatch`` perturbs each mode's plant (None: the config's model)."""
 
-    def __init__(self, cfg: ControllerConfig):
+    def __init__(self, cfg: ControllerConfig, mismatch: PlantMismatch | None = None):
         self.cfg = cfg
         self.channels = []
         for j, mode in enumerate(cfg.modes):
             # the true plant: the config's model, never augmented by a disturbance model
             # (disturbance_model); a discrete state-space plant is used as given
-            disc = discretise(mode, cfg.sample_time, f"modes[{j}]")
+            disc = (discretise(mode, cfg.sample_time, f"modes[{j}]") if mismatch is None
+                    else mismatch.plant(j, mode, cfg.sample_time))
             acts = np.array([cfg.actuators.index(a) for a in mode.actuators])
             self.channels.append(Channel(disc.A, disc.B, disc.C, disc.Cr, disc.Dr, acts))
         self.reset()

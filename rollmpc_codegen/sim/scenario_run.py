@@ -16,7 +16,7 @@ from ..config import ControllerConfig
 from ..host.build import build_host_controller
 from ..pipeline import load_model
 from .metrics import summarize
-from .scenario import scenario_reference
+from .scenario import plant_mismatch, scenario_reference
 from .simulate import ClosedLoopLog, run_closed_loop, start_phase
 
 BASELINES = ("lqr",)
@@ -36,20 +36,22 @@ class ScenarioRun:
 
 def run_scenario(config: str | Path, *, precision: str | None = None,
                  steps: int | None = None, noise_std: float = 0.0, disturbance: float = 0.0,
-                 seed: int = 0, baseline: str | None = None,
+                 mismatch: float = 0.0, seed: int = 0, baseline: str | None = None,
                  build_dir: str | Path | None = None, progress=None) -> ScenarioRun:
     """Simulate ``steps`` samples (default: the whole scenario) of the generated C for
-    ``config``, with seeded measurement noise and a constant input disturbance
-    (``run_closed_loop``); ``baseline="lqr"`` also runs the saturated LQR."""
+    ``config``, with seeded measurement noise, a constant input disturbance and a plant
+    mismatch of up to ``mismatch`` (a fraction, sim/mismatch.py) (``run_closed_loop``);
+    ``baseline="lqr"`` also runs the saturated LQR."""
     if baseline is not None and baseline not in BASELINES:
         raise ValueError(f"unknown baseline {baseline!r}; choose from {', '.join(BASELINES)}")
     model, ctx = load_model(config, precision)
     cfg = model.config
     steps = steps if steps is not None else len(scenario_reference(cfg))
+    true_plant = plant_mismatch(cfg, mismatch, seed)
 
     def run(controller, label: str) -> ClosedLoopLog:
         return run_closed_loop(cfg, controller, steps=steps, noise_std=noise_std,
-                               disturbance=disturbance, seed=seed,
+                               disturbance=disturbance, seed=seed, mismatch=true_plant,
                                progress=start_phase(progress, steps, label),
                                info=controller.info)
 
@@ -58,7 +60,9 @@ def run_scenario(config: str | Path, *, precision: str | None = None,
     summary = {"config": str(config), "precision": ctx["precision"],
                "solver": dict(ctx["solver"]), "modes": [m.name for m in cfg.modes],
                "sample_time": cfg.sample_time, "horizon": cfg.horizon,
-               "noise_std": noise_std, "disturbance": disturbance, "seed": seed,
+               "noise_std": noise_std, "disturbance": disturbance, "mismatch": mismatch,
+               "plant_mismatch": None if true_plant is None else true_plant.as_dict(),
+               "seed": seed,
                **summarize(cfg, log)}
     base_log = None
     if baseline == "lqr":

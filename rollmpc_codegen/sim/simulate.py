@@ -13,7 +13,8 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..config import ControllerConfig
-from .scenario import SimulatedPlant, preview, scenario_reference
+from .mismatch import PlantMismatch
+from .scenario import SimulatedPlant, preview, random_stream, scenario_reference
 
 
 @dataclass
@@ -71,19 +72,21 @@ def start_phase(progress, total: int, label: str):
 
 def run_closed_loop(cfg: ControllerConfig, controller, reference: np.ndarray | None = None,
                     steps: int | None = None, noise_std: float = 0.0,
-                    disturbance: float = 0.0, seed: int = 0, progress=None,
+                    disturbance: float = 0.0, seed: int = 0,
+                    mismatch: PlantMismatch | None = None, progress=None,
                     info=None) -> ClosedLoopLog:
     """Simulate ``steps`` samples of the scenario (default: the config's reference,
     scenario.scenario_reference: the paper's 60 s reference unless simulation.reference).
 
     ``noise_std`` adds seeded Gaussian noise to the measured outputs and the scheduling
-    signal; ``disturbance`` is a constant input disturbance added to every actuator.
+    signal; ``disturbance`` is a constant input disturbance added to every actuator;
+    ``mismatch`` perturbs the simulated plant (:mod:`rollmpc_codegen.sim.mismatch`).
     ``info`` (optional) is a callable returning the controller's last-solve diagnostics.
     """
     ref = scenario_reference(cfg) if reference is None else np.asarray(reference)
     K = len(ref) if steps is None else int(steps)
-    rng = np.random.default_rng(seed)
-    plant = SimulatedPlant(cfg)
+    rng = random_stream(seed, "noise")
+    plant = SimulatedPlant(cfg, mismatch)
     ny, na, ns, N = cfg.n_outputs, len(cfg.actuators), cfg.n_schedule, cfg.horizon
     log = ClosedLoopLog(t=np.arange(K) * cfg.sample_time, r=np.zeros((K, ny)),
                         y=np.zeros((K, ny)), sched=np.zeros((K, ns)), u=np.zeros((K, na)),

@@ -1,7 +1,8 @@
 """``rollmpc report --horizons``: the measurement of :mod:`rollmpc_codegen.target.measure`
 repeated with the config's horizon overridden, the growth of each figure in N fitted
-(log-log least squares), the horizon that still fits a 10 ms step at 168 MHz, and which
-common autopilot parts hold each horizon in memory.
+(log-log least squares), the horizon that still fits the budget (the config's sample time
+at its ``target.cpu_mhz``, measure.budget_verdict), and which common autopilot parts hold
+each horizon in memory.
 """
 from __future__ import annotations
 
@@ -81,9 +82,11 @@ def horizon_table(config: Path, horizons: list[int], precision: str | None, buil
                      **{k: rep[k] for k in ("flash_bytes", "ram_bytes", "ctrl_bytes",
                                             "stack_bytes", "worst_step_cycles",
                                             "worst_step_instructions", "median_step_cycles",
-                                            "cpu_mhz_for_10ms", "bit_exact_vs_host")},
+                                            "cpu_mhz_needed", "bit_exact_vs_host")},
                      "budget_cycles": rep["budget"]["cycles_per_sample"],
-                     "fits_10ms_at_168MHz": rep["budget"]["worst_fits"]})
+                     "fits_budget": rep["budget"]["worst_fits"]})
+        # the same for every horizon: the config's Ts and target.cpu_mhz
+        budget = {k: rep["budget"][k] for k in ("cpu_mhz", "sample_time", "cycles_per_sample")}
     ns = [r["horizon"] for r in rows]
     keys = ("generation_s", "flash_bytes", "ram_bytes", "worst_step_cycles",
             "median_step_cycles")
@@ -91,13 +94,13 @@ def horizon_table(config: Path, horizons: list[int], precision: str | None, buil
     for key in keys:  # the slope between the two largest horizons (the asymptotic trend)
         fits[key]["exponent_last_pair"] = (loglog_fit(ns[-2:], [r[key] for r in rows[-2:]])
                                            ["exponent"] if len(rows) > 1 else None)
-    n_max = horizon_limit(ns, [r["worst_step_cycles"] for r in rows], rows[0]["budget_cycles"])
+    n_max = horizon_limit(ns, [r["worst_step_cycles"] for r in rows], budget["cycles_per_sample"])
     parts = []
     for part in PARTS:
         ok = [r["horizon"] for r in rows if r["flash_bytes"] <= part["flash_kib"] * 1024
               and r["ram_bytes"] <= part["ram_kib"] * 1024]
         parts.append({**part, "horizons_that_fit_memory": ok})
-    fitting = [r["horizon"] for r in rows if r["fits_10ms_at_168MHz"]]
-    return {"rows": rows, "fits": fits, "parts": parts,
-            "largest_measured_horizon_within_10ms_at_168MHz": max(fitting) if fitting else None,
-            "fitted_horizon_limit_10ms_at_168MHz": n_max}
+    fitting = [r["horizon"] for r in rows if r["fits_budget"]]
+    return {"rows": rows, "fits": fits, "parts": parts, "budget": budget,
+            "largest_measured_horizon_within_budget": max(fitting) if fitting else None,
+            "fitted_horizon_limit": n_max}

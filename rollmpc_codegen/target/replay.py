@@ -2,8 +2,9 @@
 host run, choose the steps to count, and replay the run on the emulated Cortex-M4F.
 
 1. Host run: the host build of the same precision (through cffi) closes the loop on the
-   scenario; every input it was given (y, sched, r) and every output (u, status,
-   diagnostics, solve time) is recorded.
+   scenario, or on a flight (``loop_options``: its reference and perturbations, see
+   :mod:`rollmpc_codegen.target.flights`); every input it was given (y, sched, r) and
+   every output (u, status, diagnostics, solve time) is recorded.
 2. Step choice: the hardest steps by the host's solve time (the smallest of several runs:
    the host clock is noisy), polish corrections, active rows and sweeps, plus a sampled
    sweep (every ``sample_every``-th step).
@@ -64,27 +65,30 @@ class _RecordingController:
 
 
 def record_host_run(model, ctx: dict, build_root: Path, steps: int | None,
-                    progress=None, repeats: int = 1) -> HostRecord:
-    """Close the loop with the host build and record every step.
+                    progress=None, repeats: int = 1, loop_options: dict | None = None,
+                    label: str = "report") -> HostRecord:
+    """Close the loop with the host build and record every step; ``loop_options`` are
+    keywords of ``run_closed_loop`` (reference, noise_std, disturbance, seed, mismatch).
 
     With ``repeats`` > 1 the (deterministic) closed loop runs again and each step keeps its
     smallest solve time: the host clock on a shared machine is noisy, and the minimum is
     what ranks the hardest steps.
     """
     record = HostRecord()
-    total = steps or len(scenario_reference(model.config))
+    loop_options = loop_options or {}
+    reference = loop_options.get("reference")
+    total = steps or len(scenario_reference(model.config) if reference is None else reference)
     for run in range(max(1, repeats)):
         host = build_host_controller(ctx, build_root)
-        label = f"report: host run {run + 1}/{max(1, repeats)}"
-        cb = start_phase(progress, total, label)
+        cb = start_phase(progress, total, f"{label}: host run {run + 1}/{max(1, repeats)}")
         if run == 0:
             run_closed_loop(model.config, _RecordingController(host, record), steps=steps,
-                            progress=cb)
+                            progress=cb, **loop_options)
             record.final_state = bytes(host.ffi.buffer(host.ctrl))
             continue
         timings = HostRecord()
         run_closed_loop(model.config, _RecordingController(host, timings), steps=steps,
-                        progress=cb)
+                        progress=cb, **loop_options)
         for info, again in zip(record.info, timings.info):
             info["solve_ticks"] = min(info["solve_ticks"], again["solve_ticks"])
     return record
@@ -117,7 +121,7 @@ class TargetRun:
 
 
 def replay_on_target(build, ctx: dict, record: HostRecord, count_steps: set[int],
-                     progress=None) -> TargetRun:
+                     progress=None, label: str = "report") -> TargetRun:
     """Replay the recorded inputs from step 0 on the emulated M4F; compare every output."""
     p = ctx["prefix"]
     dt = np.float32 if ctx["real"] == "float" else np.float64
@@ -129,7 +133,7 @@ def replay_on_target(build, ctx: dict, record: HostRecord, count_steps: set[int]
                            f"target ({ctrl_size} B)")
     em.call(f"{p}_target_init")
     n = len(record.u)
-    cb = start_phase(progress, n, "report: target run ")
+    cb = start_phase(progress, n, f"{label}: target run ")
     counts, mismatches = {}, []
     for k in range(n):
         em.write(f"{p}_target_y", record.y[k])

@@ -10,6 +10,10 @@ progress goes to an optional callback factory, see ``sim.simulate.start_phase``)
    the chosen steps' instructions and cycles are counted
    (:mod:`rollmpc_codegen.target.measure` assembles the figures).
 
+The run is the config's scenario, or with ``flights`` that many random flights; either
+perturbed by measurement noise, an input disturbance and a plant mismatch
+(:mod:`rollmpc_codegen.target.flights`).
+
 With ``horizons`` the measurement is repeated for the config with the horizon overridden,
 and the growth of each figure in N is fitted (:mod:`rollmpc_codegen.target.horizons`).
 """
@@ -22,6 +26,7 @@ from .. import config as config_mod
 from ..extras import installed
 from ..host.build_cache import private_root
 from ..pipeline import load_model
+from .flights import FlightPlan
 from .horizons import horizon_table
 from .measure import measure
 
@@ -30,23 +35,31 @@ TARGET_MODULES = (("unicorn", "unicorn"), ("capstone", "capstone"), ("elftools",
 
 def run_report(config: str | Path, *, precision: str | None = None,
                horizons: Iterable[int] | None = None, steps: int | None = None,
+               flights: int = 0, seed: int = 0, noise_std: float = 0.0,
+               disturbance: float = 0.0, mismatch: float = 0.0,
                sample_every: int = 20, hardest: int = 10, host_repeats: int = 5,
                extra_cflags: tuple[str, ...] = (), build_dir: str | Path | None = None,
                progress=None) -> dict:
     """The report of ``config`` (the keys of :func:`rollmpc_codegen.target.measure.measure`),
     or with ``horizons`` ``{"horizons": horizon_table(...)}``.
 
-    ``steps`` scenario samples are replayed (default: all); cycles are counted on every
-    ``sample_every``-th step and on the ``hardest`` steps, ranked by the smallest host solve
-    time of ``host_repeats`` runs; ``extra_cflags`` are appended to the target's flags.
+    ``steps`` samples of the scenario, or of each of ``flights`` random flights, are
+    replayed (default: the scenario's length); ``seed``, ``noise_std``, ``disturbance``
+    and ``mismatch`` perturb them (:class:`~rollmpc_codegen.target.flights.FlightPlan`).
+    Cycles are counted on every ``sample_every``-th step and on the ``hardest`` steps,
+    ranked by the smallest host solve time of ``host_repeats`` runs; ``extra_cflags`` are
+    appended to the target's flags.
     """
     for module, package in TARGET_MODULES:
         if not installed(module):
             raise RuntimeError(f"{package} is missing; install with: pip install "
                                "'rollmpc-codegen[target]'")
     root = private_root(build_dir or None)  # it receives configs too, not only builds
+    plan = FlightPlan(flights=flights, seed=seed, noise_std=noise_std,
+                      disturbance=disturbance, mismatch=mismatch)
     options = {"steps": steps, "sample_every": sample_every, "hardest": hardest,
-               "extra_cflags": tuple(extra_cflags), "host_repeats": host_repeats}
+               "extra_cflags": tuple(extra_cflags), "host_repeats": host_repeats,
+               "plan": plan}
     if horizons:
         config_mod.load(config, precision)  # validate before the long run
         return {"horizons": horizon_table(Path(config), sorted(set(horizons)), precision, root,
