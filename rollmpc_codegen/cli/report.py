@@ -23,7 +23,8 @@ def add_parser(sub) -> None:
                     "scenario's length)")
     rp.add_argument("--flights", type=int, default=0,
                     help="replay K random flights instead of the scenario: levels drawn "
-                    "within the output bounds, flight i seeded with --seed + i (default 0)")
+                    "within the range the scenario spans, inside the output bounds; flight i seeded "
+                    "with --seed + i (default 0)")
     add_perturbations(rp)
     rp.add_argument("--sample-every", type=int, default=20,
                     help="count cycles on every n-th step besides the hardest (default 20)")

@@ -5,7 +5,8 @@ to every output, unless the config gives ``simulation.reference`` (levels, each 
 for every output or one value per output, held ``segment`` seconds each); the
 controller receives the preview r_{k+1..k+N} (held at the last value past the end).
 A random flight (``rollmpc report --flights``) keeps the scenario's segment length and
-draws each level uniformly within the output bounds (:func:`random_reference`).
+draws each level uniformly within the range the scenario spans, inside the output
+bounds (:func:`reference_range`).
 
 Plant: every mode is a *channel* (its continuous model from the config, sampled exactly
 by ZOH); all channels act together and the measured outputs are their sum -- for the UAV,
@@ -69,15 +70,18 @@ def scenario_reference(cfg: ControllerConfig) -> np.ndarray:
 
 
 def reference_range(cfg: ControllerConfig) -> tuple[np.ndarray, np.ndarray]:
-    """(low, high) per output of a random flight's levels: the output bounds every mode
-    keeps (the tightest); an unbounded side is the largest |level| of the config's
-    scenario, moved to twice that beyond the other side's bound when that is past it."""
-    amplitude = np.abs(scenario_reference(cfg)).max(axis=0)
-    amplitude = np.where(amplitude > 0, amplitude, 1.0)
+    """(low, high) per output of a random flight's levels: the range the config's own
+    scenario spans (the envelope the design was written for), inside the output bounds
+    every mode keeps. The bounds alone would be a safety envelope, not a flight: the
+    paper's ±270 deg roll bound would ask for -170 deg bank."""
+    levels = scenario_reference(cfg)
+    low, high = levels.min(axis=0), levels.max(axis=0)
+    flat = high - low <= 0  # one level only: ± its size (or ±1) around zero
+    size = np.where(np.abs(high) > 0, np.abs(high), 1.0)
+    low, high = np.where(flat, -size, low), np.where(flat, size, high)
     y_min = np.max([m.y_min for m in cfg.modes], axis=0)
     y_max = np.min([m.y_max for m in cfg.modes], axis=0)
-    low = np.where(np.isfinite(y_min), y_min, np.minimum(-amplitude, y_max - 2 * amplitude))
-    high = np.where(np.isfinite(y_max), y_max, np.maximum(amplitude, y_min + 2 * amplitude))
+    low, high = np.maximum(low, y_min), np.minimum(high, y_max)
     if not np.all(low < high):
         raise ValueError("the modes' output bounds leave no common range for a reference")
     return low, high
