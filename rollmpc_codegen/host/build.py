@@ -86,7 +86,8 @@ class HostController:
         obj.prefix = ctx["prefix"]
         obj.dtype = np.float64 if ctx["real"] == "double" else np.float32
         obj._fn = {name: getattr(lib, f"{obj.prefix}_{name}") for name in
-                   ("ctrl_size", "init", "step", "solve_qp", "last_info", "status_message")
+                   ("ctrl_size", "init", "step", "observe", "solve_qp", "last_info",
+                    "status_message")
                    + (("set_bounds", "get_bounds") if ctx.get("runtime_bounds") else ())}
         obj.ctrl = ffi.new("char[]", obj._fn["ctrl_size"]())
         obj.u = np.zeros(ctx["n_actuators"], obj.dtype)
@@ -109,6 +110,16 @@ class HostController:
         u = np.zeros(self.ctx["n_actuators"], self.dtype)
         status = self._fn["step"](self.ctrl, self._ptr(y), sp, self._ptr(r), self._ptr(u))
         return status, u
+
+    def observe(self, y, sched, u_applied) -> int:
+        """``P_observe``: track the plant under another controller's command."""
+        y = np.ascontiguousarray(y, self.dtype)
+        u = np.ascontiguousarray(u_applied, self.dtype)
+        sp = self.ffi.NULL
+        if sched is not None and len(sched):
+            sched = np.ascontiguousarray(sched, self.dtype)
+            sp = self._ptr(sched)
+        return self._fn["observe"](self.ctrl, self._ptr(y), sp, self._ptr(u))
 
     def solve_qp(self, mode: int, x, r) -> tuple[int, np.ndarray, int]:
         x = np.ascontiguousarray(x, self.dtype)
