@@ -28,7 +28,7 @@ CDEF = """
 typedef struct {{
     uint32_t timeout_us; uint16_t frozen_samples; uint16_t warmup_samples;
     uint16_t max_failures; float ref_slew_dps;
-    int8_t channel[{n}]; int8_t sign[{n}]; float throw_deg[{n}];
+    int8_t channel[{n}][2]; int8_t sign[{n}][2]; float throw_deg[{n}];
 }} rollglue_params;
 typedef struct {{
     float roll_deg; uint64_t roll_us; float roll_rate_dps; uint64_t rate_us;
@@ -66,7 +66,8 @@ def build_glue(generated: Path, out: Path) -> Path:
 
 
 DEFAULTS = dict(timeout_us=25_000, frozen_samples=25, warmup_samples=20, max_failures=5,
-                ref_slew_dps=30.0, channel=(0, 1), sign=(1, 1), throw_deg=(15.0, 15.0))
+                ref_slew_dps=30.0, channel=((0, -1), (1, -1)), sign=((1, 1), (1, 1)),
+                throw_deg=(15.0, 15.0))
 
 
 class Glue:
@@ -89,7 +90,8 @@ class Glue:
     def set_params(self, n_channels: int = 8, **changes) -> int:
         p = self.ffi.new("rollglue_params *")
         for key, value in {**DEFAULTS, **changes}.items():
-            setattr(p, key, list(value) if isinstance(value, tuple) else value)
+            setattr(p, key, [list(v) if isinstance(v, tuple) else v for v in value]
+                    if isinstance(value, tuple) else value)
         return self.lib.rollglue_set_params(self.state, p, n_channels)
 
     def step(self, now_us: int, engage: bool, roll, rate, cmd, roll_us, rate_us, cmd_us,
@@ -153,13 +155,13 @@ def closed_loop(glue: Glue, model, ctx, steps: int, engage, cmd, faults: Faults 
             y_in, rate_in = frozen
         if k in faults.nan:
             y_in = rate_in = float("nan")
-        applied = {ch: s * u / t for ch, s, u, t in zip(p["channel"], p["sign"], u_ap,
-                                                        p["throw_deg"])}
+        first_servo = [(ch[0], sg[0], t) for ch, sg, t in zip(p["channel"], p["sign"],
+                                                             p["throw_deg"])]
+        applied = {ch: s * u / t for (ch, s, t), u in zip(first_servo, u_ap)}
         valid, out = glue.step(now, engage(k), y_in, rate_in, cmd_in, roll_us, rate_us, cmd_us,
                                applied)
         if valid:  # the servos: normalised value -> deflection through the same mapping
-            u = np.array([s * out.value[ch] * t for ch, s, t in zip(p["channel"], p["sign"],
-                                                                   p["throw_deg"])])
+            u = np.array([s * out.value[ch] * t for ch, s, t in first_servo])
         else:
             u = u_ap
         log.y.append(y)

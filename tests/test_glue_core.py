@@ -202,15 +202,16 @@ BAD_PARAMS = [
     ({"timeout_us": 4999}, 1), ({"timeout_us": 100_001}, 1), ({"frozen_samples": 1}, 2),
     ({"frozen_samples": 1001}, 2), ({"warmup_samples": 0}, 3), ({"max_failures": 0}, 4),
     ({"max_failures": 1001}, 4), ({"ref_slew_dps": -1.0}, 5), ({"ref_slew_dps": math.nan}, 5),
-    ({"channel": (0, 8)}, 6), ({"channel": (-1, 1)}, 6), ({"channel": (2, 2)}, 7),
-    ({"sign": (1, 0)}, 8), ({"throw_deg": (15.0, 0.5)}, 9), ({"throw_deg": (math.inf, 15.0)}, 9),
+    ({"channel": ((0, -1), (8, -1))}, 6), ({"channel": ((-1, 2), (1, -1))}, 6),
+    ({"channel": ((2, -1), (2, -1))}, 7), ({"channel": ((0, 1), (4, 1))}, 7),
+    ({"sign": ((1, 1), (0, 1))}, 8), ({"channel": ((0, 2), (1, -1)), "sign": ((1, 0), (1, 1))}, 8), ({"throw_deg": (15.0, 0.5)}, 9), ({"throw_deg": (math.inf, 15.0)}, 9),
     ({"throw_deg": (math.nan, 15.0)}, 9), ({"n_channels": 0}, 10), ({"n_channels": 33}, 10),
 ]
 
 
 @pytest.mark.parametrize("change, code", BAD_PARAMS)
 def test_out_of_range_parameters_are_refused_and_change_nothing(glue, change, code):
-    assert glue.set_params(channel=(3, 5)) == 0
+    assert glue.set_params(channel=((3, -1), (5, -1))) == 0
     assert glue.set_params(**change) == code
     valid, out = glue.step(10_000, True, 0.0, 0.0, 0.0, 10_000, 10_000, 10_000,
                            {3: 0.0, 5: 0.0})
@@ -218,11 +219,13 @@ def test_out_of_range_parameters_are_refused_and_change_nothing(glue, change, co
 
 
 def test_channel_sign_and_throw_mapping(glue_lib, uav_f32):
-    """Channels 3 and 5, the inner pair reversed, unequal throws: the plant sees the same
-    deflections as with the identity mapping; a throw below the deflection saturates."""
+    """The inner pair on channels 3 (reversed) and 6, the outer on 5 alone, unequal
+    throws: the plant sees the same deflections as with the identity mapping, the second
+    servo mirrors the first; a throw below the deflection saturates at 1."""
     model, ctx = uav_f32
     runs = {}
-    for name, params in {"identity": {}, "mapped": {"channel": (3, 5), "sign": (-1, 1),
+    for name, params in {"identity": {}, "mapped": {"channel": ((3, 6), (5, -1)),
+                                                    "sign": ((-1, 1), (1, 1)),
                                                     "throw_deg": (20.0, 16.0)}}.items():
         g = Glue(glue_lib, 2)
         assert g.set_params(**params) == 0
@@ -232,8 +235,10 @@ def test_channel_sign_and_throw_mapping(glue_lib, uav_f32):
     mapped = runs["mapped"]
     values = np.array(mapped["values"])
     k = first(mapped["valid"])
-    assert np.float32(values[k, 3]) == np.float32(-mapped["u"][k, 0] / 20.0)
-    assert np.isnan(values[:, [0, 1, 2, 4, 6]]).all()
+    assert np.float32(values[k, 3]) == -np.float32(np.float32(mapped["u"][k, 0]) / np.float32(20.0))
+    assert np.array_equal(values[mapped["valid"].astype(bool)][:, 6],
+                          -values[mapped["valid"].astype(bool)][:, 3])
+    assert np.isnan(values[:, [0, 1, 2, 4, 7]]).all()
     assert np.abs(runs["identity"]["y"] - mapped["y"]).max() < 1e-3
     g = Glue(glue_lib, 2)
     assert g.set_params(throw_deg=(5.0, 5.0)) == 0

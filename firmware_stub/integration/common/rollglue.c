@@ -39,26 +39,40 @@ static int in_range_f(float v, float lo, float hi)
     return isfinite(v) && v >= lo && v <= hi; /* NaN fails every comparison */
 }
 
-static int check_actuators(const rollglue_params *p, uint32_t n_channels)
+/* Channel (-1 = none, second servos only) and sign of every servo; no channel twice. */
+static int check_servos(const rollglue_params *p, uint32_t n_channels)
 {
-    int a, b;
-    for (a = 0; a < ROLLGLUE_N_ACT; ++a) {
-        if (p->channel[a] < 0 || (uint32_t)p->channel[a] >= n_channels) {
+    int i, j;
+    const int n = ROLLGLUE_N_ACT * ROLLGLUE_SIDES;
+    const int8_t *ch = &p->channel[0][0], *sg = &p->sign[0][0];
+    for (i = 0; i < n; ++i) {
+        if (ch[i] == -1 && i % ROLLGLUE_SIDES != 0) {
+            continue;
+        }
+        if (ch[i] < 0 || (uint32_t)ch[i] >= n_channels) {
             return ROLLGLUE_PARAMS_CHANNEL;
         }
-        for (b = 0; b < a; ++b) {
-            if (p->channel[b] == p->channel[a]) {
+        for (j = 0; j < i; ++j) {
+            if (ch[j] == ch[i]) {
                 return ROLLGLUE_PARAMS_SHARED_CHANNEL;
             }
         }
-        if (p->sign[a] != 1 && p->sign[a] != -1) {
+        if (sg[i] != 1 && sg[i] != -1) {
             return ROLLGLUE_PARAMS_SIGN;
         }
+    }
+    return ROLLGLUE_PARAMS_OK;
+}
+
+static int check_actuators(const rollglue_params *p, uint32_t n_channels)
+{
+    int a;
+    for (a = 0; a < ROLLGLUE_N_ACT; ++a) {
         if (!in_range_f(p->throw_deg[a], ROLLGLUE_THROW_MIN_DEG, ROLLGLUE_THROW_MAX_DEG)) {
             return ROLLGLUE_PARAMS_THROW;
         }
     }
-    return ROLLGLUE_PARAMS_OK;
+    return check_servos(p, n_channels);
 }
 
 static int check_params(const rollglue_params *p, uint32_t n_channels)
@@ -138,11 +152,11 @@ static int applied_deflections(const rollglue *g, const rollglue_input *in, glue
 {
     int a;
     for (a = 0; a < ROLLGLUE_N_ACT; ++a) {
-        const float v = in->applied[g->params.channel[a]];
+        const float v = in->applied[g->params.channel[a][0]];
         if (!isfinite(v)) {
             return 0;
         }
-        u[a] = (glue_real)((float)g->params.sign[a] * v * g->params.throw_deg[a]);
+        u[a] = (glue_real)((float)g->params.sign[a][0] * v * g->params.throw_deg[a]);
     }
     return 1;
 }
@@ -191,7 +205,7 @@ static void build_reference(rollglue *g, float cmd_deg)
 static int solve(rollglue *g, const rollglue_input *in, rollglue_output *out)
 {
     glue_real y[1], sched[1], u[ROLLGLUE_N_ACT];
-    int a, finite = 1;
+    int a, s, finite = 1;
     const ROLLGLUE_FN(_info) *info;
     y[0] = (glue_real)in->roll_deg;
     sched[0] = (glue_real)in->roll_rate_dps;
@@ -210,16 +224,21 @@ static int solve(rollglue *g, const rollglue_input *in, rollglue_output *out)
         return 0;
     }
     for (a = 0; a < ROLLGLUE_N_ACT; ++a) {
-        const float v = (float)g->params.sign[a] * (float)u[a] / g->params.throw_deg[a];
+        const float v = (float)u[a] / g->params.throw_deg[a];
+        const float norm = v > 1.0f ? 1.0f : (v < -1.0f ? -1.0f : v);
         out->u_deg[a] = (float)u[a];
-        out->value[g->params.channel[a]] = v > 1.0f ? 1.0f : (v < -1.0f ? -1.0f : v);
+        for (s = 0; s < ROLLGLUE_SIDES; ++s) {
+            if (g->params.channel[a][s] >= 0) {
+                out->value[g->params.channel[a][s]] = (float)g->params.sign[a][s] * norm;
+            }
+        }
     }
     return 1;
 }
 
 static void clear_output(const rollglue *g, rollglue_output *out)
 {
-    int c, a;
+    int c, a, s;
     out->valid = 0;
     out->channel_mask = 0u;
     for (c = 0; c < ROLLGLUE_MAX_CHANNELS; ++c) {
@@ -227,8 +246,10 @@ static void clear_output(const rollglue *g, rollglue_output *out)
     }
     for (a = 0; a < ROLLGLUE_N_ACT; ++a) {
         out->u_deg[a] = NAN;
-        if (g->n_channels != 0u) {
-            out->channel_mask |= 1u << (uint32_t)g->params.channel[a];
+        for (s = 0; s < ROLLGLUE_SIDES && g->n_channels != 0u; ++s) {
+            if (g->params.channel[a][s] >= 0) {
+                out->channel_mask |= 1u << (uint32_t)g->params.channel[a][s];
+            }
         }
     }
 }

@@ -47,6 +47,8 @@ extern "C" {
 #endif
 
 #define ROLLGLUE_N_ACT ROLLGLUE_K(_N_ACTUATORS)
+/** Servos per actuator: a pair of ailerons on two channels (left, right) or on one. */
+#define ROLLGLUE_SIDES 2
 /** Servo output channels the glue can address (PX4 uses 8, ArduPilot up to 32). */
 #define ROLLGLUE_MAX_CHANNELS 32
 
@@ -71,8 +73,11 @@ typedef struct {
     uint16_t warmup_samples;  /**< Tracked samples (observers fed) before an engage. */
     uint16_t max_failures;    /**< Consecutive failures before a lock-out. */
     float ref_slew_dps;       /**< Reference ramp from the measured roll to the command. */
-    int8_t channel[ROLLGLUE_N_ACT];    /**< Output channel of each actuator, 0-based. */
-    int8_t sign[ROLLGLUE_N_ACT];       /**< +1 or -1: servo direction of each actuator. */
+    /** Output channel of each actuator's servos, 0-based; the second may be -1 (one
+     *  servo or a Y-cable drives the pair). */
+    int8_t channel[ROLLGLUE_N_ACT][ROLLGLUE_SIDES];
+    /** +1 or -1: the normalised value of a servo is sign * deflection / throw. */
+    int8_t sign[ROLLGLUE_N_ACT][ROLLGLUE_SIDES];
     float throw_deg[ROLLGLUE_N_ACT];   /**< Deflection at a normalised value of 1. */
 } rollglue_params;
 
@@ -84,8 +89,8 @@ typedef enum {
     ROLLGLUE_PARAMS_WARMUP = 3,
     ROLLGLUE_PARAMS_MAX_FAIL = 4,
     ROLLGLUE_PARAMS_SLEW = 5,
-    ROLLGLUE_PARAMS_CHANNEL = 6,       /**< Outside [0, n_channels). */
-    ROLLGLUE_PARAMS_SHARED_CHANNEL = 7,/**< Two actuators on one channel. */
+    ROLLGLUE_PARAMS_CHANNEL = 6,       /**< Outside [0, n_channels) (or -1 on a first side). */
+    ROLLGLUE_PARAMS_SHARED_CHANNEL = 7,/**< Two servos on one channel. */
     ROLLGLUE_PARAMS_SIGN = 8,
     ROLLGLUE_PARAMS_THROW = 9,
     ROLLGLUE_PARAMS_N_CHANNELS = 10    /**< n_channels outside [1, ROLLGLUE_MAX_CHANNELS]. */
@@ -100,7 +105,8 @@ typedef struct {
     float roll_cmd_deg;        /**< Commanded roll angle. */
     uint64_t cmd_us;           /**< When the command was last published; 0 = never. */
     /** Normalised value each channel is driven with this sample by whoever drives it,
-     *  NaN where unknown. Feeds the observers while the autopilot flies. */
+     *  NaN where unknown. The first servo of each actuator feeds the observers while
+     *  the autopilot flies. */
     float applied[ROLLGLUE_MAX_CHANNELS];
     int engage;                /**< Nonzero: the autopilot hands roll to the MPC. */
 } rollglue_input;
