@@ -254,7 +254,7 @@ def header_ranges() -> dict[str, float]:
 
 
 def test_autopilot_parameter_ranges_match_the_core():
-    """PX4's module.yaml and ArduPilot's @Range repeat the core's enforced ranges."""
+    """PX4's module.yaml repeats the core's enforced ranges."""
     h = header_ranges()
     px4 = yaml.safe_load((ROOT / "firmware_stub/integration/px4/rollmpc/module.yaml").read_text())
     defs = {k: v for group in px4["parameters"] for k, v in group["definitions"].items()}
@@ -267,11 +267,15 @@ def test_autopilot_parameter_ranges_match_the_core():
               "RMPC_THROW_OUT": (h["THROW_MIN_DEG"], h["THROW_MAX_DEG"])}
     for name, (lo, hi) in expect.items():
         assert (defs[name]["min"], defs[name]["max"]) == (lo, hi), name
-    ap = (ROOT / "firmware_stub/integration/ardupilot/AP_RollMPC_Params.cpp").read_text()
-    ranges = dict(re.findall(r"@Param: (\w+)\n(?://.*\n)*?\s*// @Range: ([-\d. ]+)\n", ap))
-    assert ranges["TIMEOUT"].split() == [str(int(x)) for x in expect["RMPC_TIMEOUT"]]
-    assert ranges["MAX_FAIL"].split() == [str(int(x)) for x in expect["RMPC_MAX_FAIL"]]
-    assert [float(x) for x in ranges["THR_IN"].split()] == list(expect["RMPC_THROW_IN"])
+
+
+@pytest.mark.parametrize("script", ["check_px4.py"])
+def test_check_script_skips_without_a_tree(script, monkeypatch):
+    """The real-tree checks run only when a tree is given (CI has none): a hint, exit 0."""
+    monkeypatch.delenv("PX4_TREE", raising=False)
+    proc = subprocess.run(["python3", str(ROOT / "firmware_stub/integration/check" / script)],
+                          capture_output=True, text=True)
+    assert proc.returncode == 0 and "skipped" in proc.stdout and "--px4" in proc.stdout
 
 
 def test_glue_builds_for_cortex_m4f_with_the_dwt_timestamp(tmp_path):
