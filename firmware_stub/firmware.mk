@@ -30,6 +30,7 @@ FW_GEN_SRC := $(wildcard $(FW_GEN)/*.c)
 FW_STUB_SRC := $(FW_DIR)/rollctl.c $(FW_DIR)/app_main.c
 FW_M4F_SRC := $(FW_DIR)/m4f/rollctl_hal_m4f.c $(FW_DIR)/m4f/startup_m4f.c
 FW_HDR := $(wildcard $(FW_GEN)/*.h) $(FW_DIR)/rollctl.h $(FW_DIR)/rollctl_hal.h \
+    $(FW_DIR)/integration/common/rollglue_cycles.h \
     $(FW_DIR)/m4f/rollmpc_timestamp_m4f.h
 FW_OBJ := $(addprefix $(FW_BUILD)/obj/,$(notdir $(FW_GEN_SRC:.c=.o) $(FW_STUB_SRC:.c=.o) \
     $(FW_M4F_SRC:.c=.o)))

@@ -8,6 +8,7 @@
  * receives are to be copied into the PWM timer's compare registers of your board.
  */
 #include "rollctl_hal.h"
+#include "../integration/common/rollglue_cycles.h"
 
 #ifndef ROLLCTL_CPU_HZ
 #define ROLLCTL_CPU_HZ 168000000u
@@ -17,9 +18,6 @@
 #define SYST_CSR (*(volatile uint32_t *)0xE000E010u)
 #define SYST_RVR (*(volatile uint32_t *)0xE000E014u)
 #define SYST_CVR (*(volatile uint32_t *)0xE000E018u)
-#define DEMCR (*(volatile uint32_t *)0xE000EDFCu)
-#define DWT_CTRL (*(volatile uint32_t *)0xE0001000u)
-#define DWT_CYCCNT (*(volatile uint32_t *)0xE0001004u)
 
 /** Sensor and servo mailbox shared with the board drivers (interrupt context). */
 typedef struct {
@@ -49,9 +47,7 @@ void SysTick_Handler(void)
 
 void rollctl_hal_init(void)
 {
-    DEMCR |= 1u << 24;  /* TRCENA: enable the DWT */
-    DWT_CYCCNT = 0u;
-    DWT_CTRL |= 1u;     /* CYCCNTENA */
+    rollglue_cycles_enable();
     /* 168 MHz / 100 Hz - 1 = 1,679,999 fits SysTick's 24-bit reload */
     SYST_RVR = ROLLCTL_CPU_HZ / ROLLCTL_RATE_HZ - 1u;
     SYST_CVR = 0u;
@@ -105,7 +101,7 @@ void rollctl_hal_write_servos(const rollmpc_real *deflection_deg, int n)
 
 uint32_t rollctl_hal_cycles(void)
 {
-    return DWT_CYCCNT;
+    return ROLLGLUE_CYCLES();
 }
 
 void rollctl_hal_telemetry(const rollctl *rc)

@@ -104,6 +104,13 @@ static int solve_mode(chain_ctrl *c, int mode, const chain_real *x,
     return status;
 }
 
+/* The scheduler's mode for this sample (finite sched); the incoming mode starts cold. */
+static void follow_schedule(chain_ctrl *c, const chain_real *sched)
+{
+    (void)c;
+    (void)sched;
+}
+
 int chain_step(chain_ctrl *c, const chain_real *y, const chain_real *sched,
     const chain_real *r, chain_real *u)
 {
@@ -132,7 +139,7 @@ int chain_step(chain_ctrl *c, const chain_real *y, const chain_real *sched,
         c->info.iterations = 0;
         return CHAIN_NONFINITE_INPUT;
     }
-    (void)sched;
+    follow_schedule(c, sched);
     md = &chain_modes[c->mode];
     status = solve_mode(c, c->mode, c->xhat[c->mode], r, c->U);
     for (i = 0; i < CHAIN_N_ACTUATORS; ++i) {
@@ -148,6 +155,26 @@ int chain_step(chain_ctrl *c, const chain_real *y, const chain_real *sched,
         c->u_last[i] = u[i];
     }
     return status;
+}
+
+int chain_observe(chain_ctrl *c, const chain_real *y,
+    const chain_real *sched, const chain_real *u_applied)
+{
+    int j, use_y;
+    if (c == 0 || y == 0 || u_applied == 0 || (CHAIN_N_SCHEDULE != 0 && sched == 0)) {
+        return CHAIN_BAD_ARGUMENT;
+    }
+    if (!all_finite(u_applied, CHAIN_N_ACTUATORS)) {
+        return CHAIN_NONFINITE_INPUT; /* no input to propagate with: nothing changes */
+    }
+    use_y = all_finite(y, CHAIN_N_OUTPUTS) && all_finite(sched, CHAIN_N_SCHEDULE);
+    if (use_y) {
+        follow_schedule(c, sched);
+    }
+    for (j = 0; j < CHAIN_N_MODES; ++j) {
+        observe(&c->work, &chain_modes[j], c->xhat[j], y, u_applied, use_y);
+    }
+    return use_y ? CHAIN_OPTIMAL : CHAIN_NONFINITE_INPUT;
 }
 
 int chain_solve_qp(chain_ctrl *c, int mode, const chain_real *x,

@@ -141,6 +141,29 @@ int chain_rb_step(chain_rb_ctrl *c, const chain_rb_real *y, const chain_rb_real 
     const chain_rb_real *r, chain_rb_real *u);
 
 /**
+ * @brief Track the plant while another controller drives the actuators: run the
+ *        scheduler and every observer with the command actually applied, solve nothing.
+ *
+ * Call it once per sample instead of chain_rb_step() while chain_rb is not in control,
+ * so that a later chain_rb_step() starts from observers locked to the plant and from the
+ * scheduler's current mode (a bumpless engage). The held last command of
+ * chain_rb_step() and the warm-start multipliers are left as they are.
+ *
+ * @param c         Controller instance.
+ * @param y         Measured outputs [CHAIN_RB_N_OUTPUTS]; non-finite: open-loop propagation.
+ * @param sched     Scheduling signal(s) [CHAIN_RB_N_SCHEDULE] (may be NULL when there are
+ *                  none); non-finite: the mode is kept and the observers run open loop.
+ * @param u_applied The command applied over the last sample, for every physical actuator
+ *                  [CHAIN_RB_N_ACTUATORS], in the controller's units.
+ * @return CHAIN_RB_OPTIMAL after a closed-loop update; CHAIN_RB_NONFINITE_INPUT after an
+ *         open-loop one (non-finite y or sched), or with nothing changed when u_applied is
+ *         not finite; CHAIN_RB_BAD_ARGUMENT for a NULL pointer. Diagnostics are not
+ *         touched.
+ */
+int chain_rb_observe(chain_rb_ctrl *c, const chain_rb_real *y,
+    const chain_rb_real *sched, const chain_rb_real *u_applied);
+
+/**
  * @brief Solve one mode's QP for a given state estimate (no scheduling, no observer).
  *
  * Uses and updates the mode's warm-start multipliers in c.

@@ -115,6 +115,13 @@ static int solve_mode(chain_rb_ctrl *c, int mode, const chain_rb_real *x,
     return status;
 }
 
+/* The scheduler's mode for this sample (finite sched); the incoming mode starts cold. */
+static void follow_schedule(chain_rb_ctrl *c, const chain_rb_real *sched)
+{
+    (void)c;
+    (void)sched;
+}
+
 int chain_rb_step(chain_rb_ctrl *c, const chain_rb_real *y, const chain_rb_real *sched,
     const chain_rb_real *r, chain_rb_real *u)
 {
@@ -143,7 +150,7 @@ int chain_rb_step(chain_rb_ctrl *c, const chain_rb_real *y, const chain_rb_real 
         c->info.iterations = 0;
         return CHAIN_RB_NONFINITE_INPUT;
     }
-    (void)sched;
+    follow_schedule(c, sched);
     md = &chain_rb_modes[c->mode];
     c->work.bounds = c->bounds[c->mode]; /* the solver reads the live bounds here */
     status = solve_mode(c, c->mode, c->xhat[c->mode], r, c->U);
@@ -160,6 +167,26 @@ int chain_rb_step(chain_rb_ctrl *c, const chain_rb_real *y, const chain_rb_real 
         c->u_last[i] = u[i];
     }
     return status;
+}
+
+int chain_rb_observe(chain_rb_ctrl *c, const chain_rb_real *y,
+    const chain_rb_real *sched, const chain_rb_real *u_applied)
+{
+    int j, use_y;
+    if (c == 0 || y == 0 || u_applied == 0 || (CHAIN_RB_N_SCHEDULE != 0 && sched == 0)) {
+        return CHAIN_RB_BAD_ARGUMENT;
+    }
+    if (!all_finite(u_applied, CHAIN_RB_N_ACTUATORS)) {
+        return CHAIN_RB_NONFINITE_INPUT; /* no input to propagate with: nothing changes */
+    }
+    use_y = all_finite(y, CHAIN_RB_N_OUTPUTS) && all_finite(sched, CHAIN_RB_N_SCHEDULE);
+    if (use_y) {
+        follow_schedule(c, sched);
+    }
+    for (j = 0; j < CHAIN_RB_N_MODES; ++j) {
+        observe(&c->work, &chain_rb_modes[j], c->xhat[j], y, u_applied, use_y);
+    }
+    return use_y ? CHAIN_RB_OPTIMAL : CHAIN_RB_NONFINITE_INPUT;
 }
 
 int chain_rb_solve_qp(chain_rb_ctrl *c, int mode, const chain_rb_real *x,

@@ -130,6 +130,29 @@ int chain_soft_step(chain_soft_ctrl *c, const chain_soft_real *y, const chain_so
     const chain_soft_real *r, chain_soft_real *u);
 
 /**
+ * @brief Track the plant while another controller drives the actuators: run the
+ *        scheduler and every observer with the command actually applied, solve nothing.
+ *
+ * Call it once per sample instead of chain_soft_step() while chain_soft is not in control,
+ * so that a later chain_soft_step() starts from observers locked to the plant and from the
+ * scheduler's current mode (a bumpless engage). The held last command of
+ * chain_soft_step() and the warm-start multipliers are left as they are.
+ *
+ * @param c         Controller instance.
+ * @param y         Measured outputs [CHAIN_SOFT_N_OUTPUTS]; non-finite: open-loop propagation.
+ * @param sched     Scheduling signal(s) [CHAIN_SOFT_N_SCHEDULE] (may be NULL when there are
+ *                  none); non-finite: the mode is kept and the observers run open loop.
+ * @param u_applied The command applied over the last sample, for every physical actuator
+ *                  [CHAIN_SOFT_N_ACTUATORS], in the controller's units.
+ * @return CHAIN_SOFT_OPTIMAL after a closed-loop update; CHAIN_SOFT_NONFINITE_INPUT after an
+ *         open-loop one (non-finite y or sched), or with nothing changed when u_applied is
+ *         not finite; CHAIN_SOFT_BAD_ARGUMENT for a NULL pointer. Diagnostics are not
+ *         touched.
+ */
+int chain_soft_observe(chain_soft_ctrl *c, const chain_soft_real *y,
+    const chain_soft_real *sched, const chain_soft_real *u_applied);
+
+/**
  * @brief Solve one mode's QP for a given state estimate (no scheduling, no observer).
  *
  * Uses and updates the mode's warm-start multipliers in c.

@@ -108,6 +108,13 @@ static int solve_mode(chain_soft_ctrl *c, int mode, const chain_soft_real *x,
     return status;
 }
 
+/* The scheduler's mode for this sample (finite sched); the incoming mode starts cold. */
+static void follow_schedule(chain_soft_ctrl *c, const chain_soft_real *sched)
+{
+    (void)c;
+    (void)sched;
+}
+
 int chain_soft_step(chain_soft_ctrl *c, const chain_soft_real *y, const chain_soft_real *sched,
     const chain_soft_real *r, chain_soft_real *u)
 {
@@ -136,7 +143,7 @@ int chain_soft_step(chain_soft_ctrl *c, const chain_soft_real *y, const chain_so
         c->info.iterations = 0;
         return CHAIN_SOFT_NONFINITE_INPUT;
     }
-    (void)sched;
+    follow_schedule(c, sched);
     md = &chain_soft_modes[c->mode];
     status = solve_mode(c, c->mode, c->xhat[c->mode], r, c->U);
     for (i = 0; i < CHAIN_SOFT_N_ACTUATORS; ++i) {
@@ -152,6 +159,26 @@ int chain_soft_step(chain_soft_ctrl *c, const chain_soft_real *y, const chain_so
         c->u_last[i] = u[i];
     }
     return status;
+}
+
+int chain_soft_observe(chain_soft_ctrl *c, const chain_soft_real *y,
+    const chain_soft_real *sched, const chain_soft_real *u_applied)
+{
+    int j, use_y;
+    if (c == 0 || y == 0 || u_applied == 0 || (CHAIN_SOFT_N_SCHEDULE != 0 && sched == 0)) {
+        return CHAIN_SOFT_BAD_ARGUMENT;
+    }
+    if (!all_finite(u_applied, CHAIN_SOFT_N_ACTUATORS)) {
+        return CHAIN_SOFT_NONFINITE_INPUT; /* no input to propagate with: nothing changes */
+    }
+    use_y = all_finite(y, CHAIN_SOFT_N_OUTPUTS) && all_finite(sched, CHAIN_SOFT_N_SCHEDULE);
+    if (use_y) {
+        follow_schedule(c, sched);
+    }
+    for (j = 0; j < CHAIN_SOFT_N_MODES; ++j) {
+        observe(&c->work, &chain_soft_modes[j], c->xhat[j], y, u_applied, use_y);
+    }
+    return use_y ? CHAIN_SOFT_OPTIMAL : CHAIN_SOFT_NONFINITE_INPUT;
 }
 
 int chain_soft_solve_qp(chain_soft_ctrl *c, int mode, const chain_soft_real *x,

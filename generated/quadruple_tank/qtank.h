@@ -123,6 +123,29 @@ int qtank_step(qtank_ctrl *c, const qtank_real *y, const qtank_real *sched,
     const qtank_real *r, qtank_real *u);
 
 /**
+ * @brief Track the plant while another controller drives the actuators: run the
+ *        scheduler and every observer with the command actually applied, solve nothing.
+ *
+ * Call it once per sample instead of qtank_step() while qtank is not in control,
+ * so that a later qtank_step() starts from observers locked to the plant and from the
+ * scheduler's current mode (a bumpless engage). The held last command of
+ * qtank_step() and the warm-start multipliers are left as they are.
+ *
+ * @param c         Controller instance.
+ * @param y         Measured outputs [QTANK_N_OUTPUTS]; non-finite: open-loop propagation.
+ * @param sched     Scheduling signal(s) [QTANK_N_SCHEDULE] (may be NULL when there are
+ *                  none); non-finite: the mode is kept and the observers run open loop.
+ * @param u_applied The command applied over the last sample, for every physical actuator
+ *                  [QTANK_N_ACTUATORS], in the controller's units.
+ * @return QTANK_OPTIMAL after a closed-loop update; QTANK_NONFINITE_INPUT after an
+ *         open-loop one (non-finite y or sched), or with nothing changed when u_applied is
+ *         not finite; QTANK_BAD_ARGUMENT for a NULL pointer. Diagnostics are not
+ *         touched.
+ */
+int qtank_observe(qtank_ctrl *c, const qtank_real *y,
+    const qtank_real *sched, const qtank_real *u_applied);
+
+/**
  * @brief Solve one mode's QP for a given state estimate (no scheduling, no observer).
  *
  * Uses and updates the mode's warm-start multipliers in c.

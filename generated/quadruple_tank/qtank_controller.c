@@ -104,6 +104,13 @@ static int solve_mode(qtank_ctrl *c, int mode, const qtank_real *x,
     return status;
 }
 
+/* The scheduler's mode for this sample (finite sched); the incoming mode starts cold. */
+static void follow_schedule(qtank_ctrl *c, const qtank_real *sched)
+{
+    (void)c;
+    (void)sched;
+}
+
 int qtank_step(qtank_ctrl *c, const qtank_real *y, const qtank_real *sched,
     const qtank_real *r, qtank_real *u)
 {
@@ -132,7 +139,7 @@ int qtank_step(qtank_ctrl *c, const qtank_real *y, const qtank_real *sched,
         c->info.iterations = 0;
         return QTANK_NONFINITE_INPUT;
     }
-    (void)sched;
+    follow_schedule(c, sched);
     md = &qtank_modes[c->mode];
     status = solve_mode(c, c->mode, c->xhat[c->mode], r, c->U);
     for (i = 0; i < QTANK_N_ACTUATORS; ++i) {
@@ -148,6 +155,26 @@ int qtank_step(qtank_ctrl *c, const qtank_real *y, const qtank_real *sched,
         c->u_last[i] = u[i];
     }
     return status;
+}
+
+int qtank_observe(qtank_ctrl *c, const qtank_real *y,
+    const qtank_real *sched, const qtank_real *u_applied)
+{
+    int j, use_y;
+    if (c == 0 || y == 0 || u_applied == 0 || (QTANK_N_SCHEDULE != 0 && sched == 0)) {
+        return QTANK_BAD_ARGUMENT;
+    }
+    if (!all_finite(u_applied, QTANK_N_ACTUATORS)) {
+        return QTANK_NONFINITE_INPUT; /* no input to propagate with: nothing changes */
+    }
+    use_y = all_finite(y, QTANK_N_OUTPUTS) && all_finite(sched, QTANK_N_SCHEDULE);
+    if (use_y) {
+        follow_schedule(c, sched);
+    }
+    for (j = 0; j < QTANK_N_MODES; ++j) {
+        observe(&c->work, &qtank_modes[j], c->xhat[j], y, u_applied, use_y);
+    }
+    return use_y ? QTANK_OPTIMAL : QTANK_NONFINITE_INPUT;
 }
 
 int qtank_solve_qp(qtank_ctrl *c, int mode, const qtank_real *x,

@@ -104,6 +104,13 @@ static int solve_mode(zones_ctrl *c, int mode, const zones_real *x,
     return status;
 }
 
+/* The scheduler's mode for this sample (finite sched); the incoming mode starts cold. */
+static void follow_schedule(zones_ctrl *c, const zones_real *sched)
+{
+    (void)c;
+    (void)sched;
+}
+
 int zones_step(zones_ctrl *c, const zones_real *y, const zones_real *sched,
     const zones_real *r, zones_real *u)
 {
@@ -132,7 +139,7 @@ int zones_step(zones_ctrl *c, const zones_real *y, const zones_real *sched,
         c->info.iterations = 0;
         return ZONES_NONFINITE_INPUT;
     }
-    (void)sched;
+    follow_schedule(c, sched);
     md = &zones_modes[c->mode];
     status = solve_mode(c, c->mode, c->xhat[c->mode], r, c->U);
     for (i = 0; i < ZONES_N_ACTUATORS; ++i) {
@@ -148,6 +155,26 @@ int zones_step(zones_ctrl *c, const zones_real *y, const zones_real *sched,
         c->u_last[i] = u[i];
     }
     return status;
+}
+
+int zones_observe(zones_ctrl *c, const zones_real *y,
+    const zones_real *sched, const zones_real *u_applied)
+{
+    int j, use_y;
+    if (c == 0 || y == 0 || u_applied == 0 || (ZONES_N_SCHEDULE != 0 && sched == 0)) {
+        return ZONES_BAD_ARGUMENT;
+    }
+    if (!all_finite(u_applied, ZONES_N_ACTUATORS)) {
+        return ZONES_NONFINITE_INPUT; /* no input to propagate with: nothing changes */
+    }
+    use_y = all_finite(y, ZONES_N_OUTPUTS) && all_finite(sched, ZONES_N_SCHEDULE);
+    if (use_y) {
+        follow_schedule(c, sched);
+    }
+    for (j = 0; j < ZONES_N_MODES; ++j) {
+        observe(&c->work, &zones_modes[j], c->xhat[j], y, u_applied, use_y);
+    }
+    return use_y ? ZONES_OPTIMAL : ZONES_NONFINITE_INPUT;
 }
 
 int zones_solve_qp(zones_ctrl *c, int mode, const zones_real *x,

@@ -123,6 +123,29 @@ int zones_step(zones_ctrl *c, const zones_real *y, const zones_real *sched,
     const zones_real *r, zones_real *u);
 
 /**
+ * @brief Track the plant while another controller drives the actuators: run the
+ *        scheduler and every observer with the command actually applied, solve nothing.
+ *
+ * Call it once per sample instead of zones_step() while zones is not in control,
+ * so that a later zones_step() starts from observers locked to the plant and from the
+ * scheduler's current mode (a bumpless engage). The held last command of
+ * zones_step() and the warm-start multipliers are left as they are.
+ *
+ * @param c         Controller instance.
+ * @param y         Measured outputs [ZONES_N_OUTPUTS]; non-finite: open-loop propagation.
+ * @param sched     Scheduling signal(s) [ZONES_N_SCHEDULE] (may be NULL when there are
+ *                  none); non-finite: the mode is kept and the observers run open loop.
+ * @param u_applied The command applied over the last sample, for every physical actuator
+ *                  [ZONES_N_ACTUATORS], in the controller's units.
+ * @return ZONES_OPTIMAL after a closed-loop update; ZONES_NONFINITE_INPUT after an
+ *         open-loop one (non-finite y or sched), or with nothing changed when u_applied is
+ *         not finite; ZONES_BAD_ARGUMENT for a NULL pointer. Diagnostics are not
+ *         touched.
+ */
+int zones_observe(zones_ctrl *c, const zones_real *y,
+    const zones_real *sched, const zones_real *u_applied);
+
+/**
  * @brief Solve one mode's QP for a given state estimate (no scheduling, no observer).
  *
  * Uses and updates the mode's warm-start multipliers in c.

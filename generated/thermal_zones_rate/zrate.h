@@ -123,6 +123,29 @@ int zrate_step(zrate_ctrl *c, const zrate_real *y, const zrate_real *sched,
     const zrate_real *r, zrate_real *u);
 
 /**
+ * @brief Track the plant while another controller drives the actuators: run the
+ *        scheduler and every observer with the command actually applied, solve nothing.
+ *
+ * Call it once per sample instead of zrate_step() while zrate is not in control,
+ * so that a later zrate_step() starts from observers locked to the plant and from the
+ * scheduler's current mode (a bumpless engage). The held last command of
+ * zrate_step() and the warm-start multipliers are left as they are.
+ *
+ * @param c         Controller instance.
+ * @param y         Measured outputs [ZRATE_N_OUTPUTS]; non-finite: open-loop propagation.
+ * @param sched     Scheduling signal(s) [ZRATE_N_SCHEDULE] (may be NULL when there are
+ *                  none); non-finite: the mode is kept and the observers run open loop.
+ * @param u_applied The command applied over the last sample, for every physical actuator
+ *                  [ZRATE_N_ACTUATORS], in the controller's units.
+ * @return ZRATE_OPTIMAL after a closed-loop update; ZRATE_NONFINITE_INPUT after an
+ *         open-loop one (non-finite y or sched), or with nothing changed when u_applied is
+ *         not finite; ZRATE_BAD_ARGUMENT for a NULL pointer. Diagnostics are not
+ *         touched.
+ */
+int zrate_observe(zrate_ctrl *c, const zrate_real *y,
+    const zrate_real *sched, const zrate_real *u_applied);
+
+/**
  * @brief Solve one mode's QP for a given state estimate (no scheduling, no observer).
  *
  * Uses and updates the mode's warm-start multipliers in c.

@@ -104,6 +104,13 @@ static int solve_mode(zrate_ctrl *c, int mode, const zrate_real *x,
     return status;
 }
 
+/* The scheduler's mode for this sample (finite sched); the incoming mode starts cold. */
+static void follow_schedule(zrate_ctrl *c, const zrate_real *sched)
+{
+    (void)c;
+    (void)sched;
+}
+
 int zrate_step(zrate_ctrl *c, const zrate_real *y, const zrate_real *sched,
     const zrate_real *r, zrate_real *u)
 {
@@ -132,7 +139,7 @@ int zrate_step(zrate_ctrl *c, const zrate_real *y, const zrate_real *sched,
         c->info.iterations = 0;
         return ZRATE_NONFINITE_INPUT;
     }
-    (void)sched;
+    follow_schedule(c, sched);
     md = &zrate_modes[c->mode];
     status = solve_mode(c, c->mode, c->xhat[c->mode], r, c->U);
     for (i = 0; i < ZRATE_N_ACTUATORS; ++i) {
@@ -148,6 +155,26 @@ int zrate_step(zrate_ctrl *c, const zrate_real *y, const zrate_real *sched,
         c->u_last[i] = u[i];
     }
     return status;
+}
+
+int zrate_observe(zrate_ctrl *c, const zrate_real *y,
+    const zrate_real *sched, const zrate_real *u_applied)
+{
+    int j, use_y;
+    if (c == 0 || y == 0 || u_applied == 0 || (ZRATE_N_SCHEDULE != 0 && sched == 0)) {
+        return ZRATE_BAD_ARGUMENT;
+    }
+    if (!all_finite(u_applied, ZRATE_N_ACTUATORS)) {
+        return ZRATE_NONFINITE_INPUT; /* no input to propagate with: nothing changes */
+    }
+    use_y = all_finite(y, ZRATE_N_OUTPUTS) && all_finite(sched, ZRATE_N_SCHEDULE);
+    if (use_y) {
+        follow_schedule(c, sched);
+    }
+    for (j = 0; j < ZRATE_N_MODES; ++j) {
+        observe(&c->work, &zrate_modes[j], c->xhat[j], y, u_applied, use_y);
+    }
+    return use_y ? ZRATE_OPTIMAL : ZRATE_NONFINITE_INPUT;
 }
 
 int zrate_solve_qp(zrate_ctrl *c, int mode, const zrate_real *x,

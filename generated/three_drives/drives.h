@@ -123,6 +123,29 @@ int drives_step(drives_ctrl *c, const drives_real *y, const drives_real *sched,
     const drives_real *r, drives_real *u);
 
 /**
+ * @brief Track the plant while another controller drives the actuators: run the
+ *        scheduler and every observer with the command actually applied, solve nothing.
+ *
+ * Call it once per sample instead of drives_step() while drives is not in control,
+ * so that a later drives_step() starts from observers locked to the plant and from the
+ * scheduler's current mode (a bumpless engage). The held last command of
+ * drives_step() and the warm-start multipliers are left as they are.
+ *
+ * @param c         Controller instance.
+ * @param y         Measured outputs [DRIVES_N_OUTPUTS]; non-finite: open-loop propagation.
+ * @param sched     Scheduling signal(s) [DRIVES_N_SCHEDULE] (may be NULL when there are
+ *                  none); non-finite: the mode is kept and the observers run open loop.
+ * @param u_applied The command applied over the last sample, for every physical actuator
+ *                  [DRIVES_N_ACTUATORS], in the controller's units.
+ * @return DRIVES_OPTIMAL after a closed-loop update; DRIVES_NONFINITE_INPUT after an
+ *         open-loop one (non-finite y or sched), or with nothing changed when u_applied is
+ *         not finite; DRIVES_BAD_ARGUMENT for a NULL pointer. Diagnostics are not
+ *         touched.
+ */
+int drives_observe(drives_ctrl *c, const drives_real *y,
+    const drives_real *sched, const drives_real *u_applied);
+
+/**
  * @brief Solve one mode's QP for a given state estimate (no scheduling, no observer).
  *
  * Uses and updates the mode's warm-start multipliers in c.

@@ -144,6 +144,20 @@ static int solve_mode(drives_ctrl *c, int mode, const drives_real *x,
     return status;
 }
 
+/* The scheduler's mode for this sample (finite sched); the incoming mode starts cold. */
+static void follow_schedule(drives_ctrl *c, const drives_real *sched)
+{
+    int i;
+    const int j = schedule(c->mode, sched[0]);
+    if (j != c->mode) {
+        for (i = 0; i < DRIVES_M_MAX; ++i) {
+            c->lam[j][i] = R_(0.0); /* stale multipliers of the incoming mode: cold start */
+        }
+        c->mode = j;
+        ++c->info.mode_switches;
+    }
+}
+
 int drives_step(drives_ctrl *c, const drives_real *y, const drives_real *sched,
     const drives_real *r, drives_real *u)
 {
@@ -172,14 +186,7 @@ int drives_step(drives_ctrl *c, const drives_real *y, const drives_real *sched,
         c->info.iterations = 0;
         return DRIVES_NONFINITE_INPUT;
     }
-    j = schedule(c->mode, sched[0]);
-    if (j != c->mode) {
-        for (i = 0; i < DRIVES_M_MAX; ++i) {
-            c->lam[j][i] = R_(0.0); /* stale multipliers of the incoming mode: cold start */
-        }
-        c->mode = j;
-        ++c->info.mode_switches;
-    }
+    follow_schedule(c, sched);
     md = &drives_modes[c->mode];
     status = solve_mode(c, c->mode, c->xhat[c->mode], r, c->U);
     for (i = 0; i < DRIVES_N_ACTUATORS; ++i) {
@@ -195,6 +202,26 @@ int drives_step(drives_ctrl *c, const drives_real *y, const drives_real *sched,
         c->u_last[i] = u[i];
     }
     return status;
+}
+
+int drives_observe(drives_ctrl *c, const drives_real *y,
+    const drives_real *sched, const drives_real *u_applied)
+{
+    int j, use_y;
+    if (c == 0 || y == 0 || u_applied == 0 || (DRIVES_N_SCHEDULE != 0 && sched == 0)) {
+        return DRIVES_BAD_ARGUMENT;
+    }
+    if (!all_finite(u_applied, DRIVES_N_ACTUATORS)) {
+        return DRIVES_NONFINITE_INPUT; /* no input to propagate with: nothing changes */
+    }
+    use_y = all_finite(y, DRIVES_N_OUTPUTS) && all_finite(sched, DRIVES_N_SCHEDULE);
+    if (use_y) {
+        follow_schedule(c, sched);
+    }
+    for (j = 0; j < DRIVES_N_MODES; ++j) {
+        observe(&c->work, &drives_modes[j], c->xhat[j], y, u_applied, use_y);
+    }
+    return use_y ? DRIVES_OPTIMAL : DRIVES_NONFINITE_INPUT;
 }
 
 int drives_solve_qp(drives_ctrl *c, int mode, const drives_real *x,

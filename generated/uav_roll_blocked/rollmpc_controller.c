@@ -144,6 +144,20 @@ static int solve_mode(rollmpc_ctrl *c, int mode, const rollmpc_real *x,
     return status;
 }
 
+/* The scheduler's mode for this sample (finite sched); the incoming mode starts cold. */
+static void follow_schedule(rollmpc_ctrl *c, const rollmpc_real *sched)
+{
+    int i;
+    const int j = schedule(c->mode, sched[0]);
+    if (j != c->mode) {
+        for (i = 0; i < ROLLMPC_M_MAX; ++i) {
+            c->lam[j][i] = R_(0.0); /* stale multipliers of the incoming mode: cold start */
+        }
+        c->mode = j;
+        ++c->info.mode_switches;
+    }
+}
+
 int rollmpc_step(rollmpc_ctrl *c, const rollmpc_real *y, const rollmpc_real *sched,
     const rollmpc_real *r, rollmpc_real *u)
 {
@@ -172,14 +186,7 @@ int rollmpc_step(rollmpc_ctrl *c, const rollmpc_real *y, const rollmpc_real *sch
         c->info.iterations = 0;
         return ROLLMPC_NONFINITE_INPUT;
     }
-    j = schedule(c->mode, sched[0]);
-    if (j != c->mode) {
-        for (i = 0; i < ROLLMPC_M_MAX; ++i) {
-            c->lam[j][i] = R_(0.0); /* stale multipliers of the incoming mode: cold start */
-        }
-        c->mode = j;
-        ++c->info.mode_switches;
-    }
+    follow_schedule(c, sched);
     md = &rollmpc_modes[c->mode];
     status = solve_mode(c, c->mode, c->xhat[c->mode], r, c->U);
     for (i = 0; i < ROLLMPC_N_ACTUATORS; ++i) {
@@ -195,6 +202,26 @@ int rollmpc_step(rollmpc_ctrl *c, const rollmpc_real *y, const rollmpc_real *sch
         c->u_last[i] = u[i];
     }
     return status;
+}
+
+int rollmpc_observe(rollmpc_ctrl *c, const rollmpc_real *y,
+    const rollmpc_real *sched, const rollmpc_real *u_applied)
+{
+    int j, use_y;
+    if (c == 0 || y == 0 || u_applied == 0 || (ROLLMPC_N_SCHEDULE != 0 && sched == 0)) {
+        return ROLLMPC_BAD_ARGUMENT;
+    }
+    if (!all_finite(u_applied, ROLLMPC_N_ACTUATORS)) {
+        return ROLLMPC_NONFINITE_INPUT; /* no input to propagate with: nothing changes */
+    }
+    use_y = all_finite(y, ROLLMPC_N_OUTPUTS) && all_finite(sched, ROLLMPC_N_SCHEDULE);
+    if (use_y) {
+        follow_schedule(c, sched);
+    }
+    for (j = 0; j < ROLLMPC_N_MODES; ++j) {
+        observe(&c->work, &rollmpc_modes[j], c->xhat[j], y, u_applied, use_y);
+    }
+    return use_y ? ROLLMPC_OPTIMAL : ROLLMPC_NONFINITE_INPUT;
 }
 
 int rollmpc_solve_qp(rollmpc_ctrl *c, int mode, const rollmpc_real *x,

@@ -123,6 +123,29 @@ int rollmpc_step(rollmpc_ctrl *c, const rollmpc_real *y, const rollmpc_real *sch
     const rollmpc_real *r, rollmpc_real *u);
 
 /**
+ * @brief Track the plant while another controller drives the actuators: run the
+ *        scheduler and every observer with the command actually applied, solve nothing.
+ *
+ * Call it once per sample instead of rollmpc_step() while rollmpc is not in control,
+ * so that a later rollmpc_step() starts from observers locked to the plant and from the
+ * scheduler's current mode (a bumpless engage). The held last command of
+ * rollmpc_step() and the warm-start multipliers are left as they are.
+ *
+ * @param c         Controller instance.
+ * @param y         Measured outputs [ROLLMPC_N_OUTPUTS]; non-finite: open-loop propagation.
+ * @param sched     Scheduling signal(s) [ROLLMPC_N_SCHEDULE] (may be NULL when there are
+ *                  none); non-finite: the mode is kept and the observers run open loop.
+ * @param u_applied The command applied over the last sample, for every physical actuator
+ *                  [ROLLMPC_N_ACTUATORS], in the controller's units.
+ * @return ROLLMPC_OPTIMAL after a closed-loop update; ROLLMPC_NONFINITE_INPUT after an
+ *         open-loop one (non-finite y or sched), or with nothing changed when u_applied is
+ *         not finite; ROLLMPC_BAD_ARGUMENT for a NULL pointer. Diagnostics are not
+ *         touched.
+ */
+int rollmpc_observe(rollmpc_ctrl *c, const rollmpc_real *y,
+    const rollmpc_real *sched, const rollmpc_real *u_applied);
+
+/**
  * @brief Solve one mode's QP for a given state estimate (no scheduling, no observer).
  *
  * Uses and updates the mode's warm-start multipliers in c.

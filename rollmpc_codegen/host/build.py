@@ -86,7 +86,8 @@ class HostController:
         obj.prefix = ctx["prefix"]
         obj.dtype = np.float64 if ctx["real"] == "double" else np.float32
         obj._fn = {name: getattr(lib, f"{obj.prefix}_{name}") for name in
-                   ("ctrl_size", "init", "step", "solve_qp", "last_info", "status_message")
+                   ("ctrl_size", "init", "step", "observe", "solve_qp", "last_info",
+                    "status_message")
                    + (("set_bounds", "get_bounds") if ctx.get("runtime_bounds") else ())}
         obj.ctrl = ffi.new("char[]", obj._fn["ctrl_size"]())
         obj.u = np.zeros(ctx["n_actuators"], obj.dtype)
@@ -96,19 +97,31 @@ class HostController:
     def _ptr(self, arr: np.ndarray):
         return self.ffi.cast(f"{self.prefix}_real *", self.ffi.from_buffer(arr))
 
+    def _sched_ptr(self, sched):
+        """A P_real pointer to the scheduling signal (NULL when there is none), and the
+        array behind it (keep it alive across the call)."""
+        if sched is None or not len(sched):
+            return self.ffi.NULL, None
+        arr = np.ascontiguousarray(sched, self.dtype)
+        return self._ptr(arr), arr
+
     def init(self) -> None:
         self._fn["init"](self.ctrl)
 
     def step(self, y, sched, r) -> tuple[int, np.ndarray]:
         y = np.ascontiguousarray(y, self.dtype)
         r = np.ascontiguousarray(r, self.dtype)
-        sp = self.ffi.NULL
-        if sched is not None and len(sched):
-            sched = np.ascontiguousarray(sched, self.dtype)
-            sp = self._ptr(sched)
+        sp, _keep = self._sched_ptr(sched)
         u = np.zeros(self.ctx["n_actuators"], self.dtype)
         status = self._fn["step"](self.ctrl, self._ptr(y), sp, self._ptr(r), self._ptr(u))
         return status, u
+
+    def observe(self, y, sched, u_applied) -> int:
+        """``P_observe``: track the plant under another controller's command."""
+        y = np.ascontiguousarray(y, self.dtype)
+        u = np.ascontiguousarray(u_applied, self.dtype)
+        sp, _keep = self._sched_ptr(sched)
+        return self._fn["observe"](self.ctrl, self._ptr(y), sp, self._ptr(u))
 
     def solve_qp(self, mode: int, x, r) -> tuple[int, np.ndarray, int]:
         x = np.ascontiguousarray(x, self.dtype)

@@ -77,6 +77,30 @@ class ControllerRef:
         return scheduled_mode(self.mode, s, self.below, self.above,
                               self.ctx["scheduler"]["band_modes"])
 
+    def _follow_schedule(self, sched):
+        """``follow_schedule()`` of the C: the incoming mode starts cold."""
+        if self.ctx["scheduler"] is not None:
+            j = self._schedule(sched[0])
+            if j != self.mode:
+                self.solvers[j].lam[:] = 0
+                self.mode = j
+                self.mode_switches += 1
+
+    def observe(self, y, sched, u_applied):
+        """Mirror of ``P_observe``: scheduler and observers on the applied command."""
+        dt = self.md[0].Kx.dtype
+        y = np.asarray(y, dt)
+        sched = np.asarray(sched if sched is not None else [], dt)
+        u = np.asarray(u_applied, dt)
+        if not np.all(np.isfinite(u)):
+            return NONFINITE_INPUT
+        use_y = bool(np.all(np.isfinite(y)) and np.all(np.isfinite(sched)))
+        if use_y:
+            self._follow_schedule(sched)
+        for j, md in enumerate(self.md):
+            self._observe(md, self.xhat[j], y, u, use_y)
+        return OPTIMAL if use_y else NONFINITE_INPUT
+
     def _observe(self, md, x, y, u_phys, use_y):
         innov = np.empty(md.ny, md.Kx.dtype)
         for a in range(md.ny):
@@ -106,12 +130,7 @@ class ControllerRef:
                          "polish_iterations": self.last["polish_iterations"],
                          "active": self.last["active"]}
             return NONFINITE_INPUT, u
-        if self.ctx["scheduler"] is not None:
-            j = self._schedule(sched[0])
-            if j != self.mode:
-                self.solvers[j].lam[:] = 0
-                self.mode = j
-                self.mode_switches += 1
+        self._follow_schedule(sched)
         md = self.md[self.mode]
         status, U, its, pits, active = self.solvers[self.mode].solve(self.xhat[self.mode], r)
         self.U = U

@@ -1,56 +1,171 @@
 /**
  * @file RollMpc.cpp
  * @brief PX4 glue of the generated roll MPC: vehicle_attitude (quaternion -> roll, deg),
- *        vehicle_angular_velocity (rad/s -> deg/s), rollmpc_step() at 100 Hz, normalised
- *        aileron setpoints out; hand-over to the fixed-wing rate controller on a
- *        non-finite output or a non-optimal status.
+ *        vehicle_angular_velocity (rad/s -> deg/s) and the roll of
+ *        vehicle_attitude_setpoint in, the glue core (freshness, warm observers,
+ *        bumpless engage, failure counting, servo mapping), rollmpc_servos out to the
+ *        patched control allocator. The module never writes a parameter.
  */
 #include "RollMpc.hpp"
 
+#include <limits.h>
 #include <math.h>
+
+#if RMPC_MODULE_DESCRIPTOR
+ModuleBase::Descriptor RollMpc::desc{task_spawn, custom_command, print_usage};
+#define RMPC_OBJECT desc.object
+#define RMPC_TASK_ID desc.task_id
+#define RMPC_EXIT_AND_CLEANUP() exit_and_cleanup(desc)
+#define RMPC_MAIN(argc, argv) ModuleBase::main(RollMpc::desc, argc, argv)
+#else
+#define RMPC_OBJECT _object
+#define RMPC_TASK_ID _task_id
+#define RMPC_EXIT_AND_CLEANUP() exit_and_cleanup()
+#define RMPC_MAIN(argc, argv) RollMpc::main(argc, argv)
+#endif
+
+static_assert(ROLLGLUE_N_ACT == 2, "two aileron pairs: inner, outer");
+static_assert(actuator_servos_s::NUM_CONTROLS <= sizeof(rollmpc_servos_s::control) / sizeof(float),
+	      "rollmpc_servos must cover every servo");
+
+/* Out-of-range values map to one the glue refuses (never a silent wrap-around). */
+static uint16_t narrow_u16(int32_t v) { return (v >= 0 && v <= UINT16_MAX) ? static_cast<uint16_t>(v) : UINT16_MAX; }
+static int8_t narrow_i8(int32_t v) { return (v >= INT8_MIN && v <= INT8_MAX) ? static_cast<int8_t>(v) : INT8_MAX; }
 
 RollMpc::RollMpc() :
 	ModuleParams(nullptr),
-	ScheduledWorkItem(MODULE_NAME, px4::wq_configurations::nav_and_controllers)
+	ScheduledWorkItem(MODULE_NAME, kWorkQueue)
 {
-	rollmpc_init(&_mpc);
+	rollglue_cycles_enable();
+	rollglue_init(&_glue);
 }
 
 RollMpc::~RollMpc()
 {
 	perf_free(_loop_perf);
-	perf_free(_fallback_perf);
+	perf_free(_handover_perf);
 }
 
 bool RollMpc::init()
 {
-	/* the controller's sample time is fixed at generation: 10 ms */
-	static_assert(ROLLMPC_N_OUTPUTS == 1 && ROLLMPC_N_ACTUATORS == 2, "roll MPC with two pairs");
-	ScheduleOnInterval(10_ms);
+	apply_params();
+	ScheduleOnInterval(10_ms); // the controller's sample time, fixed at generation
 	return true;
 }
 
-void RollMpc::hand_over(const hrt_abstime &timestamp_sample, int status)
+void RollMpc::apply_params()
 {
-	rollmpc_ailerons_s out{};
-	out.timestamp_sample = timestamp_sample;
-	for (float &c : out.control) {
-		c = NAN;
+	rollglue_params p{};
+	p.timeout_us = static_cast<uint32_t>(narrow_u16(_param_rmpc_timeout.get())) * 1000u;
+	p.frozen_samples = narrow_u16(_param_rmpc_frozen.get());
+	p.warmup_samples = narrow_u16(_param_rmpc_warmup.get());
+	p.max_failures = narrow_u16(_param_rmpc_max_fail.get());
+	p.ref_slew_dps = _param_rmpc_slew.get();
+	p.throw_deg[0] = _param_rmpc_throw_in.get();
+	p.throw_deg[1] = _param_rmpc_throw_out.get();
+	const int32_t servo[2][2] {{_param_rmpc_in_l.get(), _param_rmpc_in_r.get()},
+		{_param_rmpc_out_l.get(), _param_rmpc_out_r.get()}};
+	const int32_t rev = _param_rmpc_rev.get();
+
+	for (int a = 0; a < 2; a++) {
+		for (int s = 0; s < 2; s++) {
+			p.channel[a][s] = narrow_i8(servo[a][s]);
+			p.sign[a][s] = (rev & (1 << (2 * a + s))) ? -1 : 1;
+		}
 	}
-	out.valid = false;
-	out.status = static_cast<uint8_t>(status);
-	out.mode = static_cast<uint8_t>(rollmpc_last_info(&_mpc)->mode);
-	out.failsafe_events = _failsafe_events;
-	out.timestamp = hrt_absolute_time();
-	_ailerons_pub.publish(out);
-	perf_count(_fallback_perf);
+
+	const int result = rollglue_set_params(&_glue, &p, actuator_servos_s::NUM_CONTROLS);
+
+	if (result != ROLLGLUE_PARAMS_OK) {
+		PX4_ERR("RMPC_* out of range (rollglue_params_result %d): %s", result,
+			_params_ok ? "keeping the previous set" : "not flying");
+
+	} else {
+		_params_ok = true;
+	}
+}
+
+void RollMpc::read_inputs()
+{
+	vehicle_control_mode_s control_mode;
+
+	if (_control_mode_sub.update(&control_mode)) {
+		_attitude_control = control_mode.flag_control_attitude_enabled;
+	}
+
+	vehicle_status_s status;
+
+	if (_status_sub.update(&status)) {
+		_fixed_wing = status.vehicle_type == vehicle_status_s::VEHICLE_TYPE_FIXED_WING;
+	}
+
+	/* units: PX4 radians -> the controller's degrees; timestamps: the sample's own */
+	vehicle_attitude_s att;
+
+	if (_att_sub.update(&att)) {
+		_in.roll_deg = matrix::Eulerf(matrix::Quatf(att.q)).phi() * kRadToDeg;
+		_in.roll_us = att.timestamp_sample;
+		_att_sample = att.timestamp_sample;
+	}
+
+	vehicle_angular_velocity_s rates;
+
+	if (_rates_sub.update(&rates)) {
+		_in.roll_rate_dps = rates.xyz[0] * kRadToDeg;
+		_in.rate_us = rates.timestamp_sample;
+	}
+
+	vehicle_attitude_setpoint_s att_sp;
+
+	if (_att_sp_sub.update(&att_sp)) {
+		_in.roll_cmd_deg = matrix::Eulerf(matrix::Quatf(att_sp.q_d)).phi() * kRadToDeg;
+		_in.cmd_us = att_sp.timestamp;
+	}
+
+	/* what the servos get now (the allocator's values, ours when engaged): the observers
+	 * follow the aircraft on it while fw_rate_control flies */
+	actuator_servos_s servos;
+
+	if (_servos_sub.update(&servos)) {
+		for (int i = 0; i < ROLLGLUE_MAX_CHANNELS; i++) {
+			_in.applied[i] = i < actuator_servos_s::NUM_CONTROLS ? servos.control[i] : NAN;
+		}
+	}
+
+	_in.engage = _param_rmpc_en.get() && _attitude_control && _fixed_wing;
+}
+
+void RollMpc::publish(const rollglue_output &out)
+{
+	const rollglue_telemetry *tm = rollglue_get_telemetry(&_glue);
+	rollmpc_servos_s msg{};
+	msg.timestamp_sample = _att_sample;
+
+	for (int i = 0; i < actuator_servos_s::NUM_CONTROLS; i++) {
+		msg.control[i] = out.value[i];
+	}
+
+	for (int i = actuator_servos_s::NUM_CONTROLS; i < static_cast<int>(sizeof(msg.control) / sizeof(float)); i++) {
+		msg.control[i] = NAN;
+	}
+
+	msg.channel_mask = static_cast<uint16_t>(out.channel_mask);
+	msg.valid = out.valid != 0;
+	msg.state = static_cast<uint8_t>(tm->state);
+	msg.reasons = static_cast<uint16_t>(tm->reasons);
+	msg.status = static_cast<uint8_t>(tm->status);
+	msg.mode = static_cast<uint8_t>(tm->mode);
+	msg.failures = tm->failures;
+	msg.solve_cycles = tm->solve_cycles;
+	msg.timestamp = hrt_absolute_time();
+	_servos_pub.publish(msg);
 }
 
 void RollMpc::Run()
 {
 	if (should_exit()) {
 		ScheduleClear();
-		exit_and_cleanup();
+		RMPC_EXIT_AND_CLEANUP();
 		return;
 	}
 
@@ -60,88 +175,19 @@ void RollMpc::Run()
 		parameter_update_s pupdate;
 		_parameter_update_sub.copy(&pupdate);
 		updateParams();
+		apply_params();
 	}
 
-	vehicle_control_mode_s control_mode;
-	if (_control_mode_sub.update(&control_mode)) {
-		_attitude_control = control_mode.flag_control_attitude_enabled;
+	read_inputs();
+	const uint32_t failures = rollglue_get_telemetry(&_glue)->failures;
+	rollglue_output out;
+	rollglue_step(&_glue, &_in, hrt_absolute_time(), &out);
+
+	if (rollglue_get_telemetry(&_glue)->failures != failures) {
+		perf_count(_handover_perf);
 	}
 
-	/* units: the controller works in degrees; PX4 in radians */
-	hrt_abstime timestamp_sample = 0;
-	vehicle_attitude_s att;
-	if (_att_sub.update(&att)) {
-		_roll_deg = matrix::Eulerf(matrix::Quatf(att.q)).phi() * kRadToDeg;
-		timestamp_sample = att.timestamp_sample;
-	}
-
-	vehicle_angular_velocity_s rates;
-	if (_rates_sub.update(&rates)) {
-		_roll_rate_dps = rates.xyz[0] * kRadToDeg;
-	}
-
-	vehicle_attitude_setpoint_s att_sp;
-	if (_att_sp_sub.update(&att_sp)) {
-		_roll_cmd_deg = matrix::Eulerf(matrix::Quatf(att_sp.q_d)).phi() * kRadToDeg;
-	}
-
-	if (!_param_rmpc_en.get() || !_attitude_control) {
-		if (_engaged) {
-			hand_over(timestamp_sample, ROLLMPC_OPTIMAL);
-		}
-		_engaged = false;
-		rollmpc_init(&_mpc); /* observers restart from zero when re-enabled */
-		perf_end(_loop_perf);
-		return;
-	}
-
-	/* no preview source: the command is held over the horizon */
-	for (int k = 0; k < ROLLMPC_HORIZON; k++) {
-		_ref[k] = static_cast<rollmpc_real>(_roll_cmd_deg);
-	}
-
-	const rollmpc_real y[1] {static_cast<rollmpc_real>(_roll_deg)};
-	const rollmpc_real sched[1] {static_cast<rollmpc_real>(_roll_rate_dps)};
-	const int status = rollmpc_step(&_mpc, y, sched, _ref, _u);
-
-	const bool finite = PX4_ISFINITE(_u[0]) && PX4_ISFINITE(_u[1]);
-
-	if (status != ROLLMPC_OPTIMAL || !finite) {
-		++_failsafe_events;
-		++_consecutive_failures;
-		hand_over(timestamp_sample, status);
-
-		if (_consecutive_failures >= _param_rmpc_max_fail.get()) {
-			PX4_WARN("%s: handing over to fw_rate_control", rollmpc_status_message(status));
-			_param_rmpc_en.set(false);
-			_param_rmpc_en.commit_no_notification();
-		}
-
-		perf_end(_loop_perf);
-		return;
-	}
-
-	_consecutive_failures = 0;
-	_engaged = true;
-
-	rollmpc_ailerons_s out{};
-	out.timestamp_sample = timestamp_sample;
-	for (float &c : out.control) {
-		c = NAN;
-	}
-	/* deg -> normalised [-1, 1] by the servo throw */
-	out.control[_param_rmpc_srv_in.get()] = math::constrain(
-			static_cast<float>(_u[0]) / _param_rmpc_throw_in.get(), -1.f, 1.f);
-	out.control[_param_rmpc_srv_out.get()] = math::constrain(
-			static_cast<float>(_u[1]) / _param_rmpc_throw_out.get(), -1.f, 1.f);
-	out.valid = true;
-	out.status = static_cast<uint8_t>(status);
-	out.mode = static_cast<uint8_t>(rollmpc_last_info(&_mpc)->mode);
-	out.failsafe_events = _failsafe_events;
-	out.solve_cycles = rollmpc_last_info(&_mpc)->solve_ticks;
-	out.timestamp = hrt_absolute_time();
-	_ailerons_pub.publish(out);
-
+	publish(out);
 	perf_end(_loop_perf);
 }
 
@@ -150,8 +196,8 @@ int RollMpc::task_spawn(int argc, char *argv[])
 	RollMpc *instance = new RollMpc();
 
 	if (instance) {
-		_object.store(instance);
-		_task_id = task_id_is_work_queue;
+		RMPC_OBJECT.store(instance);
+		RMPC_TASK_ID = task_id_is_work_queue;
 
 		if (instance->init()) {
 			return PX4_OK;
@@ -162,19 +208,21 @@ int RollMpc::task_spawn(int argc, char *argv[])
 	}
 
 	delete instance;
-	_object.store(nullptr);
-	_task_id = -1;
+	RMPC_OBJECT.store(nullptr);
+	RMPC_TASK_ID = -1;
 	return PX4_ERROR;
 }
 
 int RollMpc::print_status()
 {
-	const rollmpc_info *info = rollmpc_last_info(&_mpc);
-	PX4_INFO("engaged %d, mode %d, status %s, failsafe events %u, solve %u cycles",
-		 _engaged, info->mode, rollmpc_status_message(info->status),
-		 static_cast<unsigned>(_failsafe_events), static_cast<unsigned>(info->solve_ticks));
+	const rollglue_telemetry *tm = rollglue_get_telemetry(&_glue);
+	PX4_INFO("state %d, reasons 0x%03x, mode %d, status %s", tm->state, static_cast<unsigned>(tm->reasons),
+		 tm->mode, rollmpc_status_message(tm->status));
+	PX4_INFO("engagements %u, failures %u, solve %u cycles (max %u)", static_cast<unsigned>(tm->engagements),
+		 static_cast<unsigned>(tm->failures), static_cast<unsigned>(tm->solve_cycles),
+		 static_cast<unsigned>(tm->max_solve_cycles));
 	perf_print_counter(_loop_perf);
-	perf_print_counter(_fallback_perf);
+	perf_print_counter(_handover_perf);
 	return 0;
 }
 
@@ -192,9 +240,10 @@ int RollMpc::print_usage(const char *reason)
 	PRINT_MODULE_DESCRIPTION(
 		R"DESCR_STR(
 ### Description
-Generated roll MPC (rollmpc) for a fixed wing with two aileron pairs. Publishes
-normalised aileron setpoints on rollmpc_ailerons; valid = false hands the ailerons back
-to fw_rate_control (on RMPC_EN = 0, a non-finite output or a non-optimal status).
+Generated roll MPC (rollmpc) for a fixed wing with two aileron pairs, 100 Hz in its own
+work queue. Publishes rollmpc_servos; the patched control allocator puts those values on
+the aileron servos while they are valid and fresh, and fw_rate_control keeps every servo
+otherwise (RMPC_EN = 0, no attitude control, stale/frozen/NaN input, a failed solve).
 )DESCR_STR");
 
 	PRINT_MODULE_USAGE_NAME("rollmpc", "controller");
@@ -205,5 +254,5 @@ to fw_rate_control (on RMPC_EN = 0, a non-finite output or a non-optimal status)
 
 extern "C" __EXPORT int rollmpc_main(int argc, char *argv[])
 {
-	return RollMpc::main(argc, argv);
+	return RMPC_MAIN(argc, argv);
 }
