@@ -13,7 +13,7 @@ import numpy as np
 from .. import __version__
 from .build import (CORTEX_M4F, CROSS_CC, TARGET_CFLAGS, build_target, image_sizes,
                     largest_symbols, worst_stack)
-from .replay import INFO_FIELDS, record_host_run, replay_on_target, select_steps
+from .replay import INFO_FIELDS, HostRecord, record_host_run, replay_on_target, select_steps
 
 CPU_MHZ = 168.0
 GOALS = {"flash_bytes": 256 * 1024, "ram_bytes": 32 * 1024, "worst_step_cycles": 1_680_000}
@@ -36,13 +36,16 @@ def _top_functions(counts, limit: int = 12) -> list[dict]:
 
 def measure(model, ctx: dict, build_root: Path, *, steps: int | None = None,
             sample_every: int = 20, hardest: int = 10, progress=None,
-            extra_cflags: tuple[str, ...] = (), host_repeats: int = 5) -> dict:
-    """The full report of one generated controller (see the module docstring)."""
+            extra_cflags: tuple[str, ...] = (), host_repeats: int = 5,
+            record: HostRecord | None = None) -> dict:
+    """The full report of one generated controller (see the module docstring); ``record``
+    replaces the host run of the scenario (``rollmpc report --flight``)."""
     build = build_target(ctx, build_root, extra_cflags=extra_cflags)
     sizes = image_sizes(build.elf)
     stack = worst_stack(build, f"{ctx['prefix']}_step")
     stack_entry = worst_stack(build, f"{ctx['prefix']}_target_step")  # + the harness frame
-    record = record_host_run(model, ctx, build_root, steps, progress, host_repeats)
+    if record is None:
+        record = record_host_run(model, ctx, build_root, steps, progress, host_repeats)
     hard, sweep = select_steps(record, hardest, sample_every)
     run = replay_on_target(build, ctx, record, set(hard) | set(sweep), progress)
     worst_k = max(run.counts, key=lambda k: (run.counts[k].cycles, -k))

@@ -2,8 +2,9 @@
 host run, choose the steps to count, and replay the run on the emulated Cortex-M4F.
 
 1. Host run: the host build of the same precision (through cffi) closes the loop on the
-   scenario; every input it was given (y, sched, r) and every output (u, status,
-   diagnostics, solve time) is recorded.
+   scenario (or, :mod:`.flight_replay`, steps through a flight's recorded inputs); every
+   input it was given (y, sched, r) and every output (u, status, diagnostics, solve time)
+   is recorded.
 2. Step choice: the hardest steps by the host's solve time (the smallest of several runs:
    the host clock is noisy), polish corrections, active rows and sweeps, plus a sampled
    sweep (every ``sample_every``-th step).
@@ -65,26 +66,33 @@ class _RecordingController:
 
 def record_host_run(model, ctx: dict, build_root: Path, steps: int | None,
                     progress=None, repeats: int = 1) -> HostRecord:
-    """Close the loop with the host build and record every step.
+    """Close the loop with the host build on the scenario and record every step."""
+    def drive(controller, progress_cb):
+        run_closed_loop(model.config, controller, steps=steps, progress=progress_cb)
 
-    With ``repeats`` > 1 the (deterministic) closed loop runs again and each step keeps its
+    total = steps or len(scenario_reference(model.config))
+    return record_host_runs(ctx, build_root, total, drive, progress, repeats, "run")
+
+
+def record_host_runs(ctx: dict, build_root: Path, total: int, drive, progress=None,
+                     repeats: int = 1, what: str = "run") -> HostRecord:
+    """Record every step of ``drive(controller, progress_cb)``, which calls
+    ``controller.step`` ``total`` times, on a fresh host build.
+
+    With ``repeats`` > 1 the (deterministic) run is driven again and each step keeps its
     smallest solve time: the host clock on a shared machine is noisy, and the minimum is
     what ranks the hardest steps.
     """
     record = HostRecord()
-    total = steps or len(scenario_reference(model.config))
     for run in range(max(1, repeats)):
         host = build_host_controller(ctx, build_root)
-        label = f"report: host run {run + 1}/{max(1, repeats)}"
-        cb = start_phase(progress, total, label)
+        cb = start_phase(progress, total, f"report: host {what} {run + 1}/{max(1, repeats)}")
         if run == 0:
-            run_closed_loop(model.config, _RecordingController(host, record), steps=steps,
-                            progress=cb)
+            drive(_RecordingController(host, record), cb)
             record.final_state = bytes(host.ffi.buffer(host.ctrl))
             continue
         timings = HostRecord()
-        run_closed_loop(model.config, _RecordingController(host, timings), steps=steps,
-                        progress=cb)
+        drive(_RecordingController(host, timings), cb)
         for info, again in zip(record.info, timings.info):
             info["solve_ticks"] = min(info["solve_ticks"], again["solve_ticks"])
     return record

@@ -12,6 +12,8 @@ progress goes to an optional callback factory, see ``sim.simulate.start_phase``)
 
 With ``horizons`` the measurement is repeated for the config with the horizon overridden,
 and the growth of each figure in N is fitted (:mod:`rollmpc_codegen.target.horizons`).
+With ``flight`` (a CSV of ``rollmpc fly``) step 1 replays that flight's recorded inputs
+instead of the scenario (:mod:`rollmpc_codegen.target.flight_replay`).
 """
 from __future__ import annotations
 
@@ -22,6 +24,7 @@ from .. import config as config_mod
 from ..extras import installed
 from ..host.build_cache import private_root
 from ..pipeline import load_model
+from . import flight_replay
 from .horizons import horizon_table
 from .measure import measure
 
@@ -32,13 +35,15 @@ def run_report(config: str | Path, *, precision: str | None = None,
                horizons: Iterable[int] | None = None, steps: int | None = None,
                sample_every: int = 20, hardest: int = 10, host_repeats: int = 5,
                extra_cflags: tuple[str, ...] = (), build_dir: str | Path | None = None,
-               progress=None) -> dict:
+               flight: str | Path | None = None, progress=None) -> dict:
     """The report of ``config`` (the keys of :func:`rollmpc_codegen.target.measure.measure`),
     or with ``horizons`` ``{"horizons": horizon_table(...)}``.
 
     ``steps`` scenario samples are replayed (default: all); cycles are counted on every
     ``sample_every``-th step and on the ``hardest`` steps, ranked by the smallest host solve
-    time of ``host_repeats`` runs; ``extra_cflags`` are appended to the target's flags.
+    time of ``host_repeats`` runs; ``extra_cflags`` are appended to the target's flags;
+    ``flight``: replay the first ``steps`` samples of that flight CSV instead, the report
+    then has ``flight`` (its path, samples and ``flight_replay.commands_match``).
     """
     for module, package in TARGET_MODULES:
         if not installed(module):
@@ -47,9 +52,18 @@ def run_report(config: str | Path, *, precision: str | None = None,
     root = private_root(build_dir or None)  # it receives configs too, not only builds
     options = {"steps": steps, "sample_every": sample_every, "hardest": hardest,
                "extra_cflags": tuple(extra_cflags), "host_repeats": host_repeats}
+    if horizons and flight is not None:
+        raise config_mod.ConfigError("--flight", "replays one flight; not with --horizons")
     if horizons:
         config_mod.load(config, precision)  # validate before the long run
         return {"horizons": horizon_table(Path(config), sorted(set(horizons)), precision, root,
                                           progress, **options)}
     model, ctx = load_model(config, precision)
-    return measure(model, ctx, root, progress=progress, **options)
+    if flight is None:
+        return measure(model, ctx, root, progress=progress, **options)
+    inputs = flight_replay.read_flight_inputs(flight, ctx, steps)
+    record = flight_replay.record_flight(ctx, inputs, root, progress, host_repeats)
+    report = measure(model, ctx, root, progress=progress, record=record, **options)
+    report["flight"] = {"path": str(flight), "samples": len(inputs.y),
+                        **flight_replay.commands_match(inputs, record)}
+    return report
