@@ -25,7 +25,8 @@ CASES = [("uav_roll", "double", "uav_roll"), ("uav_roll", "float", "uav_roll_f32
          ("uav_roll_blocked", "double", "uav_roll_blocked"),
          ("uav_roll_blocked", "float", "uav_roll_blocked_f32"),
          ("chain_soft", "double", "chain_soft"),
-         ("chain_soft", "float", "chain_soft_f32")]
+         ("chain_soft", "float", "chain_soft_f32"),
+         ("c172_roll", "double", "c172_roll"), ("c172_roll", "float", "c172_roll_f32")]
 
 
 @pytest.mark.parametrize("example,precision,committed", CASES)
