@@ -10,13 +10,13 @@ VENV ?= .venv
 PY := $(VENV)/bin/python
 ROLLMPC := $(VENV)/bin/rollmpc
 EXAMPLES := uav_roll chain_of_masses three_drives quadruple_tank thermal_zones chain_runtime_bounds thermal_zones_rate \
-            uav_roll_blocked chain_soft
+            uav_roll_blocked chain_soft c172_roll fw_lateral quad_attitude
 CC ?= gcc
 CSTRICT := -std=c99 -O2 -ffp-contract=off -Wall -Wextra -Wpedantic -Wconversion -Wshadow \
            -Wdouble-promotion -Werror
 
 .PHONY: all venv demo generate test ctest check-long clean firmware size report figures \
-        reliability
+        reliability flight-matrix
 
 all: test
 
@@ -90,6 +90,14 @@ figures: venv
 ## check-long: long runs (sanitizer soak, large fuzz budgets)
 check-long: venv
 	$(PY) -m pytest -q -m slow --runslow
+
+## flight-matrix: the table of docs/flight.md: examples/c172_roll.yaml and the PID baseline
+##   on the JSBSim c172p in every turbulence level, 3 seeds each, each MPC flight replayed
+##   on the emulated M4F, and the latency table (needs the flight and target extras; ~2 CPU-min)
+flight-matrix: venv
+	@mkdir -p build/flight
+	$(PY) -m rollmpc_codegen.flight.matrix --json build/flight/matrix.json > build/flight/matrix.md
+	@cat build/flight/matrix.md
 
 ## reliability: measure the figures of docs/reliability.md into build/reliability/*.json
 reliability: venv

@@ -25,7 +25,11 @@ CASES = [("uav_roll", "double", "uav_roll"), ("uav_roll", "float", "uav_roll_f32
          ("uav_roll_blocked", "double", "uav_roll_blocked"),
          ("uav_roll_blocked", "float", "uav_roll_blocked_f32"),
          ("chain_soft", "double", "chain_soft"),
-         ("chain_soft", "float", "chain_soft_f32")]
+         ("chain_soft", "float", "chain_soft_f32"),
+         ("c172_roll", "double", "c172_roll"), ("c172_roll", "float", "c172_roll_f32"),
+         ("fw_lateral", "double", "fw_lateral"), ("fw_lateral", "float", "fw_lateral_f32"),
+         ("quad_attitude", "double", "quad_attitude"),
+         ("quad_attitude", "float", "quad_attitude_f32")]
 
 
 @pytest.mark.parametrize("example,precision,committed", CASES)

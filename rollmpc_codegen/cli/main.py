@@ -13,11 +13,11 @@ import argparse
 import sys
 
 from ..config import ConfigError
-from . import bench, generate, report, simulate, testvectors
+from . import bench, fly, generate, identify, report, simulate, testvectors
 
 EXIT_BAD_INPUT = 2
 EXIT_TOOL_FAILED = 1
-SUBCOMMANDS = (generate, simulate, bench, report, testvectors)  # in the order of --help
+SUBCOMMANDS = (generate, simulate, bench, report, testvectors, identify, fly)  # --help order
 
 
 class OneLineArgumentParser(argparse.ArgumentParser):

@@ -37,6 +37,8 @@ def add_parser(sub) -> None:
     rp.add_argument("--extra-cflags", default=None,
                     help="extra flags for the target build, appended to the firmware flags "
                     "(e.g. --extra-cflags=-fno-builtin or --extra-cflags=-ffp-contract=fast)")
+    rp.add_argument("--flight", default=None, help="replay the controller inputs of a "
+                    "`rollmpc fly --csv` flight instead of the scenario")
     add_quiet(rp)
     add_build_dir(rp)
     rp.set_defaults(func=run)
@@ -135,11 +137,17 @@ def run(args) -> int:
                         mismatch=args.mismatch, sample_every=args.sample_every,
                         hardest=args.hardest, host_repeats=args.host_repeats,
                         extra_cflags=tuple(args.extra_cflags.split()) if args.extra_cflags
-                        else (), build_dir=args.build_dir, progress=progress_of(args))
+                        else (), build_dir=args.build_dir, flight=args.flight,
+                        progress=progress_of(args))
     if horizons:
         print_horizons(result["horizons"])
     else:
         print(summary_text(result))
+    if "flight" in result:
+        f = result["flight"]
+        print(f"  flight {f['path']}: {f['samples']} samples; host replay == the flight's "
+              f"commands: {'yes' if f['commands_match'] else 'NO'} "
+              f"({f['mismatching_samples']} samples differ)")
     if args.json:
         write_json(args.json, result)
     return 0

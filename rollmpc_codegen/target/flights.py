@@ -121,11 +121,13 @@ class FlightRun:
 
 def fly(model, ctx: dict, build, build_root, flight: Flight, plan: FlightPlan, *,
         steps: int | None, hardest: int, sample_every: int, host_repeats: int,
-        progress=None, label: str = "report") -> FlightRun:
-    """Record ``flight`` on the host, choose the steps to count, replay it on the target;
+        progress=None, label: str = "report", record: HostRecord | None = None) -> FlightRun:
+    """Record ``flight`` on the host (unless ``record`` holds a recorded run already:
+    ``rollmpc report --flight``), choose the steps to count, replay it on the target;
     a line on ``progress`` gives the flight's worst and median step."""
-    record = record_host_run(model, ctx, build_root, steps, progress, host_repeats,
-                             plan.loop_options(flight), label)
+    if record is None:
+        record = record_host_run(model, ctx, build_root, steps, progress, host_repeats,
+                                 plan.loop_options(flight), label)
     hard, sweep = select_steps(record, hardest, sample_every)
     run = replay_on_target(build, ctx, record, set(hard) | set(sweep), progress, label)
     result = FlightRun(flight, record, hard, sweep, run)

@@ -15,7 +15,7 @@ from .. import __version__
 from .build import (CORTEX_M4F, CROSS_CC, TARGET_CFLAGS, build_target, image_sizes,
                     largest_symbols, worst_stack)
 from .flights import FlightPlan, FlightRun, fly
-from .replay import INFO_FIELDS
+from .replay import INFO_FIELDS, HostRecord
 
 
 def _toolchain_version() -> str:
@@ -57,10 +57,12 @@ def memory_goals(cfg, flash_bytes: int, ram_bytes: int, ctrl_bytes: int) -> dict
 
 def measure(model, ctx: dict, build_root: Path, *, plan: FlightPlan = FlightPlan(),
             steps: int | None = None, sample_every: int = 20, hardest: int = 10,
-            progress=None, extra_cflags: tuple[str, ...] = (), host_repeats: int = 5) -> dict:
+            progress=None, extra_cflags: tuple[str, ...] = (), host_repeats: int = 5,
+            record: HostRecord | None = None) -> dict:
     """The full report of one generated controller (see the module docstring); with
     flights, the step figures are those of the overall worst flight, the cycle figures
-    over every flight, and ``flights`` has each flight's."""
+    over every flight, and ``flights`` has each flight's. ``record`` replaces the host
+    run of the scenario (``rollmpc report --flight``: a flown flight's inputs)."""
     cfg = model.config
     build = build_target(ctx, build_root, extra_cflags=extra_cflags)
     sizes = image_sizes(build.elf)
@@ -73,7 +75,8 @@ def measure(model, ctx: dict, build_root: Path, *, plan: FlightPlan = FlightPlan
                  f"report: flight {flight.index} ({flight.index + 1} of {len(flights)})")
         runs.append(fly(model, ctx, build, build_root, flight, plan, steps=steps,
                         hardest=hardest, sample_every=sample_every,
-                        host_repeats=host_repeats, progress=progress, label=label))
+                        host_repeats=host_repeats, progress=progress, label=label,
+                        record=record))
     worst_run = max(runs, key=lambda f: f.worst_cycles)  # the first flight on a tie
     worst_k, record = worst_run.worst_step, worst_run.record
     worst = worst_run.run.counts[worst_k]

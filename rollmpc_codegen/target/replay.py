@@ -3,8 +3,9 @@ host run, choose the steps to count, and replay the run on the emulated Cortex-M
 
 1. Host run: the host build of the same precision (through cffi) closes the loop on the
    scenario, or on a flight (``loop_options``: its reference and perturbations, see
-   :mod:`rollmpc_codegen.target.flights`); every input it was given (y, sched, r) and
-   every output (u, status, diagnostics, solve time) is recorded.
+   :mod:`rollmpc_codegen.target.flights`), or steps through a flown flight's recorded
+   inputs (:mod:`.flight_replay`); every input it was given (y, sched, r) and every
+   output (u, status, diagnostics, solve time) is recorded.
 2. Step choice: the hardest steps by the host's solve time (the smallest of several runs:
    the host clock is noisy), polish corrections, active rows and sweeps, plus a sampled
    sweep (every ``sample_every``-th step).
@@ -68,27 +69,38 @@ def record_host_run(model, ctx: dict, build_root: Path, steps: int | None,
                     progress=None, repeats: int = 1, loop_options: dict | None = None,
                     label: str = "report") -> HostRecord:
     """Close the loop with the host build and record every step; ``loop_options`` are
-    keywords of ``run_closed_loop`` (reference, noise_std, disturbance, seed, mismatch).
+    keywords of ``run_closed_loop`` (reference, noise_std, disturbance, seed, mismatch)."""
+    loop_options = loop_options or {}
+    reference = loop_options.get("reference")
+    total = steps or len(scenario_reference(model.config) if reference is None else reference)
 
-    With ``repeats`` > 1 the (deterministic) closed loop runs again and each step keeps its
+    def drive(controller, progress_cb):
+        run_closed_loop(model.config, controller, steps=steps, progress=progress_cb,
+                        **loop_options)
+
+    return record_host_runs(ctx, build_root, total, drive, progress, repeats, f"{label}: host run")
+
+
+def record_host_runs(ctx: dict, build_root: Path, total: int, drive, progress=None,
+                     repeats: int = 1, label: str = "report: host run") -> HostRecord:
+    """Record every step of ``drive(controller, progress_cb)``, which calls
+    ``controller.step`` ``total`` times, on a fresh host build (a closed loop, or the
+    recorded inputs of a flight: :mod:`.flight_replay`).
+
+    With ``repeats`` > 1 the (deterministic) run is driven again and each step keeps its
     smallest solve time: the host clock on a shared machine is noisy, and the minimum is
     what ranks the hardest steps.
     """
     record = HostRecord()
-    loop_options = loop_options or {}
-    reference = loop_options.get("reference")
-    total = steps or len(scenario_reference(model.config) if reference is None else reference)
     for run in range(max(1, repeats)):
         host = build_host_controller(ctx, build_root)
-        cb = start_phase(progress, total, f"{label}: host run {run + 1}/{max(1, repeats)}")
+        cb = start_phase(progress, total, f"{label} {run + 1}/{max(1, repeats)}")
         if run == 0:
-            run_closed_loop(model.config, _RecordingController(host, record), steps=steps,
-                            progress=cb, **loop_options)
+            drive(_RecordingController(host, record), cb)
             record.final_state = bytes(host.ffi.buffer(host.ctrl))
             continue
         timings = HostRecord()
-        run_closed_loop(model.config, _RecordingController(host, timings), steps=steps,
-                        progress=cb, **loop_options)
+        drive(_RecordingController(host, timings), cb)
         for info, again in zip(record.info, timings.info):
             info["solve_ticks"] = min(info["solve_ticks"], again["solve_ticks"])
     return record

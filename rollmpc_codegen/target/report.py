@@ -26,6 +26,7 @@ from .. import config as config_mod
 from ..extras import installed
 from ..host.build_cache import private_root
 from ..pipeline import load_model
+from . import flight_replay
 from .flights import FlightPlan
 from .horizons import horizon_table
 from .measure import measure
@@ -39,7 +40,7 @@ def run_report(config: str | Path, *, precision: str | None = None,
                disturbance: float = 0.0, mismatch: float = 0.0,
                sample_every: int = 20, hardest: int = 10, host_repeats: int = 5,
                extra_cflags: tuple[str, ...] = (), build_dir: str | Path | None = None,
-               progress=None) -> dict:
+               flight: str | Path | None = None, progress=None) -> dict:
     """The report of ``config`` (the keys of :func:`rollmpc_codegen.target.measure.measure`),
     or with ``horizons`` ``{"horizons": horizon_table(...)}``.
 
@@ -48,7 +49,9 @@ def run_report(config: str | Path, *, precision: str | None = None,
     and ``mismatch`` perturb them (:class:`~rollmpc_codegen.target.flights.FlightPlan`).
     Cycles are counted on every ``sample_every``-th step and on the ``hardest`` steps,
     ranked by the smallest host solve time of ``host_repeats`` runs; ``extra_cflags`` are
-    appended to the target's flags.
+    appended to the target's flags. ``flight``: replay the first ``steps`` samples of that
+    CSV of ``rollmpc fly`` instead (:mod:`.flight_replay`); the report then has ``flight``
+    (its path, samples and ``flight_replay.commands_match``).
     """
     for module, package in TARGET_MODULES:
         if not installed(module):
@@ -60,9 +63,19 @@ def run_report(config: str | Path, *, precision: str | None = None,
     options = {"steps": steps, "sample_every": sample_every, "hardest": hardest,
                "extra_cflags": tuple(extra_cflags), "host_repeats": host_repeats,
                "plan": plan}
+    if flight is not None and (horizons or flights or noise_std or disturbance or mismatch):
+        raise config_mod.ConfigError("--flight", "replays one recorded flight; not with "
+                                     "--horizons, --flights or perturbations")
     if horizons:
         config_mod.load(config, precision)  # validate before the long run
         return {"horizons": horizon_table(Path(config), sorted(set(horizons)), precision, root,
                                           progress, **options)}
     model, ctx = load_model(config, precision)
-    return measure(model, ctx, root, progress=progress, **options)
+    if flight is None:
+        return measure(model, ctx, root, progress=progress, **options)
+    inputs = flight_replay.read_flight_inputs(flight, ctx, steps)
+    record = flight_replay.record_flight(ctx, inputs, root, progress, host_repeats)
+    report = measure(model, ctx, root, progress=progress, record=record, **options)
+    report["flight"] = {"path": str(flight), "samples": len(inputs.y),
+                        **flight_replay.commands_match(inputs, record)}
+    return report

@@ -1,0 +1,270 @@
+/**
+ * @file c172p_roll_controller.c
+ * @brief Switched controller: hysteresis scheduler (eq. 3), one observer per mode,
+ *        QP solve of the active mode, first-move extraction.
+ *
+ * All observers run every sample in the paper's predictor form
+ * xhat+ = A xhat + B u_j + L (y - C xhat), each driven by the physical commands of its
+ * own actuators (0 for an inactive pair) and the shared measurement. The inactive
+ * observers therefore stay locked to y and a switch is bumpless.
+ */
+#include <math.h>
+#include "c172p_roll_internal.h"
+
+#define R_ C172P_ROLL_R
+
+/*
+ * Band scheduler on airspeed: 3 bands split at the thresholds
+ * 80.0, 100.0 (eq. 3 generalised). Band b lies between thresholds b-1 and b.
+ * Threshold i is stored as its hysteresis margins: sched_below[i] = threshold - epsilon and
+ * sched_above[i] = threshold + epsilon.
+ */
+static const c172p_roll_real sched_below[C172P_ROLL_N_SCHED_BANDS - 1] = {
+    78.0, 98.0
+};
+static const c172p_roll_real sched_above[C172P_ROLL_N_SCHED_BANDS - 1] = {
+    82.0, 102.0
+};
+/* Mode of each band (a mode may serve several bands). */
+static const int sched_mode[C172P_ROLL_N_SCHED_BANDS] = {
+    0, 1, 2
+};
+
+/**
+ * @brief Mode for one sample of the scheduling signal (finite), with hysteresis.
+ *
+ * The mode becomes band b's mode only when s is inside band b by more than the margin
+ * of each of its thresholds (sched_above[b-1] < s < sched_below[b]); within a margin of
+ * a threshold the current mode is kept. With two modes in the bands (outside, inside,
+ * outside) this is eq. (3) exactly.
+ * @param current Mode of the previous sample.
+ * @param s       Scheduling signal.
+ * @return The mode for this sample.
+ */
+static int schedule(int current, c172p_roll_real s)
+{
+    int band = 0;
+    int next = current;
+    while ((band < (C172P_ROLL_N_SCHED_BANDS - 1)) && (s > sched_above[band])) {
+        ++band; /* firmly above threshold band, hence above every threshold before it */
+    }
+    if ((band == (C172P_ROLL_N_SCHED_BANDS - 1)) || (s < sched_below[band])) {
+        next = sched_mode[band];
+    }
+    return next;
+}
+
+static int all_finite(const c172p_roll_real *v, int n)
+{
+    int i;
+    for (i = 0; i < n; ++i) {
+        if (!isfinite(v[i])) {
+            return 0;
+        }
+    }
+    return 1;
+}
+
+/* One observer update; use_y = 0 propagates open loop (no valid measurement). */
+static void observe(c172p_roll_work *ws, const c172p_roll_mode_data *md, c172p_roll_real *x,
+    const c172p_roll_real *y, const c172p_roll_real *u_phys, int use_y)
+{
+    int i, l, a;
+    for (a = 0; a < md->ny; ++a) {
+        c172p_roll_real acc = R_(0.0);
+        for (l = 0; l < md->nx; ++l) {
+            acc += md->C[a * md->nx + l] * x[l];
+        }
+        ws->innov[a] = use_y ? y[a] - acc : R_(0.0);
+    }
+    for (i = 0; i < md->nx; ++i) {
+        c172p_roll_real acc = R_(0.0);
+        for (l = 0; l < md->nx; ++l) {
+            acc += md->A[i * md->nx + l] * x[l];
+        }
+        for (l = 0; l < md->nu; ++l) {
+            acc += md->B[i * md->nu + l] * u_phys[md->actuator_index[l]];
+        }
+        if (use_y) {
+            for (a = 0; a < md->ny; ++a) {
+                acc += md->L[i * md->ny + a] * ws->innov[a];
+            }
+        }
+        ws->xn[i] = acc;
+    }
+    for (i = 0; i < md->nx; ++i) {
+        x[i] = ws->xn[i];
+    }
+}
+
+size_t c172p_roll_ctrl_size(void)
+{
+    return sizeof(c172p_roll_ctrl);
+}
+
+void c172p_roll_init(c172p_roll_ctrl *c)
+{
+    int j, i;
+    if (c == 0) {
+        return;
+    }
+    c->mode = 1;
+    for (j = 0; j < C172P_ROLL_N_MODES; ++j) {
+        for (i = 0; i < C172P_ROLL_NX_MAX; ++i) {
+            c->xhat[j][i] = R_(0.0);
+        }
+        for (i = 0; i < C172P_ROLL_M_MAX; ++i) {
+            c->lam[j][i] = R_(0.0);
+        }
+    }
+    for (i = 0; i < C172P_ROLL_N_ACTUATORS; ++i) {
+        c->u_last[i] = R_(0.0);
+    }
+    for (i = 0; i < C172P_ROLL_N_MAX; ++i) {
+        c->U[i] = R_(0.0);
+    }
+    c->info.status = C172P_ROLL_OPTIMAL;
+    c->info.mode = c->mode;
+    c->info.iterations = 0;
+    c->info.polish_iterations = 0;
+    c->info.active = 0;
+    c->info.mode_switches = 0;
+    c->info.solve_ticks = 0u;
+}
+
+static int solve_mode(c172p_roll_ctrl *c, int mode, const c172p_roll_real *x,
+    const c172p_roll_real *r, c172p_roll_real *U)
+{
+    const uint32_t t0 = C172P_ROLL_TIMESTAMP();
+    const int status = c172p_roll_qp_solve(&c->work, c->lam[mode], &c172p_roll_modes[mode], x, r, U,
+        &c->info.iterations, &c->info.polish_iterations, &c->info.active);
+    c->info.solve_ticks = (uint32_t)(C172P_ROLL_TIMESTAMP() - t0);
+    c->info.status = status;
+    c->info.mode = mode;
+    return status;
+}
+
+/* The scheduler's mode for this sample (finite sched); the incoming mode starts cold. */
+static void follow_schedule(c172p_roll_ctrl *c, const c172p_roll_real *sched)
+{
+    int i;
+    const int j = schedule(c->mode, sched[0]);
+    if (j != c->mode) {
+        for (i = 0; i < C172P_ROLL_M_MAX; ++i) {
+            c->lam[j][i] = R_(0.0); /* stale multipliers of the incoming mode: cold start */
+        }
+        c->mode = j;
+        ++c->info.mode_switches;
+    }
+}
+
+int c172p_roll_step(c172p_roll_ctrl *c, const c172p_roll_real *y, const c172p_roll_real *sched,
+    const c172p_roll_real *r, c172p_roll_real *u)
+{
+    int j, i, status, inputs_ok;
+    const c172p_roll_mode_data *md;
+    if (c == 0 || u == 0) {
+        return C172P_ROLL_BAD_ARGUMENT;
+    }
+    inputs_ok = y != 0 && r != 0 && (C172P_ROLL_N_SCHEDULE == 0 || sched != 0);
+    if (!inputs_ok) {
+        for (i = 0; i < C172P_ROLL_N_ACTUATORS; ++i) {
+            u[i] = c->u_last[i];
+        }
+        c->info.status = C172P_ROLL_BAD_ARGUMENT;
+        return C172P_ROLL_BAD_ARGUMENT;
+    }
+    if (!all_finite(y, C172P_ROLL_N_OUTPUTS) || !all_finite(sched, C172P_ROLL_N_SCHEDULE)
+        || !all_finite(r, C172P_ROLL_HORIZON * C172P_ROLL_N_OUTPUTS)) {
+        for (i = 0; i < C172P_ROLL_N_ACTUATORS; ++i) {
+            u[i] = c->u_last[i];
+        }
+        for (j = 0; j < C172P_ROLL_N_MODES; ++j) {
+            observe(&c->work, &c172p_roll_modes[j], c->xhat[j], y, u, 0);
+        }
+        c->info.status = C172P_ROLL_NONFINITE_INPUT;
+        c->info.iterations = 0;
+        return C172P_ROLL_NONFINITE_INPUT;
+    }
+    follow_schedule(c, sched);
+    md = &c172p_roll_modes[c->mode];
+    status = solve_mode(c, c->mode, c->xhat[c->mode], r, c->U);
+    for (i = 0; i < C172P_ROLL_N_ACTUATORS; ++i) {
+        u[i] = R_(0.0);
+    }
+    for (i = 0; i < md->nu; ++i) {
+        u[md->actuator_index[i]] = c->U[i];
+    }
+    for (j = 0; j < C172P_ROLL_N_MODES; ++j) {
+        observe(&c->work, &c172p_roll_modes[j], c->xhat[j], y, u, 1);
+    }
+    for (i = 0; i < C172P_ROLL_N_ACTUATORS; ++i) {
+        c->u_last[i] = u[i];
+    }
+    return status;
+}
+
+int c172p_roll_observe(c172p_roll_ctrl *c, const c172p_roll_real *y,
+    const c172p_roll_real *sched, const c172p_roll_real *u_applied)
+{
+    int j, use_y;
+    if (c == 0 || y == 0 || u_applied == 0 || (C172P_ROLL_N_SCHEDULE != 0 && sched == 0)) {
+        return C172P_ROLL_BAD_ARGUMENT;
+    }
+    if (!all_finite(u_applied, C172P_ROLL_N_ACTUATORS)) {
+        return C172P_ROLL_NONFINITE_INPUT; /* no input to propagate with: nothing changes */
+    }
+    use_y = all_finite(y, C172P_ROLL_N_OUTPUTS) && all_finite(sched, C172P_ROLL_N_SCHEDULE);
+    if (use_y) {
+        follow_schedule(c, sched);
+    }
+    for (j = 0; j < C172P_ROLL_N_MODES; ++j) {
+        observe(&c->work, &c172p_roll_modes[j], c->xhat[j], y, u_applied, use_y);
+    }
+    return use_y ? C172P_ROLL_OPTIMAL : C172P_ROLL_NONFINITE_INPUT;
+}
+
+int c172p_roll_solve_qp(c172p_roll_ctrl *c, int mode, const c172p_roll_real *x,
+    const c172p_roll_real *r, c172p_roll_real *U, int *iterations)
+{
+    int status, i;
+    if (c == 0 || U == 0 || mode < 0 || mode >= C172P_ROLL_N_MODES) {
+        return C172P_ROLL_BAD_ARGUMENT;
+    }
+    if (x == 0 || r == 0 || !all_finite(x, c172p_roll_modes[mode].nx)
+        || !all_finite(r, C172P_ROLL_HORIZON * C172P_ROLL_N_OUTPUTS)) {
+        status = (x == 0 || r == 0) ? C172P_ROLL_BAD_ARGUMENT : C172P_ROLL_NONFINITE_INPUT;
+        for (i = 0; i < c172p_roll_modes[mode].n; ++i) {
+            U[i] = R_(0.0);
+        }
+        c->info.status = status;
+        if (iterations != 0) {
+            *iterations = 0;
+        }
+        return status;
+    }
+    status = solve_mode(c, mode, x, r, U);
+    if (iterations != 0) {
+        *iterations = c->info.iterations;
+    }
+    return status;
+}
+
+const c172p_roll_info *c172p_roll_last_info(const c172p_roll_ctrl *c)
+{
+    return &c->info;
+}
+
+const char *c172p_roll_status_message(int status)
+{
+    switch (status) {
+    case C172P_ROLL_OPTIMAL: return "optimal";
+    case C172P_ROLL_MAX_ITER: return "iteration cap reached";
+    case C172P_ROLL_INACCURATE: return "converged by delta but constraints violated";
+    case C172P_ROLL_INFEASIBLE: return "infeasible: constraints cannot all hold (proven, or multipliers diverged)";
+    case C172P_ROLL_NONFINITE_INPUT: return "non-finite input; last command held";
+    case C172P_ROLL_NUMERICAL: return "non-finite intermediate result; safe fallback";
+    case C172P_ROLL_BAD_ARGUMENT: return "bad argument";
+    default: return "unknown status";
+    }
+}

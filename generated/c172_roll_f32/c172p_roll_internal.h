@@ -1,0 +1,67 @@
+/**
+ * @file c172p_roll_internal.h
+ * @brief Internal declarations shared by the generated sources (not part of the API).
+ */
+#ifndef C172P_ROLL_INTERNAL_H
+#define C172P_ROLL_INTERNAL_H
+
+#include "c172p_roll.h"
+
+/**
+ * Static data of one mode (all arrays row-major; "_p" = packed lower triangle), declared
+ * member by member in rollmpc_codegen/qp/arrays.py.
+ */
+typedef struct {
+    int nx;                             /**< States (with disturbance and u_prev states). */
+    int nu;                             /**< Inputs of the mode. */
+    int ny;                             /**< Outputs of the mode. */
+    int n;                              /**< Decision variables (N nu, or blocks * nu). */
+    int m;                              /**< Constraint rows. */
+    int nyq;                            /**< Predicted outputs N ny. */
+    int nt;                             /**< Terminal rows of the E split (0: P stays in S). */
+    const int16_t *actuator_index;      /**< [nu] physical actuator of each mode input. */
+    const c172p_roll_real *A;           /**< [nx][nx] discrete state matrix. */
+    const c172p_roll_real *B;           /**< [nx][nu] discrete input matrix. */
+    const c172p_roll_real *C;           /**< [ny][nx] output matrix. */
+    const c172p_roll_real *L;           /**< [nx][ny] observer gain. */
+    const c172p_roll_real *Kx;          /**< [n][nx] unconstrained state gain. */
+    const c172p_roll_real *EinvGt;      /**< [n][nyq] E^-1 Gamma'. */
+    const c172p_roll_real *Sinv_p;      /**< [n(n+1)/2] packed S^-1. */
+    const c172p_roll_real *Ew;          /**< [nt][n] E^-1 = S^-1 - Ew' Ew (Woodbury). */
+    const c172p_roll_real *Uv;          /**< [nt][n] V S^-1. */
+    const c172p_roll_real *T;           /**< [nt][nt] (2P)^-1 + V S^-1 V'. */
+    const c172p_roll_real *S_p;         /**< [n(n+1)/2] packed stage Hessian S (E = S + V'(2P)V). */
+    const c172p_roll_real *V;           /**< [nt][n] terminal rows of Gamma (nt = 0: none). */
+    const c172p_roll_real *P2inv;       /**< [nt][nt] (2P)^-1. */
+    const c172p_roll_real *GEinvGt_p;   /**< [nyq(nyq+1)/2] packed Gamma E^-1 Gamma' (null: no output rows). */
+    const c172p_roll_real *Omega2;      /**< [N][ny][ny] 2Q per stage, 2P at the last. */
+    const c172p_roll_real *Phi;         /**< [nyq][nx] free response of the predicted outputs. */
+    const c172p_roll_real *markov;      /**< [N][ny][nu] Markov parameters C A^i B. */
+    const int16_t *row_q;               /**< [m] quantity of each row (U index, n + Y index, or n + nyq + Δu index). */
+    const int8_t *row_sign;             /**< [m] -1 lower / +1 upper bound row. */
+    const c172p_roll_real *row_c;       /**< [m] constant right-hand side c. */
+    const int16_t *row_next;            /**< [m] same constraint one stage later (shifted warm start). */
+    const c172p_roll_real *colsum;      /**< [ny][n] sum of the E^-1 Gamma' columns of stages 0..N-2. */
+    const c172p_roll_real *out_bound;   /**< [nyq] |(Gamma th)_k| <= out_bound[k] max|th|. */
+    const c172p_roll_real *u_min;       /**< [nu] input lower bounds. */
+    const c172p_roll_real *u_max;       /**< [nu] input upper bounds. */
+} c172p_roll_mode_data;
+
+extern const c172p_roll_mode_data c172p_roll_modes[C172P_ROLL_N_MODES];
+
+/** Packed lower-triangle index of (i, j), j <= i. */
+#define C172P_ROLL_TRI(i, j) ((i) * ((i) + 1) / 2 + (j))
+
+/* Linear algebra on packed symmetric matrices (c172p_roll_linalg.c). */
+int c172p_roll_cholesky(c172p_roll_real *a, int n);
+int c172p_roll_cholesky_from(c172p_roll_real *a, int from, int n);
+void c172p_roll_chol_lsolve(const c172p_roll_real *l, int n, c172p_roll_real *b);
+void c172p_roll_chol_ltsolve(const c172p_roll_real *l, int n, c172p_roll_real *b);
+void c172p_roll_chol_solve(const c172p_roll_real *l, int n, c172p_roll_real *b);
+
+/* QP solver (c172p_roll_solver.c). */
+int c172p_roll_qp_solve(c172p_roll_work *ws, c172p_roll_real *lam, const c172p_roll_mode_data *md,
+    const c172p_roll_real *x, const c172p_roll_real *r, c172p_roll_real *U, int *iterations,
+    int *polish_iterations, int *active);
+
+#endif /* C172P_ROLL_INTERNAL_H */

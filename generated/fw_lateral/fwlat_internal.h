@@ -1,0 +1,70 @@
+/**
+ * @file fwlat_internal.h
+ * @brief Internal declarations shared by the generated sources (not part of the API).
+ */
+#ifndef FWLAT_INTERNAL_H
+#define FWLAT_INTERNAL_H
+
+#include "fwlat.h"
+
+/**
+ * Static data of one mode (all arrays row-major; "_p" = packed lower triangle), declared
+ * member by member in rollmpc_codegen/qp/arrays.py.
+ */
+typedef struct {
+    int nx;                             /**< States (with disturbance and u_prev states). */
+    int nu;                             /**< Inputs of the mode. */
+    int ny;                             /**< Outputs of the mode. */
+    int n;                              /**< Decision variables (N nu, or blocks * nu). */
+    int m;                              /**< Constraint rows. */
+    int nyq;                            /**< Predicted outputs N ny. */
+    int nt;                             /**< Terminal rows of the E split (0: P stays in S). */
+    int w_cap;                          /**< Working-set capacity: n + soft (output, stage) pairs. */
+    const int16_t *actuator_index;      /**< [nu] physical actuator of each mode input. */
+    const fwlat_real *A;                /**< [nx][nx] discrete state matrix. */
+    const fwlat_real *B;                /**< [nx][nu] discrete input matrix. */
+    const fwlat_real *C;                /**< [ny][nx] output matrix. */
+    const fwlat_real *L;                /**< [nx][ny] observer gain. */
+    const fwlat_real *Kx;               /**< [n][nx] unconstrained state gain. */
+    const fwlat_real *EinvGt;           /**< [n][nyq] E^-1 Gamma'. */
+    const fwlat_real *Sinv_p;           /**< [n(n+1)/2] packed S^-1. */
+    const fwlat_real *Ew;               /**< [nt][n] E^-1 = S^-1 - Ew' Ew (Woodbury). */
+    const fwlat_real *Uv;               /**< [nt][n] V S^-1. */
+    const fwlat_real *T;                /**< [nt][nt] (2P)^-1 + V S^-1 V'. */
+    const fwlat_real *S_p;              /**< [n(n+1)/2] packed stage Hessian S (E = S + V'(2P)V). */
+    const fwlat_real *V;                /**< [nt][n] terminal rows of Gamma (nt = 0: none). */
+    const fwlat_real *P2inv;            /**< [nt][nt] (2P)^-1. */
+    const fwlat_real *GEinvGt_p;        /**< [nyq(nyq+1)/2] packed Gamma E^-1 Gamma' (null: no output rows). */
+    const fwlat_real *Omega2;           /**< [N][ny][ny] 2Q per stage, 2P at the last. */
+    const fwlat_real *Phi;              /**< [nyq][nx] free response of the predicted outputs. */
+    const fwlat_real *markov;           /**< [N][ny][nu] Markov parameters C A^i B. */
+    const int16_t *row_q;               /**< [m] quantity of each row (U index, n + Y index, or n + nyq + Δu index). */
+    const int8_t *row_sign;             /**< [m] -1 lower / +1 upper bound row. */
+    const fwlat_real *row_c;            /**< [m] constant right-hand side c. */
+    const int16_t *row_next;            /**< [m] same constraint one stage later (shifted warm start). */
+    const fwlat_real *colsum;           /**< [ny][n] sum of the E^-1 Gamma' columns of stages 0..N-2. */
+    const fwlat_real *out_bound;        /**< [nyq] |(Gamma th)_k| <= out_bound[k] max|th|. */
+    const fwlat_real *u_min;            /**< [nu] input lower bounds. */
+    const fwlat_real *u_max;            /**< [nu] input upper bounds. */
+    const fwlat_real *soft_l1;          /**< [2*ny] soft bound penalty l1 (index 2 j + side, side 1 = y_max). */
+    const fwlat_real *soft_w;           /**< [2*ny] 1/(2 l2) of a soft bound, 0 for a hard one. */
+} fwlat_mode_data;
+
+extern const fwlat_mode_data fwlat_modes[FWLAT_N_MODES];
+
+/** Packed lower-triangle index of (i, j), j <= i. */
+#define FWLAT_TRI(i, j) ((i) * ((i) + 1) / 2 + (j))
+
+/* Linear algebra on packed symmetric matrices (fwlat_linalg.c). */
+int fwlat_cholesky(fwlat_real *a, int n);
+int fwlat_cholesky_from(fwlat_real *a, int from, int n);
+void fwlat_chol_lsolve(const fwlat_real *l, int n, fwlat_real *b);
+void fwlat_chol_ltsolve(const fwlat_real *l, int n, fwlat_real *b);
+void fwlat_chol_solve(const fwlat_real *l, int n, fwlat_real *b);
+
+/* QP solver (fwlat_solver.c). */
+int fwlat_qp_solve(fwlat_work *ws, fwlat_real *lam, const fwlat_mode_data *md,
+    const fwlat_real *x, const fwlat_real *r, fwlat_real *U, int *iterations,
+    int *polish_iterations, int *active);
+
+#endif /* FWLAT_INTERNAL_H */

@@ -1,0 +1,1441 @@
+/**
+ * @file fwlat_solver.c
+ * @brief Hildreth-family dual QP solver (Lam et al., IFAC 2020, section 3.2) with an
+ *        exact active-set polish.
+ *
+ * Problem (eq. 5-6): min 1/2 U'EU + U'F s.t. M U <= gamma, with rows M_r = sign_r a(q_r)'
+ * on a quantity q_r (an input U_i, or a predicted output (Gamma U)_k). The dual Hessian
+ * H = M E^-1 M' is read through its structure (hq()), never stored densely.
+ *
+ * Variants are compile-time switches (fwlat_config.h):
+ *  - REDUCED=0, WARM=0, omega=1: Hildreth (Alg. 1), Gauss-Seidel on all rows, cold start.
+ *  - REDUCED=0, WARM=1, omega>1: Hildreth+ (SOR, warm start, precomputed data).
+ *  - REDUCED=1: Hildreth+' (mini-Hildreth on rows with K < sigma), plus the correction
+ *    the paper lacks: after each solve every row is re-checked and violated rows join.
+ *  - POLISH_FIRST=1: before any sweep, polish from the previous optimal active set (or
+ *    from the rows the unconstrained solution violates); sweep only if that fails.
+ *  - POLISH=1: every POLISH_EVERY sweeps, the rows with positive multipliers are taken as
+ *    the working set and solved exactly -- in primal form (Cholesky of E_FF) when only
+ *    input bounds are in it, else in dual form (Cholesky of H_WW) -- then corrected by
+ *    dropping negative multipliers and adding violated rows until KKT holds.
+ *
+ * Every sum runs sequentially in a fixed order with no fused multiply-add, so the NumPy
+ * reference (rollmpc_codegen.reference.solver) reproduces every output bit for bit.
+ */
+#include <math.h>
+#include "fwlat_internal.h"
+
+#define R_ FWLAT_R
+
+/* Element (a, b) of Hq = [[E^-1, E^-1 G'], [G E^-1, G E^-1 G']] (quantities a, b). */
+static fwlat_real hq_base(const fwlat_mode_data *md, int a, int b)
+{
+    const int n = md->n;
+    if (a < n) {
+        if (b < n) {
+            /* Woodbury: E^-1 = S^-1 - Ew' Ew */
+            const fwlat_real si = (a >= b) ? md->Sinv_p[FWLAT_TRI(a, b)] : md->Sinv_p[FWLAT_TRI(b, a)];
+            fwlat_real acc = R_(0.0);
+            int o;
+            for (o = 0; o < md->nt; ++o) {
+                acc += md->Ew[o * n + a] * md->Ew[o * n + b];
+            }
+            return si - acc;
+        }
+        return md->EinvGt[a * md->nyq + (b - n)];
+    }
+    if (b < n) {
+        return md->EinvGt[b * md->nyq + (a - n)];
+    }
+    a -= n;
+    b -= n;
+    return (a >= b) ? md->GEinvGt_p[FWLAT_TRI(a, b)] : md->GEinvGt_p[FWLAT_TRI(b, a)];
+}
+
+/*
+ * hq_base(a, b) with b possibly a Δu quantity D_j = U_j - U_(j-nu) (D_j = U_j in the first
+ * stage, whose u_prev is a constant of the row): hq_base(a, j) - hq_base(a, j - nu).
+ */
+static fwlat_real hq_side(const fwlat_mode_data *md, int a, int b)
+{
+    const int d = b - (md->n + md->nyq);
+    fwlat_real h;
+    if (d < 0) {
+        return hq_base(md, a, b);
+    }
+    h = hq_base(md, a, d);
+    return (d >= md->nu) ? h - hq_base(md, a, d - md->nu) : h;
+}
+
+/* Hq(a, b) for any quantities, Δu ones (q >= n + nyq) as differences on either side. */
+static fwlat_real hq(const fwlat_mode_data *md, int a, int b)
+{
+    const int d = a - (md->n + md->nyq);
+    fwlat_real h;
+    if (d < 0) {
+        return hq_side(md, a, b);
+    }
+    h = hq_side(md, d, b);
+    return (d >= md->nu) ? h - hq_side(md, d - md->nu, b) : h;
+}
+
+/* H_rs = sign_r sign_s Hq(q_r, q_s). */
+static fwlat_real h_rows(const fwlat_mode_data *md, int r, int s)
+{
+    const fwlat_real h = hq(md, md->row_q[r], md->row_q[s]);
+    return (md->row_sign[r] == md->row_sign[s]) ? h : -h;
+}
+
+/* (E^-1 M_s')_i: input i's response to a unit multiplier on row s. */
+static fwlat_real em_col(const fwlat_mode_data *md, int i, int s)
+{
+    const fwlat_real h = hq(md, i, md->row_q[s]);
+    return (md->row_sign[s] > 0) ? h : -h;
+}
+
+/* S(a, b) from the packed lower triangle. */
+static fwlat_real s_at(const fwlat_mode_data *md, int a, int b)
+{
+    return (a >= b) ? md->S_p[FWLAT_TRI(a, b)] : md->S_p[FWLAT_TRI(b, a)];
+}
+
+/*
+ * sum_i a_i b_i in four interleaved partial sums (lane i mod 4, the tail into lane 0),
+ * combined as (s0 + s1) + (s2 + s3): the same rounding as the reference, and four
+ * independent add chains instead of one.
+ */
+static fwlat_real dot4(const fwlat_real *a, const fwlat_real *b, int len)
+{
+    fwlat_real s0 = R_(0.0), s1 = R_(0.0), s2 = R_(0.0), s3 = R_(0.0);
+    int i;
+    for (i = 0; i + 3 < len; i += 4) {
+        s0 += a[i] * b[i];
+        s1 += a[i + 1] * b[i + 1];
+        s2 += a[i + 2] * b[i + 2];
+        s3 += a[i + 3] * b[i + 3];
+    }
+    for (; i < len; ++i) {
+        s0 += a[i] * b[i];
+    }
+    return (s0 + s1) + (s2 + s3);
+}
+
+/*
+ * sum_i S(q, i) v_i: dot4 over row q of the packed triangle up to the diagonal, plus the
+ * same four-lane sum down column q below it.
+ */
+static fwlat_real s_row_dot(const fwlat_mode_data *md, int q, const fwlat_real *v)
+{
+    const fwlat_real *sp = md->S_p;
+    const fwlat_real head = dot4(&sp[FWLAT_TRI(q, 0)], v, q + 1);
+    fwlat_real s0 = R_(0.0), s1 = R_(0.0), s2 = R_(0.0), s3 = R_(0.0);
+    int i = q + 1, off = FWLAT_TRI(q + 1, q);
+    for (; i + 3 < md->n; i += 4) {
+        s0 += sp[off] * v[i];
+        off += i + 1;
+        s1 += sp[off] * v[i + 1];
+        off += i + 2;
+        s2 += sp[off] * v[i + 2];
+        off += i + 3;
+        s3 += sp[off] * v[i + 3];
+        off += i + 4;
+    }
+    for (; i < md->n; ++i) {
+        s0 += sp[off] * v[i];
+        off += i + 1;
+    }
+    return head + ((s0 + s1) + (s2 + s3));
+}
+
+/*
+ * Runs of equal w over the stages 0..N-2: ws->run[0..count) are their first stages and
+ * ws->run[count] = N-1. Returns count; *longest is the first longest run (-1 if none).
+ */
+static int reference_runs(fwlat_work *ws, const fwlat_mode_data *md, int *longest)
+{
+    const int ny = md->ny, last = md->nyq / md->ny - 1;
+    int stage, a, j, count = 0, best = -1, best_len = 0;
+    for (stage = 0; stage < last; ++stage) {
+        int differs = (stage == 0);
+        for (a = 0; a < ny && !differs; ++a) {
+            const fwlat_real p = ws->yv[(stage - 1) * ny + a], q = ws->yv[stage * ny + a];
+            differs = (p < q) || (p > q);
+        }
+        if (differs) {
+            ws->run[count++] = (int16_t)stage;
+        }
+    }
+    ws->run[count] = (int16_t)last;
+    for (j = 0; j < count; ++j) {
+        const int len = ws->run[j + 1] - ws->run[j];
+        if (len > best_len) {
+            best_len = len;
+            best = j;
+        }
+    }
+    *longest = best;
+    return count;
+}
+
+/*
+ * th0 = Kx x + E^-1 G' w with w = 2 Omega r (kept in ws->yv, free until the outputs are
+ * predicted); px = Phi x (output rows only).
+ * The columns of E^-1 G' are summed per run of equal w; the longest run's sum comes from
+ * colsum minus the others, so a held reference costs n (nx + 2 ny) instead of n (nx + N ny).
+ */
+static void unconstrained(fwlat_work *ws, const fwlat_mode_data *md,
+    const fwlat_real *x, const fwlat_real *r)
+{
+    const int n = md->n, ny = md->ny, nyq = md->nyq, last = md->nyq / md->ny - 1;
+    int i, j, k, l, a, stage, nruns, longest;
+    for (k = 0; k < nyq; ++k) {
+        const int st = k / ny, b = k % ny;
+        fwlat_real acc = R_(0.0);
+        for (l = 0; l < ny; ++l) {
+            acc += md->Omega2[(st * ny + b) * ny + l] * r[st * ny + l];
+        }
+        ws->yv[k] = acc;
+    }
+    nruns = reference_runs(ws, md, &longest);
+    for (i = 0; i < n; ++i) {
+        const fwlat_real *row = &md->EinvGt[i * nyq];
+        fwlat_real acc = R_(0.0);
+        for (l = 0; l < md->nx; ++l) {
+            acc += md->Kx[i * md->nx + l] * x[l];
+        }
+        for (a = 0; a < ny; ++a) {
+            fwlat_real other = R_(0.0);
+            for (j = 0; j < nruns; ++j) {
+                if (j != longest) {
+                    fwlat_real sum = R_(0.0);
+                    for (stage = ws->run[j]; stage < ws->run[j + 1]; ++stage) {
+                        sum += row[stage * ny + a];
+                    }
+                    acc += ws->yv[ws->run[j] * ny + a] * sum;
+                    other += sum;
+                }
+            }
+            if (longest >= 0) {
+                acc += ws->yv[ws->run[longest] * ny + a] * (md->colsum[a * n + i] - other);
+            }
+            acc += row[last * ny + a] * ws->yv[last * ny + a];
+        }
+        ws->th0[i] = acc;
+    }
+    if (md->GEinvGt_p != 0) {
+        for (k = 0; k < nyq; ++k) {
+            fwlat_real acc = R_(0.0);
+            for (l = 0; l < md->nx; ++l) {
+                acc += md->Phi[k * md->nx + l] * x[l];
+            }
+            ws->px[k] = acc;
+        }
+    }
+}
+
+/* yv = Gamma th (block Toeplitz in the Markov parameters). */
+static void predict_outputs(fwlat_work *ws, const fwlat_mode_data *md,
+    const fwlat_real *th)
+{
+    const int ny = md->ny, nu = md->nu;
+    int k, t, b;
+    for (k = 0; k < md->nyq; ++k) {
+        const int stage = k / ny, a = k % ny;
+        fwlat_real acc = R_(0.0);
+        for (t = 0; t <= stage; ++t) {
+            for (b = 0; b < nu; ++b) {
+                acc += md->markov[((stage - t) * ny + a) * nu + b] * th[t * nu + b];
+            }
+        }
+        ws->yv[k] = acc;
+    }
+}
+
+/* Value of row r's quantity at th (yv must hold Gamma th). */
+static fwlat_real row_value(const fwlat_work *ws, const fwlat_mode_data *md,
+    const fwlat_real *th, int r)
+{
+    const int q = md->row_q[r];
+    const int d = q - (md->n + md->nyq);
+    if (d >= 0) { /* Δu row: U_d - U_(d-nu), or U_d in the first stage */
+        return (d >= md->nu) ? th[d] - th[d - md->nu] : th[d];
+    }
+    return (q < md->n) ? th[q] : ws->yv[q - md->n];
+}
+
+/*
+ * 1 if no output row can be violated at th: |(Gamma th)_k| <= out_bound_k max|th| <= gamma_r
+ * (out_bound carries the rounding margin), so the N^2/2 prediction can be skipped.
+ */
+static int outputs_certified(const fwlat_work *ws, const fwlat_mode_data *md,
+    const fwlat_real *th)
+{
+    fwlat_real thmax = R_(0.0), bmax = R_(0.0);
+    int i, r;
+    for (i = 0; i < md->n; ++i) {
+        const fwlat_real v = FWLAT_FABS(th[i]);
+        thmax = (v > thmax) ? v : thmax;
+    }
+    for (i = md->nyq - md->ny; i < md->nyq; ++i) { /* out_bound grows along the horizon */
+        bmax = (md->out_bound[i] > bmax) ? md->out_bound[i] : bmax;
+    }
+    if (bmax * thmax <= ws->gam_out_min) {
+        return 1; /* the largest bound against the tightest output row */
+    }
+    for (r = 0; r < md->m; ++r) {
+        const int q = md->row_q[r];
+        if ((q >= md->n && q < md->n + md->nyq) && !(md->out_bound[q - md->n] * thmax <= ws->gam[r])) {
+            return 0;
+        }
+    }
+    return 1;
+}
+
+/* K = gamma - M th0 of the output rows (needs the N^2/2 prediction of th0). */
+static void output_slacks(fwlat_work *ws, const fwlat_mode_data *md)
+{
+    int r;
+    if (ws->out_slacks_ok) {
+        return;
+    }
+    predict_outputs(ws, md, ws->th0);
+    for (r = 0; r < md->m; ++r) {
+        const int q = md->row_q[r];
+        if ((q >= md->n && q < md->n + md->nyq)) {
+            const fwlat_real v = ws->yv[q - md->n];
+            ws->K[r] = (md->row_sign[r] > 0) ? ws->gam[r] - v : ws->gam[r] + v;
+        }
+    }
+    ws->out_slacks_ok = 1;
+}
+
+/*
+ * gamma = c + W x for every row and K = gamma - M th0; returns the number with K < 0.
+ * When the outputs are certified at th0, their K (all >= 0) is left to output_slacks(),
+ * which whatever needs it calls first.
+ * A first-stage Δu row's gamma carries u_prev, the last nu entries of x.
+ */
+static int slacks(fwlat_work *ws, const fwlat_mode_data *md, const fwlat_real *x)
+{
+    int r, count = 0;
+    ws->gam_out_min = FWLAT_LAMBDA_LIMIT;
+    for (r = 0; r < md->m; ++r) {
+        const int q = md->row_q[r];
+        fwlat_real g = md->row_c[r];
+        if ((q >= md->n && q < md->n + md->nyq)) {
+            g = (md->row_sign[r] > 0) ? g - ws->px[q - md->n] : g + ws->px[q - md->n];
+            ws->gam_out_min = (g < ws->gam_out_min) ? g : ws->gam_out_min;
+        } else {
+            const int d = q - (md->n + md->nyq);
+            fwlat_real v;
+            if (d >= 0 && d < md->nu) {
+                const fwlat_real up = x[md->nx - md->nu + d];
+                g = (md->row_sign[r] > 0) ? g + up : g - up;
+            }
+            v = row_value(ws, md, ws->th0, r);
+            ws->K[r] = (md->row_sign[r] > 0) ? g - v : g + v;
+            count += (ws->K[r] < R_(0.0));
+        }
+        ws->gam[r] = g;
+    }
+    ws->out_slacks_ok = md->GEinvGt_p == 0;
+    if (!ws->out_slacks_ok && !outputs_certified(ws, md, ws->th0)) {
+        output_slacks(ws, md);
+        for (r = 0; r < md->m; ++r) {
+            count += ((md->row_q[r] >= md->n && md->row_q[r] < md->n + md->nyq) && ws->K[r] < R_(0.0));
+        }
+    }
+    return count;
+}
+
+/*
+ * 1 if the output rows need checking at th (not certified); ws->yv then holds Gamma th.
+ * 0 if there are none or none can be violated.
+ */
+static int outputs_to_check(fwlat_work *ws, const fwlat_mode_data *md,
+    const fwlat_real *th)
+{
+    if (md->GEinvGt_p == 0 || outputs_certified(ws, md, th)) {
+        return 0;
+    }
+    predict_outputs(ws, md, th);
+    return 1;
+}
+
+/*
+ * M_r th - gamma_r: the violation of row r at th (positive = violated). inline: called per
+ * row in the polish's checks; out of line it cost ~1.5k cycles on the median M4F step.
+ */
+static inline fwlat_real row_excess(const fwlat_work *ws, const fwlat_mode_data *md,
+    const fwlat_real *th, int r)
+{
+    const fwlat_real v = row_value(ws, md, th, r);
+    const fwlat_real g = ws->gam[r];
+    return (md->row_sign[r] > 0) ? v - g : -v - g;
+}
+
+/* max(1, |gamma_r|): the feasibility tolerance of row r is FEAS_TOL times this. */
+static inline fwlat_real tol_scale(const fwlat_work *ws, int r)
+{
+    const fwlat_real ag = FWLAT_FABS(ws->gam[r]);
+    return (ag > R_(1.0)) ? ag : R_(1.0);
+}
+
+/* Is row r violated at th beyond its tolerance? */
+static int row_violated(const fwlat_work *ws, const fwlat_mode_data *md,
+    const fwlat_real *th, int r)
+{
+    return row_excess(ws, md, th, r) > FWLAT_SOLVER_FEAS_TOL * tol_scale(ws, r);
+}
+
+/*
+ * Soft output bounds (rollmpc_codegen/features/soft_constraints.py): a soft row r has the slack
+ * s_r = max(0, (lam_r - l1) w), w = 1/(2 l2). In the working set it is tight (s_r = 0,
+ * lam_r <= l1, like a hard row) or, flagged in ws->slack_on, slack: M_r th - gamma_r = s_r,
+ * which adds w to its diagonal of H_WW and l1 w to its right-hand side.
+ * Returns w (0 for a hard row) and its penalty in *l1.
+ */
+static fwlat_real soft_of(const fwlat_mode_data *md, int r, fwlat_real *l1)
+{
+    const int q = md->row_q[r];
+    int b;
+    if ((q < md->n || q >= md->n + md->nyq)) {
+        *l1 = R_(0.0);
+        return R_(0.0);
+    }
+    b = 2 * ((q - md->n) % md->ny) + ((md->row_sign[r] > 0) ? 1 : 0);
+    *l1 = md->soft_l1[b];
+    return md->soft_w[b];
+}
+
+/* Slack of working-set row r with multiplier z: (z - l1) w in the slack state, else 0. */
+static fwlat_real slack_in_set(const fwlat_work *ws, const fwlat_mode_data *md,
+    int r, fwlat_real z)
+{
+    fwlat_real l1;
+    const fwlat_real w = soft_of(md, r, &l1);
+    return ws->slack_on[r] ? (z - l1) * w : R_(0.0);
+}
+
+/* State of row r joining the working set with multiplier lam: slack when lam > l1. */
+static void set_state(fwlat_work *ws, const fwlat_mode_data *md, int r,
+    fwlat_real lam)
+{
+    fwlat_real l1;
+    const fwlat_real w = soft_of(md, r, &l1);
+    ws->slack_on[r] = (uint8_t)((w > R_(0.0) && lam > l1) ? 1 : 0);
+}
+
+/*
+ * Switch the working-set rows whose multiplier crossed l1 (tight -> slack above it,
+ * slack -> tight below it); returns how many switched (then solve again).
+ */
+static int switch_states(fwlat_work *ws, const fwlat_mode_data *md, int nw)
+{
+    int i, count = 0;
+    for (i = 0; i < nw; ++i) {
+        const int r = ws->wset[i];
+        fwlat_real l1;
+        const fwlat_real w = soft_of(md, r, &l1);
+        if (w > R_(0.0) && (ws->slack_on[r] ? (ws->z[i] < l1) : (ws->z[i] > l1))) {
+            ws->slack_on[r] = (uint8_t)(ws->slack_on[r] ? 0 : 1);
+            ++count;
+        }
+    }
+    return count;
+}
+
+/* Is working-set row r (multiplier z) violated at th beyond its slack and tolerance? */
+static int violated_in_set(const fwlat_work *ws, const fwlat_mode_data *md,
+    const fwlat_real *th, int r, fwlat_real z)
+{
+    return row_excess(ws, md, th, r) - slack_in_set(ws, md, r, z)
+        > FWLAT_SOLVER_FEAS_TOL * tol_scale(ws, r);
+}
+
+/* Slack of row r at multiplier lam: (lam - l1) w when soft and lam > l1, else 0. */
+static fwlat_real multiplier_slack(const fwlat_mode_data *md, int r, fwlat_real lam)
+{
+    fwlat_real l1;
+    const fwlat_real w = soft_of(md, r, &l1);
+    return (w > R_(0.0) && lam > l1) ? (lam - l1) * w : R_(0.0);
+}
+
+/*
+ * Rows violated at ws->th beyond their slack multiplier_slack() under the sweep
+ * multipliers lam (by row), for the sweeps' convergence test.
+ */
+static int violated_beyond_slack(fwlat_work *ws, const fwlat_mode_data *md,
+    const fwlat_real *lam)
+{
+    const int outputs = outputs_to_check(ws, md, ws->th);
+    int r, count = 0;
+    for (r = 0; r < md->m; ++r) {
+        if (outputs || (md->row_q[r] < md->n || md->row_q[r] >= md->n + md->nyq)) {
+            const fwlat_real sl = multiplier_slack(md, r, lam[r]);
+            count += (row_excess(ws, md, ws->th, r) - sl > FWLAT_SOLVER_FEAS_TOL * tol_scale(ws, r));
+        }
+    }
+    return count;
+}
+
+/* th = th0 - sum_j (E^-1 M_{list_j}') mult_j over positive multipliers. */
+static void correct(fwlat_work *ws, const fwlat_mode_data *md, const int16_t *list,
+    int count, const fwlat_real *mult, int mult_by_row)
+{
+    int i, j;
+    for (i = 0; i < md->n; ++i) {
+        fwlat_real acc = R_(0.0);
+        for (j = 0; j < count; ++j) {
+            const int s = list[j];
+            const fwlat_real mu = mult_by_row ? mult[s] : mult[j];
+            if (mu > R_(0.0)) {
+                acc += em_col(md, i, s) * mu;
+            }
+        }
+        ws->th[i] = ws->th0[i] - acc;
+    }
+}
+
+/* Rebuild the sorted row list of the sweep set from the membership flags. */
+static int build_set(fwlat_work *ws, const fwlat_mode_data *md)
+{
+    int r, count = 0;
+    for (r = 0; r < md->m; ++r) {
+        if (ws->in_set[r]) {
+            ws->set[count++] = (int16_t)r;
+        }
+    }
+    return count;
+}
+
+/*
+ * One (SOR) Gauss-Seidel sweep of eq. (7) over the set. Returns the squared step
+ * norm; sets *diverged when a multiplier exceeds FWLAT_LAMBDA_LIMIT.
+ */
+static fwlat_real sweep(fwlat_work *ws, const fwlat_mode_data *md,
+    fwlat_real *lam, int count, int *diverged)
+{
+    const fwlat_real omega = FWLAT_SOLVER_OMEGA;
+    fwlat_real e2 = R_(0.0);
+    int jr, js;
+    for (jr = 0; jr < count; ++jr) {
+        const int r = ws->set[jr];
+        fwlat_real acc = R_(0.0), t, wv, nl, d;
+        for (js = 0; js < count; ++js) {
+            const int s = ws->set[js];
+            if (s != r && lam[s] > R_(0.0)) {
+                acc += h_rows(md, r, s) * lam[s];
+            }
+        }
+        {
+            /* piecewise maximum: above l1 the slack's penalty adds w to the diagonal */
+            const fwlat_real hd = hq(md, md->row_q[r], md->row_q[r]);
+            fwlat_real l1;
+            const fwlat_real w = soft_of(md, r, &l1);
+            t = -(ws->K[r] + acc) / hd;
+            if (w > R_(0.0) && t > l1) {
+                t = (l1 * w - (ws->K[r] + acc)) / (hd + w);
+            }
+        }
+        wv = (R_(1.0) - omega) * lam[r] + omega * t;
+        nl = (wv > R_(0.0)) ? wv : R_(0.0);
+        d = nl - lam[r];
+        e2 += d * d;
+        lam[r] = nl;
+        if (!(nl <= FWLAT_LAMBDA_LIMIT)) {
+            *diverged = 1;
+        }
+    }
+    return e2;
+}
+
+/*
+ * Rows of one kind (outputs = 0: input rows, 1: output rows) violated at th and not in
+ * the sorted list, appended in row order to out; cap + 1 when more than cap.
+ */
+static int violated_kind(fwlat_work *ws, const fwlat_mode_data *md,
+    const fwlat_real *th, const int16_t *list, int count, int16_t *out, int cap, int outputs)
+{
+    const int n = md->n;
+    int r, p = 0, nout = 0;
+    for (r = 0; r < md->m; ++r) {
+        const int q = md->row_q[r];
+        fwlat_real v, g, viol, ag;
+        if ((q >= n && q < n + md->nyq) != outputs) {
+            continue;
+        }
+        while (p < count && list[p] < r) {
+            ++p;
+        }
+        if (p < count && list[p] == r) {
+            continue;
+        }
+        /* row_violated() inline: the tolerance is at least FEAS_TOL, so reject early */
+        v = row_value(ws, md, th, r);
+        g = ws->gam[r];
+        viol = (md->row_sign[r] > 0) ? v - g : -v - g;
+        if (!(viol > FWLAT_SOLVER_FEAS_TOL)) {
+            continue;
+        }
+        ag = FWLAT_FABS(g);
+        if (viol > FWLAT_SOLVER_FEAS_TOL * (ag > R_(1.0) ? ag : R_(1.0))) {
+            if (nout == cap) {
+                return cap + 1;
+            }
+            out[nout++] = (int16_t)r;
+        }
+    }
+    return nout;
+}
+
+/*
+ * Violated rows at th outside the sorted list (see violated_kind()): the input rows
+ * first; only when none is violated, the output rows (predicted unless certified), so an
+ * intermediate point far outside the input box costs no output prediction.
+ */
+static int violated_outside(fwlat_work *ws, const fwlat_mode_data *md,
+    const fwlat_real *th, const int16_t *list, int count, int16_t *out, int cap)
+{
+    const int nbox = violated_kind(ws, md, th, list, count, out, cap, 0);
+    if (nbox != 0 || !outputs_to_check(ws, md, th)) {
+        return nbox;
+    }
+    return violated_kind(ws, md, th, list, count, out, cap, 1);
+}
+
+/*
+ * Primal solve, free-variable form, in the split form E = S + V'(2P)V: with d = U - th0, d_B = bounds - th0_B and nu the terminal
+ * multiplier step,
+ *     S_FF d_F + V_F' nu = -S_FB d_B,    V d - (2P)^-1 nu = 0,
+ * solved by Cholesky of S_FF and an nt x nt Schur complement. Multipliers come from the
+ * gradient g = S d + V' nu as z_k = -sign_k g_{q_k}. Nothing here forms E, whose float
+ * entries cannot hold a heavy terminal weight and the stage weights at once.
+ * Costs nf^3/6; primal_solve() picks it when at least half the inputs are bound.
+ * Writes ws->th (free_multipliers() then gives ws->z); returns -1 if a factorisation
+ * breaks down.
+ */
+static int primal_solve_free(fwlat_work *ws, const fwlat_mode_data *md, int nf)
+{
+    const int n = md->n, nt = md->nt;
+    int i, a, c, o, p;
+    for (a = 0; a < nf; ++a) {
+        const int f = ws->tmp[a];
+        ws->rhs[a] = -s_row_dot(md, f, ws->dv); /* dv is 0 on the free inputs here */
+        for (c = 0; c <= a; ++c) {
+            ws->chol[FWLAT_TRI(a, c)] = s_at(md, f, ws->tmp[c]);
+        }
+        for (o = 0; o < nt; ++o) {
+            ws->ycol[o * FWLAT_N_MAX + a] = md->V[o * n + f];
+        }
+    }
+    if (nf > 0) {
+        if (fwlat_cholesky(ws->chol, nf) != 0) {
+            return -1;
+        }
+        fwlat_chol_solve(ws->chol, nf, ws->rhs);
+        for (o = 0; o < nt; ++o) {
+            fwlat_chol_solve(ws->chol, nf, &ws->ycol[o * FWLAT_N_MAX]);
+        }
+    }
+    if (nt > 0) {
+        for (o = 0; o < nt; ++o) {
+            fwlat_real acc;
+            for (p = 0; p <= o; ++p) {
+                acc = R_(0.0);
+                for (a = 0; a < nf; ++a) {
+                    acc += md->V[o * n + ws->tmp[a]] * ws->ycol[p * FWLAT_N_MAX + a];
+                }
+                ws->tsmall[FWLAT_TRI(o, p)] = acc + md->P2inv[o * nt + p];
+            }
+            acc = R_(0.0);
+            for (a = 0; a < nf; ++a) {
+                acc += md->V[o * n + ws->tmp[a]] * ws->rhs[a];
+            }
+            for (i = 0; i < n; ++i) {
+                if (ws->is_bound[i]) {
+                    acc += md->V[o * n + i] * ws->dv[i];
+                }
+            }
+            ws->nu[o] = acc;
+        }
+        if (fwlat_cholesky(ws->tsmall, nt) != 0) {
+            return -1;
+        }
+        fwlat_chol_solve(ws->tsmall, nt, ws->nu);
+    }
+    for (a = 0; a < nf; ++a) {
+        const int f = ws->tmp[a];
+        fwlat_real acc = ws->rhs[a];
+        for (o = 0; o < nt; ++o) {
+            acc -= ws->ycol[o * FWLAT_N_MAX + a] * ws->nu[o];
+        }
+        ws->dv[f] = acc;
+        ws->th[f] = ws->th0[f] + acc;
+    }
+    return 0;
+}
+
+/*
+ * Multipliers of the free-form solution, z_k = -sign_k g_{q_k} with g = S d + V' nu: the
+ * nw x n part of a polish step, so polish() computes them only once the bound inputs make
+ * the point feasible.
+ */
+static void free_multipliers(fwlat_work *ws, const fwlat_mode_data *md, int nw)
+{
+    int a, o;
+    for (a = 0; a < nw; ++a) {
+        const int r = ws->wset[a], q = md->row_q[r];
+        fwlat_real g = s_row_dot(md, q, ws->dv);
+        for (o = 0; o < md->nt; ++o) {
+            g += md->V[o * md->n + q] * ws->nu[o];
+        }
+        ws->z[a] = (md->row_sign[r] > 0) ? -g : g;
+    }
+}
+
+/*
+ * The same solve through S^-1 when few inputs are bound (nb < nf): with beta = g_B (the
+ * bound forces) and Uv = V S^-1, T = (2P)^-1 + V S^-1 V':
+ *     beta = S^-1_BB^-1 (d_B + Uv_B' nu),   (T - Uv_B S^-1_BB^-1 Uv_B') nu = Uv_B S^-1_BB^-1 d_B,
+ *     d = S^-1_{:,B} beta - Uv' nu,         z_k = -sign_k beta_k.
+ * Costs nb^3/6 + n nb instead of nf^3/6. ws->tmp holds the bound inputs in working-set
+ * order, which is not ascending when a stage has several inputs.
+ */
+static int primal_solve_bound(fwlat_work *ws, const fwlat_mode_data *md, int nw)
+{
+    const int n = md->n, nt = md->nt;
+    int i, a, c, o, p;
+    for (a = 0; a < nw; ++a) {
+        const int qa = ws->tmp[a];
+        for (c = 0; c <= a; ++c) {
+            const int qc = ws->tmp[c]; /* S^-1 is packed lower: read (max, min) */
+            ws->chol[FWLAT_TRI(a, c)] = (qa >= qc) ? md->Sinv_p[FWLAT_TRI(qa, qc)]
+                                                         : md->Sinv_p[FWLAT_TRI(qc, qa)];
+        }
+        ws->rhs[a] = ws->dv[qa];
+        for (o = 0; o < nt; ++o) {
+            ws->ycol[o * FWLAT_N_MAX + a] = md->Uv[o * n + qa];
+        }
+    }
+    if (fwlat_cholesky(ws->chol, nw) != 0) {
+        return -1;
+    }
+    fwlat_chol_solve(ws->chol, nw, ws->rhs);
+    for (o = 0; o < nt; ++o) {
+        fwlat_chol_solve(ws->chol, nw, &ws->ycol[o * FWLAT_N_MAX]);
+    }
+    if (nt > 0) {
+        for (o = 0; o < nt; ++o) {
+            fwlat_real acc;
+            for (p = 0; p <= o; ++p) {
+                acc = R_(0.0);
+                for (a = 0; a < nw; ++a) {
+                    acc += md->Uv[o * n + ws->tmp[a]] * ws->ycol[p * FWLAT_N_MAX + a];
+                }
+                ws->tsmall[FWLAT_TRI(o, p)] = md->T[o * nt + p] - acc;
+            }
+            acc = R_(0.0);
+            for (a = 0; a < nw; ++a) {
+                acc += md->Uv[o * n + ws->tmp[a]] * ws->rhs[a];
+            }
+            ws->nu[o] = acc;
+        }
+        if (fwlat_cholesky(ws->tsmall, nt) != 0) {
+            return -1;
+        }
+        fwlat_chol_solve(ws->tsmall, nt, ws->nu);
+    }
+    for (a = 0; a < nw; ++a) { /* beta = x1 + Y nu, kept in rhs */
+        fwlat_real acc = ws->rhs[a];
+        for (o = 0; o < nt; ++o) {
+            acc += ws->ycol[o * FWLAT_N_MAX + a] * ws->nu[o];
+        }
+        ws->rhs[a] = acc;
+        ws->z[a] = (md->row_sign[ws->wset[a]] > 0) ? -acc : acc;
+    }
+    for (i = 0; i < n; ++i) {
+        if (!ws->is_bound[i]) {
+            fwlat_real acc = R_(0.0);
+            for (a = 0; a < nw; ++a) {
+                const int q = ws->tmp[a];
+                acc += ((i >= q) ? md->Sinv_p[FWLAT_TRI(i, q)] : md->Sinv_p[FWLAT_TRI(q, i)]) * ws->rhs[a];
+            }
+            for (o = 0; o < nt; ++o) {
+                acc -= md->Uv[o * n + i] * ws->nu[o];
+            }
+            ws->th[i] = ws->th0[i] + acc;
+        }
+    }
+    return 0;
+}
+
+/*
+ * Primal solve on a working set of input-bound rows only (wset[0..nw), at most one row
+ * per input): U_B at the bounds, d_B = U_B - th0_B, then the cheaper of the two forms.
+ * Writes ws->th; returns 1 when ws->z is written too (bound form), 0 when it is left to
+ * free_multipliers() (free form), -1 if a factorisation breaks down.
+ */
+static int primal_solve(fwlat_work *ws, const fwlat_mode_data *md, int nw)
+{
+    const int n = md->n;
+    int i, nf = 0;
+    for (i = 0; i < n; ++i) {
+        ws->is_bound[i] = 0;
+        ws->dv[i] = R_(0.0);
+    }
+    for (i = 0; i < nw; ++i) {
+        const int r = ws->wset[i], q = md->row_q[r];
+        if (ws->is_bound[q]) {
+            return -1; /* both bounds of one input: not a valid working set */
+        }
+        ws->is_bound[q] = 1;
+        ws->th[q] = (md->row_sign[r] > 0) ? md->row_c[r] : -md->row_c[r];
+        ws->dv[q] = ws->th[q] - ws->th0[q];
+    }
+    if (nw < n - nw) {
+        for (i = 0; i < nw; ++i) {
+            ws->tmp[i] = md->row_q[ws->wset[i]];
+        }
+        return (primal_solve_bound(ws, md, nw) == 0) ? 1 : -1;
+    }
+    for (i = 0; i < n; ++i) {
+        if (!ws->is_bound[i]) {
+            ws->tmp[nf++] = (int16_t)i;
+        }
+    }
+    return primal_solve_free(ws, md, nf);
+}
+
+/*
+ * Rows from..nw-1 of L = chol(H_WW) for W = wset[0..nw) into ws->chol (the rows above must
+ * hold L already); -1 if a pivot breaks down.
+ */
+static int factor_working_set(fwlat_work *ws, const fwlat_mode_data *md, int from,
+    int nw)
+{
+    int i, j;
+    for (i = from; i < nw; ++i) {
+        for (j = 0; j <= i; ++j) {
+            ws->chol[FWLAT_TRI(i, j)] = h_rows(md, ws->wset[i], ws->wset[j]);
+        }
+        if (ws->slack_on[ws->wset[i]]) {
+            fwlat_real l1;
+            ws->chol[FWLAT_TRI(i, i)] += soft_of(md, ws->wset[i], &l1);
+        }
+    }
+    return fwlat_cholesky_from(ws->chol, from, nw);
+}
+
+/* Dual solve on a general working set: z = -H_WW^-1 K_W, th = th0 - E^-1 M_W' z. */
+static int dual_solve(fwlat_work *ws, const fwlat_mode_data *md, int nw)
+{
+    int i;
+    output_slacks(ws, md);
+    for (i = 0; i < nw; ++i) {
+        ws->z[i] = -ws->K[ws->wset[i]];
+        if (ws->slack_on[ws->wset[i]]) {
+            fwlat_real l1;
+            const fwlat_real w = soft_of(md, ws->wset[i], &l1);
+            ws->z[i] += l1 * w;
+        }
+    }
+    if (factor_working_set(ws, md, 0, nw) != 0) {
+        return -1;
+    }
+    fwlat_chol_solve(ws->chol, nw, ws->z);
+    return 0;
+}
+
+/* Working set from the rows with positive multipliers among list[0..count); -1 if > n. */
+static int seed_from_multipliers(fwlat_work *ws, const fwlat_mode_data *md,
+    const fwlat_real *lam, const int16_t *list, int count)
+{
+    int j, nw = 0;
+    for (j = 0; j < count; ++j) {
+        const int r = list ? list[j] : j;
+        if (lam[r] > R_(0.0)) {
+            if (nw == md->w_cap) {
+                return -1;
+            }
+            set_state(ws, md, r, lam[r]);
+            ws->wset[nw++] = (int16_t)r;
+        }
+    }
+    return nw;
+}
+
+/*
+ * Working set from the previous optimal active set shifted one stage along the horizon
+ * (row r joins when its next-stage row was active): the receding-horizon guess.
+ */
+static int seed_shifted(fwlat_work *ws, const fwlat_mode_data *md,
+    const fwlat_real *lam)
+{
+    int r, nw = 0;
+    for (r = 0; r < md->m; ++r) {
+        if (lam[md->row_next[r]] > R_(0.0)) {
+            if (nw == md->w_cap) {
+                return -1;
+            }
+            set_state(ws, md, r, lam[md->row_next[r]]);
+            ws->wset[nw++] = (int16_t)r;
+        }
+    }
+    return nw;
+}
+
+/* Working set from the rows violated by the unconstrained solution (K < 0); -1 if > n. */
+static int seed_from_violated(fwlat_work *ws, const fwlat_mode_data *md)
+{
+    int r, nw = 0;
+    for (r = 0; r < md->m; ++r) {
+        if ((ws->out_slacks_ok || (md->row_q[r] < md->n || md->row_q[r] >= md->n + md->nyq)) && ws->K[r] < R_(0.0)) {
+            if (nw == md->w_cap) {
+                return -1;
+            }
+            ws->slack_on[r] = 0;
+            ws->wset[nw++] = (int16_t)r;
+        }
+    }
+    return nw;
+}
+
+/*
+ * Drop the working-set rows with negative multipliers. Returns 0 if none was dropped,
+ * 1 if some were (solve again), -1 if the working set is to be given up: emptied, or a
+ * guess (see polish()) that lost more than half of its rows.
+ */
+static int drop_negative(fwlat_work *ws, int *nw, int guess)
+{
+    int i, keep = 0;
+    for (i = 0; i < *nw; ++i) {
+        if (ws->z[i] >= R_(0.0)) {
+            ws->wset[keep] = ws->wset[i];
+            ws->z[keep] = ws->z[i];
+            ++keep;
+        }
+    }
+    if (keep == *nw) {
+        return 0;
+    }
+    i = *nw;
+    *nw = keep;
+    if (keep == 0 || (guess && 2 * keep < i)) {
+        return -1;
+    }
+    return 1;
+}
+
+/* Do the working-set rows hold (within the feasibility tolerance) at ws->th? */
+static int working_set_holds(fwlat_work *ws, const fwlat_mode_data *md, int nw)
+{
+    int i;
+    const int outputs = outputs_to_check(ws, md, ws->th);
+    for (i = 0; i < nw; ++i) {
+        const int r = ws->wset[i];
+        if ((outputs || (md->row_q[r] < md->n || md->row_q[r] >= md->n + md->nyq)) && violated_in_set(ws, md, ws->th, r, ws->z[i])) {
+            return 0;
+        }
+    }
+    return 1;
+}
+
+/*
+ * Iterative refinement of a dual solve whose point misses its own working set: with
+ * multipliers ~1e9 (float), th = th0 - E^-1 M_W' z cancels most digits. The residual
+ * e = M_W th - gamma_W is small, so z += H_WW^-1 e (ws->chol still holds the factor) and
+ * a new th lose far fewer. Up to two rounds; 0 once the working set holds, no multiplier
+ * is negative and no other row is violated, else -1.
+ */
+static int refine_dual(fwlat_work *ws, const fwlat_mode_data *md, int nw)
+{
+    int round, i;
+    for (round = 0; round < 2; ++round) {
+        int negative = 0;
+        if (md->GEinvGt_p != 0) {
+            predict_outputs(ws, md, ws->th);
+        }
+        for (i = 0; i < nw; ++i) {
+            ws->rhs[i] = row_excess(ws, md, ws->th, ws->wset[i]);
+            ws->rhs[i] -= slack_in_set(ws, md, ws->wset[i], ws->z[i]);
+        }
+        fwlat_chol_solve(ws->chol, nw, ws->rhs);
+        for (i = 0; i < nw; ++i) {
+            ws->z[i] += ws->rhs[i];
+            negative += (ws->z[i] < R_(0.0));
+        }
+        if (negative != 0 || switch_states(ws, md, nw) != 0) {
+            return -1; /* a sign or a slack state changed: not this working set's point */
+        }
+        correct(ws, md, ws->wset, nw, ws->z, 0);
+        if (working_set_holds(ws, md, nw)) {
+            return (violated_outside(ws, md, ws->th, ws->wset, nw, ws->tmp, 0) == 0) ? 0 : -1;
+        }
+    }
+    return -1;
+}
+
+/* The polish converged: the working set and its multipliers become the warm start. */
+static int accept(fwlat_work *ws, const fwlat_mode_data *md, fwlat_real *lam,
+    int nw, int *active)
+{
+    int i;
+    for (i = 0; i < md->m; ++i) {
+        lam[i] = R_(0.0);
+    }
+    for (i = 0; i < nw; ++i) {
+        lam[ws->wset[i]] = ws->z[i];
+    }
+    *active = nw;
+    return 0;
+}
+
+/*
+ * Exact solve on the working set W = wset[0..nw), primal when W holds only input bounds,
+ * dual otherwise; violated rows join, rows with negative multipliers leave, repeat (the
+ * primal form adds violated rows before it computes multipliers). A guessed working set
+ * (guess = 1: the shifted warm start) is abandoned as soon as more than half of it has
+ * negative multipliers: the operating point moved, and the caller's next seed is cheaper
+ * than unwinding it row block by row block. Returns 0 with ws->th optimal and lam set to
+ * the exact multipliers, or -1 (lam untouched).
+ */
+static int polish(fwlat_work *ws, const fwlat_mode_data *md, fwlat_real *lam,
+    int nw, int guess, int *iterations, int *active)
+{
+    const int n = md->n;
+    int i, it;
+    if (nw <= 0 || nw > md->w_cap) {
+        return -1;
+    }
+    for (it = 0; it < FWLAT_SOLVER_POLISH_MAX; ++it) {
+        int nadd, p, q, total, dropped, box_only = 1, solved;
+        ++*iterations;
+        for (i = 0; i < nw; ++i) {
+            box_only = box_only && md->row_q[ws->wset[i]] < n;
+        }
+        if (box_only) {
+            /* primal: bound rows first; the multipliers only at a feasible point */
+            solved = primal_solve(ws, md, nw);
+            if (solved < 0) {
+                return -1;
+            }
+            nadd = violated_outside(ws, md, ws->th, ws->wset, nw, ws->tmp, md->w_cap - nw);
+            if (nadd == 0) {
+                if (solved == 0) {
+                    free_multipliers(ws, md, nw);
+                }
+                dropped = drop_negative(ws, &nw, guess);
+                if (dropped != 0) {
+                    if (dropped < 0) {
+                        return -1;
+                    }
+                    continue;
+                }
+                return accept(ws, md, lam, nw, active);
+            }
+        } else {
+            if (dual_solve(ws, md, nw) != 0) {
+                return -1;
+            }
+            if (switch_states(ws, md, nw) != 0) {
+                continue;
+            }
+            dropped = drop_negative(ws, &nw, guess);
+            if (dropped != 0) {
+                if (dropped < 0) {
+                    return -1;
+                }
+                continue;
+            }
+            correct(ws, md, ws->wset, nw, ws->z, 0);
+            nadd = violated_outside(ws, md, ws->th, ws->wset, nw, ws->tmp, md->w_cap - nw);
+            if (nadd == 0) {
+                /* a (near-)singular H_WW, e.g. parallel rows of an infeasible QP, can give
+                 * multipliers whose point misses its own working set: not optimal */
+                return (working_set_holds(ws, md, nw) || refine_dual(ws, md, nw) == 0)
+                    ? accept(ws, md, lam, nw, active) : -1;
+            }
+        }
+        if (nadd > md->w_cap - nw) {
+            return -1;
+        }
+        for (i = 0; i < nadd; ++i) {
+            ws->slack_on[ws->tmp[i]] = 0; /* joining rows start tight */
+        }
+        /* merge the sorted lists wset[0..nw) and tmp[0..nadd) into wset, back to front */
+        p = nw - 1;
+        q = nadd - 1;
+        total = nw + nadd;
+        for (i = total - 1; i >= 0; --i) {
+            if (q < 0 || (p >= 0 && ws->wset[p] > ws->tmp[q])) {
+                ws->wset[i] = ws->wset[p--];
+            } else {
+                ws->wset[i] = ws->tmp[q--];
+            }
+        }
+        nw = total;
+    }
+    return -1;
+}
+
+/*
+ * The row most violated at th (violation relative to max(1, |gamma_r|)) among the rows
+ * not in the working set (in_set flags); -1 if none is violated beyond the tolerance.
+ */
+static int most_violated(fwlat_work *ws, const fwlat_mode_data *md,
+    const fwlat_real *th)
+{
+    const int outputs = outputs_to_check(ws, md, th);
+    fwlat_real worst = R_(0.0);
+    int r, best = -1;
+    for (r = 0; r < md->m; ++r) {
+        if (!ws->in_set[r] && (outputs || (md->row_q[r] < md->n || md->row_q[r] >= md->n + md->nyq))) {
+            const fwlat_real viol = row_excess(ws, md, th, r);
+            const fwlat_real scale = tol_scale(ws, r);
+            if (viol > FWLAT_SOLVER_FEAS_TOL * scale && viol / scale > worst) {
+                worst = viol / scale;
+                best = r;
+            }
+        }
+    }
+    return best;
+}
+
+/*
+ * Remove working-set position k: shift wset/z down and refactor the rows of L = chol(H_WW)
+ * from k on (the rows above are unchanged). Returns -1 if a pivot breaks down.
+ */
+static int remove_from_set(fwlat_work *ws, const fwlat_mode_data *md, int k, int *nw)
+{
+    int i;
+    ws->in_set[ws->wset[k]] = 0;
+    ws->slack_on[ws->wset[k]] = 0;
+    for (i = k; i + 1 < *nw; ++i) {
+        ws->wset[i] = ws->wset[i + 1];
+        ws->z[i] = ws->z[i + 1];
+    }
+    --*nw;
+    return factor_working_set(ws, md, k, *nw);
+}
+
+/*
+ * Make the violated row p active (Goldfarb-Idnani): raise its multiplier t while the
+ * working-set rows stay tight, their multipliers moving by -t H_WW^-1 H_Wp. A row whose
+ * multiplier reaches 0 first leaves the set and the step repeats; once p's violation
+ * reaches 0 it joins. A row p dependent on the set (zeta = H_pp - H_pW H_WW^-1 H_Wp ~ 0)
+ * can only move the others; if none can move, the QP is infeasible (Farkas).
+ * Soft rows switch state where their multiplier crosses l1 (a breakpoint of the step,
+ * like a row leaving): a tight row rising to l1 turns slack, a slack row falling to l1
+ * turns tight; p itself turns slack at l1, after which its slack absorbs part of its
+ * violation (w joins zeta), so a soft p is never dependent.
+ * Returns 0 when p joined, 1 for infeasible, -1 on the step cap or a breakdown.
+ */
+static int add_to_set(fwlat_work *ws, const fwlat_mode_data *md, int p, int *nw,
+    int *steps)
+{
+    const fwlat_real hpp = hq(md, md->row_q[p], md->row_q[p]);
+    fwlat_real lp = R_(0.0);
+    fwlat_real l1p;
+    const fwlat_real wp = soft_of(md, p, &l1p);
+    int p_on = 0; /* p's multiplier passed l1: its slack grows with it */
+    int i;
+    for (;;) {
+        fwlat_real zeta = hpp, viol = -ws->K[p] - hpp * lp, tblock = R_(0.0), t;
+        int k = -1, dependent;
+        int event = 0; /* at tblock: 0 row k leaves, 1 row k switches state, 2 p turns slack */
+        if (++*steps > FWLAT_SOLVER_ACTIVE_SET_MAX) {
+            return -1;
+        }
+        for (i = 0; i < *nw; ++i) { /* y = L^-1 H_Wp (rhs), d = L'^-1 y (dv) */
+            ws->rhs[i] = h_rows(md, ws->wset[i], p);
+            viol -= ws->rhs[i] * ws->z[i];
+        }
+        fwlat_chol_lsolve(ws->chol, *nw, ws->rhs);
+        for (i = 0; i < *nw; ++i) {
+            zeta -= ws->rhs[i] * ws->rhs[i];
+            ws->dv[i] = ws->rhs[i];
+        }
+        fwlat_chol_ltsolve(ws->chol, *nw, ws->dv);
+        for (i = 0; i < *nw; ++i) { /* first multiplier to reach 0 or to cross l1 */
+            const int r = ws->wset[i];
+            fwlat_real l1, ratio = R_(-1.0);
+            const fwlat_real w = soft_of(md, r, &l1);
+            int ev = 0;
+            if (ws->dv[i] > R_(0.0)) { /* z_i falls: a slack row to l1, a tight row to 0 */
+                ev = ws->slack_on[r];
+                ratio = (ev ? ws->z[i] - l1 : ws->z[i]) / ws->dv[i];
+            } else if (ws->dv[i] < R_(0.0) && w > R_(0.0) && !ws->slack_on[r]) {
+                ev = 1; /* a tight soft row rises to l1 */
+                ratio = (l1 - ws->z[i]) / -ws->dv[i];
+            }
+            if (ws->dv[i] > R_(0.0) || ev) {
+                ratio = (ratio > R_(0.0)) ? ratio : R_(0.0);
+                if (k < 0 || ratio < tblock) {
+                    k = i;
+                    tblock = ratio;
+                    event = ev;
+                }
+            }
+        }
+        if (p_on) {
+            zeta += wp; /* the slack takes wp of every unit of p's multiplier */
+            viol -= (lp - l1p) * wp;
+        } else if (wp > R_(0.0)) {
+            const fwlat_real tp = (l1p > lp) ? l1p - lp : R_(0.0);
+            if (k < 0 || tp < tblock) {
+                k = *nw; /* no row: p's multiplier reaches l1 */
+                tblock = tp;
+                event = 2;
+            }
+        }
+        dependent = *nw == md->w_cap || !(zeta > FWLAT_SOLVER_DEPENDENCE_TOL * hpp);
+        if (dependent && k < 0) {
+            return 1;
+        }
+        t = dependent ? tblock : viol / zeta;
+        if (!dependent) {
+            if (k >= 0 && tblock < t) {
+                t = tblock;
+            } else {
+                k = -1; /* the full step: p becomes tight */
+            }
+        }
+        for (i = 0; i < *nw; ++i) {
+            ws->z[i] -= t * ws->dv[i];
+        }
+        lp += t;
+        if (k < 0) {
+            for (i = 0; i < *nw; ++i) {
+                ws->chol[FWLAT_TRI(*nw, i)] = ws->rhs[i];
+            }
+            ws->chol[FWLAT_TRI(*nw, *nw)] = FWLAT_SQRT(zeta);
+            ws->wset[*nw] = (int16_t)p;
+            ws->z[*nw] = lp;
+            ws->in_set[p] = 1;
+            ws->slack_on[p] = (uint8_t)p_on;
+            ++*nw;
+            return 0;
+        }
+        if (event == 2) {
+            p_on = 1;
+            continue;
+        }
+        if (event == 1) { /* row k's diagonal gains or loses w: refactor from it */
+            ws->slack_on[ws->wset[k]] = (uint8_t)(ws->slack_on[ws->wset[k]] ? 0 : 1);
+            if (factor_working_set(ws, md, k, *nw) != 0) {
+                return -1;
+            }
+            continue;
+        }
+        if (remove_from_set(ws, md, k, nw) != 0) {
+            return -1;
+        }
+    }
+}
+
+/*
+ * Dual active-set solve (Goldfarb-Idnani) from the unconstrained optimum: add the most
+ * violated row until none is, keeping the multipliers >= 0 and the working set linearly
+ * independent, so it finishes where the polish fails (dependent active sets, working sets
+ * the shifted guess and the violated rows do not reach). Its working set then goes to
+ * polish() for the exact solve and KKT check -- also after a claim of infeasibility,
+ * because far from the origin (multipliers ~1e9 in float) th = th0 - E^-1 M' z loses the
+ * digits the primal form keeps. Returns 0 (optimal, as polish()), 1 (infeasible: ws->th
+ * is then th0) or -1 (step cap, breakdown, or the polish rejects the set).
+ */
+static int dual_active_set(fwlat_work *ws, const fwlat_mode_data *md,
+    fwlat_real *lam, int *iterations, int *active)
+{
+    int i, j, nw = 0, steps = 0, code = 0;
+    output_slacks(ws, md);
+    for (i = 0; i < md->m; ++i) {
+        ws->in_set[i] = 0;
+        ws->slack_on[i] = 0;
+    }
+    for (i = 0; i < md->n; ++i) {
+        ws->th[i] = ws->th0[i];
+    }
+    for (;;) {
+        const int p = most_violated(ws, md, ws->th);
+        if (p < 0) {
+            break;
+        }
+        code = add_to_set(ws, md, p, &nw, &steps);
+        if (code != 0) {
+            break;
+        }
+        correct(ws, md, ws->wset, nw, ws->z, 0);
+    }
+    *iterations += steps;
+    if (nw == 0) { /* code 0: violations of th0 within the tolerance only */
+        return (code == 0) ? accept(ws, md, lam, 0, active) : code;
+    }
+    for (i = 1; i < nw; ++i) { /* polish() wants the working set sorted */
+        const int16_t row = ws->wset[i];
+        for (j = i; j > 0 && ws->wset[j - 1] > row; --j) {
+            ws->wset[j] = ws->wset[j - 1];
+        }
+        ws->wset[j] = row;
+    }
+    if (polish(ws, md, lam, nw, 0, iterations, active) == 0) {
+        return 0;
+    }
+    if (code == 1) {
+        for (i = 0; i < md->n; ++i) {
+            ws->th[i] = ws->th0[i];
+        }
+    }
+    return (code == 1) ? 1 : -1;
+}
+
+/* Clamp th into the input bounds (or fall back) and write U; returns the final status. */
+static int finish(fwlat_work *ws, const fwlat_mode_data *md, fwlat_real *lam,
+    int status, fwlat_real *U)
+{
+    const fwlat_real *src = ws->th;
+    int i, th_ok = 1, th0_ok = 1;
+    for (i = 0; i < md->n; ++i) {
+        th_ok = th_ok && isfinite(ws->th[i]);
+        th0_ok = th0_ok && isfinite(ws->th0[i]);
+    }
+    if (!th_ok) {
+        status = FWLAT_NUMERICAL;
+        src = th0_ok ? ws->th0 : 0;
+    }
+    for (i = 0; i < md->n; ++i) {
+        const fwlat_real lo = md->u_min[i % md->nu], hi = md->u_max[i % md->nu];
+        const fwlat_real v = src ? src[i] : R_(0.0);
+        U[i] = (v < lo) ? lo : ((v > hi) ? hi : v);
+    }
+    if (status != FWLAT_OPTIMAL) {
+        for (i = 0; i < md->m; ++i) {
+            lam[i] = R_(0.0); /* no sticky warm start after a failed sample */
+        }
+    }
+    ws->slack_max = R_(0.0); /* the slacks of the plan: 0 unless optimal (lam is 0 then) */
+    ws->slack_rows = 0;
+    for (i = 0; i < md->m; ++i) {
+        const fwlat_real sl = multiplier_slack(md, i, lam[i]);
+        if (sl > R_(0.0)) {
+            ws->slack_max = (sl > ws->slack_max) ? sl : ws->slack_max;
+            ++ws->slack_rows;
+        }
+    }
+    return status;
+}
+
+/**
+ * @brief Solve one mode's QP (internal; see fwlat_solve_qp()).
+ * @param ws Work arrays.
+ * @param lam Warm-start multipliers of the mode [m], updated.
+ * @param md Mode data.
+ * @param x State estimate [nx].
+ * @param r Reference [N ny].
+ * @param U Out: input sequence [n].
+ * @param iterations Out: dual sweeps.
+ * @param polish_iterations Out: polish corrections.
+ * @param active Out: rows in the final active set.
+ * @return A fwlat_status code.
+ */
+int fwlat_qp_solve(fwlat_work *ws, fwlat_real *lam, const fwlat_mode_data *md,
+    const fwlat_real *x, const fwlat_real *r, fwlat_real *U, int *iterations,
+    int *polish_iterations, int *active)
+{
+    int i, count, total = 0, status = FWLAT_MAX_ITER;
+    *iterations = 0;
+    *polish_iterations = 0;
+    *active = 0;
+    unconstrained(ws, md, x, r);
+    for (i = 0; i < md->n; ++i) {
+        ws->th[i] = ws->th0[i];
+    }
+    if (slacks(ws, md, x) == 0) {
+        for (i = 0; i < md->m; ++i) {
+            lam[i] = R_(0.0);
+        }
+        return finish(ws, md, lam, FWLAT_OPTIMAL, U);
+    }
+    /* Polish first: from the previous optimal active set (warm start), then from the rows
+     * the unconstrained solution violates; the sweeps below run only if both fail. */
+    if (FWLAT_SOLVER_WARM_START
+        && polish(ws, md, lam, seed_shifted(ws, md, lam), 1, polish_iterations, active) == 0) {
+        return finish(ws, md, lam, FWLAT_OPTIMAL, U);
+    }
+    if (polish(ws, md, lam, seed_from_violated(ws, md), 0, polish_iterations, active) == 0) {
+        return finish(ws, md, lam, FWLAT_OPTIMAL, U);
+    }
+    /* Before any sweep: the dual active-set solve, which also proves infeasibility. */
+    i = dual_active_set(ws, md, lam, polish_iterations, active);
+    if (i >= 0) {
+        return finish(ws, md, lam, (i == 0) ? FWLAT_OPTIMAL : FWLAT_INFEASIBLE, U);
+    }
+    output_slacks(ws, md);
+    for (i = 0; i < md->m; ++i) {
+        ws->in_set[i] = (uint8_t)(FWLAT_SOLVER_REDUCED ? (ws->K[i] < FWLAT_SOLVER_SIGMA) : 1);
+        if (!FWLAT_SOLVER_WARM_START || !ws->in_set[i]) {
+            lam[i] = R_(0.0);
+        }
+    }
+    count = build_set(ws, md);
+    for (;;) {
+        int t, converged = 0, diverged = 0, nviol, added = 0;
+        const int chunk = FWLAT_SOLVER_POLISH ? FWLAT_SOLVER_POLISH_EVERY : FWLAT_SOLVER_MAX_ITER;
+        for (t = 0; t < chunk && total < FWLAT_SOLVER_MAX_ITER; ++t) {
+            const fwlat_real e2 = sweep(ws, md, lam, count, &diverged);
+            ++total;
+            if (diverged) {
+                break;
+            }
+            if (e2 < FWLAT_SOLVER_DELTA) {
+                converged = 1;
+                break;
+            }
+        }
+        if (diverged) {
+            status = FWLAT_INFEASIBLE;
+            break;
+        }
+        correct(ws, md, ws->set, count, lam, 1);
+        if (polish(ws, md, lam, seed_from_multipliers(ws, md, lam, ws->set, count), 0,
+                polish_iterations, active) == 0) {
+            status = FWLAT_OPTIMAL;
+            break;
+        }
+        correct(ws, md, ws->set, count, lam, 1);
+        nviol = violated_beyond_slack(ws, md, lam);
+        if (FWLAT_SOLVER_REDUCED && nviol != 0) {
+            /* every violated row joins: predict the outputs unless certified */
+            const int outputs = outputs_to_check(ws, md, ws->th);
+            for (i = 0; i < md->m; ++i) {
+                if (!ws->in_set[i] && (outputs || (md->row_q[i] < md->n || md->row_q[i] >= md->n + md->nyq))
+                    && row_violated(ws, md, ws->th, i)) {
+                    ws->in_set[i] = 1;
+                    ++added;
+                }
+            }
+        }
+        if (converged && nviol == 0) {
+            status = FWLAT_OPTIMAL;
+            break;
+        }
+        if (total >= FWLAT_SOLVER_MAX_ITER) {
+            status = FWLAT_MAX_ITER;
+            break;
+        }
+        if (converged && added == 0) {
+            status = FWLAT_INACCURATE;
+            break;
+        }
+        if (added != 0) {
+            count = build_set(ws, md);
+        }
+    }
+    if (*active == 0) {
+        for (i = 0; i < md->m; ++i) {
+            *active += (lam[i] > R_(0.0));
+        }
+    }
+    *iterations = total;
+    return finish(ws, md, lam, status, U);
+}

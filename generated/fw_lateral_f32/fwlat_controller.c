@@ -1,0 +1,227 @@
+/**
+ * @file fwlat_controller.c
+ * @brief Switched controller: hysteresis scheduler (eq. 3), one observer per mode,
+ *        QP solve of the active mode, first-move extraction.
+ *
+ * All observers run every sample in the paper's predictor form
+ * xhat+ = A xhat + B u_j + L (y - C xhat), each driven by the physical commands of its
+ * own actuators (0 for an inactive pair) and the shared measurement. The inactive
+ * observers therefore stay locked to y and a switch is bumpless.
+ */
+#include <math.h>
+#include "fwlat_internal.h"
+
+#define R_ FWLAT_R
+
+
+static int all_finite(const fwlat_real *v, int n)
+{
+    int i;
+    for (i = 0; i < n; ++i) {
+        if (!isfinite(v[i])) {
+            return 0;
+        }
+    }
+    return 1;
+}
+
+/* One observer update; use_y = 0 propagates open loop (no valid measurement). */
+static void observe(fwlat_work *ws, const fwlat_mode_data *md, fwlat_real *x,
+    const fwlat_real *y, const fwlat_real *u_phys, int use_y)
+{
+    int i, l, a;
+    for (a = 0; a < md->ny; ++a) {
+        fwlat_real acc = R_(0.0);
+        for (l = 0; l < md->nx; ++l) {
+            acc += md->C[a * md->nx + l] * x[l];
+        }
+        ws->innov[a] = use_y ? y[a] - acc : R_(0.0);
+    }
+    for (i = 0; i < md->nx; ++i) {
+        fwlat_real acc = R_(0.0);
+        for (l = 0; l < md->nx; ++l) {
+            acc += md->A[i * md->nx + l] * x[l];
+        }
+        for (l = 0; l < md->nu; ++l) {
+            acc += md->B[i * md->nu + l] * u_phys[md->actuator_index[l]];
+        }
+        if (use_y) {
+            for (a = 0; a < md->ny; ++a) {
+                acc += md->L[i * md->ny + a] * ws->innov[a];
+            }
+        }
+        ws->xn[i] = acc;
+    }
+    for (i = 0; i < md->nx; ++i) {
+        x[i] = ws->xn[i];
+    }
+}
+
+size_t fwlat_ctrl_size(void)
+{
+    return sizeof(fwlat_ctrl);
+}
+
+void fwlat_init(fwlat_ctrl *c)
+{
+    int j, i;
+    if (c == 0) {
+        return;
+    }
+    c->mode = 0;
+    for (j = 0; j < FWLAT_N_MODES; ++j) {
+        for (i = 0; i < FWLAT_NX_MAX; ++i) {
+            c->xhat[j][i] = R_(0.0);
+        }
+        for (i = 0; i < FWLAT_M_MAX; ++i) {
+            c->lam[j][i] = R_(0.0);
+        }
+    }
+    for (i = 0; i < FWLAT_N_ACTUATORS; ++i) {
+        c->u_last[i] = R_(0.0);
+    }
+    for (i = 0; i < FWLAT_N_MAX; ++i) {
+        c->U[i] = R_(0.0);
+    }
+    c->info.status = FWLAT_OPTIMAL;
+    c->info.mode = c->mode;
+    c->info.iterations = 0;
+    c->info.polish_iterations = 0;
+    c->info.active = 0;
+    c->info.mode_switches = 0;
+    c->info.solve_ticks = 0u;
+    c->info.slack_max = R_(0.0);
+    c->info.slack_rows = 0;
+}
+
+static int solve_mode(fwlat_ctrl *c, int mode, const fwlat_real *x,
+    const fwlat_real *r, fwlat_real *U)
+{
+    const uint32_t t0 = FWLAT_TIMESTAMP();
+    const int status = fwlat_qp_solve(&c->work, c->lam[mode], &fwlat_modes[mode], x, r, U,
+        &c->info.iterations, &c->info.polish_iterations, &c->info.active);
+    c->info.solve_ticks = (uint32_t)(FWLAT_TIMESTAMP() - t0);
+    c->info.status = status;
+    c->info.mode = mode;
+    c->info.slack_max = c->work.slack_max;
+    c->info.slack_rows = c->work.slack_rows;
+    return status;
+}
+
+/* The scheduler's mode for this sample (finite sched); the incoming mode starts cold. */
+static void follow_schedule(fwlat_ctrl *c, const fwlat_real *sched)
+{
+    (void)c;
+    (void)sched;
+}
+
+int fwlat_step(fwlat_ctrl *c, const fwlat_real *y, const fwlat_real *sched,
+    const fwlat_real *r, fwlat_real *u)
+{
+    int j, i, status, inputs_ok;
+    const fwlat_mode_data *md;
+    if (c == 0 || u == 0) {
+        return FWLAT_BAD_ARGUMENT;
+    }
+    inputs_ok = y != 0 && r != 0 && (FWLAT_N_SCHEDULE == 0 || sched != 0);
+    if (!inputs_ok) {
+        for (i = 0; i < FWLAT_N_ACTUATORS; ++i) {
+            u[i] = c->u_last[i];
+        }
+        c->info.status = FWLAT_BAD_ARGUMENT;
+        return FWLAT_BAD_ARGUMENT;
+    }
+    if (!all_finite(y, FWLAT_N_OUTPUTS) || !all_finite(sched, FWLAT_N_SCHEDULE)
+        || !all_finite(r, FWLAT_HORIZON * FWLAT_N_OUTPUTS)) {
+        for (i = 0; i < FWLAT_N_ACTUATORS; ++i) {
+            u[i] = c->u_last[i];
+        }
+        for (j = 0; j < FWLAT_N_MODES; ++j) {
+            observe(&c->work, &fwlat_modes[j], c->xhat[j], y, u, 0);
+        }
+        c->info.status = FWLAT_NONFINITE_INPUT;
+        c->info.iterations = 0;
+        return FWLAT_NONFINITE_INPUT;
+    }
+    follow_schedule(c, sched);
+    md = &fwlat_modes[c->mode];
+    status = solve_mode(c, c->mode, c->xhat[c->mode], r, c->U);
+    for (i = 0; i < FWLAT_N_ACTUATORS; ++i) {
+        u[i] = R_(0.0);
+    }
+    for (i = 0; i < md->nu; ++i) {
+        u[md->actuator_index[i]] = c->U[i];
+    }
+    for (j = 0; j < FWLAT_N_MODES; ++j) {
+        observe(&c->work, &fwlat_modes[j], c->xhat[j], y, u, 1);
+    }
+    for (i = 0; i < FWLAT_N_ACTUATORS; ++i) {
+        c->u_last[i] = u[i];
+    }
+    return status;
+}
+
+int fwlat_observe(fwlat_ctrl *c, const fwlat_real *y,
+    const fwlat_real *sched, const fwlat_real *u_applied)
+{
+    int j, use_y;
+    if (c == 0 || y == 0 || u_applied == 0 || (FWLAT_N_SCHEDULE != 0 && sched == 0)) {
+        return FWLAT_BAD_ARGUMENT;
+    }
+    if (!all_finite(u_applied, FWLAT_N_ACTUATORS)) {
+        return FWLAT_NONFINITE_INPUT; /* no input to propagate with: nothing changes */
+    }
+    use_y = all_finite(y, FWLAT_N_OUTPUTS) && all_finite(sched, FWLAT_N_SCHEDULE);
+    if (use_y) {
+        follow_schedule(c, sched);
+    }
+    for (j = 0; j < FWLAT_N_MODES; ++j) {
+        observe(&c->work, &fwlat_modes[j], c->xhat[j], y, u_applied, use_y);
+    }
+    return use_y ? FWLAT_OPTIMAL : FWLAT_NONFINITE_INPUT;
+}
+
+int fwlat_solve_qp(fwlat_ctrl *c, int mode, const fwlat_real *x,
+    const fwlat_real *r, fwlat_real *U, int *iterations)
+{
+    int status, i;
+    if (c == 0 || U == 0 || mode < 0 || mode >= FWLAT_N_MODES) {
+        return FWLAT_BAD_ARGUMENT;
+    }
+    if (x == 0 || r == 0 || !all_finite(x, fwlat_modes[mode].nx)
+        || !all_finite(r, FWLAT_HORIZON * FWLAT_N_OUTPUTS)) {
+        status = (x == 0 || r == 0) ? FWLAT_BAD_ARGUMENT : FWLAT_NONFINITE_INPUT;
+        for (i = 0; i < fwlat_modes[mode].n; ++i) {
+            U[i] = R_(0.0);
+        }
+        c->info.status = status;
+        if (iterations != 0) {
+            *iterations = 0;
+        }
+        return status;
+    }
+    status = solve_mode(c, mode, x, r, U);
+    if (iterations != 0) {
+        *iterations = c->info.iterations;
+    }
+    return status;
+}
+
+const fwlat_info *fwlat_last_info(const fwlat_ctrl *c)
+{
+    return &c->info;
+}
+
+const char *fwlat_status_message(int status)
+{
+    switch (status) {
+    case FWLAT_OPTIMAL: return "optimal";
+    case FWLAT_MAX_ITER: return "iteration cap reached";
+    case FWLAT_INACCURATE: return "converged by delta but constraints violated";
+    case FWLAT_INFEASIBLE: return "infeasible: constraints cannot all hold (proven, or multipliers diverged)";
+    case FWLAT_NONFINITE_INPUT: return "non-finite input; last command held";
+    case FWLAT_NUMERICAL: return "non-finite intermediate result; safe fallback";
+    case FWLAT_BAD_ARGUMENT: return "bad argument";
+    default: return "unknown status";
+    }
+}

@@ -1,0 +1,223 @@
+/**
+ * @file quadatt_controller.c
+ * @brief Switched controller: hysteresis scheduler (eq. 3), one observer per mode,
+ *        QP solve of the active mode, first-move extraction.
+ *
+ * All observers run every sample in the paper's predictor form
+ * xhat+ = A xhat + B u_j + L (y - C xhat), each driven by the physical commands of its
+ * own actuators (0 for an inactive pair) and the shared measurement. The inactive
+ * observers therefore stay locked to y and a switch is bumpless.
+ */
+#include <math.h>
+#include "quadatt_internal.h"
+
+#define R_ QUADATT_R
+
+
+static int all_finite(const quadatt_real *v, int n)
+{
+    int i;
+    for (i = 0; i < n; ++i) {
+        if (!isfinite(v[i])) {
+            return 0;
+        }
+    }
+    return 1;
+}
+
+/* One observer update; use_y = 0 propagates open loop (no valid measurement). */
+static void observe(quadatt_work *ws, const quadatt_mode_data *md, quadatt_real *x,
+    const quadatt_real *y, const quadatt_real *u_phys, int use_y)
+{
+    int i, l, a;
+    for (a = 0; a < md->ny; ++a) {
+        quadatt_real acc = R_(0.0);
+        for (l = 0; l < md->nx; ++l) {
+            acc += md->C[a * md->nx + l] * x[l];
+        }
+        ws->innov[a] = use_y ? y[a] - acc : R_(0.0);
+    }
+    for (i = 0; i < md->nx; ++i) {
+        quadatt_real acc = R_(0.0);
+        for (l = 0; l < md->nx; ++l) {
+            acc += md->A[i * md->nx + l] * x[l];
+        }
+        for (l = 0; l < md->nu; ++l) {
+            acc += md->B[i * md->nu + l] * u_phys[md->actuator_index[l]];
+        }
+        if (use_y) {
+            for (a = 0; a < md->ny; ++a) {
+                acc += md->L[i * md->ny + a] * ws->innov[a];
+            }
+        }
+        ws->xn[i] = acc;
+    }
+    for (i = 0; i < md->nx; ++i) {
+        x[i] = ws->xn[i];
+    }
+}
+
+size_t quadatt_ctrl_size(void)
+{
+    return sizeof(quadatt_ctrl);
+}
+
+void quadatt_init(quadatt_ctrl *c)
+{
+    int j, i;
+    if (c == 0) {
+        return;
+    }
+    c->mode = 0;
+    for (j = 0; j < QUADATT_N_MODES; ++j) {
+        for (i = 0; i < QUADATT_NX_MAX; ++i) {
+            c->xhat[j][i] = R_(0.0);
+        }
+        for (i = 0; i < QUADATT_M_MAX; ++i) {
+            c->lam[j][i] = R_(0.0);
+        }
+    }
+    for (i = 0; i < QUADATT_N_ACTUATORS; ++i) {
+        c->u_last[i] = R_(0.0);
+    }
+    for (i = 0; i < QUADATT_N_MAX; ++i) {
+        c->U[i] = R_(0.0);
+    }
+    c->info.status = QUADATT_OPTIMAL;
+    c->info.mode = c->mode;
+    c->info.iterations = 0;
+    c->info.polish_iterations = 0;
+    c->info.active = 0;
+    c->info.mode_switches = 0;
+    c->info.solve_ticks = 0u;
+}
+
+static int solve_mode(quadatt_ctrl *c, int mode, const quadatt_real *x,
+    const quadatt_real *r, quadatt_real *U)
+{
+    const uint32_t t0 = QUADATT_TIMESTAMP();
+    const int status = quadatt_qp_solve(&c->work, c->lam[mode], &quadatt_modes[mode], x, r, U,
+        &c->info.iterations, &c->info.polish_iterations, &c->info.active);
+    c->info.solve_ticks = (uint32_t)(QUADATT_TIMESTAMP() - t0);
+    c->info.status = status;
+    c->info.mode = mode;
+    return status;
+}
+
+/* The scheduler's mode for this sample (finite sched); the incoming mode starts cold. */
+static void follow_schedule(quadatt_ctrl *c, const quadatt_real *sched)
+{
+    (void)c;
+    (void)sched;
+}
+
+int quadatt_step(quadatt_ctrl *c, const quadatt_real *y, const quadatt_real *sched,
+    const quadatt_real *r, quadatt_real *u)
+{
+    int j, i, status, inputs_ok;
+    const quadatt_mode_data *md;
+    if (c == 0 || u == 0) {
+        return QUADATT_BAD_ARGUMENT;
+    }
+    inputs_ok = y != 0 && r != 0 && (QUADATT_N_SCHEDULE == 0 || sched != 0);
+    if (!inputs_ok) {
+        for (i = 0; i < QUADATT_N_ACTUATORS; ++i) {
+            u[i] = c->u_last[i];
+        }
+        c->info.status = QUADATT_BAD_ARGUMENT;
+        return QUADATT_BAD_ARGUMENT;
+    }
+    if (!all_finite(y, QUADATT_N_OUTPUTS) || !all_finite(sched, QUADATT_N_SCHEDULE)
+        || !all_finite(r, QUADATT_HORIZON * QUADATT_N_OUTPUTS)) {
+        for (i = 0; i < QUADATT_N_ACTUATORS; ++i) {
+            u[i] = c->u_last[i];
+        }
+        for (j = 0; j < QUADATT_N_MODES; ++j) {
+            observe(&c->work, &quadatt_modes[j], c->xhat[j], y, u, 0);
+        }
+        c->info.status = QUADATT_NONFINITE_INPUT;
+        c->info.iterations = 0;
+        return QUADATT_NONFINITE_INPUT;
+    }
+    follow_schedule(c, sched);
+    md = &quadatt_modes[c->mode];
+    status = solve_mode(c, c->mode, c->xhat[c->mode], r, c->U);
+    for (i = 0; i < QUADATT_N_ACTUATORS; ++i) {
+        u[i] = R_(0.0);
+    }
+    for (i = 0; i < md->nu; ++i) {
+        u[md->actuator_index[i]] = c->U[i];
+    }
+    for (j = 0; j < QUADATT_N_MODES; ++j) {
+        observe(&c->work, &quadatt_modes[j], c->xhat[j], y, u, 1);
+    }
+    for (i = 0; i < QUADATT_N_ACTUATORS; ++i) {
+        c->u_last[i] = u[i];
+    }
+    return status;
+}
+
+int quadatt_observe(quadatt_ctrl *c, const quadatt_real *y,
+    const quadatt_real *sched, const quadatt_real *u_applied)
+{
+    int j, use_y;
+    if (c == 0 || y == 0 || u_applied == 0 || (QUADATT_N_SCHEDULE != 0 && sched == 0)) {
+        return QUADATT_BAD_ARGUMENT;
+    }
+    if (!all_finite(u_applied, QUADATT_N_ACTUATORS)) {
+        return QUADATT_NONFINITE_INPUT; /* no input to propagate with: nothing changes */
+    }
+    use_y = all_finite(y, QUADATT_N_OUTPUTS) && all_finite(sched, QUADATT_N_SCHEDULE);
+    if (use_y) {
+        follow_schedule(c, sched);
+    }
+    for (j = 0; j < QUADATT_N_MODES; ++j) {
+        observe(&c->work, &quadatt_modes[j], c->xhat[j], y, u_applied, use_y);
+    }
+    return use_y ? QUADATT_OPTIMAL : QUADATT_NONFINITE_INPUT;
+}
+
+int quadatt_solve_qp(quadatt_ctrl *c, int mode, const quadatt_real *x,
+    const quadatt_real *r, quadatt_real *U, int *iterations)
+{
+    int status, i;
+    if (c == 0 || U == 0 || mode < 0 || mode >= QUADATT_N_MODES) {
+        return QUADATT_BAD_ARGUMENT;
+    }
+    if (x == 0 || r == 0 || !all_finite(x, quadatt_modes[mode].nx)
+        || !all_finite(r, QUADATT_HORIZON * QUADATT_N_OUTPUTS)) {
+        status = (x == 0 || r == 0) ? QUADATT_BAD_ARGUMENT : QUADATT_NONFINITE_INPUT;
+        for (i = 0; i < quadatt_modes[mode].n; ++i) {
+            U[i] = R_(0.0);
+        }
+        c->info.status = status;
+        if (iterations != 0) {
+            *iterations = 0;
+        }
+        return status;
+    }
+    status = solve_mode(c, mode, x, r, U);
+    if (iterations != 0) {
+        *iterations = c->info.iterations;
+    }
+    return status;
+}
+
+const quadatt_info *quadatt_last_info(const quadatt_ctrl *c)
+{
+    return &c->info;
+}
+
+const char *quadatt_status_message(int status)
+{
+    switch (status) {
+    case QUADATT_OPTIMAL: return "optimal";
+    case QUADATT_MAX_ITER: return "iteration cap reached";
+    case QUADATT_INACCURATE: return "converged by delta but constraints violated";
+    case QUADATT_INFEASIBLE: return "infeasible: constraints cannot all hold (proven, or multipliers diverged)";
+    case QUADATT_NONFINITE_INPUT: return "non-finite input; last command held";
+    case QUADATT_NUMERICAL: return "non-finite intermediate result; safe fallback";
+    case QUADATT_BAD_ARGUMENT: return "bad argument";
+    default: return "unknown status";
+    }
+}

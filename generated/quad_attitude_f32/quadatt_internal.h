@@ -1,0 +1,67 @@
+/**
+ * @file quadatt_internal.h
+ * @brief Internal declarations shared by the generated sources (not part of the API).
+ */
+#ifndef QUADATT_INTERNAL_H
+#define QUADATT_INTERNAL_H
+
+#include "quadatt.h"
+
+/**
+ * Static data of one mode (all arrays row-major; "_p" = packed lower triangle), declared
+ * member by member in rollmpc_codegen/qp/arrays.py.
+ */
+typedef struct {
+    int nx;                             /**< States (with disturbance and u_prev states). */
+    int nu;                             /**< Inputs of the mode. */
+    int ny;                             /**< Outputs of the mode. */
+    int n;                              /**< Decision variables (N nu, or blocks * nu). */
+    int m;                              /**< Constraint rows. */
+    int nyq;                            /**< Predicted outputs N ny. */
+    int nt;                             /**< Terminal rows of the E split (0: P stays in S). */
+    const int16_t *actuator_index;      /**< [nu] physical actuator of each mode input. */
+    const quadatt_real *A;              /**< [nx][nx] discrete state matrix. */
+    const quadatt_real *B;              /**< [nx][nu] discrete input matrix. */
+    const quadatt_real *C;              /**< [ny][nx] output matrix. */
+    const quadatt_real *L;              /**< [nx][ny] observer gain. */
+    const quadatt_real *Kx;             /**< [n][nx] unconstrained state gain. */
+    const quadatt_real *EinvGt;         /**< [n][nyq] E^-1 Gamma'. */
+    const quadatt_real *Sinv_p;         /**< [n(n+1)/2] packed S^-1. */
+    const quadatt_real *Ew;             /**< [nt][n] E^-1 = S^-1 - Ew' Ew (Woodbury). */
+    const quadatt_real *Uv;             /**< [nt][n] V S^-1. */
+    const quadatt_real *T;              /**< [nt][nt] (2P)^-1 + V S^-1 V'. */
+    const quadatt_real *S_p;            /**< [n(n+1)/2] packed stage Hessian S (E = S + V'(2P)V). */
+    const quadatt_real *V;              /**< [nt][n] terminal rows of Gamma (nt = 0: none). */
+    const quadatt_real *P2inv;          /**< [nt][nt] (2P)^-1. */
+    const quadatt_real *GEinvGt_p;      /**< [nyq(nyq+1)/2] packed Gamma E^-1 Gamma' (null: no output rows). */
+    const quadatt_real *Omega2;         /**< [N][ny][ny] 2Q per stage, 2P at the last. */
+    const quadatt_real *Phi;            /**< [nyq][nx] free response of the predicted outputs. */
+    const quadatt_real *markov;         /**< [N][ny][nu] Markov parameters C A^i B. */
+    const int16_t *row_q;               /**< [m] quantity of each row (U index, n + Y index, or n + nyq + Δu index). */
+    const int8_t *row_sign;             /**< [m] -1 lower / +1 upper bound row. */
+    const quadatt_real *row_c;          /**< [m] constant right-hand side c. */
+    const int16_t *row_next;            /**< [m] same constraint one stage later (shifted warm start). */
+    const quadatt_real *colsum;         /**< [ny][n] sum of the E^-1 Gamma' columns of stages 0..N-2. */
+    const quadatt_real *out_bound;      /**< [nyq] |(Gamma th)_k| <= out_bound[k] max|th|. */
+    const quadatt_real *u_min;          /**< [nu] input lower bounds. */
+    const quadatt_real *u_max;          /**< [nu] input upper bounds. */
+} quadatt_mode_data;
+
+extern const quadatt_mode_data quadatt_modes[QUADATT_N_MODES];
+
+/** Packed lower-triangle index of (i, j), j <= i. */
+#define QUADATT_TRI(i, j) ((i) * ((i) + 1) / 2 + (j))
+
+/* Linear algebra on packed symmetric matrices (quadatt_linalg.c). */
+int quadatt_cholesky(quadatt_real *a, int n);
+int quadatt_cholesky_from(quadatt_real *a, int from, int n);
+void quadatt_chol_lsolve(const quadatt_real *l, int n, quadatt_real *b);
+void quadatt_chol_ltsolve(const quadatt_real *l, int n, quadatt_real *b);
+void quadatt_chol_solve(const quadatt_real *l, int n, quadatt_real *b);
+
+/* QP solver (quadatt_solver.c). */
+int quadatt_qp_solve(quadatt_work *ws, quadatt_real *lam, const quadatt_mode_data *md,
+    const quadatt_real *x, const quadatt_real *r, quadatt_real *U, int *iterations,
+    int *polish_iterations, int *active);
+
+#endif /* QUADATT_INTERNAL_H */

@@ -1,0 +1,158 @@
+"""``rollmpc fly``: the generated C flies a JSBSim aircraft
+(:func:`rollmpc_codegen.flight.run.run_flight`), printed and written.
+
+Outputs (each optional):
+
+* ``--csv``: one row per sample: the columns of ``rollmpc simulate --csv`` for the
+  controller (``y`` is the roll it was given, ``rho`` the airspeed, ``r`` the reference;
+  ``rollmpc report --flight`` replays them), then ``roll_rate_fed`` and the aircraft's
+  true signals ``true_<signal>`` (flight.loop.AIRCRAFT_SIGNALS).
+* ``--json``: the metrics of :mod:`rollmpc_codegen.flight.metrics` (``baseline`` holds
+  the PID's with ``--baseline pid``).
+* ``--plot``: the flight in the style of Fig. 2 (:mod:`rollmpc_codegen.flight.plot`).
+"""
+from __future__ import annotations
+
+import csv
+import sys
+from pathlib import Path
+
+from ..config.errors import ConfigError
+from ..flight.aircraft import (DEFAULT_AIRCRAFT, DEFAULT_AIRSPEED_KTS, DEFAULT_ALTITUDE_FT,
+                               TURBULENCE)
+from .options import (add_build_dir, add_outputs, add_precision, add_quiet, check_outputs,
+                      progress_of, require_plot, write_json)
+from .simulate import csv_header, solver_text
+
+OUTPUTS = ("csv", "json", "plot")
+
+
+def add_parser(sub) -> None:
+    f = sub.add_parser("fly", help="fly the generated C on a JSBSim aircraft (needs the "
+                       "flight extra)")
+    f.add_argument("config")
+    f.add_argument("--aircraft", default=DEFAULT_AIRCRAFT,
+                   help=f"a JSBSim aircraft of the jsbsim wheel (default {DEFAULT_AIRCRAFT})")
+    f.add_argument("--airspeed", type=float, default=DEFAULT_AIRSPEED_KTS,
+                   help=f"trim airspeed at the start, kts (default {DEFAULT_AIRSPEED_KTS:g})")
+    f.add_argument("--altitude", type=float, default=DEFAULT_ALTITUDE_FT,
+                   help=f"trim altitude, held, ft (default {DEFAULT_ALTITUDE_FT:g})")
+    f.add_argument("--turbulence", choices=list(TURBULENCE), default="none",
+                   help="MIL-F-8785C Dryden turbulence (JSBSim's reference intensities)")
+    f.add_argument("--noise", type=float, default=0.0,
+                   help="IMU noise std on roll (deg) and roll rate (deg/s)")
+    f.add_argument("--delay", type=int, default=0, help="sensor latency in samples")
+    f.add_argument("--seed", type=int, default=0, help="turbulence and noise seed")
+    f.add_argument("--duration", type=float, default=None,
+                   help="seconds to fly (default: the whole reference)")
+    f.add_argument("--reference", default=None,
+                   help="a peak bank angle in deg (the paper's levels scaled to it; default "
+                   "30) or a CSV file with columns t,roll[,airspeed]")
+    add_precision(f)
+    add_outputs(f, csv="per-sample log (the controller's inputs and the aircraft)",
+                json="summary metrics", plot="Fig. 2 style PNG")
+    f.add_argument("--baseline", choices=["none", "pid"], default="none",
+                   help="also fly the PX4-style PID on the same flight (plotted dashed)")
+    add_quiet(f, "no progress bar")
+    add_build_dir(f)
+    f.set_defaults(func=run)
+
+
+def flight_csv_header(ctx: dict) -> list[str]:
+    from ..flight.loop import AIRCRAFT_SIGNALS
+
+    return csv_header(ctx) + ["roll_rate_fed"] + [f"true_{s}" for s in AIRCRAFT_SIGNALS]
+
+
+def write_flight_csv(path: str | Path, ctx: dict, log) -> Path:
+    from ..flight.loop import AIRCRAFT_SIGNALS
+
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    c, ns = log.controller, ctx["n_schedule"]
+    with open(path, "w", newline="") as fh:
+        w = csv.writer(fh)
+        w.writerow(flight_csv_header(ctx))
+        for k in range(len(c.t)):
+            w.writerow([k, repr(float(c.t[k])), repr(float(c.r[k, 0])), repr(float(c.y[k, 0])),
+                        *([repr(float(c.sched[k, 0]))] if ns else []), int(c.mode[k]),
+                        repr(float(c.u[k, 0])), int(c.status[k]), int(c.iterations[k]),
+                        f"{c.solve_us[k]:.3f}", repr(float(log.rate_fed[k])),
+                        *(repr(float(log.aircraft[s][k])) for s in AIRCRAFT_SIGNALS)])
+    return path
+
+
+def _check_args(args) -> None:
+    for name in ("noise", "airspeed", "altitude"):
+        value = getattr(args, name)
+        if not (0 <= value < float("inf")):
+            raise ConfigError(f"--{name}", f"must be finite and >= 0, got {value}")
+    if args.delay < 0:
+        raise ConfigError("--delay", f"must be >= 0, got {args.delay}")
+    if args.duration is not None and not 0 < args.duration < float("inf"):
+        raise ConfigError("--duration", f"must be > 0, got {args.duration}")
+    check_outputs(args, OUTPUTS)
+
+
+def _segments(summary: dict, key: str, fmt: str = "{:.3g}") -> str:
+    return ", ".join("-" if s[key] is None else fmt.format(s[key]) for s in summary["segments"])
+
+
+def print_summary(run) -> None:
+    s, ctx = run.summary, run.ctx
+    print(f"rollmpc fly: {s['aircraft']} from {run.trim.airspeed_kts:.0f} kts, "
+          f"{run.trim.altitude_ft:.0f} ft; {s['samples']} samples ({s['duration_s']:g} s), "
+          f"JSBSim at {s['fdm_rate_hz']:g} Hz; turbulence {s['turbulence']}, noise "
+          f"{s['noise_std']:g}, delay {s['delay_samples']}, seed {s['seed']}; "
+          f"{ctx['precision']}, solver {solver_text(ctx)}")
+    runs = [("MPC", s)] + ([("PID", s["baseline"])] if "baseline" in s else [])
+    for name, m in runs:
+        a = m["aileron"]
+        print(f"  {name}: RMS roll error {m['rms_roll_error_deg']:.3g} deg; settled |roll - r| "
+              f"per segment: {_segments(m, 'settled_error')} deg")
+        print(f"       overshoot: {_segments(m, 'overshoot')} deg; settling (10 %): "
+              f"{_segments(m, 'settling_time_10pct_s', '{:.2f}')} s")
+        print(f"       aileron: max |u| {a['max_abs_deg']:.3g} deg, travel {a['travel_deg']:.0f} "
+              f"deg, rate max {a['max_rate_dps']:.0f} RMS {a['rms_rate_dps']:.1f} deg/s; "
+              f"altitude excursion {m['altitude_excursion_ft']:.0f} ft, airspeed "
+              f"{m['airspeed_kts']['min']:.0f}-{m['airspeed_kts']['max']:.0f} kts, "
+              f"|sideslip| <= {m['max_abs_sideslip_deg']:.1f} deg, stalled samples "
+              f"{m['stalled_samples']}")
+    st = s["solve_us"]
+    statuses = ", ".join(f"{k} {v}" for k, v in s["status_counts"].items())
+    print(f"  MPC: switches {s['switches']}, statuses: {statuses}; max iterations "
+          f"{s['max_iterations']}; solve time median {st['median']:.1f} us, max "
+          f"{st['max']:.1f} us")
+
+
+def run(args) -> int:
+    from ..flight.aircraft import require_jsbsim
+    from ..flight.run import run_flight
+
+    _check_args(args)
+    require_jsbsim()
+    require_plot(args)
+    result = run_flight(args.config, aircraft=args.aircraft, airspeed_kts=args.airspeed,
+                        altitude_ft=args.altitude, turbulence=args.turbulence,
+                        noise_std=args.noise, delay=args.delay, seed=args.seed,
+                        duration_s=args.duration, reference=args.reference,
+                        precision=args.precision,
+                        baseline=None if args.baseline == "none" else args.baseline,
+                        build_dir=args.build_dir, progress=progress_of(args))
+    if args.csv:
+        write_flight_csv(args.csv, result.ctx, result.log)
+    if args.json:
+        write_json(args.json, result.summary)
+    if args.plot:
+        from ..flight.plot import plot_flight
+
+        plot_flight(args.plot, result.config, result.log, result.baseline_log,
+                    title=f"{Path(args.config).name} flies the JSBSim {args.aircraft}: "
+                          f"turbulence {args.turbulence}, seed {args.seed} "
+                          f"({result.ctx['precision']})")
+    print_summary(result)
+    for opt in OUTPUTS:
+        if getattr(args, opt):
+            print(f"rollmpc: wrote {getattr(args, opt)}")
+    sys.stdout.flush()
+    return 0
