@@ -14,7 +14,7 @@ import pytest
 from rollmpc_codegen.cli.main import main
 from rollmpc_codegen.sim.metrics import (constraint_violations, reference_segments,
                                                  settled_window)
-from rollmpc_codegen.cli.simulate import csv_header
+from rollmpc_codegen.sim.simulate import csv_header
 
 from conftest import UAV
 

@@ -22,7 +22,8 @@ from ..flight.aircraft import (DEFAULT_AIRCRAFT, DEFAULT_AIRSPEED_KTS, DEFAULT_A
                                TURBULENCE)
 from .options import (add_build_dir, add_outputs, add_precision, add_quiet, check_outputs,
                       progress_of, require_plot, write_json)
-from .simulate import csv_header, solver_text
+from ..sim.simulate import csv_header
+from .simulate import solver_text
 
 OUTPUTS = ("csv", "json", "plot")
 

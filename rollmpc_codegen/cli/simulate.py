@@ -46,18 +46,9 @@ def add_parser(sub) -> None:
     s.set_defaults(func=run)
 
 
-def csv_header(ctx: dict) -> list[str]:
-    outputs = ctx["outputs"]
-    if len(outputs) == 1:
-        r_cols, y_cols = ["r"], ["y"]
-    else:
-        r_cols, y_cols = [f"r_{o}" for o in outputs], [f"y_{o}" for o in outputs]
-    rho = ["rho"] if ctx["n_schedule"] else []
-    return (["k", "t", *r_cols, *y_cols, *rho, "mode"]
-            + [f"u_{a}" for a in ctx["actuators"]] + ["status", "iterations", "solve_us"])
-
-
 def write_csv(path: str | Path, ctx: dict, log: ClosedLoopLog) -> Path:
+    from ..sim.simulate import csv_header
+
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     ns = ctx["n_schedule"]

@@ -117,3 +117,16 @@ def run_closed_loop(cfg: ControllerConfig, controller, reference: np.ndarray | N
         if progress is not None:
             progress(k)
     return log
+
+
+def csv_header(ctx: dict) -> list[str]:
+    """The columns of a closed-loop log (`rollmpc simulate --csv`, and the controller
+    columns of `rollmpc fly --csv` that `rollmpc report --flight` reads back)."""
+    outputs = ctx["outputs"]
+    if len(outputs) == 1:
+        r_cols, y_cols = ["r"], ["y"]
+    else:
+        r_cols, y_cols = [f"r_{o}" for o in outputs], [f"y_{o}" for o in outputs]
+    rho = ["rho"] if ctx["n_schedule"] else []
+    return (["k", "t", *r_cols, *y_cols, *rho, "mode"]
+            + [f"u_{a}" for a in ctx["actuators"]] + ["status", "iterations", "solve_us"])

@@ -37,7 +37,7 @@ class FlightInputs:
 def read_flight_inputs(path: str | Path, ctx: dict, steps: int | None = None) -> FlightInputs:
     """The controller columns of a flight CSV (the first ``steps`` rows), named as
     ``rollmpc simulate --csv`` names them for ``ctx``; ConfigError naming ``--flight``."""
-    from ..cli.simulate import csv_header
+    from ..sim.simulate import csv_header
 
     key = "--flight"
     columns = csv_header(ctx)
