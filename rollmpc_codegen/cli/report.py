@@ -39,6 +39,9 @@ def add_parser(sub) -> None:
                     "(e.g. --extra-cflags=-fno-builtin or --extra-cflags=-ffp-contract=fast)")
     rp.add_argument("--flight", default=None, help="replay the controller inputs of a "
                     "`rollmpc fly --csv` flight instead of the scenario")
+    rp.add_argument("--peer", choices=["daqp"], default=None,
+                    help="also replay the scenario's QPs through DAQP's own C, single "
+                    "precision, on the same emulated target, and set the two side by side")
     add_quiet(rp)
     add_build_dir(rp)
     rp.set_defaults(func=run)
@@ -93,6 +96,23 @@ def summary_text(rep: dict) -> str:
     return "\n".join(lines)
 
 
+def peer_markdown(rep: dict) -> str:
+    """Ours beside the peer, per mode: median and worst cycles, where each peaks."""
+    peer = rep["peer"]
+    lines = [f"| mode | ours median | ours worst (step) | {peer['name']} median | "
+             f"{peer['name']} worst (step) | {peer['name']} statuses | {peer['name']} max u "
+             "beyond limits (QPs) |", "|---|---:|---:|---:|---:|---|---:|"]
+    for name, theirs in peer["by_mode"].items():
+        ours = rep["by_mode"].get(name, {})
+        statuses = ", ".join(f"{n} {c}" for n, c in theirs["statuses"].items())
+        lines.append(f"| {name} | {ours.get('median_cycles') or 0:,} | "
+                     f"{ours.get('worst_cycles', 0):,} ({ours.get('worst_step')}) | "
+                     f"{theirs['median_cycles']:,} | {theirs['worst_cycles']:,} "
+                     f"({theirs['worst_qp']}) | {statuses} | "
+                     f"{theirs['max_u_beyond_limits']:.3g} ({theirs['qps_beyond_limits']}) |")
+    return "\n".join(lines)
+
+
 def horizons_markdown(table: dict) -> str:
     """The per-horizon table and the fits as markdown (what docs/target.md shows)."""
     lines = ["| N | generation (s) | flash (B) | static RAM (B) | stack (B) | worst step "
@@ -138,11 +158,13 @@ def run(args) -> int:
                         hardest=args.hardest, host_repeats=args.host_repeats,
                         extra_cflags=tuple(args.extra_cflags.split()) if args.extra_cflags
                         else (), build_dir=args.build_dir, flight=args.flight,
-                        progress=progress_of(args))
+                        peer=args.peer, progress=progress_of(args))
     if horizons:
         print_horizons(result["horizons"])
     else:
         print(summary_text(result))
+    if "peer" in result:
+        print(peer_markdown(result))
     if "flight" in result:
         f = result["flight"]
         print(f"  flight {f['path']}: {f['samples']} samples; host replay == the flight's "

@@ -55,6 +55,24 @@ def memory_goals(cfg, flash_bytes: int, ram_bytes: int, ctrl_bytes: int) -> dict
     return goals
 
 
+def cycles_by_mode(run: FlightRun, ctx: dict) -> dict:
+    """Per mode of one flight: the worst counted step and the median of the sampled steps
+    (what ``--peer`` sets beside the peer's figures)."""
+    out = {}
+    for j, mode in enumerate(ctx["modes"]):
+        counted = [k for k in run.run.counts if run.record.info[k]["mode"] == j]
+        if not counted:
+            continue
+        sampled = [run.run.counts[k].cycles for k in run.sweep
+                   if run.record.info[k]["mode"] == j]
+        worst = max(counted, key=lambda k: (run.run.counts[k].cycles, -k))
+        out[mode["name"]] = {"worst_cycles": int(run.run.counts[worst].cycles),
+                             "worst_step": int(worst),
+                             "median_cycles": int(np.median(sampled)) if sampled else None,
+                             "steps_counted": len(counted)}
+    return out
+
+
 def measure(model, ctx: dict, build_root: Path, *, plan: FlightPlan = FlightPlan(),
             steps: int | None = None, sample_every: int = 20, hardest: int = 10,
             progress=None, extra_cflags: tuple[str, ...] = (), host_repeats: int = 5,
@@ -129,6 +147,7 @@ def measure(model, ctx: dict, build_root: Path, *, plan: FlightPlan = FlightPlan
         "budget": budget_verdict(cfg, int(worst.cycles)),
         "goals": memory_goals(cfg, sizes["flash_bytes"], sizes["ram_bytes"], ctrl_bytes),
         "worst_step_top_functions": _top_functions(worst),
+        "by_mode": cycles_by_mode(worst_run, ctx),
         "hardest_step_cycles": [
             {"step": k, "cycles": int(counts[k].cycles),
              "instructions": int(counts[k].instructions),

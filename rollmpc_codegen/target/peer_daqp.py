@@ -40,7 +40,8 @@ import numpy as np
 
 from ..codegen.context import build_context
 from ..codegen.render import render_template
-from ..host.build import STRICT_WARNINGS, BuildError, build_host_controller, default_build_root
+from ..host.build import STRICT_WARNINGS, BuildError, build_host_controller
+from ..host.build_cache import private_root, publish, staging, verified
 from ..model.controller import ControllerModel
 from ..qp.condense import solve_refined
 from ..qp.peers import DAQP_INF, DaqpPeer, TwoSidedForm, c_stdout_silenced, peer_problems
@@ -80,7 +81,7 @@ def daqp_version() -> str:
 
 def daqp_sources(version: str, cache_dir: Path | None = None) -> Path:
     """``csrc/`` of DAQP's sdist: downloaded with pip and unpacked once into ``cache_dir``."""
-    cache = Path(cache_dir) if cache_dir is not None else default_build_root() / "daqp-sdist"
+    cache = (Path(cache_dir) if cache_dir is not None else private_root() / "daqp-sdist")
     top = f"daqp-{version}"
     csrc = cache / top / "csrc"
     if (csrc / "include" / "api.h").is_file():
@@ -181,31 +182,31 @@ def build_daqp_target(ctx: dict, csrc: Path, build_root: Path) -> tuple[Path, di
                                        harness, ld]).encode())
     for path in [*daqp_c, *sorted((csrc / "include").glob("*.h"))]:
         digest.update(path.read_bytes())
-    out = Path(build_root) / f"target-{p}-{digest.hexdigest()[:16]}"
-    elf = out / f"{p}_target.elf"
-    if elf.exists():
+    key = digest.hexdigest()
+    root = private_root(build_root)
+    out, elf_name = root / f"target-{p}-{key[:16]}", f"{p}_target.elf"
+    elf = verified(out, elf_name, key)
+    if elf is not None:
         return elf, _warning_counts((out / "daqp_warnings.txt").read_text())
-    tmp = out.with_name(out.name + ".tmp")
-    shutil.rmtree(tmp, ignore_errors=True)
-    tmp.mkdir(parents=True)
-    (tmp / f"{p}_target_harness.c").write_text(harness)
-    (tmp / f"{p}_target.ld").write_text(ld)
-    warnings = []
-    objs = []
-    for src in daqp_c:
-        objs.append(tmp / f"daqp_{src.stem}.o")
-        warnings.append(_compile_relaxed([cc, *base, *DAQP_WARNINGS, f"-I{csrc / 'include'}",
-                                          "-c", str(src), "-o", str(objs[-1])]))
-    objs.append(tmp / f"{p}_target_harness.o")
-    # -isystem: DAQP's headers are not held to our warnings, the harness itself is
-    _run([cc, *base, *STRICT_WARNINGS, "-isystem", str(csrc / "include"), "-c",
-          str(tmp / f"{p}_target_harness.c"), "-o", str(objs[-1])])
-    _run([cc, *CORTEX_M4F, *TARGET_LDFLAGS, "-T", str(tmp / f"{p}_target.ld"),
-          f"-Wl,-Map={tmp / (p + '_target.map')}", "-o", str(tmp / elf.name),
-          *map(str, objs), "-lm", "-lgcc"])
-    (tmp / "daqp_warnings.txt").write_text("".join(warnings))
-    shutil.rmtree(out, ignore_errors=True)
-    tmp.rename(out)
+    with staging(root, out.name) as tmp:
+        (tmp / f"{p}_target_harness.c").write_text(harness)
+        (tmp / f"{p}_target.ld").write_text(ld)
+        warnings = []
+        objs = []
+        for src in daqp_c:
+            objs.append(tmp / f"daqp_{src.stem}.o")
+            warnings.append(_compile_relaxed([cc, *base, *DAQP_WARNINGS,
+                                              f"-I{csrc / 'include'}", "-c", str(src),
+                                              "-o", str(objs[-1])]))
+        objs.append(tmp / f"{p}_target_harness.o")
+        # -isystem: DAQP's headers are not held to our warnings, the harness itself is
+        _run([cc, *base, *STRICT_WARNINGS, "-isystem", str(csrc / "include"), "-c",
+              str(tmp / f"{p}_target_harness.c"), "-o", str(objs[-1])])
+        _run([cc, *CORTEX_M4F, *TARGET_LDFLAGS, "-T", str(tmp / f"{p}_target.ld"),
+              f"-Wl,-Map={tmp / (p + '_target.map')}", "-o", str(tmp / elf_name),
+              *map(str, objs), "-lm", "-lgcc"])
+        (tmp / "daqp_warnings.txt").write_text("".join(warnings))
+        elf = publish(tmp, out, elf_name, key)
     return elf, _warning_counts("".join(warnings))
 
 
@@ -254,7 +255,7 @@ class DaqpOnTarget:
 def daqp_cycles(model: ControllerModel, qp_sequence, progress=None,
                 build_root: Path | None = None, limit: int | None = None,
                 sdist_cache: Path | None = None, setup: str = "offline") -> dict:
-    """Replay ``qp_sequence`` (``host.bench.record_qp_sequence``; its first ``limit`` QPs)
+    """Replay ``qp_sequence`` (``host.bench_record.record_qp_sequence``; its first ``limit`` QPs)
     through DAQP on the emulated M4F; per mode: median and worst cycles, the QP where
     they peak, statuses, errors against the host DAQP in double and against our
     controller's host build, and inputs beyond their limits (see the module docstring)."""
@@ -264,7 +265,7 @@ def daqp_cycles(model: ControllerModel, qp_sequence, progress=None,
     csrc = daqp_sources(version, sdist_cache)
     flag_names = exit_flags(csrc)
     ctx = harness_context(model, version, setup)
-    root = Path(build_root) if build_root is not None else default_build_root()
+    root = private_root(build_root)
     elf, warnings = build_daqp_target(ctx, csrc, root)
     qps = [mm.qp for mm in model.modes]
     problems, n_u = peer_problems(qps)

@@ -40,7 +40,8 @@ def run_report(config: str | Path, *, precision: str | None = None,
                disturbance: float = 0.0, mismatch: float = 0.0,
                sample_every: int = 20, hardest: int = 10, host_repeats: int = 5,
                extra_cflags: tuple[str, ...] = (), build_dir: str | Path | None = None,
-               flight: str | Path | None = None, progress=None) -> dict:
+               flight: str | Path | None = None, peer: str | None = None,
+               progress=None) -> dict:
     """The report of ``config`` (the keys of :func:`rollmpc_codegen.target.measure.measure`),
     or with ``horizons`` ``{"horizons": horizon_table(...)}``.
 
@@ -51,7 +52,9 @@ def run_report(config: str | Path, *, precision: str | None = None,
     ranked by the smallest host solve time of ``host_repeats`` runs; ``extra_cflags`` are
     appended to the target's flags. ``flight``: replay the first ``steps`` samples of that
     CSV of ``rollmpc fly`` instead (:mod:`.flight_replay`); the report then has ``flight``
-    (its path, samples and ``flight_replay.commands_match``).
+    (its path, samples and ``flight_replay.commands_match``). ``peer="daqp"``: DAQP's
+    own C in single precision replays the scenario's QPs on the same emulated target
+    (:mod:`.peer_daqp`); the report then has ``peer`` beside its own ``by_mode``.
     """
     for module, package in TARGET_MODULES:
         if not installed(module):
@@ -66,16 +69,41 @@ def run_report(config: str | Path, *, precision: str | None = None,
     if flight is not None and (horizons or flights or noise_std or disturbance or mismatch):
         raise config_mod.ConfigError("--flight", "replays one recorded flight; not with "
                                      "--horizons, --flights or perturbations")
+    if peer is not None and (peer not in PEERS or horizons or flights or flight is not None):
+        raise config_mod.ConfigError("--peer", f"one of {', '.join(PEERS)}, on the scenario "
+                                     "only (not with --horizons, --flights or --flight)")
     if horizons:
         config_mod.load(config, precision)  # validate before the long run
         return {"horizons": horizon_table(Path(config), sorted(set(horizons)), precision, root,
                                           progress, **options)}
     model, ctx = load_model(config, precision)
     if flight is None:
-        return measure(model, ctx, root, progress=progress, **options)
+        report = measure(model, ctx, root, progress=progress, **options)
+        if peer is not None:
+            report["peer"] = peer_cycles(model, ctx, root, steps, progress)
+        return report
     inputs = flight_replay.read_flight_inputs(flight, ctx, steps)
     record = flight_replay.record_flight(ctx, inputs, root, progress, host_repeats)
     report = measure(model, ctx, root, progress=progress, record=record, **options)
     report["flight"] = {"path": str(flight), "samples": len(inputs.y),
                         **flight_replay.commands_match(inputs, record)}
     return report
+
+
+PEERS = ("daqp",)
+
+
+def peer_cycles(model, ctx: dict, root: Path, steps: int | None, progress=None) -> dict:
+    """DAQP on the emulated target over the QPs the scenario's closed loop solves."""
+    from ..host.bench_record import record_qp_sequence
+    from ..host.build import build_host_controller
+    from ..sim.simulate import start_phase
+    from .peer_daqp import daqp_cycles
+
+    from ..sim.scenario import scenario_reference
+
+    total = steps or len(scenario_reference(model.config))
+    sequence = record_qp_sequence(model, build_host_controller(ctx, root), steps,
+                                  start_phase(progress, total, "report: QPs for the peer"))
+    replay = start_phase(progress, len(sequence.mode), "report: DAQP on the target")
+    return {"name": "daqp", **daqp_cycles(model, sequence, replay, build_root=root)}
