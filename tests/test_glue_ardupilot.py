@@ -15,7 +15,7 @@ import cffi
 import pytest
 
 from conftest import ROOT
-from glue_harness import MAX_CHANNELS, build_glue
+from glue_harness import CDEF, MAX_CHANNELS, build_glue
 from test_glue_core import F32, header_ranges
 
 AP = ROOT / "firmware_stub" / "integration" / "ardupilot"
@@ -24,16 +24,7 @@ PATCHES = {"plane/arduplane.patch": "ArduPlane", "copter/custom_control.patch": 
 AILERON, ELEVATOR = 4, 19
 PARAMS_OK, PARAMS_TIMEOUT, PARAMS_CHANNEL = 0, 1, 6
 
-CDEF = """
-typedef struct {{
-    uint32_t timeout_us; uint16_t frozen_samples; uint16_t warmup_samples;
-    uint16_t max_failures; float ref_slew_dps;
-    int8_t channel[2][2]; int8_t sign[2][2]; float throw_deg[2];
-}} rollglue_params;
-typedef struct {{
-    float roll_deg; uint64_t roll_us; float roll_rate_dps; uint64_t rate_us;
-    float roll_cmd_deg; uint64_t cmd_us; float applied[{c}]; int engage;
-}} rollglue_input;
+AP_CDEF = """
 typedef struct {{
     int32_t timeout_ms; int32_t frozen_samples; int32_t warmup_samples; int32_t max_failures;
     float slew_dps; float throw_deg[2]; int32_t servo[2][2]; int32_t reversed;
@@ -42,9 +33,6 @@ typedef struct {{
     int32_t roll_cd; uint64_t roll_us; float gyro_x_rads; int32_t roll_cmd_cd; uint64_t cmd_us;
     float applied_scaled[{c}]; int engage;
 }} rollglue_ap_sample;
-void rollglue_init(void *g);
-int rollglue_set_params(void *g, const rollglue_params *p, uint32_t n_channels);
-void rollglue_sizes(uint32_t sizes[5]);
 void rollglue_ap_params(const rollglue_ap_settings *s, rollglue_params *p);
 int rollglue_ap_foreign_channel(const rollglue_params *p, const uint16_t *functions, uint32_t n);
 void rollglue_ap_input(const rollglue_ap_sample *s, rollglue_input *in);
@@ -59,7 +47,7 @@ def ap(tmp_path_factory):
     lib = build_glue(F32, tmp_path_factory.mktemp("glue_ap"),
                      extra=(AP / "AP_RollMPC" / "rollglue_ap.c",))
     ffi = cffi.FFI()
-    ffi.cdef(CDEF.format(c=MAX_CHANNELS))
+    ffi.cdef(CDEF.format(n=2, c=MAX_CHANNELS) + AP_CDEF.format(c=MAX_CHANNELS))
     return ffi, ffi.dlopen(str(lib))
 
 
