@@ -54,11 +54,13 @@ NOT_REQUESTED, STALE_ROLL, STALE_RATE, STALE_CMD, FROZEN, NONFINITE, WARMING, SO
 TRACKING, ENGAGED, LOCKOUT = 0, 1, 2
 
 
-def build_glue(generated: Path, out: Path) -> Path:
-    """lib of the glue core + the generated controller in ``generated`` (strict flags)."""
+def build_glue(generated: Path, out: Path, extra: tuple[Path, ...] = ()) -> Path:
+    """lib of the glue core + the generated controller in ``generated`` (strict flags),
+    plus ``extra`` sources (an autopilot's C glue; their directories are on the path)."""
     lib = out / "librollglue.so"
     cmd = ["gcc", "-O2", "-fPIC", "-shared", "-ffp-contract=off", *WARNINGS, f"-I{generated}",
-           f"-I{GLUE}", "-o", str(lib), str(GLUE / "rollglue.c"),
+           f"-I{GLUE}", *dict.fromkeys(f"-I{src.parent}" for src in extra), "-o", str(lib),
+           str(GLUE / "rollglue.c"), *map(str, extra),
            *map(str, sorted(generated.glob("*.c"))), "-lm"]
     proc = subprocess.run(cmd, capture_output=True, text=True)
     assert proc.returncode == 0 and proc.stderr == "", proc.stderr

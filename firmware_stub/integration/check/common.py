@@ -12,8 +12,8 @@ def repo_root() -> Path:
     return Path(__file__).resolve().parents[3]
 
 
-def run(cmd: list[str], cwd: Path | None = None) -> str:
-    proc = subprocess.run(cmd, cwd=cwd, capture_output=True, text=True)
+def run(cmd: list[str], cwd: Path | None = None, env: dict | None = None) -> str:
+    proc = subprocess.run(cmd, cwd=cwd, capture_output=True, text=True, env=env)
     if proc.returncode != 0:
         shown = " ".join(cmd if len(cmd) < 12 else cmd[:6] + ["..."] + cmd[-4:])
         sys.exit(f"failed: {shown}\n{proc.stdout[-3000:]}{proc.stderr[-3000:]}")
@@ -25,14 +25,17 @@ def copy_tree(src: Path, dst: Path) -> None:
                     ignore=shutil.ignore_patterns("*.json", ".rollmpc-manifest", "__pycache__"))
 
 
-def compile_unit(compiler: str, flags: list[str], src: Path, build: Path) -> tuple[str, str]:
-    """Compile src to an object in build/obj; returns (unit, '' or the compiler's output)."""
-    obj = build / "obj" / (src.name + ".o")
+def compile_unit(compiler: str, flags: list[str], src: Path, build: Path, unit: str | None = None,
+                 cwd: Path | None = None) -> tuple[str, str]:
+    """Compile src to an object in build/obj, from cwd (the build system's directory);
+    returns (unit, '' or the compiler's output). unit names the result (default: the file)."""
+    unit = unit or src.name
+    obj = build / "obj" / (unit.replace("/", "_") + ".o")
     obj.parent.mkdir(parents=True, exist_ok=True)
     proc = subprocess.run([compiler, *flags, "-c", str(src), "-o", str(obj)],
-                          capture_output=True, text=True)
+                          capture_output=True, text=True, cwd=cwd)
     out = proc.stdout + proc.stderr
-    return src.name, out if (proc.returncode != 0 or out.strip()) else ""
+    return unit, out if (proc.returncode != 0 or out.strip()) else ""
 
 
 def tree_commit(tree: Path) -> str:

@@ -22,10 +22,7 @@
 #error "more actuators than addressable output channels"
 #endif
 
-/** Sample time of the generated controller, s (override for another config). */
-#ifndef ROLLGLUE_SAMPLE_S
-#define ROLLGLUE_SAMPLE_S 0.01f
-#endif
+#define ROLLGLUE_SAMPLE_S (1.0f / (float)ROLLGLUE_SAMPLE_HZ)
 
 typedef ROLLGLUE_FN(_real) glue_real;
 
