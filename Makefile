@@ -16,7 +16,7 @@ CSTRICT := -std=c99 -O2 -ffp-contract=off -Wall -Wextra -Wpedantic -Wconversion 
            -Wdouble-promotion -Werror
 
 .PHONY: all venv demo generate test ctest check-long clean firmware size report figures \
-        reliability flight-matrix
+        reliability flight-matrix mutation
 
 all: test
 
@@ -87,9 +87,15 @@ figures: venv
 	    --json build/figures/default_vs_daqp.json > build/figures/default_vs_daqp.md
 	@cat build/figures/default_vs_daqp.md
 
-## check-long: long runs (sanitizer soak, large fuzz budgets)
+## check-long: long runs (sanitizer soak, large fuzz budgets), then the mutation run
 check-long: venv
 	$(PY) -m pytest -q -m slow --runslow
+	$(MAKE) --no-print-directory mutation
+
+## mutation: plant each bug of rollmpc_codegen/verify/mutants.py in a copy of the tree and
+##   report which tests catch it (docs/reliability.md, "Mutation testing"; ~1 h on 2 cores)
+mutation: venv
+	$(PY) -m rollmpc_codegen.verify.mutation --json build/mutation/mutation.json
 
 ## flight-matrix: the table of docs/flight.md: examples/c172_roll.yaml and the PID baseline
 ##   on the JSBSim c172p in every turbulence level, 3 seeds each, each MPC flight replayed

@@ -63,20 +63,42 @@ def test_dual_active_set_matches_reference_and_exact_solution(gi_only):
     assert min(statuses.values()) >= QPS // 8, statuses  # both outcomes exercised
 
 
-def test_infeasible_sample_leaves_no_warm_start(gi_only):
-    """INFEASIBLE clears the multipliers: the next feasible QP solves as from cold."""
-    model = gi_only.model
+@pytest.fixture(scope="module", params=[{}, {"polish": False}], ids=["polish_first", "sweeps"])
+def warm_reader(request, tmp_path_factory, build_root):
+    """Builds that read the multipliers a solve leaves behind (``gi_only`` never does: its
+    dual active set starts from th0): the default's shifted warm start of the polish, and
+    the sweeps' warm start without the polish."""
+    tmp = tmp_path_factory.mktemp("warm")
+    return Built(short_uav_config(tmp, N, "warm_reader", **request.param), "double", build_root)
+
+
+def test_infeasible_sample_leaves_no_warm_start(warm_reader):
+    """A failed solve clears the multipliers: an optimal QP with active rows (its multipliers
+    become the warm start), an infeasible QP of the same mode, then the first QP again
+    solves as from cold (status, U bit for bit, sweeps, polish corrections, active rows)."""
+    model = warm_reader.model
     draws = list(_draws(model, QPS))
-    c = gi_only.fresh_c()
-    for mode, x, r in draws:
-        st, _, _ = c.solve_qp(mode, x, r)
-        if st == INFEASIBLE:
-            break
-    else:
-        pytest.fail("no infeasible draw")
-    feasible = next((m, x2, r2) for m, x2, r2 in draws if m == mode and
-                    solve_exact(qp_data(model.modes[m].qp, x2.astype(float),
-                                        r2.astype(float))).status == "optimal")
-    st_warm, U_warm, _ = c.solve_qp(*feasible)
-    st_cold, U_cold, _ = gi_only.fresh_c().solve_qp(*feasible)
-    assert st_warm == st_cold == OPTIMAL and U_warm.tobytes() == U_cold.tobytes()
+    exact = [solve_exact(qp_data(model.modes[m].qp, x.astype(float), r.astype(float))).status
+             for m, x, r in draws]
+    c, cold = warm_reader.fresh_c(), warm_reader.fresh_c()
+    pairs = 0
+    for mode, x, r in (d for d, e in zip(draws, exact) if e == "optimal"):
+        c.init()
+        if c.solve_qp(mode, x, r)[0] != OPTIMAL or c.info()["active"] == 0:
+            continue
+        for m2, x2, r2 in (d for d, e in zip(draws, exact) if e == "infeasible"):
+            if m2 == mode:
+                st, _, _ = c.solve_qp(m2, x2, r2)
+                if st != OPTIMAL:  # INFEASIBLE, or MAX_ITER for the sweeps
+                    break
+        else:
+            pytest.fail("no infeasible draw")
+        st_warm, U_warm, _ = c.solve_qp(mode, x, r)
+        warm_info = c.info()
+        cold.init()
+        st_cold, U_cold, _ = cold.solve_qp(mode, x, r)
+        assert st_warm == st_cold == OPTIMAL and U_warm.tobytes() == U_cold.tobytes()
+        keys = ("iterations", "polish_iterations", "active")
+        assert [warm_info[k] for k in keys] == [cold.info()[k] for k in keys]
+        pairs += 1
+    assert pairs >= 6, pairs

@@ -1,6 +1,8 @@
 """The public C API contract (shared/design.md): statuses, bad inputs, safe outputs."""
 from __future__ import annotations
 
+import subprocess
+
 import numpy as np
 import pytest
 
@@ -26,7 +28,21 @@ def test_status_messages_are_distinct_and_total(uav):
     assert uav.c.status_message(99) == "unknown status"
 
 
-def test_ctrl_size_is_the_struct_size(uav):
+def test_ctrl_size_is_the_struct_size(uav, tmp_path):
+    """P_ctrl_size() is sizeof(P_ctrl) as a C compiler sees P.h (firmware allocates that)."""
+    from rollmpc_codegen.codegen.render import render_sources
+
+    for name, text in render_sources(uav.ctx).items():
+        (tmp_path / name).write_text(text)
+    prefix = uav.ctx["prefix"]
+    (tmp_path / "size.c").write_text(
+        f'#include <stdio.h>\n#include "{prefix}.h"\n'
+        f'int main(void) {{ printf("%zu\\n", sizeof({prefix}_ctrl)); return 0; }}\n')
+    subprocess.run(["gcc", "-std=c99", f"-I{tmp_path}", str(tmp_path / "size.c"), "-o",
+                    str(tmp_path / "size")], check=True)
+    size = int(subprocess.run([str(tmp_path / "size")], capture_output=True, text=True,
+                              check=True).stdout)
+    assert uav.c._fn["ctrl_size"]() == size
     assert uav.c._fn["ctrl_size"]() > 4 * (N * 4 * 2)  # holds warm-start multipliers
 
 

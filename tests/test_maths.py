@@ -47,10 +47,38 @@ def test_prediction_matrices_match_simulation(model):
         assert np.allclose(qp.Phi @ x0 + qp.Gamma @ U, np.concatenate(Y), rtol=1e-10)
 
 
+def _simulated_cost(plant, weights, x0: np.ndarray, U: np.ndarray, r: np.ndarray) -> float:
+    """J of eq. (5) by simulating the plant from x0: sum_i (y_i - r_i)' W_i (y_i - r_i) +
+    sum_k u_k' R u_k, W_i = Q, and the terminal weight P on y_N (README)."""
+    nu, ny = plant.nu, plant.ny
+    N = r.size // ny
+    x, J = x0.copy(), 0.0
+    for k in range(N):
+        u = U[k * nu:(k + 1) * nu]
+        J += u @ weights.R @ u
+        x = plant.A @ x + plant.B @ u
+        e = plant.C @ x - r[k * ny:(k + 1) * ny]
+        J += e @ (weights.P if k == N - 1 else weights.Q) @ e
+    return J
+
+
+def _curvature_and_slope(plant, weights, x, r, V) -> tuple[float, float]:
+    """(V'EV, f'V) of J(U) = 1/2 U'EU + f'U + c along V, from the simulated cost alone:
+    J(V) + J(-V) - 2 J(0) and (J(V) - J(-V)) / 2; and the scale of those J values."""
+    Jp, Jm, J0 = (_simulated_cost(plant, weights, x, U, r) for U in (V, -V, 0 * V))
+    return Jp + Jm - 2 * J0, (Jp - Jm) / 2, abs(Jp) + abs(Jm) + abs(J0)
+
+
 def test_hessians_and_terminal_split(model):
-    for mm in model.modes:
+    rng = np.random.default_rng(5)
+    for mm, weights in zip(model.modes, model.config.modes):
         qp = mm.qp
-        assert np.allclose(qp.E, 2 * (qp.Psi + qp.Gamma.T @ qp.Omega @ qp.Gamma))
+        # E and the gradient are those of the cost of eq. (5), evaluated by simulation
+        x, r = rng.normal(size=qp.nx) * 10, rng.uniform(-40, 40, size=qp.N * qp.ny)
+        for V in rng.normal(size=(4, qp.n)):
+            curvature, slope, scale = _curvature_and_slope(mm.plant, weights, x, r, V)
+            assert abs(curvature - V @ qp.E @ V) <= 1e-10 * scale
+            assert abs(slope - qp.gradient(x, r) @ V) <= 1e-10 * scale
         assert np.linalg.eigvalsh(qp.E).min() > 0
         S, V, P2inv = qp.terminal_split()
         assert np.allclose(S + V.T @ np.linalg.inv(P2inv) @ V, qp.E, rtol=1e-12, atol=1e-9)

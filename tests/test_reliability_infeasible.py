@@ -8,8 +8,8 @@ sticky warm start).  The closed-loop test drives ``P_step`` out of its output bo
 through the measurement and back.
 
 The default suite runs a quick campaign (iteration cap 200 to keep it short) and checks
-safety and recovery; "never OPTIMAL" is asserted by the slow tests (make check-long),
-with the product's default cap, 1,000 QPs in the long one.
+safety, recovery and "never OPTIMAL" on its 32 QPs; the slow test (make check-long)
+asserts the same on 1,000 QPs with the product's default cap.
 """
 from __future__ import annotations
 
@@ -47,7 +47,6 @@ def test_quick_recovery_after_a_failed_sample_is_a_cold_start(quick):
     assert all(r.recovery_same_as_cold for r in failed)
 
 
-@pytest.mark.slow
 def test_quick_infeasible_never_optimal_and_recovery_solves(quick):
     records, summary = quick
     assert summary["double"]["reported_optimal"] == 0, summary

@@ -30,13 +30,15 @@ def double_replay(uav_double):
 
 def test_every_scenario_qp_is_optimal_without_sweeps(double_replay):
     """Measured: the polish from the shifted active set (or the violated rows) solves all
-    6000 QPs; no Gauss-Seidel sweep runs, and at most 9 active-set corrections."""
+    6000 QPs; no Gauss-Seidel sweep runs, and at most 10 active-set corrections (asserted
+    with a margin of 2)."""
     built, out = double_replay
     assert len(out) == 6000
     assert [o[3] for o in out].count(OPTIMAL) == 6000
     assert max(o[5] for o in out) == 0
     polish = np.array([o[6] for o in out])
     assert polish.max() <= 2 * built.ctx["solver"]["polish_max"]
+    assert polish.max() <= 12, polish.max()
     assert np.count_nonzero(polish) >= 700  # the constrained QPs really went through it
 
 
@@ -53,7 +55,8 @@ def test_double_matches_extended_precision_kkt_to_1e_8(double_replay):
     assert worst <= 1e-8, worst
 
 
-def test_float_first_move_within_1e_3_deg_of_double(double_replay, build_root):
+def test_float_first_move_within_1e_5_deg_of_double(double_replay, build_root):
+    """Measured 8.4e-6 deg on the 6000 QPs; asserted <= 1e-5 deg (a 20 % margin)."""
     from conftest import UAV, Built
 
     built, out = double_replay
@@ -64,4 +67,4 @@ def test_float_first_move_within_1e_3_deg_of_double(double_replay, build_root):
         assert st == OPTIMAL
         nu = built.ctx["modes"][mode]["nu"]
         worst = max(worst, float(np.abs(Uf[:nu].astype(np.float64) - U[:nu]).max()))
-    assert worst <= 1e-3, worst
+    assert worst <= 1e-5, worst
