@@ -14,12 +14,13 @@ from . import config as config_mod
 from .codegen.context import build_context
 from .codegen.output import check_output_dir, write_output
 from .codegen.render import render_sources
-from .config import MAX_ROWS, ConfigError, ControllerConfig
+from .config import ConfigError, ControllerConfig, ModeConfig
 from .features import input_rate
 from .features.disturbance_model import prediction_model
 from .model.controller import ControllerModel, ModeModel
-from .qp.arrays import STORED_ARRAYS
+from .qp.arrays import REAL, STORED_ARRAYS
 from .qp.condense import condense
+from .qp.sizes import check_sizes
 from .qp.storage import mode_data
 
 
@@ -33,30 +34,36 @@ def build_model(cfg: ControllerConfig) -> ControllerModel:
 
 
 def _build_model(cfg: ControllerConfig) -> ControllerModel:
+    check_sizes(cfg)  # the size limits (int16 rows, states, memory), before any maths
     modes = []
     for j, mode in enumerate(cfg.modes):
         key = f"modes[{j}]"
-        # with its disturbances, and the previous input with Δu weighting (input_rate)
-        plant = input_rate.augment(prediction_model(mode, cfg.sample_time, key), mode)
-        qp = condense(plant, mode, cfg.horizon, key)
-        # the largest row quantity (int16 in the C): n + N ny, plus n Δu quantities
-        q_end = qp.n + qp.N * qp.ny + (qp.n if np.any(qp.row_kind == 2) else 0)
-        if qp.m > MAX_ROWS or qp.n > MAX_ROWS or q_end > MAX_ROWS:
-            raise ConfigError("horizon", f"the QP has {qp.m} rows; at most {MAX_ROWS} supported")
-        L, poles = input_rate.observer_gain(plant, mode, key)
-        act_index = [cfg.actuators.index(a) for a in mode.actuators]
-        # an overflow in the cast to float is reported just below, naming the key; numpy's
-        # own RuntimeWarning would only add a second, vaguer line on stderr
-        with np.errstate(over="ignore"):
-            data = mode_data(mode.name, act_index, plant, L, qp, mode.u_min, mode.u_max,
-                             cfg.precision, mode.soft_l1, mode.soft_l2)
-        for array in STORED_ARRAYS:
-            if array.finite_checked and not np.all(np.isfinite(getattr(data, array.name))):
-                raise ConfigError(f"{key}.weights", f"{array.name} is not finite in "
-                                  f"{cfg.precision} precision (the problem is too badly scaled)")
-        modes.append(ModeModel(plant=plant, qp=qp, observer_gain=L, observer_poles=poles,
-                               data=data))
+        # every result is checked below or where it is made, naming a key; numpy's own
+        # warnings (overflow, invalid) would only add vaguer lines on stderr
+        with np.errstate(all="ignore"):
+            try:
+                modes.append(_mode_model(cfg, mode, key))
+            except np.linalg.LinAlgError as exc:  # scipy.linalg raises the same class
+                raise ConfigError(key, f"the offline maths failed ({' '.join(str(exc).split())}"
+                                  "): the mode's numbers are too badly scaled") from None
     return ControllerModel(config=cfg, modes=tuple(modes))
+
+
+def _mode_model(cfg: ControllerConfig, mode: ModeConfig, key: str) -> ModeModel:
+    """One mode's prediction model, QP, observer and stored data."""
+    # with its disturbances, and the previous input with Δu weighting (input_rate)
+    plant = input_rate.augment(prediction_model(mode, cfg.sample_time, key), mode)
+    qp = condense(plant, mode, cfg.horizon, key)
+    L, poles = input_rate.observer_gain(plant, mode, key)
+    act_index = [cfg.actuators.index(a) for a in mode.actuators]
+    data = mode_data(mode.name, act_index, plant, L, qp, mode.u_min, mode.u_max,
+                     cfg.precision, mode.soft_l1, mode.soft_l2)
+    for array in STORED_ARRAYS:
+        value = getattr(data, array.name)
+        if array.ctype == REAL and value is not None and not np.all(np.isfinite(value)):
+            raise ConfigError(f"{key}.{array.blame}", f"{array.name} is not finite in "
+                              f"{cfg.precision} precision (the problem is too badly scaled)")
+    return ModeModel(plant=plant, qp=qp, observer_gain=L, observer_poles=poles, data=data)
 
 
 def load_model_from_config(cfg: ControllerConfig) -> tuple[ControllerModel, dict]:

@@ -5,27 +5,36 @@ Each names the key to change.  Some run before the heavy maths on purpose: a typ
 """
 from __future__ import annotations
 
-import sys
+import math
 from typing import Any
 
 import numpy as np
 
 from .errors import ConfigError
-from .schema import (FLOAT_MAX, MAX_ROWS, ModeConfig, SchedulerConfig, SimulationConfig,
-                     SolverConfig)
+from .schema import (BOUND_KEYS, MAX_ROWS, WEIGHT_KEYS, ModeConfig, SchedulerConfig,
+                     SimulationConfig, SolverConfig, storage_range)
+
+
+def qp_rows(horizon: int, mode: ModeConfig) -> int:
+    """The constraint rows of the mode's QP (condense._constraints): 2 nu per move (stage
+    or block), one per finite output bound on stages 1..N and per finite Δu bound on
+    stages 0..N-1."""
+    def finite(bound) -> int:
+        return 0 if bound is None else int(np.isfinite(bound).sum())
+
+    moves = horizon if mode.blocks is None else len(mode.blocks)
+    return moves * 2 * len(mode.actuators) + horizon * sum(
+        finite(b) for b in (mode.y_min, mode.y_max, mode.du_min, mode.du_max))
 
 
 def check_horizon(horizon: int, modes: tuple[ModeConfig, ...]) -> None:
     """Reject a horizon whose QP overflows the C's int16 row tables *before* building it.
 
-    The row count is that of mpc._constraints: 2 nu box rows per stage and one row per
-    finite output bound on stages 1..N.  Checking after condensing is too late: a typo
-    like ``horizon: 100000`` would first allocate and fill N^2-sized matrices for hours.
+    Checking after condensing is too late: a typo like ``horizon: 100000`` would first
+    allocate and fill N^2-sized matrices for hours.  qp/sizes.py bounds the stored data.
     """
     for i, m in enumerate(modes):
-        moves = horizon if m.blocks is None else len(m.blocks)  # input rows: per block
-        rows = (moves * 2 * len(m.actuators) + horizon * (int(np.isfinite(m.y_min).sum())
-                                                          + int(np.isfinite(m.y_max).sum())))
+        rows = qp_rows(horizon, m)
         if rows > MAX_ROWS:
             raise ConfigError("horizon", f"too long: modes[{i}] would have {rows} QP rows; "
                               f"at most {MAX_ROWS} supported")
@@ -51,39 +60,62 @@ def check_rate_bounds(runtime_bounds: bool, modes: tuple[ModeConfig, ...]) -> No
                               "stage); remove one of them")
 
 
-def check_range(precision: str, modes: tuple[ModeConfig, ...],
-                scheduler: SchedulerConfig | None, solver: SolverConfig) -> None:
-    """Every number the C stores as a literal must be finite in the storage precision.
+def check_representable(precision: str, sample_time: float, modes: tuple[ModeConfig, ...],
+                        scheduler: SchedulerConfig | None, solver: SolverConfig) -> None:
+    """Every number the C is compiled with must survive the cast to the storage precision.
 
-    Otherwise the failure surfaces much later, as a non-finite literal while rendering.
+    A value written as a literal must not overflow to inf, round to 0 or lose digits as a
+    subnormal (``delta: 1e-50`` became ``0.0f``).  A weight w is stored as 2w (Omega2, S)
+    and as 1/(2w) ((2P)^-1), so both must be normal numbers.  Checked here, the key is
+    named; later the failure is a non-finite literal, or a silently wrong constant.
     """
-    limit = FLOAT_MAX if precision == "float" else sys.float_info.max
-    values: list[tuple[str, Any]] = []
+    tiny, huge = storage_range(precision)
+    ranges = {"literal": (tiny, huge),
+              "weight": (max(tiny / 2, 0.5 / huge), min(huge / 2, 0.5 / tiny))}
+    checked: list[tuple[str, str, Any]] = [("literal", "sample_time", sample_time)]
     for i, m in enumerate(modes):
         k = f"modes[{i}]"
-        values += [(f"{k}.weights.Q", m.Q), (f"{k}.weights.R", m.R), (f"{k}.weights.P", m.P),
-                   (f"{k}.bounds.u_min", m.u_min), (f"{k}.bounds.u_max", m.u_max),
-                   # infinite output bounds mean "unbounded" and are never written
-                   (f"{k}.bounds.y_min", m.y_min[np.isfinite(m.y_min)]),
-                   (f"{k}.bounds.y_max", m.y_max[np.isfinite(m.y_max)])]
-        if m.du_min is not None:
-            values += [(f"{k}.bounds.du_min", m.du_min[np.isfinite(m.du_min)]),
-                       (f"{k}.bounds.du_max", m.du_max[np.isfinite(m.du_max)])]
+        checked += [("weight", f"{k}.weights.{name}", getattr(m, name)) for name in WEIGHT_KEYS]
+        checked += [("literal", f"{k}.bounds.{name}", getattr(m, name)) for name in BOUND_KEYS
+                    if name != "soft"]
+        checked += [("literal", f"{k}.bounds.soft", m.soft_l1),
+                    ("literal", f"{k}.bounds.soft", m.soft_l2)]
     if scheduler is not None:  # the C stores every threshold -/+ its epsilon
-        values += [("scheduler", scheduler.below), ("scheduler", scheduler.above)]
-    values += [("solver.sigma", solver.sigma), ("solver.delta", solver.delta),
-               ("solver.feasibility_tol", solver.feasibility_tol or 0.0)]
-    for key, value in values:
-        arr = np.abs(np.asarray(value, dtype=float))
-        if arr.size and not arr.max() <= limit:
-            raise ConfigError(key, f"a value of magnitude {arr.max():.3g} does not fit in "
-                              f"{precision} precision (max {limit:.3g})")
+        checked += [("literal", "scheduler", scheduler.below),
+                    ("literal", "scheduler", scheduler.above)]
+    checked += [("literal", f"solver.{name}", getattr(solver, name)) for name in
+                ("omega", "sigma", "delta", "feasibility_tol", "dependence_tol")]
+    for kind, key, value in checked:
+        lo, hi = ranges[kind]
+        for v in _nonzero(value):
+            if not lo <= abs(v) <= hi:
+                raise ConfigError(key, _out_of_range(float(v), kind, precision, lo, hi))
     if scheduler is not None and precision == "float":
         # rounded to float, every middle band must keep a region where its mode is chosen
         below, above = np.float32(scheduler.below), np.float32(scheduler.above)
         if not np.all(above[:-1] < below[1:]):
             raise ConfigError("scheduler", "in float precision the thresholds -/+ epsilon "
                               "leave a band with no region where its mode is chosen")
+
+
+def _nonzero(value: Any) -> np.ndarray:
+    """The finite nonzero entries of a config value (None: none; +-inf means unbounded)."""
+    if value is None:
+        return np.zeros(0)
+    arr = np.asarray(value, dtype=float).ravel()
+    return arr[np.isfinite(arr) & (arr != 0.0)]
+
+
+def _out_of_range(value: float, kind: str, precision: str, lo: float, hi: float) -> str:
+    """The problem of a literal or a weight outside [lo, hi] (nonzero magnitudes)."""
+    if kind == "weight":
+        return (f"{value!r} is out of range in {precision} precision: a nonzero weight w "
+                f"needs {lo:.3g} <= |w| <= {hi:.3g} (2w and 1/(2w) are stored)")
+    with np.errstate(over="ignore", under="ignore"):  # what the value becomes in C
+        cast = float(np.float32(value) if precision == "float" else np.float64(value))
+    becomes = f"{cast:g}" if cast in (0.0, math.inf, -math.inf) else f"the subnormal {cast:.3g}"
+    return (f"{value!r} is not representable in {precision} precision: it would be "
+            f"{becomes} (nonzero magnitudes from {lo:.3g} to {hi:.3g})")
 
 
 def check_schedule_source(simulation: SimulationConfig, scheduler: SchedulerConfig | None,

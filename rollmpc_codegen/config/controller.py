@@ -6,15 +6,16 @@ import re
 from typing import Any
 
 from ..features.move_blocking import blocks_of
-from .checks import (check_horizon, check_range, check_rate_bounds, check_schedule_source,
-                     check_unique_names)
+from .checks import (check_horizon, check_rate_bounds, check_representable,
+                     check_schedule_source, check_unique_names)
 from .errors import ConfigError
 from .mode import parse_mode
 from .reader import Reader
 from .scheduler import parse_scheduler
-from .schema import (DEFAULT_PRECISION, DEFAULT_PREFIX, MODE_KEYS, PRECISIONS, SCHEDULER_KEYS,
-                     SIMULATION_KEYS, SOLVER_KEYS, TARGET_KEYS, TOP_KEYS, UNITS_KEYS,
-                     ControllerConfig, UnitsConfig)
+from .schema import (DEFAULT_PRECISION, DEFAULT_PREFIX, MAX_ROWS, MODE_KEYS, PRECISIONS,
+                     PREFIX_PATTERN, RESERVED_PREFIXES, SCHEDULER_KEYS, SIMULATION_KEYS,
+                     SOLVER_KEYS, TARGET_KEYS, TOP_KEYS, UNITS_KEYS, ControllerConfig,
+                     UnitsConfig)
 from .simulation import parse_simulation, parse_units
 from .solver import parse_solver
 from .target import parse_target
@@ -24,12 +25,18 @@ def parse(data: Any) -> ControllerConfig:
     """Validate a parsed YAML document into a :class:`ControllerConfig`."""
     r = Reader(data, "", TOP_KEYS)
     prefix = r.string("prefix", DEFAULT_PREFIX)
-    if not re.match(r"^[a-z][a-z0-9_]{0,30}$", prefix):
+    if not re.fullmatch(PREFIX_PATTERN, prefix):
         raise ConfigError("prefix", "must be a lower-case C identifier of at most 31 "
                           f"characters, got {prefix!r}")
+    if prefix in RESERVED_PREFIXES:
+        raise ConfigError("prefix", f"{prefix!r} would write {prefix}.h, which shadows the "
+                          f"system header <{prefix}.h>; choose another prefix")
     precision = r.string("precision", DEFAULT_PRECISION, choices=PRECISIONS)
     sample_time = r.number("sample_time", positive=True)
     horizon = r.integer("horizon", minimum=1)
+    if horizon > MAX_ROWS:  # before anything is sized by it (check_horizon: the exact rows)
+        raise ConfigError("horizon", f"too long: {horizon} stages need more than the "
+                          f"{MAX_ROWS} QP rows and row quantities the C can index")
     outputs = r.names("outputs")
     actuators = r.names("actuators")
     raw_modes = r.raw("modes")
@@ -56,7 +63,7 @@ def parse(data: Any) -> ControllerConfig:
     units = (parse_units(r.sub("units", UNITS_KEYS), outputs, actuators)
              if r.has("units") else UnitsConfig())
     target = parse_target(r.sub("target", TARGET_KEYS, {}))
-    check_range(precision, modes, scheduler, solver)
+    check_representable(precision, sample_time, modes, scheduler, solver)
     check_schedule_source(simulation, scheduler, modes)
     return ControllerConfig(prefix=prefix, precision=precision, sample_time=sample_time,
                             horizon=horizon, outputs=outputs, actuators=actuators, modes=modes,

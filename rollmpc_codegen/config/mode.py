@@ -7,7 +7,8 @@ import numpy as np
 from ..features.move_blocking import blocks_of, is_blocked
 from .errors import ConfigError
 from .plant import parse_plant
-from .reader import IDENTIFIER, Reader, check_psd, read_matrix, read_number, read_vector
+from .reader import (IDENTIFIER, Reader, check_length, check_psd, read_matrix, read_number,
+                     read_vector)
 from .schema import (BOUND_KEYS, DISTURBANCE_MODELS, OBSERVER_KEYS, OBSERVER_KINDS, PENALTY_KEYS,
                      PLANT_KEYS, SOFT_KEYS, UNBOUNDED, WEIGHT_KEYS, ModeConfig)
 
@@ -16,7 +17,7 @@ def parse_mode(r: Reader, outputs: tuple[str, ...], actuators: tuple[str, ...], 
                default_blocks: tuple[int, ...] | None) -> ModeConfig:
     """``modes[i]``; ``default_blocks`` is the top level's move blocking (None: none)."""
     name = r.string("name")
-    if not IDENTIFIER.match(name):
+    if not IDENTIFIER.fullmatch(name):
         raise ConfigError(r.key("name"), f"must be an identifier-like name, got {name!r}")
     acts = r.names("actuators")
     for i, a in enumerate(acts):
@@ -143,6 +144,7 @@ def _poles(o: Reader) -> tuple[complex, ...]:
     raw = o.raw("poles")
     if not isinstance(raw, list) or not raw:
         raise ConfigError(o.key("poles"), "must be a non-empty list")
+    check_length(raw, o.key("poles"))
     parsed = []
     for i, p in enumerate(raw):
         k = f"{o.key('poles')}[{i}]"

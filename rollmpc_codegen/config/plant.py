@@ -6,7 +6,7 @@ from typing import Any
 import numpy as np
 
 from .errors import ConfigError
-from .reader import Reader, read_matrix, read_vector
+from .reader import Reader, check_length, read_matrix, read_vector
 from .schema import STATE_SPACE_KEYS, TRANSFER_FUNCTION_KEYS, PlantConfig
 
 
@@ -41,6 +41,8 @@ def _tf_matrix(tf: Reader, integrator: bool):
     ``den``: the same shape, or one coefficient list shared by every element."""
     num_rows, den_raw = tf.raw("num"), tf.raw("den")
     knum, kden = tf.key("num"), tf.key("den")
+    check_length(num_rows, knum)
+    check_length(num_rows[0], f"{knum}[0]")
     width = len(num_rows[0])
     for i, row in enumerate(num_rows):
         if len(row) != width or not row:

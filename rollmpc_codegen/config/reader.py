@@ -10,8 +10,10 @@ from typing import Any
 import numpy as np
 
 from .errors import ConfigError
+from .schema import MAX_LIST_LENGTH
 
-IDENTIFIER = re.compile(r"^[A-Za-z_][A-Za-z0-9_]*$")
+# matched with fullmatch: `$` would also match before a trailing newline
+IDENTIFIER = re.compile(r"[A-Za-z_][A-Za-z0-9_]*")
 LISTED_KEYS_MAX = 8  # an unknown key without a close match lists a section's keys up to this
 
 
@@ -92,8 +94,9 @@ class Reader:
         value = self.raw(name)
         if not isinstance(value, list) or not value:
             raise ConfigError(self.key(name), "must be a non-empty list of names")
+        check_length(value, self.key(name))
         for i, item in enumerate(value):
-            if not isinstance(item, str) or not IDENTIFIER.match(item):
+            if not isinstance(item, str) or not IDENTIFIER.fullmatch(item):
                 raise ConfigError(f"{self.key(name)}[{i}]",
                                   f"must be a C identifier-like name, got {item!r}")
         if len(set(value)) != len(value):
@@ -120,6 +123,13 @@ def _unknown_key(name: str, keys: tuple[str, ...]) -> str:
     if len(keys) <= LISTED_KEYS_MAX:
         return f"unknown key; valid keys are {', '.join(keys)}"
     return "unknown key"
+
+
+def check_length(items: list, key: str) -> None:
+    """Refuse a list longer than MAX_LIST_LENGTH before anything converts its entries."""
+    if len(items) > MAX_LIST_LENGTH:
+        raise ConfigError(key, f"has {len(items)} entries; at most {MAX_LIST_LENGTH} "
+                          "supported")
 
 
 def read_number(value: Any, key: str, positive: bool = False,
@@ -149,6 +159,7 @@ def read_vector(value: Any, key: str, length: int | None = None,
                 allow_inf: bool = False) -> np.ndarray:
     """A scalar (broadcast to ``length``) or a list of numbers."""
     items = value if isinstance(value, list) else [value]
+    check_length(items, key)
     if length is not None and not isinstance(value, list):
         items = items * length
     out = []
@@ -180,6 +191,7 @@ def read_matrix(value: Any, key: str, shape: tuple[int, int] | None = None) -> n
             return np.diag(read_vector(value, key))
     if not isinstance(value, list) or not value or not all(isinstance(r, list) for r in value):
         raise ConfigError(key, "must be a matrix given as a list of rows")
+    check_length(value, key)
     rows = [read_vector(r, f"{key}[{i}]") for i, r in enumerate(value)]
     if len({len(r) for r in rows}) != 1:
         raise ConfigError(key, "rows must all have the same length")

@@ -4,7 +4,7 @@ from __future__ import annotations
 from dataclasses import replace
 
 from .errors import ConfigError
-from .reader import IDENTIFIER, Reader
+from .reader import IDENTIFIER, Reader, check_length
 from .schema import BAND_KEYS, DEFAULT_EPSILON, SHORTHAND_KEYS, ModeConfig, SchedulerConfig
 
 
@@ -22,7 +22,7 @@ def parse_scheduler(r: Reader, modes: tuple[ModeConfig, ...]) -> SchedulerConfig
         return names.index(name)
 
     signal = r.string("signal")
-    if not IDENTIFIER.match(signal):  # it is written into C comments of the generated code
+    if not IDENTIFIER.fullmatch(signal):  # it is written into C comments of the generated code
         raise ConfigError(r.key("signal"), f"must be an identifier-like name, got {signal!r}")
     shorthand = [k for k in SHORTHAND_KEYS if k in r.data]
     if r.has("bands"):
@@ -83,6 +83,7 @@ def _bands(r: Reader, epsilon: float, mode_index) -> tuple[list, list, list, lis
     if not isinstance(raw, list) or len(raw) < 2:
         raise ConfigError(key, "must be a list of at least two bands (one mode needs no "
                           "scheduler)")
+    check_length(raw, key)
     thresholds: list[float] = []
     epsilons: list[float] = []
     eps_keys: list[str] = []

@@ -26,12 +26,56 @@ MAX_ROWS = 32767
 MAX_C_INT = 2**31 - 1
 FLOAT_MAX = float(np.finfo(np.float32).max)
 
+# --------------------------------------------------------------------------- hostile input
+# Limits that keep a hostile or mistaken file from costing minutes or gigabytes
+# (docs/reliability.md, "Hostile input").  The config file is read up to MAX_CONFIG_BYTES;
+# its YAML may hold MAX_YAML_NODES nodes, nested MAX_YAML_DEPTH deep, and its aliases may
+# repeat MAX_ALIAS_NODES nodes in all (an alias bomb repeats billions).
+MAX_CONFIG_BYTES = 1 << 20
+MAX_YAML_NODES = 100_000
+MAX_YAML_DEPTH = 32
+MAX_ALIAS_NODES = 10_000
+# Entries of any one list the reader converts (a vector, a matrix's rows, a row, names,
+# poles, bands, reference levels), checked before converting it.
+MAX_LIST_LENGTH = 256
+# A mode's prediction model (plant, integrators, disturbance and previous-input states):
+# the observer and controllability tests cost O(nx^4).
+MAX_STATES = 256
+# The generated data of all modes (flash) and one P_ctrl instance (RAM), predicted before
+# the maths (qp/sizes.py): beyond the memory of any microcontroller.
+MAX_STORED_BYTES = 16 << 20
+MAX_STRUCT_BYTES = 4 << 20
+# Condensing builds dense N ny x N ny, N nu x N nu and N ny x N nu matrices whatever the
+# move blocking (a control horizon of 1 keeps n small, not them).
+MAX_CONDENSING_BYTES = 512 << 20
+# The prefix names the generated files, <prefix>.h among them, so it must not be a
+# header the generated C or its users include: <prefix>.h would shadow it on the include
+# path.  Every standard C header (C89 to C23), and common POSIX, toolchain and MCU ones.
+PREFIX_PATTERN = r"[a-z][a-z0-9_]{0,30}"  # a lower-case C identifier (full match)
+C_STANDARD_HEADERS = (
+    "assert", "complex", "ctype", "errno", "fenv", "float", "inttypes", "iso646", "limits",
+    "locale", "math", "setjmp", "signal", "stdalign", "stdarg", "stdatomic", "stdbit",
+    "stdbool", "stdckdint", "stddef", "stdint", "stdio", "stdlib", "stdnoreturn", "string",
+    "tgmath", "threads", "time", "uchar", "wchar", "wctype")
+SYSTEM_HEADERS = (
+    "alloca", "arm_acle", "arm_math", "arm_neon", "cmsis_compiler", "cmsis_gcc", "dirent",
+    "dlfcn", "endian", "fcntl", "features", "freertos", "getopt", "libgen", "main", "malloc",
+    "memory", "poll", "pthread", "sched", "semaphore", "strings", "syslog", "termios",
+    "unistd")
+RESERVED_PREFIXES = C_STANDARD_HEADERS + SYSTEM_HEADERS
+
 # --------------------------------------------------------------------------- defaults
 DEFAULT_PREFIX = "rollmpc"
 DEFAULT_PRECISION = "double"
 DEFAULT_EPSILON = 0.5  # scheduler.epsilon: the hysteresis margin of every threshold
 UNBOUNDED = math.inf  # an absent output or Δu bound: -UNBOUNDED .. UNBOUNDED, no QP rows
 NO_UNIT = ""  # units: a signal without a unit (none is shown)
+
+
+def storage_range(precision: str) -> tuple[float, float]:
+    """(smallest normal, largest finite) magnitude of the storage precision."""
+    info = np.finfo(np.float32 if precision == "float" else np.float64)
+    return float(info.tiny), float(info.max)
 
 
 def default_feasibility_tol(precision: str) -> float:

@@ -3,7 +3,7 @@ The generated C never sees them."""
 from __future__ import annotations
 
 from .errors import ConfigError
-from .reader import Reader, read_vector
+from .reader import Reader, check_length, read_vector
 from .schema import NO_UNIT, REFERENCE_KEYS, SCHEDULE_SOURCES, SimulationConfig, UnitsConfig
 
 
@@ -23,6 +23,7 @@ def _reference(r: Reader, n_outputs: int,
     raw = r.raw("levels")
     if not isinstance(raw, list) or not raw:
         raise ConfigError(r.key("levels"), "must be a non-empty list of levels")
+    check_length(raw, r.key("levels"))
     levels = tuple(tuple(read_vector(v, f"{r.key('levels')}[{i}]", n_outputs))
                    for i, v in enumerate(raw))
     segment = r.number("segment", positive=True)

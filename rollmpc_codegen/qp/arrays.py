@@ -2,8 +2,9 @@
 
 A :class:`StoredArray` is at the same time a field of :class:`.storage.ModeData`, a key of the
 mode in the context JSON and a member of the C struct ``P_mode_data``.  It gives the member's C
-element type, its shape in the mode's sizes, when it exists, and whether
-:func:`rollmpc_codegen.pipeline.build_model` checks it for finite values.  From
+element type, its shape in the mode's sizes, when it exists, and the config key that
+:func:`rollmpc_codegen.pipeline.build_model` names when it is not finite.  Its shape also
+gives the predicted data size (:mod:`.sizes`) before any maths.  From
 these declarations, :func:`.codegen.context.build_context` writes the struct members and
 each mode's list of defined arrays into the context.  ``internal.h.j2`` renders the struct
 from that list.  ``data.c.j2`` renders the definitions and the designated initializers.
@@ -51,7 +52,9 @@ class StoredArray:
     packed: bool = False
     feature: str | None = None  # top-level context flag the member needs (None: always)
     only_if: str | None = None  # ModeData property; a mode without it stores a null pointer
-    finite_checked: bool = False  # build_model reports a non-finite entry as a ConfigError
+    # the mode's key build_model names when an entry is not finite in the storage
+    # precision (REAL arrays): what the array is computed from
+    blame: str = "weights"
     # what a mode without the feature (ModeData field None) stores when another mode has it
     neutral: Callable[[tuple[int, ...]], np.ndarray] = np.zeros
 
@@ -94,43 +97,45 @@ MODE_SIZES = (
 
 STORED_ARRAYS = (
     StoredArray("actuator_index", "int16_t", ("nu",), "physical actuator of each mode input."),
-    StoredArray("A", REAL, ("nx", "nx"), "discrete state matrix.", finite_checked=True),
-    StoredArray("B", REAL, ("nx", "nu"), "discrete input matrix.", finite_checked=True),
-    StoredArray("C", REAL, ("ny", "nx"), "output matrix."),
-    StoredArray("L", REAL, ("nx", "ny"), "observer gain.", finite_checked=True),
-    StoredArray("Kx", REAL, ("n", "nx"), "unconstrained state gain.", finite_checked=True),
-    StoredArray("EinvGt", REAL, ("n", "nyq"), "E^-1 Gamma'.", finite_checked=True),
-    StoredArray("Sinv_p", REAL, ("n",), "S^-1.", packed=True, finite_checked=True),
-    StoredArray("Ew", REAL, ("nt", "n"), "E^-1 = S^-1 - Ew' Ew (Woodbury).",
-                finite_checked=True),
+    StoredArray("A", REAL, ("nx", "nx"), "discrete state matrix.", blame="plant"),
+    StoredArray("B", REAL, ("nx", "nu"), "discrete input matrix.", blame="plant"),
+    StoredArray("C", REAL, ("ny", "nx"), "output matrix.", blame="plant"),
+    StoredArray("L", REAL, ("nx", "ny"), "observer gain.", blame="observer"),
+    StoredArray("Kx", REAL, ("n", "nx"), "unconstrained state gain."),
+    StoredArray("EinvGt", REAL, ("n", "nyq"), "E^-1 Gamma'."),
+    StoredArray("Sinv_p", REAL, ("n",), "S^-1.", packed=True),
+    StoredArray("Ew", REAL, ("nt", "n"), "E^-1 = S^-1 - Ew' Ew (Woodbury)."),
     StoredArray("Uv", REAL, ("nt", "n"), "V S^-1."),
     StoredArray("T", REAL, ("nt", "nt"), "(2P)^-1 + V S^-1 V'."),
-    StoredArray("S_p", REAL, ("n",), "stage Hessian S (E = S + V'(2P)V).", packed=True,
-                finite_checked=True),
-    StoredArray("V", REAL, ("nt", "n"), "terminal rows of Gamma (nt = 0: none)."),
+    StoredArray("S_p", REAL, ("n",), "stage Hessian S (E = S + V'(2P)V).", packed=True),
+    StoredArray("V", REAL, ("nt", "n"), "terminal rows of Gamma (nt = 0: none).",
+                blame="plant"),
     StoredArray("P2inv", REAL, ("nt", "nt"), "(2P)^-1."),
     StoredArray("GEinvGt_p", REAL, ("nyq",), "Gamma E^-1 Gamma' (null: no output rows).",
                 packed=True, only_if="has_output_rows"),
     StoredArray("Omega2", REAL, ("N", "ny", "ny"), "2Q per stage, 2P at the last."),
-    StoredArray("Phi", REAL, ("nyq", "nx"), "free response of the predicted outputs."),
-    StoredArray("markov", REAL, ("N", "ny", "nu"), "Markov parameters C A^i B."),
+    StoredArray("Phi", REAL, ("nyq", "nx"), "free response of the predicted outputs.",
+                blame="plant"),
+    StoredArray("markov", REAL, ("N", "ny", "nu"), "Markov parameters C A^i B.", blame="plant"),
     StoredArray("row_q", "int16_t", ("m",), "quantity of each row (U index, n + Y index, "
                 "or n + nyq + Δu index)."),
     StoredArray("row_sign", "int8_t", ("m",), "-1 lower / +1 upper bound row."),
-    StoredArray("row_c", REAL, ("m",), "constant right-hand side c."),
+    StoredArray("row_c", REAL, ("m",), "constant right-hand side c.", blame="bounds"),
     StoredArray("row_next", "int16_t", ("m",), "same constraint one stage later "
                 "(shifted warm start)."),
     StoredArray("colsum", REAL, ("ny", "n"), "sum of the E^-1 Gamma' columns of stages 0..N-2."),
-    StoredArray("out_bound", REAL, ("nyq",), "|(Gamma th)_k| <= out_bound[k] max|th|."),
-    StoredArray("u_min", REAL, ("nu",), "input lower bounds."),
-    StoredArray("u_max", REAL, ("nu",), "input upper bounds."),
+    StoredArray("out_bound", REAL, ("nyq",), "|(Gamma th)_k| <= out_bound[k] max|th|.",
+                blame="plant"),
+    StoredArray("u_min", REAL, ("nu",), "input lower bounds.", blame="bounds"),
+    StoredArray("u_max", REAL, ("nu",), "input upper bounds.", blame="bounds"),
     StoredArray("stage_block", "int16_t", ("N",), "move blocking: the block (of U, n = blocks "
                 "* nu) holding each stage.", feature="move_blocking",
                 neutral=lambda shape: np.arange(shape[0])),  # unblocked: a block per stage
     StoredArray("soft_l1", REAL, ("2*ny",), "soft bound penalty l1 (index 2 j + side, "
-                "side 1 = y_max).", feature="has_soft_rows"),  # neutral: every bound hard
+                "side 1 = y_max).", feature="has_soft_rows",
+                blame="bounds.soft"),  # neutral: every bound hard
     StoredArray("soft_w", REAL, ("2*ny",), "1/(2 l2) of a soft bound, 0 for a hard one.",
-                feature="has_soft_rows"),
+                feature="has_soft_rows", blame="bounds.soft"),
 )
 
 

@@ -168,12 +168,20 @@ def condense(plant: DiscretePlant, mode: ModeConfig, N: int, key: str) -> Conden
         Tb = move_blocking.expansion(mode.blocks, nu)
         Gamma, Psi = Gamma @ Tb, Tb.T @ Psi @ Tb
         Gx = None if Gx is None else Tb.T @ Gx
+    if not (np.all(np.isfinite(Phi)) and np.all(np.isfinite(Gamma))):  # an unstable plant
+        raise ConfigError(f"{key}.plant", f"its predictions overflow double over the horizon "
+                          f"(N = {N}): the plant grows too fast for this horizon")
     E = 2.0 * (Psi + Gamma.T @ Omega @ Gamma)
     E = 0.5 * (E + E.T)
-    eig = np.linalg.eigvalsh(E)
-    if not np.all(np.isfinite(E)) or eig.min() <= 1e-12 * eig.max():
+    if not np.all(np.isfinite(E)):  # before eigvalsh, which fails on inf
         raise ConfigError(f"{key}.weights", "the QP Hessian E = 2(Psi + Gamma' Omega Gamma) "
-                          f"is not positive definite (min eigenvalue {eig.min():.3g})")
+                          "overflows double: the weights and the plant's gains are too large "
+                          "together")
+    eig = np.linalg.eigvalsh(E)
+    if eig.min() <= 1e-12 * eig.max():  # numerically: a weight ratio beyond 1e12 too
+        raise ConfigError(f"{key}.weights", "the QP Hessian E = 2(Psi + Gamma' Omega Gamma) "
+                          f"is not positive definite (min eigenvalue {eig.min():.3g}, max "
+                          f"{eig.max():.3g}: the min must exceed 1e-12 of the max)")
     if eig.max() / eig.min() > 1e14:
         raise ConfigError(f"{key}.weights", f"the QP Hessian is too ill-conditioned "
                           f"(cond {eig.max() / eig.min():.3g} > 1e14)")

@@ -1,0 +1,145 @@
+"""The sizes of each mode's QP and of the generated C, predicted from the configuration alone.
+
+``build_model`` checks them before any maths: a ``horizon: 10000`` without output bounds
+once condensed a 10,000-variable QP for minutes before anything was refused.  The
+prediction needs no plant maths: n = N nu (or blocks * nu), m counts the finite bounds
+(config/checks.py, :func:`qp_rows`), and nx is the plant's order plus its integrators,
+disturbance and previous-input states (for a transfer-function matrix an upper bound: the
+order before the minimal realisation).
+
+* **stored bytes**: every array of :data:`.arrays.STORED_ARRAYS` (the flash of the data),
+  from its declared shape, so it is exact whenever nx is;
+* **struct bytes**: the arrays of ``P_ctrl`` (api.h.j2), the RAM of one instance, without
+  its scalar members and padding (a lower bound, within about a hundred bytes);
+* **condensing bytes**: the dense N x N matrices the offline maths builds, even when move
+  blocking keeps n small.
+
+The limits (schema.py) are the safety ones: int16 rows and row quantities (the rows
+themselves are checked while parsing, config/checks.py), states whose tests would take
+hours, and memory no microcontroller has.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from math import prod
+
+import numpy as np
+
+from ..config import ConfigError, ControllerConfig, ModeConfig
+from ..config.checks import qp_rows
+from ..config.schema import (MAX_CONDENSING_BYTES, MAX_ROWS, MAX_STATES, MAX_STORED_BYTES,
+                              MAX_STRUCT_BYTES)
+from .arrays import REAL, declared_for
+
+C_TYPE_BYTES = {"int16_t": 2, "int8_t": 1}  # the integer element types of stored arrays
+
+
+@dataclass(frozen=True)
+class ModeSizes:
+    """One mode's sizes, named as :class:`.storage.ModeData` names them (so that a
+    StoredArray's declared shape can be evaluated on it)."""
+
+    N: int
+    nx: int
+    nu: int
+    ny: int
+    n: int  # decision variables
+    m: int  # constraint rows
+    nt: int  # terminal rows of the E split: ny when P is positive definite
+    w_cap: int  # working-set capacity: n + soft (output, stage) pairs
+    has_output_rows: bool
+
+    @property
+    def n_yq(self) -> int:
+        return self.N * self.ny
+
+
+def plant_order(mode: ModeConfig, ny: int) -> int:
+    """States of the realised plant with its ``ny`` integrators (an upper bound for a
+    transfer-function matrix, whose minimal realisation may drop some)."""
+    plant = mode.plant
+    if plant.kind == "state_space":
+        order = plant.A.shape[0]
+    elif plant.tf_matrix is not None:
+        order = sum(len(den) - 1 for row in plant.tf_matrix for _, den in row)
+    else:
+        order = len(plant.den) - 1
+    return order + (ny if plant.integrator else 0)
+
+
+def mode_sizes(cfg: ControllerConfig, mode: ModeConfig) -> ModeSizes:
+    nu, ny, N = len(mode.actuators), cfg.n_outputs, cfg.horizon
+    nd = {"none": 0, "input": nu, "output": ny}[mode.disturbance]
+    n_prev = nu if mode.R_delta is not None or mode.has_rate_bounds else 0
+    n = (N if mode.blocks is None else len(mode.blocks)) * nu
+    bounded = np.isfinite(mode.y_min) | np.isfinite(mode.y_max)
+    soft = (0 if mode.soft_l2 is None else
+            N * int(np.sum(np.any(mode.soft_l2 > 0.0, axis=1) & bounded)))
+    return ModeSizes(N=N, nx=plant_order(mode, ny) + nd + n_prev, nu=nu, ny=ny, n=n,
+                     m=qp_rows(N, mode), nt=ny if np.linalg.eigvalsh(mode.P).min() > 0 else 0,
+                     w_cap=n + soft, has_output_rows=bool(np.any(bounded)))
+
+
+def features_of(cfg: ControllerConfig) -> dict:
+    """The top-level context flags that decide which arrays exist (codegen/context.py)."""
+    return {"move_blocking": any(m.blocks is not None for m in cfg.modes),
+            "has_soft_rows": any(m.soft_l2 is not None for m in cfg.modes)}
+
+
+def stored_bytes(cfg: ControllerConfig, sizes: tuple[ModeSizes, ...]) -> int:
+    """Bytes of every mode's stored arrays (the generated data, in flash)."""
+    real = 4 if cfg.precision == "float" else 8
+    _, arrays = declared_for(features_of(cfg))
+    return sum(prod(a.shape(s)) * (real if a.ctype == REAL else C_TYPE_BYTES[a.ctype])
+               for s in sizes for a in arrays if a.exists_in(s))
+
+
+def struct_bytes(cfg: ControllerConfig, sizes: tuple[ModeSizes, ...]) -> int:
+    """Bytes of the arrays of one P_ctrl instance (api.h.j2), a lower bound of its size."""
+    real = 4 if cfg.precision == "float" else 8
+    top = {name: max(getattr(s, name) for s in sizes)
+           for name in ("nx", "nu", "n", "m", "n_yq", "w_cap")}
+    nx, n, m, nyq, w = top["nx"], top["n"], top["m"], top["n_yq"], top["w_cap"]
+    nt = max(1, max(s.nt for s in sizes))
+    k, ny = len(cfg.modes), cfg.n_outputs
+    reals = (2 * n + 2 * nyq + 2 * m + 3 * w + w * (w + 1) // 2 + nt * n + nt * (nt + 1) // 2
+             + nt + nx + ny  # the work arrays
+             + k * (nx + m) + len(cfg.actuators) + n)  # xhat, lam, u_last, U
+    if cfg.runtime_bounds:  # the live bounds of every mode, and the solver's copy
+        reals += (k + 1) * 2 * (top["nu"] + ny)
+    int16s = cfg.horizon + 1 + m + 2 * w
+    bytes_ = m + n + (m if features_of(cfg)["has_soft_rows"] else 0)
+    return reals * real + int16s * 2 + bytes_
+
+
+def condensing_bytes(s: ModeSizes) -> int:
+    """Bytes of the dense Omega, Psi and Gamma that condense() builds for a mode."""
+    stages_y, stages_u = s.N * s.ny, s.N * s.nu
+    return 8 * (stages_y * stages_y + stages_u * stages_u + stages_y * stages_u)
+
+
+def check_sizes(cfg: ControllerConfig) -> None:
+    """Refuse, before any maths, a controller beyond the limits of schema.py."""
+    sizes = tuple(mode_sizes(cfg, m) for m in cfg.modes)
+    for i, (s, mode) in enumerate(zip(sizes, cfg.modes)):
+        if s.nx > MAX_STATES:
+            raise ConfigError(f"modes[{i}].plant", f"its prediction model would have up to "
+                              f"{s.nx} states; at most {MAX_STATES} supported")
+        # the C's int16 row quantities: U, then N ny outputs, then n Δu differences
+        quantities = s.n + s.n_yq + (s.n if mode.has_rate_bounds else 0)
+        if quantities > MAX_ROWS:
+            raise ConfigError("horizon", f"too long: modes[{i}] would have {quantities} row "
+                              f"quantities (n + N ny, plus n with Δu bounds); at most "
+                              f"{MAX_ROWS} supported")
+        if condensing_bytes(s) > MAX_CONDENSING_BYTES:
+            raise ConfigError("horizon", f"too long: condensing modes[{i}] would need "
+                              f"{condensing_bytes(s):,} bytes of dense N x N matrices; at "
+                              f"most {MAX_CONDENSING_BYTES:,} supported")
+    for what, size, limit in (("stored data", stored_bytes(cfg, sizes), MAX_STORED_BYTES),
+                              ("controller instance", struct_bytes(cfg, sizes),
+                               MAX_STRUCT_BYTES)):
+        if size > limit:
+            worst = max(range(len(sizes)), key=lambda i: sizes[i].n * sizes[i].m)
+            raise ConfigError("horizon", f"too long: the {what} would take {size:,} bytes "
+                              f"(modes[{worst}]: n = {sizes[worst].n} variables, m = "
+                              f"{sizes[worst].m} rows); at most {limit:,} supported")
