@@ -88,3 +88,10 @@ def test_iteration_cap_stops_exactly_with_safe_output(tmp_path, build_root, cap)
     st, U, its = built.c.solve_qp(0, x, preview(ref, 950, N))  # step to -20 deg ahead
     assert st == MAX_ITER and its == cap
     assert np.all(np.isfinite(U)) and np.all(np.abs(U) <= 15.0)
+
+
+def test_last_info_of_a_null_instance_is_null(uav):
+    """P_last_info(NULL) returned &NULL->info (a crash on the first field read): issue 15."""
+    host = uav.c
+    assert host._fn["last_info"](host.ffi.NULL) == host.ffi.NULL
+    assert host._fn["last_info"](host.ctrl) != host.ffi.NULL

@@ -164,7 +164,7 @@ int c172p_roll_solve_qp(c172p_roll_ctrl *c, int mode, const c172p_roll_real *x,
 /**
  * @brief Diagnostics of the last c172p_roll_step() or c172p_roll_solve_qp() call.
  * @param c Controller instance.
- * @return Pointer into c (valid while c lives).
+ * @return Pointer into c (valid while c lives); NULL if c is NULL.
  */
 const c172p_roll_info *c172p_roll_last_info(const c172p_roll_ctrl *c);
 

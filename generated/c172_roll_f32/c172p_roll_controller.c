@@ -252,7 +252,7 @@ int c172p_roll_solve_qp(c172p_roll_ctrl *c, int mode, const c172p_roll_real *x,
 
 const c172p_roll_info *c172p_roll_last_info(const c172p_roll_ctrl *c)
 {
-    return &c->info;
+    return (c != 0) ? &c->info : 0; /* a NULL instance has no diagnostics, not a crash */
 }
 
 const char *c172p_roll_status_message(int status)

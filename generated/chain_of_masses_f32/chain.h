@@ -164,7 +164,7 @@ int chain_solve_qp(chain_ctrl *c, int mode, const chain_real *x,
 /**
  * @brief Diagnostics of the last chain_step() or chain_solve_qp() call.
  * @param c Controller instance.
- * @return Pointer into c (valid while c lives).
+ * @return Pointer into c (valid while c lives); NULL if c is NULL.
  */
 const chain_info *chain_last_info(const chain_ctrl *c);
 

@@ -205,7 +205,7 @@ int chain_solve_qp(chain_ctrl *c, int mode, const chain_real *x,
 
 const chain_info *chain_last_info(const chain_ctrl *c)
 {
-    return &c->info;
+    return (c != 0) ? &c->info : 0; /* a NULL instance has no diagnostics, not a crash */
 }
 
 const char *chain_status_message(int status)

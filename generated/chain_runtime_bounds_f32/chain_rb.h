@@ -223,7 +223,7 @@ int chain_rb_get_bounds(const chain_rb_ctrl *c, int mode, chain_rb_real *u_min,
 /**
  * @brief Diagnostics of the last chain_rb_step() or chain_rb_solve_qp() call.
  * @param c Controller instance.
- * @return Pointer into c (valid while c lives).
+ * @return Pointer into c (valid while c lives); NULL if c is NULL.
  */
 const chain_rb_info *chain_rb_last_info(const chain_rb_ctrl *c);
 

@@ -302,7 +302,7 @@ int chain_rb_get_bounds(const chain_rb_ctrl *c, int mode, chain_rb_real *u_min,
 
 const chain_rb_info *chain_rb_last_info(const chain_rb_ctrl *c)
 {
-    return &c->info;
+    return (c != 0) ? &c->info : 0; /* a NULL instance has no diagnostics, not a crash */
 }
 
 const char *chain_rb_status_message(int status)

@@ -171,7 +171,7 @@ int chain_soft_solve_qp(chain_soft_ctrl *c, int mode, const chain_soft_real *x,
 /**
  * @brief Diagnostics of the last chain_soft_step() or chain_soft_solve_qp() call.
  * @param c Controller instance.
- * @return Pointer into c (valid while c lives).
+ * @return Pointer into c (valid while c lives); NULL if c is NULL.
  */
 const chain_soft_info *chain_soft_last_info(const chain_soft_ctrl *c);
 

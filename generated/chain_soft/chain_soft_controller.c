@@ -209,7 +209,7 @@ int chain_soft_solve_qp(chain_soft_ctrl *c, int mode, const chain_soft_real *x,
 
 const chain_soft_info *chain_soft_last_info(const chain_soft_ctrl *c)
 {
-    return &c->info;
+    return (c != 0) ? &c->info : 0; /* a NULL instance has no diagnostics, not a crash */
 }
 
 const char *chain_soft_status_message(int status)

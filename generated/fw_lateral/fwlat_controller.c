@@ -209,7 +209,7 @@ int fwlat_solve_qp(fwlat_ctrl *c, int mode, const fwlat_real *x,
 
 const fwlat_info *fwlat_last_info(const fwlat_ctrl *c)
 {
-    return &c->info;
+    return (c != 0) ? &c->info : 0; /* a NULL instance has no diagnostics, not a crash */
 }
 
 const char *fwlat_status_message(int status)

@@ -171,7 +171,7 @@ int fwlat_solve_qp(fwlat_ctrl *c, int mode, const fwlat_real *x,
 /**
  * @brief Diagnostics of the last fwlat_step() or fwlat_solve_qp() call.
  * @param c Controller instance.
- * @return Pointer into c (valid while c lives).
+ * @return Pointer into c (valid while c lives); NULL if c is NULL.
  */
 const fwlat_info *fwlat_last_info(const fwlat_ctrl *c);
 

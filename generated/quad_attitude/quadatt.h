@@ -164,7 +164,7 @@ int quadatt_solve_qp(quadatt_ctrl *c, int mode, const quadatt_real *x,
 /**
  * @brief Diagnostics of the last quadatt_step() or quadatt_solve_qp() call.
  * @param c Controller instance.
- * @return Pointer into c (valid while c lives).
+ * @return Pointer into c (valid while c lives); NULL if c is NULL.
  */
 const quadatt_info *quadatt_last_info(const quadatt_ctrl *c);
 

@@ -205,7 +205,7 @@ int quadatt_solve_qp(quadatt_ctrl *c, int mode, const quadatt_real *x,
 
 const quadatt_info *quadatt_last_info(const quadatt_ctrl *c)
 {
-    return &c->info;
+    return (c != 0) ? &c->info : 0; /* a NULL instance has no diagnostics, not a crash */
 }
 
 const char *quadatt_status_message(int status)

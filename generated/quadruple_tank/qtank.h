@@ -164,7 +164,7 @@ int qtank_solve_qp(qtank_ctrl *c, int mode, const qtank_real *x,
 /**
  * @brief Diagnostics of the last qtank_step() or qtank_solve_qp() call.
  * @param c Controller instance.
- * @return Pointer into c (valid while c lives).
+ * @return Pointer into c (valid while c lives); NULL if c is NULL.
  */
 const qtank_info *qtank_last_info(const qtank_ctrl *c);
 

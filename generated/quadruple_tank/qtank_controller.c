@@ -205,7 +205,7 @@ int qtank_solve_qp(qtank_ctrl *c, int mode, const qtank_real *x,
 
 const qtank_info *qtank_last_info(const qtank_ctrl *c)
 {
-    return &c->info;
+    return (c != 0) ? &c->info : 0; /* a NULL instance has no diagnostics, not a crash */
 }
 
 const char *qtank_status_message(int status)

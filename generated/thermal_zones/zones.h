@@ -164,7 +164,7 @@ int zones_solve_qp(zones_ctrl *c, int mode, const zones_real *x,
 /**
  * @brief Diagnostics of the last zones_step() or zones_solve_qp() call.
  * @param c Controller instance.
- * @return Pointer into c (valid while c lives).
+ * @return Pointer into c (valid while c lives); NULL if c is NULL.
  */
 const zones_info *zones_last_info(const zones_ctrl *c);
 

@@ -205,7 +205,7 @@ int zones_solve_qp(zones_ctrl *c, int mode, const zones_real *x,
 
 const zones_info *zones_last_info(const zones_ctrl *c)
 {
-    return &c->info;
+    return (c != 0) ? &c->info : 0; /* a NULL instance has no diagnostics, not a crash */
 }
 
 const char *zones_status_message(int status)

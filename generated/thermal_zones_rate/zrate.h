@@ -164,7 +164,7 @@ int zrate_solve_qp(zrate_ctrl *c, int mode, const zrate_real *x,
 /**
  * @brief Diagnostics of the last zrate_step() or zrate_solve_qp() call.
  * @param c Controller instance.
- * @return Pointer into c (valid while c lives).
+ * @return Pointer into c (valid while c lives); NULL if c is NULL.
  */
 const zrate_info *zrate_last_info(const zrate_ctrl *c);
 

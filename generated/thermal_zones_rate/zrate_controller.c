@@ -205,7 +205,7 @@ int zrate_solve_qp(zrate_ctrl *c, int mode, const zrate_real *x,
 
 const zrate_info *zrate_last_info(const zrate_ctrl *c)
 {
-    return &c->info;
+    return (c != 0) ? &c->info : 0; /* a NULL instance has no diagnostics, not a crash */
 }
 
 const char *zrate_status_message(int status)

@@ -164,7 +164,7 @@ int drives_solve_qp(drives_ctrl *c, int mode, const drives_real *x,
 /**
  * @brief Diagnostics of the last drives_step() or drives_solve_qp() call.
  * @param c Controller instance.
- * @return Pointer into c (valid while c lives).
+ * @return Pointer into c (valid while c lives); NULL if c is NULL.
  */
 const drives_info *drives_last_info(const drives_ctrl *c);
 

@@ -252,7 +252,7 @@ int drives_solve_qp(drives_ctrl *c, int mode, const drives_real *x,
 
 const drives_info *drives_last_info(const drives_ctrl *c)
 {
-    return &c->info;
+    return (c != 0) ? &c->info : 0; /* a NULL instance has no diagnostics, not a crash */
 }
 
 const char *drives_status_message(int status)

@@ -166,7 +166,7 @@ int rollmpc_solve_qp(rollmpc_ctrl *c, int mode, const rollmpc_real *x,
 /**
  * @brief Diagnostics of the last rollmpc_step() or rollmpc_solve_qp() call.
  * @param c Controller instance.
- * @return Pointer into c (valid while c lives).
+ * @return Pointer into c (valid while c lives); NULL if c is NULL.
  */
 const rollmpc_info *rollmpc_last_info(const rollmpc_ctrl *c);
 

@@ -252,7 +252,7 @@ int rollmpc_solve_qp(rollmpc_ctrl *c, int mode, const rollmpc_real *x,
 
 const rollmpc_info *rollmpc_last_info(const rollmpc_ctrl *c)
 {
-    return &c->info;
+    return (c != 0) ? &c->info : 0; /* a NULL instance has no diagnostics, not a crash */
 }
 
 const char *rollmpc_status_message(int status)
