@@ -56,6 +56,7 @@ extern const chain_mode_data chain_modes[CHAIN_N_MODES];
 int chain_cholesky(chain_real *a, int n);
 int chain_cholesky_from(chain_real *a, int from, int n);
 void chain_chol_lsolve(const chain_real *l, int n, chain_real *b);
+void chain_chol_lsolve_from(const chain_real *l, int from, int n, chain_real *b);
 void chain_chol_ltsolve(const chain_real *l, int n, chain_real *b);
 void chain_chol_solve(const chain_real *l, int n, chain_real *b);
 

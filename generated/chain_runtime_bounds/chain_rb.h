@@ -80,7 +80,8 @@ typedef struct {
     chain_rb_real K[CHAIN_RB_M_MAX];      /**< gamma - M th0. */
     chain_rb_real z[CHAIN_RB_N_MAX];      /**< Polish multipliers / primal step. */
     chain_rb_real rhs[CHAIN_RB_N_MAX];    /**< Polish right-hand side. */
-    chain_rb_real chol[CHAIN_RB_CHOL_MAX];/**< Packed Cholesky factor. */
+    chain_rb_real chol[CHAIN_RB_CHOL_MAX];/**< Packed Cholesky factor (the primal polish's from
+                                                       chol[1], with NaN in chol[0]). */
     chain_rb_real dv[CHAIN_RB_N_MAX];     /**< Primal polish: U - th0. */
     chain_rb_real ycol[CHAIN_RB_NT_MAX * CHAIN_RB_N_MAX]; /**< Primal polish: S_FF^-1 V_F'. */
     chain_rb_real tsmall[CHAIN_RB_NT_MAX * (CHAIN_RB_NT_MAX + 1) / 2]; /**< Terminal Schur complement. */
@@ -92,7 +93,9 @@ typedef struct {
     int16_t wset[CHAIN_RB_N_MAX];             /**< Rows of the polish working set. */
     int16_t tmp[CHAIN_RB_N_MAX];              /**< Scratch index list. */
     uint8_t in_set[CHAIN_RB_M_MAX];           /**< Membership flags of the sweep set. */
-    uint8_t is_bound[CHAIN_RB_N_MAX];         /**< Primal polish: input fixed at a bound. */
+    uint8_t input_role[CHAIN_RB_N_MAX];       /**< Primal polish: input bound now, row of the factor. */
+    int16_t primal_form;                          /**< Primal polish: form of the factor in chol (0: none). */
+    int16_t primal_head;                          /**< Primal polish: rows of its last full factorisation. */
     chain_rb_real gam_out_min;                /**< Smallest right-hand side of an output row. */
     int out_slacks_ok;                            /**< K of the output rows is computed. */
     chain_rb_bounds bounds;                   /**< Copy of the live bounds of the mode being solved

@@ -56,6 +56,7 @@ extern const chain_rb_mode_data chain_rb_modes[CHAIN_RB_N_MODES];
 int chain_rb_cholesky(chain_rb_real *a, int n);
 int chain_rb_cholesky_from(chain_rb_real *a, int from, int n);
 void chain_rb_chol_lsolve(const chain_rb_real *l, int n, chain_rb_real *b);
+void chain_rb_chol_lsolve_from(const chain_rb_real *l, int from, int n, chain_rb_real *b);
 void chain_rb_chol_ltsolve(const chain_rb_real *l, int n, chain_rb_real *b);
 void chain_rb_chol_solve(const chain_rb_real *l, int n, chain_rb_real *b);
 

@@ -70,7 +70,8 @@ typedef struct {
     chain_soft_real K[CHAIN_SOFT_M_MAX];      /**< gamma - M th0. */
     chain_soft_real z[CHAIN_SOFT_W_MAX];      /**< Polish multipliers / primal step. */
     chain_soft_real rhs[CHAIN_SOFT_W_MAX];    /**< Polish right-hand side. */
-    chain_soft_real chol[CHAIN_SOFT_CHOL_MAX];/**< Packed Cholesky factor. */
+    chain_soft_real chol[CHAIN_SOFT_CHOL_MAX];/**< Packed Cholesky factor (the primal polish's from
+                                                       chol[1], with NaN in chol[0]). */
     chain_soft_real dv[CHAIN_SOFT_W_MAX];     /**< Primal polish: U - th0. */
     chain_soft_real ycol[CHAIN_SOFT_NT_MAX * CHAIN_SOFT_N_MAX]; /**< Primal polish: S_FF^-1 V_F'. */
     chain_soft_real tsmall[CHAIN_SOFT_NT_MAX * (CHAIN_SOFT_NT_MAX + 1) / 2]; /**< Terminal Schur complement. */
@@ -82,7 +83,9 @@ typedef struct {
     int16_t wset[CHAIN_SOFT_W_MAX];             /**< Rows of the polish working set. */
     int16_t tmp[CHAIN_SOFT_W_MAX];              /**< Scratch index list. */
     uint8_t in_set[CHAIN_SOFT_M_MAX];           /**< Membership flags of the sweep set. */
-    uint8_t is_bound[CHAIN_SOFT_N_MAX];         /**< Primal polish: input fixed at a bound. */
+    uint8_t input_role[CHAIN_SOFT_N_MAX];       /**< Primal polish: input bound now, row of the factor. */
+    int16_t primal_form;                          /**< Primal polish: form of the factor in chol (0: none). */
+    int16_t primal_head;                          /**< Primal polish: rows of its last full factorisation. */
     chain_soft_real gam_out_min;                /**< Smallest right-hand side of an output row. */
     int out_slacks_ok;                            /**< K of the output rows is computed. */
     uint8_t slack_on[CHAIN_SOFT_M_MAX];         /**< Soft row in the working set with a positive slack. */

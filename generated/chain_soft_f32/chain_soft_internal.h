@@ -59,6 +59,7 @@ extern const chain_soft_mode_data chain_soft_modes[CHAIN_SOFT_N_MODES];
 int chain_soft_cholesky(chain_soft_real *a, int n);
 int chain_soft_cholesky_from(chain_soft_real *a, int from, int n);
 void chain_soft_chol_lsolve(const chain_soft_real *l, int n, chain_soft_real *b);
+void chain_soft_chol_lsolve_from(const chain_soft_real *l, int from, int n, chain_soft_real *b);
 void chain_soft_chol_ltsolve(const chain_soft_real *l, int n, chain_soft_real *b);
 void chain_soft_chol_solve(const chain_soft_real *l, int n, chain_soft_real *b);
 

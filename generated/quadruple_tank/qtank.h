@@ -66,7 +66,8 @@ typedef struct {
     qtank_real K[QTANK_M_MAX];      /**< gamma - M th0. */
     qtank_real z[QTANK_N_MAX];      /**< Polish multipliers / primal step. */
     qtank_real rhs[QTANK_N_MAX];    /**< Polish right-hand side. */
-    qtank_real chol[QTANK_CHOL_MAX];/**< Packed Cholesky factor. */
+    qtank_real chol[QTANK_CHOL_MAX];/**< Packed Cholesky factor (the primal polish's from
+                                                       chol[1], with NaN in chol[0]). */
     qtank_real dv[QTANK_N_MAX];     /**< Primal polish: U - th0. */
     qtank_real ycol[QTANK_NT_MAX * QTANK_N_MAX]; /**< Primal polish: S_FF^-1 V_F'. */
     qtank_real tsmall[QTANK_NT_MAX * (QTANK_NT_MAX + 1) / 2]; /**< Terminal Schur complement. */
@@ -78,7 +79,9 @@ typedef struct {
     int16_t wset[QTANK_N_MAX];             /**< Rows of the polish working set. */
     int16_t tmp[QTANK_N_MAX];              /**< Scratch index list. */
     uint8_t in_set[QTANK_M_MAX];           /**< Membership flags of the sweep set. */
-    uint8_t is_bound[QTANK_N_MAX];         /**< Primal polish: input fixed at a bound. */
+    uint8_t input_role[QTANK_N_MAX];       /**< Primal polish: input bound now, row of the factor. */
+    int16_t primal_form;                          /**< Primal polish: form of the factor in chol (0: none). */
+    int16_t primal_head;                          /**< Primal polish: rows of its last full factorisation. */
     qtank_real gam_out_min;                /**< Smallest right-hand side of an output row. */
     int out_slacks_ok;                            /**< K of the output rows is computed. */
 } qtank_work;

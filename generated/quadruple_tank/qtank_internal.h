@@ -56,6 +56,7 @@ extern const qtank_mode_data qtank_modes[QTANK_N_MODES];
 int qtank_cholesky(qtank_real *a, int n);
 int qtank_cholesky_from(qtank_real *a, int from, int n);
 void qtank_chol_lsolve(const qtank_real *l, int n, qtank_real *b);
+void qtank_chol_lsolve_from(const qtank_real *l, int from, int n, qtank_real *b);
 void qtank_chol_ltsolve(const qtank_real *l, int n, qtank_real *b);
 void qtank_chol_solve(const qtank_real *l, int n, qtank_real *b);
 

@@ -66,7 +66,8 @@ typedef struct {
     zones_real K[ZONES_M_MAX];      /**< gamma - M th0. */
     zones_real z[ZONES_N_MAX];      /**< Polish multipliers / primal step. */
     zones_real rhs[ZONES_N_MAX];    /**< Polish right-hand side. */
-    zones_real chol[ZONES_CHOL_MAX];/**< Packed Cholesky factor. */
+    zones_real chol[ZONES_CHOL_MAX];/**< Packed Cholesky factor (the primal polish's from
+                                                       chol[1], with NaN in chol[0]). */
     zones_real dv[ZONES_N_MAX];     /**< Primal polish: U - th0. */
     zones_real ycol[ZONES_NT_MAX * ZONES_N_MAX]; /**< Primal polish: S_FF^-1 V_F'. */
     zones_real tsmall[ZONES_NT_MAX * (ZONES_NT_MAX + 1) / 2]; /**< Terminal Schur complement. */
@@ -78,7 +79,9 @@ typedef struct {
     int16_t wset[ZONES_N_MAX];             /**< Rows of the polish working set. */
     int16_t tmp[ZONES_N_MAX];              /**< Scratch index list. */
     uint8_t in_set[ZONES_M_MAX];           /**< Membership flags of the sweep set. */
-    uint8_t is_bound[ZONES_N_MAX];         /**< Primal polish: input fixed at a bound. */
+    uint8_t input_role[ZONES_N_MAX];       /**< Primal polish: input bound now, row of the factor. */
+    int16_t primal_form;                          /**< Primal polish: form of the factor in chol (0: none). */
+    int16_t primal_head;                          /**< Primal polish: rows of its last full factorisation. */
     zones_real gam_out_min;                /**< Smallest right-hand side of an output row. */
     int out_slacks_ok;                            /**< K of the output rows is computed. */
 } zones_work;

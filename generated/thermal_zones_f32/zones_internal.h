@@ -56,6 +56,7 @@ extern const zones_mode_data zones_modes[ZONES_N_MODES];
 int zones_cholesky(zones_real *a, int n);
 int zones_cholesky_from(zones_real *a, int from, int n);
 void zones_chol_lsolve(const zones_real *l, int n, zones_real *b);
+void zones_chol_lsolve_from(const zones_real *l, int from, int n, zones_real *b);
 void zones_chol_ltsolve(const zones_real *l, int n, zones_real *b);
 void zones_chol_solve(const zones_real *l, int n, zones_real *b);
 

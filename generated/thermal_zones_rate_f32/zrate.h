@@ -66,7 +66,8 @@ typedef struct {
     zrate_real K[ZRATE_M_MAX];      /**< gamma - M th0. */
     zrate_real z[ZRATE_N_MAX];      /**< Polish multipliers / primal step. */
     zrate_real rhs[ZRATE_N_MAX];    /**< Polish right-hand side. */
-    zrate_real chol[ZRATE_CHOL_MAX];/**< Packed Cholesky factor. */
+    zrate_real chol[ZRATE_CHOL_MAX];/**< Packed Cholesky factor (the primal polish's from
+                                                       chol[1], with NaN in chol[0]). */
     zrate_real dv[ZRATE_N_MAX];     /**< Primal polish: U - th0. */
     zrate_real ycol[ZRATE_NT_MAX * ZRATE_N_MAX]; /**< Primal polish: S_FF^-1 V_F'. */
     zrate_real tsmall[ZRATE_NT_MAX * (ZRATE_NT_MAX + 1) / 2]; /**< Terminal Schur complement. */
@@ -78,7 +79,9 @@ typedef struct {
     int16_t wset[ZRATE_N_MAX];             /**< Rows of the polish working set. */
     int16_t tmp[ZRATE_N_MAX];              /**< Scratch index list. */
     uint8_t in_set[ZRATE_M_MAX];           /**< Membership flags of the sweep set. */
-    uint8_t is_bound[ZRATE_N_MAX];         /**< Primal polish: input fixed at a bound. */
+    uint8_t input_role[ZRATE_N_MAX];       /**< Primal polish: input bound now, row of the factor. */
+    int16_t primal_form;                          /**< Primal polish: form of the factor in chol (0: none). */
+    int16_t primal_head;                          /**< Primal polish: rows of its last full factorisation. */
     zrate_real gam_out_min;                /**< Smallest right-hand side of an output row. */
     int out_slacks_ok;                            /**< K of the output rows is computed. */
 } zrate_work;

@@ -56,6 +56,7 @@ extern const zrate_mode_data zrate_modes[ZRATE_N_MODES];
 int zrate_cholesky(zrate_real *a, int n);
 int zrate_cholesky_from(zrate_real *a, int from, int n);
 void zrate_chol_lsolve(const zrate_real *l, int n, zrate_real *b);
+void zrate_chol_lsolve_from(const zrate_real *l, int from, int n, zrate_real *b);
 void zrate_chol_ltsolve(const zrate_real *l, int n, zrate_real *b);
 void zrate_chol_solve(const zrate_real *l, int n, zrate_real *b);
 

@@ -66,7 +66,8 @@ typedef struct {
     drives_real K[DRIVES_M_MAX];      /**< gamma - M th0. */
     drives_real z[DRIVES_N_MAX];      /**< Polish multipliers / primal step. */
     drives_real rhs[DRIVES_N_MAX];    /**< Polish right-hand side. */
-    drives_real chol[DRIVES_CHOL_MAX];/**< Packed Cholesky factor. */
+    drives_real chol[DRIVES_CHOL_MAX];/**< Packed Cholesky factor (the primal polish's from
+                                                       chol[1], with NaN in chol[0]). */
     drives_real dv[DRIVES_N_MAX];     /**< Primal polish: U - th0. */
     drives_real ycol[DRIVES_NT_MAX * DRIVES_N_MAX]; /**< Primal polish: S_FF^-1 V_F'. */
     drives_real tsmall[DRIVES_NT_MAX * (DRIVES_NT_MAX + 1) / 2]; /**< Terminal Schur complement. */
@@ -78,7 +79,9 @@ typedef struct {
     int16_t wset[DRIVES_N_MAX];             /**< Rows of the polish working set. */
     int16_t tmp[DRIVES_N_MAX];              /**< Scratch index list. */
     uint8_t in_set[DRIVES_M_MAX];           /**< Membership flags of the sweep set. */
-    uint8_t is_bound[DRIVES_N_MAX];         /**< Primal polish: input fixed at a bound. */
+    uint8_t input_role[DRIVES_N_MAX];       /**< Primal polish: input bound now, row of the factor. */
+    int16_t primal_form;                          /**< Primal polish: form of the factor in chol (0: none). */
+    int16_t primal_head;                          /**< Primal polish: rows of its last full factorisation. */
     drives_real gam_out_min;                /**< Smallest right-hand side of an output row. */
     int out_slacks_ok;                            /**< K of the output rows is computed. */
 } drives_work;

@@ -56,6 +56,7 @@ extern const drives_mode_data drives_modes[DRIVES_N_MODES];
 int drives_cholesky(drives_real *a, int n);
 int drives_cholesky_from(drives_real *a, int from, int n);
 void drives_chol_lsolve(const drives_real *l, int n, drives_real *b);
+void drives_chol_lsolve_from(const drives_real *l, int from, int n, drives_real *b);
 void drives_chol_ltsolve(const drives_real *l, int n, drives_real *b);
 void drives_chol_solve(const drives_real *l, int n, drives_real *b);
 

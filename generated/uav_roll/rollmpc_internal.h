@@ -56,6 +56,7 @@ extern const rollmpc_mode_data rollmpc_modes[ROLLMPC_N_MODES];
 int rollmpc_cholesky(rollmpc_real *a, int n);
 int rollmpc_cholesky_from(rollmpc_real *a, int from, int n);
 void rollmpc_chol_lsolve(const rollmpc_real *l, int n, rollmpc_real *b);
+void rollmpc_chol_lsolve_from(const rollmpc_real *l, int from, int n, rollmpc_real *b);
 void rollmpc_chol_ltsolve(const rollmpc_real *l, int n, rollmpc_real *b);
 void rollmpc_chol_solve(const rollmpc_real *l, int n, rollmpc_real *b);
 

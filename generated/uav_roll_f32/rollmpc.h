@@ -66,7 +66,8 @@ typedef struct {
     rollmpc_real K[ROLLMPC_M_MAX];      /**< gamma - M th0. */
     rollmpc_real z[ROLLMPC_N_MAX];      /**< Polish multipliers / primal step. */
     rollmpc_real rhs[ROLLMPC_N_MAX];    /**< Polish right-hand side. */
-    rollmpc_real chol[ROLLMPC_CHOL_MAX];/**< Packed Cholesky factor. */
+    rollmpc_real chol[ROLLMPC_CHOL_MAX];/**< Packed Cholesky factor (the primal polish's from
+                                                       chol[1], with NaN in chol[0]). */
     rollmpc_real dv[ROLLMPC_N_MAX];     /**< Primal polish: U - th0. */
     rollmpc_real ycol[ROLLMPC_NT_MAX * ROLLMPC_N_MAX]; /**< Primal polish: S_FF^-1 V_F'. */
     rollmpc_real tsmall[ROLLMPC_NT_MAX * (ROLLMPC_NT_MAX + 1) / 2]; /**< Terminal Schur complement. */
@@ -78,7 +79,9 @@ typedef struct {
     int16_t wset[ROLLMPC_N_MAX];             /**< Rows of the polish working set. */
     int16_t tmp[ROLLMPC_N_MAX];              /**< Scratch index list. */
     uint8_t in_set[ROLLMPC_M_MAX];           /**< Membership flags of the sweep set. */
-    uint8_t is_bound[ROLLMPC_N_MAX];         /**< Primal polish: input fixed at a bound. */
+    uint8_t input_role[ROLLMPC_N_MAX];       /**< Primal polish: input bound now, row of the factor. */
+    int16_t primal_form;                          /**< Primal polish: form of the factor in chol (0: none). */
+    int16_t primal_head;                          /**< Primal polish: rows of its last full factorisation. */
     rollmpc_real gam_out_min;                /**< Smallest right-hand side of an output row. */
     int out_slacks_ok;                            /**< K of the output rows is computed. */
 } rollmpc_work;

@@ -1,24 +1,50 @@
 """Mirror of ``templates/solver/polish_primal.c.j2``: the polish's primal solve on a
-working set of input bounds only, in free-variable form (Cholesky of S_FF) or, with few
-bound inputs, through S^-1.
+working set of input bounds only, in free-variable form (Cholesky of S_FF) or bound form
+(Cholesky of (S^-1)_BB), the factor of the previous solve of the QP updated when cheaper.
 
 :class:`PrimalPolishMixin` is part of :class:`~.solver.SolverRef`; it reads ``md``,
-``row_c``, ``S`` and ``Sinv``.  A free-form solve leaves (d, nu) in ``_free_state`` for
+``row_c``, ``S`` and ``Sinv``.  The C keeps its factor and refactors only the rows that
+change; each row is bit for bit the full factorisation's in the same row order, so the
+reference keeps only that order (:attr:`primal_factor`, reset by ``unconstrained()``) and
+factors in full.  A free-form solve leaves (d, nu) in ``_free_state`` for
 :meth:`free_multipliers`, as the C leaves them in ``ws->dv`` and ``ws->nu``.
 """
 from __future__ import annotations
 
+from typing import NamedTuple
+
 import numpy as np
 
 from .dot import s_row_dots
-from .linalg import factor_and_solve_packed, seqsum, seqsum_rows
+from .linalg import (chol_lsolve_packed, chol_ltsolve_packed, cholesky_packed,
+                     factor_and_solve_packed, seqsum)
+
+FREE, BOUND = 1, 2  # FORM_FREE, FORM_BOUND
+
+
+class PrimalFactor(NamedTuple):
+    """The C's ws->primal_form and its rows: the head (the last full factorisation's) then
+    the tail (inputs that joined since), each in descending inputs in the free form and
+    ascending in the bound form."""
+    form: int
+    head: list
+    tail: list
+
+
+def primal_cost(n: int, nt: int, form: int, k: int, p: int) -> int:
+    """Mirror of primal_cost(): multiply-adds of a solve of order k, rows p.. factored."""
+    factor = (k ** 3 - k - p ** 3 + p) // 6 + (k * (k + 1) - p * (p + 1)) // 2
+    solves = nt * (k * k - k - p * p + p) // 2 + (k * k - k)
+    return factor + solves + (k * n if form == FREE else (n - k) * k)
 
 
 class PrimalPolishMixin:
+    primal_factor: PrimalFactor | None = None
+
     def primal_solve(self, th0, W):
-        """Mirror of primal_solve(): bounds, then the cheaper form; (ok, th, z or None)."""
+        """Mirror of primal_solve(): bounds, the updated or new factor; (ok, th, z or None)."""
         md = self.md
-        n, dt = md.n, md.Kx.dtype
+        n, nw, dt = md.n, W.size, md.Kx.dtype
         th = np.zeros(n, dt)
         dv = np.zeros(n, dt)
         qW = md.row_q[W]
@@ -28,32 +54,96 @@ class PrimalPolishMixin:
         dv[qW] = th[qW] - th0[qW]
         bound = np.zeros(n, bool)
         bound[qW] = True
-        if W.size < n - W.size:
+        form = BOUND if nw < n - nw else FREE
+        order = self._primal_order(bound, form)
+        ok = self._factor(order)
+        if not ok:
+            return False, None, None
+        if self.primal_factor.form == BOUND:
             return self.primal_solve_bound(th0, W, qW, th, dv, bound)
-        return self.primal_solve_free(th0, W, th, dv, bound)
+        return self.primal_solve_free(th0, th, dv, bound)
 
-    def primal_solve_free(self, th0, W, th, dv, bound):
+    def _primal_order(self, bound, form):
+        """The rows of the factor (primal_diff(), primal_order()); sets primal_factor."""
+        n, nw = self.md.n, int(np.count_nonzero(bound))
+        prev = self.primal_factor
+        if prev is not None and (nw > 0 if prev.form == FREE else nw < n):
+            member = bound if prev.form == BOUND else ~bound
+            head = [q for q in prev.head if member[q]]
+            tail = sorted([q for q in prev.tail if member[q]]
+                          + [int(q) for q in np.flatnonzero(member)
+                             if q not in prev.head and q not in prev.tail],
+                          reverse=prev.form == FREE)
+            old, new = prev.head + prev.tail, head + tail
+            start = next((i for i, (a, b) in enumerate(zip(old, new)) if a != b),
+                         min(len(old), len(new)))
+            k_new = nw if form == BOUND else n - nw
+            nt = self.md.nt
+            if prev.form == form or (primal_cost(n, nt, prev.form, len(new), start)
+                                     <= primal_cost(n, nt, form, k_new, 0)):
+                self.primal_factor = PrimalFactor(prev.form, head, tail)
+                return new
+        member = bound if form == BOUND else ~bound
+        head = [int(q) for q in np.flatnonzero(member)]
+        if form == FREE:
+            head.reverse()
+        self.primal_factor = PrimalFactor(form, head, [])
+        return head
+
+    def _factor(self, order):
+        """Mirror of primal_factor(): L of S_FF or (S^-1)_BB and Y = L^-1 V_F' or
+        L^-1 Uv_B' (rows by ``order``), in full; False (factor forgotten) on a bad pivot."""
+        md = self.md
+        bound = self.primal_factor.form == BOUND
+        A, cols = (self.Sinv, md.Uv) if bound else (self.S, md.V)
+        k = len(order)
+        idx = np.array(order, np.int64)
+        chol = (np.concatenate([A[idx[a], idx[:a + 1]] for a in range(k)]) if k
+                else np.zeros(0, md.Kx.dtype))
+        if not cholesky_packed(chol, k):
+            self.primal_factor = None
+            return False
+        Y = np.array(cols[:, idx], md.Kx.dtype) if md.nt else np.zeros((0, k), md.Kx.dtype)
+        for y in Y:
+            chol_lsolve_packed(chol, k, y)
+        self._chol, self._Y, self._idx = chol, Y, idx
+        return True
+
+    def _terminal_step(self, y0, extra):
+        """Mirror of terminal_step(): nu, and w = y0 -/+ Y nu in place on y0; None on a bad
+        pivot.  ``extra(o)`` is the free form's V_B d_B term of row o (None: bound form)."""
+        md = self.md
+        nt, dt, Y = md.nt, md.Kx.dtype, self._Y
+        nu = np.zeros(nt, dt)
+        if nt == 0:
+            return nu
+        free = extra is not None
+        small = np.empty(nt * (nt + 1) // 2, dt)
+        for o in range(nt):
+            for p in range(o + 1):
+                acc = seqsum(Y[o] * Y[p])
+                small[o * (o + 1) // 2 + p] = acc + md.P2inv[o, p] if free else md.T[o, p] - acc
+            nu[o] = seqsum(np.concatenate((Y[o] * y0, extra(o))) if free else Y[o] * y0)
+        if not factor_and_solve_packed(small, nt, nu):
+            return None
+        for a in range(y0.size):
+            t = Y[:, a] * nu
+            y0[a] = seqsum(-t if free else t, start=y0[a])
+        return nu
+
+    def primal_solve_free(self, th0, th, dv, bound):
         """Mirror of primal_solve_free()."""
         md = self.md
-        nt, dt = md.nt, md.Kx.dtype
-        F = np.flatnonzero(~bound)
+        idx, chol, k = self._idx, self._chol, self._idx.size
         B = np.flatnonzero(bound)
-        nf = F.size
-        rhs = np.empty(nf, dt)
-        for a, f in enumerate(F):
-            rhs[a] = -s_row_dots(self.S, [f], dv)[0]  # dv is 0 on the free inputs here
-        Y = np.ascontiguousarray(md.V[:, F]) if nt else np.zeros((0, nf), dt)
-        if nf:
-            chol = np.concatenate([self.S[F[a], F[:a + 1]] for a in range(nf)])
-            if not factor_and_solve_packed(chol, nf, rhs, *Y):
-                return False, None, None
-        nu = _schur_solve(nt, dt, lambda o, p: seqsum(md.V[o, F] * Y[p]) + md.P2inv[o, p],
-                          lambda o: seqsum(np.concatenate((md.V[o, F] * rhs, md.V[o, B] * dv[B]))))
+        rhs = -s_row_dots(self.S, idx, dv)  # dv is 0 on the free inputs here
+        chol_lsolve_packed(chol, k, rhs)
+        nu = self._terminal_step(rhs, lambda o: md.V[o, B] * dv[B])
         if nu is None:
             return False, None, None
-        for a, f in enumerate(F):
-            dv[f] = seqsum(-(Y[:, a] * nu), start=rhs[a])
-            th[f] = th0[f] + dv[f]
+        chol_ltsolve_packed(chol, k, rhs)
+        dv[idx] = rhs
+        th[idx] = th0[idx] + rhs
         self._free_state = (dv, nu)
         return True, th, None
 
@@ -69,36 +159,17 @@ class PrimalPolishMixin:
     def primal_solve_bound(self, th0, W, qW, th, dv, bound):
         """Mirror of primal_solve_bound() (through S^-1; few bound inputs)."""
         md = self.md
-        nt, dt, nb = md.nt, md.Kx.dtype, W.size
-        chol = np.concatenate([self.Sinv[qW[a], qW[:a + 1]] for a in range(nb)])
-        x1 = dv[qW].copy()
-        Y = np.ascontiguousarray(md.Uv[:, qW]) if nt else np.zeros((0, nb), dt)
-        if not factor_and_solve_packed(chol, nb, x1, *Y):
-            return False, None, None
-        nu = _schur_solve(nt, dt, lambda o, p: md.T[o, p] - seqsum(md.Uv[o, qW] * Y[p]),
-                          lambda o: seqsum(md.Uv[o, qW] * x1))
+        idx, chol, k = self._idx, self._chol, self._idx.size
+        beta = dv[idx].copy()
+        chol_lsolve_packed(chol, k, beta)
+        nu = self._terminal_step(beta, None)
         if nu is None:
             return False, None, None
-        beta = np.array([seqsum(Y[:, a] * nu, start=x1[a]) for a in range(nb)], dt)
-        z = np.where(md.row_sign[W] > 0, -beta, beta)
+        chol_ltsolve_packed(chol, k, beta)
+        by_input = np.zeros(md.n, md.Kx.dtype)
+        by_input[idx] = beta
+        z = np.where(md.row_sign[W] > 0, -by_input[qW], by_input[qW])
         F = np.flatnonzero(~bound)
-        d = seqsum_rows(np.hstack((self.Sinv[np.ix_(F, qW)] * beta[None, :],
-                                   -(md.Uv[:, F].T * nu[None, :]))))
-        th[F] = th0[F] + d
+        for f, d in zip(F, s_row_dots(self.Sinv, F, by_input)):
+            th[f] = th0[f] + seqsum(-(md.Uv[:, f] * nu), start=d)
         return True, th, z
-
-
-def _schur_solve(nt, dt, entry, rhs):
-    """The terminal multiplier step nu of both forms: the nt x nt system with packed lower
-    entries entry(o, p) and right-hand side rhs(o), filled row by row as the C fills
-    ws->tsmall and ws->nu; None on a bad pivot."""
-    nu = np.zeros(nt, dt)
-    if nt:
-        small = np.empty(nt * (nt + 1) // 2, dt)
-        for o in range(nt):
-            for p in range(o + 1):
-                small[o * (o + 1) // 2 + p] = entry(o, p)
-            nu[o] = rhs(o)
-        if not factor_and_solve_packed(small, nt, nu):
-            return None
-    return nu

@@ -30,8 +30,9 @@ def output_prediction(md: ModeData) -> tuple[np.ndarray, np.ndarray | None]:
 class UnconstrainedMixin:
     def unconstrained(self, x, r):
         """Mirror of unconstrained(): (th0, px = Phi x or None), th0 summed per run of
-        equal w (see reference_runs())."""
+        equal w (see reference_runs()); a new QP, so no primal factor to update yet."""
         md, ny = self.md, self.md.ny
+        self.primal_factor = None
         rr = r.reshape(md.N, ny)
         w = np.empty(md.n_yq, md.Kx.dtype)
         for k in range(md.n_yq):
