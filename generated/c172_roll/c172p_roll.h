@@ -66,7 +66,8 @@ typedef struct {
     c172p_roll_real K[C172P_ROLL_M_MAX];      /**< gamma - M th0. */
     c172p_roll_real z[C172P_ROLL_N_MAX];      /**< Polish multipliers / primal step. */
     c172p_roll_real rhs[C172P_ROLL_N_MAX];    /**< Polish right-hand side. */
-    c172p_roll_real chol[C172P_ROLL_CHOL_MAX];/**< Packed Cholesky factor. */
+    c172p_roll_real chol[C172P_ROLL_CHOL_MAX];/**< Packed Cholesky factor (the primal polish's from
+                                                       chol[1], with NaN in chol[0]). */
     c172p_roll_real dv[C172P_ROLL_N_MAX];     /**< Primal polish: U - th0. */
     c172p_roll_real ycol[C172P_ROLL_NT_MAX * C172P_ROLL_N_MAX]; /**< Primal polish: S_FF^-1 V_F'. */
     c172p_roll_real tsmall[C172P_ROLL_NT_MAX * (C172P_ROLL_NT_MAX + 1) / 2]; /**< Terminal Schur complement. */
@@ -78,7 +79,9 @@ typedef struct {
     int16_t wset[C172P_ROLL_N_MAX];             /**< Rows of the polish working set. */
     int16_t tmp[C172P_ROLL_N_MAX];              /**< Scratch index list. */
     uint8_t in_set[C172P_ROLL_M_MAX];           /**< Membership flags of the sweep set. */
-    uint8_t is_bound[C172P_ROLL_N_MAX];         /**< Primal polish: input fixed at a bound. */
+    uint8_t input_role[C172P_ROLL_N_MAX];       /**< Primal polish: input bound now, row of the factor. */
+    int16_t primal_form;                          /**< Primal polish: form of the factor in chol (0: none). */
+    int16_t primal_head;                          /**< Primal polish: rows of its last full factorisation. */
     c172p_roll_real gam_out_min;                /**< Smallest right-hand side of an output row. */
     int out_slacks_ok;                            /**< K of the output rows is computed. */
 } c172p_roll_work;

@@ -56,6 +56,7 @@ extern const c172p_roll_mode_data c172p_roll_modes[C172P_ROLL_N_MODES];
 int c172p_roll_cholesky(c172p_roll_real *a, int n);
 int c172p_roll_cholesky_from(c172p_roll_real *a, int from, int n);
 void c172p_roll_chol_lsolve(const c172p_roll_real *l, int n, c172p_roll_real *b);
+void c172p_roll_chol_lsolve_from(const c172p_roll_real *l, int from, int n, c172p_roll_real *b);
 void c172p_roll_chol_ltsolve(const c172p_roll_real *l, int n, c172p_roll_real *b);
 void c172p_roll_chol_solve(const c172p_roll_real *l, int n, c172p_roll_real *b);
 

@@ -70,7 +70,8 @@ typedef struct {
     fwlat_real K[FWLAT_M_MAX];      /**< gamma - M th0. */
     fwlat_real z[FWLAT_W_MAX];      /**< Polish multipliers / primal step. */
     fwlat_real rhs[FWLAT_W_MAX];    /**< Polish right-hand side. */
-    fwlat_real chol[FWLAT_CHOL_MAX];/**< Packed Cholesky factor. */
+    fwlat_real chol[FWLAT_CHOL_MAX];/**< Packed Cholesky factor (the primal polish's from
+                                                       chol[1], with NaN in chol[0]). */
     fwlat_real dv[FWLAT_W_MAX];     /**< Primal polish: U - th0. */
     fwlat_real ycol[FWLAT_NT_MAX * FWLAT_N_MAX]; /**< Primal polish: S_FF^-1 V_F'. */
     fwlat_real tsmall[FWLAT_NT_MAX * (FWLAT_NT_MAX + 1) / 2]; /**< Terminal Schur complement. */
@@ -82,7 +83,9 @@ typedef struct {
     int16_t wset[FWLAT_W_MAX];             /**< Rows of the polish working set. */
     int16_t tmp[FWLAT_W_MAX];              /**< Scratch index list. */
     uint8_t in_set[FWLAT_M_MAX];           /**< Membership flags of the sweep set. */
-    uint8_t is_bound[FWLAT_N_MAX];         /**< Primal polish: input fixed at a bound. */
+    uint8_t input_role[FWLAT_N_MAX];       /**< Primal polish: input bound now, row of the factor. */
+    int16_t primal_form;                          /**< Primal polish: form of the factor in chol (0: none). */
+    int16_t primal_head;                          /**< Primal polish: rows of its last full factorisation. */
     fwlat_real gam_out_min;                /**< Smallest right-hand side of an output row. */
     int out_slacks_ok;                            /**< K of the output rows is computed. */
     uint8_t slack_on[FWLAT_M_MAX];         /**< Soft row in the working set with a positive slack. */

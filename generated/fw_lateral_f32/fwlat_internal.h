@@ -59,6 +59,7 @@ extern const fwlat_mode_data fwlat_modes[FWLAT_N_MODES];
 int fwlat_cholesky(fwlat_real *a, int n);
 int fwlat_cholesky_from(fwlat_real *a, int from, int n);
 void fwlat_chol_lsolve(const fwlat_real *l, int n, fwlat_real *b);
+void fwlat_chol_lsolve_from(const fwlat_real *l, int from, int n, fwlat_real *b);
 void fwlat_chol_ltsolve(const fwlat_real *l, int n, fwlat_real *b);
 void fwlat_chol_solve(const fwlat_real *l, int n, fwlat_real *b);
 

@@ -66,58 +66,203 @@ static quadatt_real em_col(const quadatt_mode_data *md, int i, int s)
     return (md->row_sign[s] > 0) ? h : -h;
 }
 
-/* S(a, b) from the packed lower triangle. */
-static quadatt_real s_at(const quadatt_mode_data *md, int a, int b)
+/*
+ * (M x)_q for a symmetric M stored as its packed lower triangle (row q up to the
+ * diagonal, column q below it) is one sequential sum over j = 0..n-1 of M(q, j) x_j. Every
+ * function here forms that sum in that order: over a range of j (packed_range_dot()), over
+ * the support of a sparse x only (the terms left out are exact zeros, so the sum is the
+ * same to the bit), or for every q at once (sym_product()). The reference sums the dense
+ * row (reference/dot.py).
+ */
+
+/*
+ * acc + sum_{j=lo}^{hi-1} M(q, j) x_j, one term at a time (four per loop trip).
+ * Cost: hi - lo multiply-adds.
+ */
+static quadatt_real packed_range_dot(const quadatt_real *mp, int q, const quadatt_real *x,
+    int lo, int hi, quadatt_real acc)
 {
-    return (a >= b) ? md->S_p[QUADATT_TRI(a, b)] : md->S_p[QUADATT_TRI(b, a)];
+    const int mid = (hi < q + 1) ? hi : q + 1;
+    int j = lo;
+    if (j < mid) { /* row q, contiguous */
+        const quadatt_real *m = &mp[QUADATT_TRI(q, j)], *v = &x[j], *end = &x[mid];
+        for (; end - v >= 4; v += 4, m += 4) {
+            acc += m[0] * v[0];
+            acc += m[1] * v[1];
+            acc += m[2] * v[2];
+            acc += m[3] * v[3];
+        }
+        while (v != end) {
+            acc += *m++ * *v++;
+        }
+        j = mid;
+    }
+    if (j < hi) { /* column q below the diagonal: row j starts j + 1 after row j - 1 */
+        const quadatt_real *m = &mp[QUADATT_TRI(j, q)];
+        for (; j + 3 < hi; j += 4) {
+            const quadatt_real *m1 = m + j + 1, *m2 = m1 + j + 2, *m3 = m2 + j + 3;
+            acc += *m * x[j];
+            acc += *m1 * x[j + 1];
+            acc += *m2 * x[j + 2];
+            acc += *m3 * x[j + 3];
+            m = m3 + j + 4;
+        }
+        for (; j < hi; ++j) {
+            acc += *m * x[j];
+            m += j + 1;
+        }
+    }
+    return acc;
 }
 
 /*
- * sum_i a_i b_i in four interleaved partial sums (lane i mod 4, the tail into lane 0),
- * combined as (s0 + s1) + (s2 + s3): the same rounding as the reference, and four
- * independent add chains instead of one.
+ * acc0 += sum_{j=lo}^{hi-1} M(q0, j) x_j and acc1 likewise for row q1, both ranges inside
+ * the rows' stored parts (hi <= q0 + 1 <= q1 + 1): each x_j read serves both sums.
+ * Cost: 2 (hi - lo) multiply-adds.
  */
-static quadatt_real dot4(const quadatt_real *a, const quadatt_real *b, int len)
+static void packed_range_dot2(const quadatt_real *mp, int q0, int q1, const quadatt_real *x,
+    int lo, int hi, quadatt_real *acc0, quadatt_real *acc1)
 {
-    quadatt_real s0 = R_(0.0), s1 = R_(0.0), s2 = R_(0.0), s3 = R_(0.0);
-    int i;
-    for (i = 0; i + 3 < len; i += 4) {
-        s0 += a[i] * b[i];
-        s1 += a[i + 1] * b[i + 1];
-        s2 += a[i + 2] * b[i + 2];
-        s3 += a[i + 3] * b[i + 3];
+    const quadatt_real *m0 = &mp[QUADATT_TRI(q0, lo)], *m1 = &mp[QUADATT_TRI(q1, lo)];
+    const quadatt_real *v = &x[lo], *end = &x[hi];
+    quadatt_real s0 = *acc0, s1 = *acc1;
+    if ((hi - lo) & 1) {
+        const quadatt_real xv = *v++;
+        s0 += *m0++ * xv;
+        s1 += *m1++ * xv;
     }
-    for (; i < len; ++i) {
-        s0 += a[i] * b[i];
+    for (; v != end; v += 2, m0 += 2, m1 += 2) {
+        const quadatt_real xa = v[0], xb = v[1];
+        s0 += m0[0] * xa;
+        s1 += m1[0] * xa;
+        s0 += m0[1] * xb;
+        s1 += m1[1] * xb;
     }
-    return (s0 + s1) + (s2 + s3);
+    *acc0 = s0;
+    *acc1 = s1;
+}
+
+/* (M x)_q over all j. Cost: n multiply-adds. */
+static quadatt_real s_row_dot(const quadatt_real *mp, int n, int q, const quadatt_real *x)
+{
+    return packed_range_dot(mp, q, x, 0, n, R_(0.0));
 }
 
 /*
- * sum_i S(q, i) v_i: dot4 over row q of the packed triangle up to the diagonal, plus the
- * same four-lane sum down column q below it.
+ * g[0] = (M x)_q and g[1] = (M x)_(q+1) over all j: the rows up to q side by side, then
+ * the columns below q + 1, whose entries M(j, q), M(j, q + 1) are neighbours in row j.
+ * Cost: 2 n multiply-adds.
  */
-static quadatt_real s_row_dot(const quadatt_mode_data *md, int q, const quadatt_real *v)
+static void s_row_dot2(const quadatt_real *mp, int n, int q, const quadatt_real *x,
+    quadatt_real *g)
 {
-    const quadatt_real *sp = md->S_p;
-    const quadatt_real head = dot4(&sp[QUADATT_TRI(q, 0)], v, q + 1);
-    quadatt_real s0 = R_(0.0), s1 = R_(0.0), s2 = R_(0.0), s3 = R_(0.0);
-    int i = q + 1, off = QUADATT_TRI(q + 1, q);
-    for (; i + 3 < md->n; i += 4) {
-        s0 += sp[off] * v[i];
-        off += i + 1;
-        s1 += sp[off] * v[i + 1];
-        off += i + 2;
-        s2 += sp[off] * v[i + 2];
-        off += i + 3;
-        s3 += sp[off] * v[i + 3];
-        off += i + 4;
+    quadatt_real s0 = R_(0.0), s1 = R_(0.0);
+    const quadatt_real *m;
+    int j;
+    packed_range_dot2(mp, q, q + 1, x, 0, q + 1, &s0, &s1);
+    s1 += mp[QUADATT_TRI(q + 1, q + 1)] * x[q + 1];
+    s0 += mp[QUADATT_TRI(q + 1, q)] * x[q + 1];
+    m = &mp[QUADATT_TRI(q + 2, q)];
+    for (j = q + 2; j < n; ++j) {
+        const quadatt_real xv = x[j];
+        s0 += m[0] * xv;
+        s1 += m[1] * xv;
+        m += j + 1;
     }
-    for (; i < md->n; ++i) {
-        s0 += sp[off] * v[i];
-        off += i + 1;
+    g[0] = s0;
+    g[1] = s1;
+}
+
+/*
+ * out[a] = (M x)_{rows[a]} for a < nrows, x zero outside a support given by the ascending
+ * list[0..count): the support itself (complement = 0) or its complement in 0..n-1
+ * (complement = 1). The support is walked once, run by run, each run added to every row;
+ * to two rows at a time where the run lies in both rows' stored parts.
+ * Cost: nrows |support| multiply-adds.
+ */
+static void sparse_rows_dot(const quadatt_real *mp, int n, const int16_t *rows, int nrows,
+    const quadatt_real *x, const int16_t *list, int count, int complement,
+    quadatt_real *out)
+{
+    int a, i = 0, lo = 0, hi;
+    for (a = 0; a < nrows; ++a) {
+        out[a] = R_(0.0);
     }
-    return head + ((s0 + s1) + (s2 + s3));
+    for (;;) {
+        if (complement) { /* the gap before list[i] (or before n) */
+            if (i > count) {
+                return;
+            }
+            hi = (i < count) ? list[i] : n;
+            ++i;
+        } else { /* the run of consecutive entries from list[i] */
+            if (i >= count) {
+                return;
+            }
+            lo = list[i];
+            hi = lo + 1;
+            for (++i; i < count && list[i] == hi; ++i) {
+                ++hi;
+            }
+        }
+        for (a = 0; lo < hi && a < nrows; ++a) {
+            if (a + 1 < nrows && rows[a] >= hi - 1 && rows[a + 1] >= hi - 1) {
+                packed_range_dot2(mp, rows[a], rows[a + 1], x, lo, hi, &out[a], &out[a + 1]);
+                ++a;
+            } else {
+                out[a] = packed_range_dot(mp, rows[a], x, lo, hi, out[a]);
+            }
+        }
+        lo = hi + 1; /* the next gap starts after list[i - 1] */
+    }
+}
+
+/*
+ * g = M x for every row, each g_q the sequential sum over j: row q (j <= q) as a dot
+ * product, and j > q from the rows below, added in increasing j as they are reached; four
+ * rows at a time (then two, then one), so each element of M read serves two products and
+ * each x_j and g_j read serves eight.
+ * Cost: n^2 multiply-adds over n (n + 1) / 2 reads of M.
+ */
+static void sym_product(const quadatt_real *mp, int n, const quadatt_real *x,
+    quadatt_real *g)
+{
+    int i = 0;
+    for (; i + 3 < n; i += 4) {
+        const quadatt_real *r0 = &mp[QUADATT_TRI(i, 0)], *r1 = r0 + i + 1, *r2 = r1 + i + 2;
+        const quadatt_real *r3 = r2 + i + 3, *xj = x;
+        const quadatt_real x0 = x[i], x1 = x[i + 1], x2 = x[i + 2], x3 = x[i + 3];
+        quadatt_real s0 = R_(0.0), s1 = R_(0.0), s2 = R_(0.0), s3 = R_(0.0), *gj = g, *end = g + i;
+        while (gj != end) {
+            const quadatt_real a0 = *r0++, a1 = *r1++, a2 = *r2++, a3 = *r3++, v = *xj++;
+            s0 += a0 * v;
+            s1 += a1 * v;
+            s2 += a2 * v;
+            s3 += a3 * v;
+            *gj = (((*gj + a0 * x0) + a1 * x1) + a2 * x2) + a3 * x3;
+            ++gj;
+        }
+        /* the 4 x 4 diagonal block: row parts up to the diagonal, then column terms */
+        s0 += r0[0] * x0;
+        s1 = (s1 + r1[0] * x0) + r1[1] * x1;
+        s2 = ((s2 + r2[0] * x0) + r2[1] * x1) + r2[2] * x2;
+        s3 = (((s3 + r3[0] * x0) + r3[1] * x1) + r3[2] * x2) + r3[3] * x3;
+        g[i] = ((s0 + r1[0] * x1) + r2[0] * x2) + r3[0] * x3;
+        g[i + 1] = (s1 + r2[1] * x2) + r3[1] * x3;
+        g[i + 2] = s2 + r3[2] * x3;
+        g[i + 3] = s3;
+    }
+    for (; i < n; ++i) {
+        const quadatt_real *r0 = &mp[QUADATT_TRI(i, 0)];
+        const quadatt_real x0 = x[i];
+        quadatt_real s0 = R_(0.0);
+        int j;
+        for (j = 0; j < i; ++j) {
+            s0 += r0[j] * x[j];
+            g[j] += r0[j] * x0;
+        }
+        g[i] = s0 + r0[i] * x0;
+    }
 }
 
 /*
@@ -155,12 +300,14 @@ static int reference_runs(quadatt_work *ws, const quadatt_mode_data *md, int *lo
  * predicted); px = Phi x (output rows only).
  * The columns of E^-1 G' are summed per run of equal w; the longest run's sum comes from
  * colsum minus the others, so a held reference costs n (nx + 2 ny) instead of n (nx + N ny).
+ * A new QP starts: the primal polish has no factor of this QP to update yet.
  */
 static void unconstrained(quadatt_work *ws, const quadatt_mode_data *md,
     const quadatt_real *x, const quadatt_real *r)
 {
     const int n = md->n, ny = md->ny, nyq = md->nyq, last = md->nyq / md->ny - 1;
     int i, j, k, l, a, stage, nruns, longest;
+    ws->primal_form = 0;
     for (k = 0; k < nyq; ++k) {
         const int st = k / ny, b = k % ny;
         quadatt_real acc = R_(0.0);
@@ -285,20 +432,27 @@ static void output_slacks(quadatt_work *ws, const quadatt_mode_data *md)
  */
 static int slacks(quadatt_work *ws, const quadatt_mode_data *md)
 {
+    const int16_t *row_q = md->row_q;
+    const int8_t *row_sign = md->row_sign;
+    const quadatt_real *px = ws->px, *th0 = ws->th0;
+    quadatt_real *gam = ws->gam, *K = ws->K, out_min = QUADATT_LAMBDA_LIMIT;
     int r, count = 0;
-    ws->gam_out_min = QUADATT_LAMBDA_LIMIT;
     for (r = 0; r < md->m; ++r) {
-        const int q = md->row_q[r];
+        const int q = row_q[r];
         quadatt_real g = md->row_c[r];
         if (q >= md->n) {
-            g = (md->row_sign[r] > 0) ? g - ws->px[q - md->n] : g + ws->px[q - md->n];
-            ws->gam_out_min = (g < ws->gam_out_min) ? g : ws->gam_out_min;
+            const quadatt_real p = px[q - md->n];
+            g = (row_sign[r] > 0) ? g - p : g + p;
+            out_min = (g < out_min) ? g : out_min;
         } else {
-            ws->K[r] = (md->row_sign[r] > 0) ? g - ws->th0[q] : g + ws->th0[q];
-            count += (ws->K[r] < R_(0.0));
+            const quadatt_real v = th0[q];
+            const quadatt_real k = (row_sign[r] > 0) ? g - v : g + v;
+            K[r] = k;
+            count += (k < R_(0.0));
         }
-        ws->gam[r] = g;
+        gam[r] = g;
     }
+    ws->gam_out_min = out_min;
     ws->out_slacks_ok = md->GEinvGt_p == 0;
     if (!ws->out_slacks_ok && !outputs_certified(ws, md, ws->th0)) {
         output_slacks(ws, md);
@@ -418,12 +572,29 @@ static quadatt_real sweep(quadatt_work *ws, const quadatt_mode_data *md,
 static int violated_kind(quadatt_work *ws, const quadatt_mode_data *md,
     const quadatt_real *th, const int16_t *list, int count, int16_t *out, int cap, int outputs)
 {
-    const int n = md->n;
+    const int n = md->n, m = md->m;
+    const int16_t *row_q = md->row_q;
+    const int8_t *row_sign = md->row_sign;
+    const quadatt_real *gam = ws->gam;
+    const quadatt_real *values = outputs ? ws->yv : th; /* of quantity q at q - base */
+    const int base = outputs ? n : 0;
     int r, p = 0, nout = 0;
-    for (r = 0; r < md->m; ++r) {
-        const int q = md->row_q[r];
+    for (r = 0; r < m; ++r) {
+        const int q = row_q[r];
         quadatt_real v, g, viol, ag;
         if ((q >= n) != outputs) {
+            continue;
+        }
+        /* row_violated() inline: the tolerance is at least FEAS_TOL, so reject early; the
+         * list is searched only for a violated row (most rows are not) */
+        v = values[q - base];
+        g = gam[r];
+        viol = (row_sign[r] > 0) ? v - g : -v - g;
+        if (!(viol > QUADATT_SOLVER_FEAS_TOL)) {
+            continue;
+        }
+        ag = QUADATT_FABS(g);
+        if (!(viol > QUADATT_SOLVER_FEAS_TOL * (ag > R_(1.0) ? ag : R_(1.0)))) {
             continue;
         }
         while (p < count && list[p] < r) {
@@ -432,20 +603,10 @@ static int violated_kind(quadatt_work *ws, const quadatt_mode_data *md,
         if (p < count && list[p] == r) {
             continue;
         }
-        /* row_violated() inline: the tolerance is at least FEAS_TOL, so reject early */
-        v = (q < n) ? th[q] : ws->yv[q - n];
-        g = ws->gam[r];
-        viol = (md->row_sign[r] > 0) ? v - g : -v - g;
-        if (!(viol > QUADATT_SOLVER_FEAS_TOL)) {
-            continue;
+        if (nout == cap) {
+            return cap + 1;
         }
-        ag = QUADATT_FABS(g);
-        if (viol > QUADATT_SOLVER_FEAS_TOL * (ag > R_(1.0) ? ag : R_(1.0))) {
-            if (nout == cap) {
-                return cap + 1;
-            }
-            out[nout++] = (int16_t)r;
-        }
+        out[nout++] = (int16_t)r;
     }
     return nout;
 }
@@ -466,73 +627,221 @@ static int violated_outside(quadatt_work *ws, const quadatt_mode_data *md,
 }
 
 /*
- * Primal solve, free-variable form, in the split form E = S + V'(2P)V: with d = U - th0, d_B = bounds - th0_B and nu the terminal
- * multiplier step,
- *     S_FF d_F + V_F' nu = -S_FB d_B,    V d - (2P)^-1 nu = 0,
- * solved by Cholesky of S_FF and an nt x nt Schur complement. Multipliers come from the
- * gradient g = S d + V' nu as z_k = -sign_k g_{q_k}. Nothing here forms E, whose float
- * entries cannot hold a heavy terminal weight and the stage weights at once.
- * Costs nf^3/6; primal_solve() picks it when at least half the inputs are bound.
- * Writes ws->th (free_multipliers() then gives ws->z); returns -1 if a factorisation
- * breaks down.
+ * The primal solve works on one of two forms (E = S + V'(2P)V split, d = U - th0):
+ *  - free form (FORM_FREE): Cholesky L of S_FF over the free inputs F;
+ *  - bound form (FORM_BOUND): Cholesky L of (S^-1)_BB over the bound inputs B.
+ * Consecutive solves of one QP differ by a few inputs, so the factor is kept and updated:
+ * its rows follow an order that keeps the rows of the last full factorisation first (the
+ * head, ascending) and the inputs that joined since at the end (the tail, ascending). An
+ * input that leaves, or joins the tail before others, changes the rows from its position
+ * on, and only those rows are factored again: the row-oriented Cholesky computes row i
+ * from the rows above it alone, so the factor is bit for bit the one a full
+ * factorisation in that order gives, whether or not the rows above were kept. The NumPy
+ * reference therefore needs no cache, and whatever else writes ws->chol in between (the
+ * dual solves) costs only the saving, never a bit.
+ *
+ * ws->input_role[i] flags input i (ROLE_*); ws->primal_form and ws->primal_head (the
+ * head's rows) describe the factor of the previous primal solve of this QP
+ * (primal_form = FORM_NONE at the start of each QP, see unconstrained()). The factor
+ * sits at ws->chol + 1 while ws->chol[0] holds NaN: every other writer of ws->chol
+ * overwrites ws->chol[0] with a finite value, so a NaN there proves the factor intact.
  */
-static int primal_solve_free(quadatt_work *ws, const quadatt_mode_data *md, int nf)
+enum { ROLE_BOUND = 1, ROLE_HEAD = 2, ROLE_TAIL = 4 }; /* bound now; in the head, tail */
+enum { FORM_NONE = 0, FORM_FREE = 1, FORM_BOUND = 2 };
+
+/* Multiply-adds of a primal solve in form `form` of order k, its rows from p on factored
+ * (the choice between updating and refactoring; see docs/solver.md for the terms). */
+static int64_t primal_cost(const quadatt_mode_data *md, int form, int64_t k, int64_t p)
 {
-    const int n = md->n, nt = md->nt;
-    int i, a, c, o, p;
-    for (a = 0; a < nf; ++a) {
-        const int f = ws->tmp[a];
-        ws->rhs[a] = -s_row_dot(md, f, ws->dv); /* dv is 0 on the free inputs here */
-        for (c = 0; c <= a; ++c) {
-            ws->chol[QUADATT_TRI(a, c)] = s_at(md, f, ws->tmp[c]);
-        }
-        for (o = 0; o < nt; ++o) {
-            ws->ycol[o * QUADATT_N_MAX + a] = md->V[o * n + f];
+    const int64_t n = md->n, nt = md->nt;
+    const int64_t factor = (k * k * k - k - p * p * p + p) / 6 + (k * (k + 1) - p * (p + 1)) / 2;
+    const int64_t solves = nt * (k * k - k - p * p + p) / 2 + (k * k - k);
+    return factor + solves + ((form == FORM_FREE) ? k * n : (n - k) * k);
+}
+
+/* Is an input of this role a row of a factor of this form (bound inputs, or free ones)? */
+static int in_form(int role, int form)
+{
+    return ((role & ROLE_BOUND) != 0) == (form == FORM_BOUND);
+}
+
+/*
+ * Compare the factor of the previous solve (form ws->primal_form) with the inputs of that
+ * form now: returns the order k of the updated factor, sets *from to the first row that
+ * changes (k when none does) and *head to the rows its head keeps. Head and tail run in
+ * descending inputs in the free form, ascending in the bound form (primal_order()).
+ */
+static int primal_diff(const quadatt_work *ws, int n, int *from, int *head)
+{
+    const int form = ws->primal_form, down = form == FORM_FREE;
+    int t, k = 0, kept = 0, cut = -1, tail_before = 0;
+    for (t = 0; t < n; ++t) { /* inputs in head order */
+        const int role = ws->input_role[down ? n - 1 - t : t], in = in_form(role, form);
+        k += in;
+        if (role & ROLE_HEAD) {
+            cut = (cut < 0 && !in) ? kept : cut; /* the first head row that leaves */
+            kept += in;
         }
     }
-    if (nf > 0) {
-        if (quadatt_cholesky(ws->chol, nf) != 0) {
-            return -1;
-        }
-        quadatt_chol_solve(ws->chol, nf, ws->rhs);
-        for (o = 0; o < nt; ++o) {
-            quadatt_chol_solve(ws->chol, nf, &ws->ycol[o * QUADATT_N_MAX]);
-        }
+    *head = kept;
+    if (cut >= 0) {
+        *from = cut;
+        return k;
     }
-    if (nt > 0) {
-        for (o = 0; o < nt; ++o) {
-            quadatt_real acc;
-            for (p = 0; p <= o; ++p) {
-                acc = R_(0.0);
-                for (a = 0; a < nf; ++a) {
-                    acc += md->V[o * n + ws->tmp[a]] * ws->ycol[p * QUADATT_N_MAX + a];
-                }
-                ws->tsmall[QUADATT_TRI(o, p)] = acc + md->P2inv[o * nt + p];
+    for (t = 0; t < n; ++t) { /* the tail: the first input to leave or join it */
+        const int role = ws->input_role[down ? n - 1 - t : t];
+        if (!(role & ROLE_HEAD)) {
+            if ((role & ROLE_TAIL) ? !in_form(role, form) : in_form(role, form)) {
+                *from = kept + tail_before;
+                return k;
             }
+            tail_before += (role & ROLE_TAIL) != 0;
+        }
+    }
+    *from = k;
+    return k;
+}
+
+/*
+ * The rows of the factor in order into ws->tmp[0..k): the head (an update: the rows the
+ * head keeps; a new factor: all k), then the tail, each in descending inputs in the free
+ * form and ascending in the bound form: in an MPC plan the inputs that saturate come
+ * first along the horizon, so the inputs next to the saturated ones, where the working
+ * set changes, come last. The other inputs follow in ws->tmp[k..n), ascending. Sets the
+ * roles to match and ws->primal_form, ws->primal_head.
+ */
+static void primal_order(quadatt_work *ws, int n, int form, int update, int k, int head)
+{
+    const int down = form == FORM_FREE;
+    int i, h = down ? head - 1 : 0, tail = down ? k - 1 : head, rest = k;
+    for (i = 0; i < n; ++i) {
+        const int role = ws->input_role[i], bound = role & ROLE_BOUND;
+        if (!in_form(role, form)) {
+            ws->tmp[rest++] = (int16_t)i;
+            ws->input_role[i] = (uint8_t)bound;
+        } else if (!update || (role & ROLE_HEAD)) {
+            ws->tmp[h] = (int16_t)i;
+            h += down ? -1 : 1;
+            ws->input_role[i] = (uint8_t)(bound | ROLE_HEAD);
+        } else {
+            ws->tmp[tail] = (int16_t)i;
+            tail += down ? -1 : 1;
+            ws->input_role[i] = (uint8_t)(bound | ROLE_TAIL);
+        }
+    }
+    ws->primal_form = (int16_t)form;
+    ws->primal_head = (int16_t)head;
+}
+
+/*
+ * Rows from..k-1 of the factor L (at ws->chol + 1) of S_FF (free form) or (S^-1)_BB (bound
+ * form) in the order of ws->tmp, and rows from..k-1 of Y = L^-1 V_F' or L^-1 Uv_B' (ws->ycol),
+ * the rows above being kept (only the factor's when ws->chol[0] proves it intact).
+ * -1 if a pivot breaks down (the factor is then forgotten).
+ */
+static int primal_factor(quadatt_work *ws, const quadatt_mode_data *md, int k, int from)
+{
+    const int n = md->n, nt = md->nt, bound = ws->primal_form == FORM_BOUND;
+    const quadatt_real *packed = bound ? md->Sinv_p : md->S_p;
+    const quadatt_real *cols = bound ? md->Uv : md->V;
+    quadatt_real *l = ws->chol + 1;
+    int a, c, o, start = isnan(ws->chol[0]) ? from : 0;
+    for (a = start; a < k; ++a) {
+        const int qa = ws->tmp[a];
+        const quadatt_real *row = &packed[QUADATT_TRI(qa, 0)];
+        quadatt_real *out = &l[QUADATT_TRI(a, 0)];
+        for (c = 0; c <= a; ++c) { /* packed lower: (max, min) */
+            const int qc = ws->tmp[c];
+            out[c] = (qc <= qa) ? row[qc] : packed[QUADATT_TRI(qc, qa)];
+        }
+    }
+    if (quadatt_cholesky_from(l, start, k) != 0) {
+        ws->primal_form = FORM_NONE;
+        return -1;
+    }
+    ws->chol[0] = (quadatt_real)NAN;
+    for (o = 0; o < nt; ++o) {
+        quadatt_real *y = &ws->ycol[o * QUADATT_N_MAX];
+        for (a = from; a < k; ++a) {
+            y[a] = cols[o * n + ws->tmp[a]];
+        }
+        quadatt_chol_lsolve_from(l, from, k, y);
+    }
+    return 0;
+}
+
+/*
+ * The terminal multiplier step of both forms, from Y (ws->ycol) and y0 = L^-1 r (ws->rhs):
+ * free form (P2inv + Y'Y) nu = Y'y0 + V_B d_B, bound form (T - Y'Y) nu = Y'y0; then
+ * w = y0 -/+ Y nu into ws->rhs (free/bound). -1 if the nt x nt factor breaks down.
+ */
+static int terminal_step(quadatt_work *ws, const quadatt_mode_data *md, int k)
+{
+    const int n = md->n, nt = md->nt, free_form = ws->primal_form == FORM_FREE;
+    int a, i, o, p;
+    if (nt == 0) {
+        return 0;
+    }
+    for (o = 0; o < nt; ++o) {
+        const quadatt_real *yo = &ws->ycol[o * QUADATT_N_MAX];
+        quadatt_real acc;
+        for (p = 0; p <= o; ++p) {
+            const quadatt_real *yp = &ws->ycol[p * QUADATT_N_MAX];
             acc = R_(0.0);
-            for (a = 0; a < nf; ++a) {
-                acc += md->V[o * n + ws->tmp[a]] * ws->rhs[a];
+            for (a = 0; a < k; ++a) {
+                acc += yo[a] * yp[a];
             }
-            for (i = 0; i < n; ++i) {
-                if (ws->is_bound[i]) {
-                    acc += md->V[o * n + i] * ws->dv[i];
-                }
-            }
-            ws->nu[o] = acc;
+            ws->tsmall[QUADATT_TRI(o, p)] = free_form ? acc + md->P2inv[o * nt + p]
+                                                          : md->T[o * nt + p] - acc;
         }
-        if (quadatt_cholesky(ws->tsmall, nt) != 0) {
-            return -1;
+        acc = R_(0.0);
+        for (a = 0; a < k; ++a) {
+            acc += yo[a] * ws->rhs[a];
         }
-        quadatt_chol_solve(ws->tsmall, nt, ws->nu);
+        for (i = k; free_form && i < n; ++i) { /* the bound inputs, ascending */
+            acc += md->V[o * n + ws->tmp[i]] * ws->dv[ws->tmp[i]];
+        }
+        ws->nu[o] = acc;
     }
-    for (a = 0; a < nf; ++a) {
-        const int f = ws->tmp[a];
+    if (quadatt_cholesky(ws->tsmall, nt) != 0) {
+        return -1;
+    }
+    quadatt_chol_solve(ws->tsmall, nt, ws->nu);
+    for (a = 0; a < k; ++a) {
         quadatt_real acc = ws->rhs[a];
         for (o = 0; o < nt; ++o) {
-            acc -= ws->ycol[o * QUADATT_N_MAX + a] * ws->nu[o];
+            const quadatt_real t = ws->ycol[o * QUADATT_N_MAX + a] * ws->nu[o];
+            acc = free_form ? acc - t : acc + t;
         }
-        ws->dv[f] = acc;
-        ws->th[f] = ws->th0[f] + acc;
+        ws->rhs[a] = acc;
+    }
+    return 0;
+}
+
+/*
+ * Free form: with d_B = bounds - th0_B and nu the terminal multiplier step,
+ *     S_FF d_F + V_F' nu = -S_FB d_B,    V d - (2P)^-1 nu = 0,
+ * through y0 = L^-1 (-S_FB d_B), the terminal step, and d_F = L'^-1 (y0 - Y nu).
+ * Multipliers come later (free_multipliers()), from g = S d + V' nu.
+ */
+static int primal_solve_free(quadatt_work *ws, const quadatt_mode_data *md, int k)
+{
+    const quadatt_real *l = ws->chol + 1;
+    int a;
+    /* -S_FB d_B: dv is 0 on the free inputs here, so the sums run over B = tmp[k..n) */
+    sparse_rows_dot(md->S_p, md->n, ws->tmp, k, ws->dv, &ws->tmp[k], md->n - k, 0, ws->rhs);
+    for (a = 0; a < k; ++a) {
+        ws->rhs[a] = -ws->rhs[a];
+    }
+    quadatt_chol_lsolve(l, k, ws->rhs);
+    if (terminal_step(ws, md, k) != 0) {
+        return -1;
+    }
+    quadatt_chol_ltsolve(l, k, ws->rhs);
+    for (a = 0; a < k; ++a) {
+        const int f = ws->tmp[a];
+        ws->dv[f] = ws->rhs[a];
+        ws->th[f] = ws->th0[f] + ws->rhs[a];
     }
     return 0;
 }
@@ -540,14 +849,32 @@ static int primal_solve_free(quadatt_work *ws, const quadatt_mode_data *md, int 
 /*
  * Multipliers of the free-form solution, z_k = -sign_k g_{q_k} with g = S d + V' nu: the
  * nw x n part of a polish step, so polish() computes them only once the bound inputs make
- * the point feasible.
+ * the point feasible. With more than 3/4 of the inputs bound, g = S d for every input at
+ * once (sym_product() into ws->rhs, free after the solve) reads S half as often; the
+ * sums are the same.
  */
 static void free_multipliers(quadatt_work *ws, const quadatt_mode_data *md, int nw)
 {
-    int a, o;
+    const int n = md->n, all = 4 * nw > 3 * n;
+    int a, o, paired = 0;
+    if (all) {
+        sym_product(md->S_p, n, ws->dv, ws->rhs);
+    }
     for (a = 0; a < nw; ++a) {
         const int r = ws->wset[a], q = md->row_q[r];
-        quadatt_real g = s_row_dot(md, q, ws->dv);
+        quadatt_real g;
+        if (all) {
+            g = ws->rhs[q];
+        } else if (paired) { /* g came with the row above */
+            g = ws->rhs[a];
+            paired = 0;
+        } else if (a + 1 < nw && md->row_q[ws->wset[a + 1]] == q + 1) {
+            s_row_dot2(md->S_p, n, q, ws->dv, &ws->rhs[a]); /* this row and the next */
+            g = ws->rhs[a];
+            paired = 1;
+        } else {
+            g = s_row_dot(md->S_p, n, q, ws->dv);
+        }
         for (o = 0; o < md->nt; ++o) {
             g += md->V[o * md->n + q] * ws->nu[o];
         }
@@ -556,116 +883,94 @@ static void free_multipliers(quadatt_work *ws, const quadatt_mode_data *md, int 
 }
 
 /*
- * The same solve through S^-1 when few inputs are bound (nb < nf): with beta = g_B (the
- * bound forces) and Uv = V S^-1, T = (2P)^-1 + V S^-1 V':
- *     beta = S^-1_BB^-1 (d_B + Uv_B' nu),   (T - Uv_B S^-1_BB^-1 Uv_B') nu = Uv_B S^-1_BB^-1 d_B,
- *     d = S^-1_{:,B} beta - Uv' nu,         z_k = -sign_k beta_k.
- * Costs nb^3/6 + n nb instead of nf^3/6. ws->tmp holds the bound inputs in working-set
- * order, which is not ascending when a stage has several inputs.
+ * Bound form, through S^-1 (few bound inputs): with beta = g_B (the bound forces),
+ * Uv = V S^-1, T = (2P)^-1 + V S^-1 V' and L L' = (S^-1)_BB,
+ *     beta = L'^-1 (y0 + Y nu),  y0 = L^-1 d_B,  (T - Y'Y) nu = Y'y0,
+ *     d_F = S^-1_FB beta - Uv_F' nu,  z_k = -sign_k beta_k.
+ * ws->tmp[0..k) holds B in factor order, ws->tmp[k..n) the free inputs.
  */
 static int primal_solve_bound(quadatt_work *ws, const quadatt_mode_data *md, int nw)
 {
-    const int n = md->n, nt = md->nt;
-    int i, a, c, o, p;
-    for (a = 0; a < nw; ++a) {
-        const int qa = ws->tmp[a];
-        for (c = 0; c <= a; ++c) {
-            const int qc = ws->tmp[c]; /* S^-1 is packed lower: read (max, min) */
-            ws->chol[QUADATT_TRI(a, c)] = (qa >= qc) ? md->Sinv_p[QUADATT_TRI(qa, qc)]
-                                                         : md->Sinv_p[QUADATT_TRI(qc, qa)];
-        }
-        ws->rhs[a] = ws->dv[qa];
-        for (o = 0; o < nt; ++o) {
-            ws->ycol[o * QUADATT_N_MAX + a] = md->Uv[o * n + qa];
-        }
+    const int n = md->n, nt = md->nt, k = nw;
+    const quadatt_real *l = ws->chol + 1;
+    int i, a, o;
+    for (a = 0; a < k; ++a) {
+        ws->rhs[a] = ws->dv[ws->tmp[a]];
     }
-    if (quadatt_cholesky(ws->chol, nw) != 0) {
+    quadatt_chol_lsolve(l, k, ws->rhs);
+    if (terminal_step(ws, md, k) != 0) {
         return -1;
     }
-    quadatt_chol_solve(ws->chol, nw, ws->rhs);
-    for (o = 0; o < nt; ++o) {
-        quadatt_chol_solve(ws->chol, nw, &ws->ycol[o * QUADATT_N_MAX]);
+    quadatt_chol_ltsolve(l, k, ws->rhs);
+    for (a = 0; a < k; ++a) { /* beta, by input: d_B is no longer needed */
+        ws->dv[ws->tmp[a]] = ws->rhs[a];
     }
-    if (nt > 0) {
+    for (i = 0; i < nw; ++i) {
+        const int r = ws->wset[i];
+        const quadatt_real beta = ws->dv[md->row_q[r]];
+        ws->z[i] = (md->row_sign[r] > 0) ? -beta : beta;
+    }
+    /* d_F = S^-1_FB beta - Uv_F' nu: beta (in dv) is zero outside B, the complement of
+     * F = tmp[k..n); ws->rhs is free again */
+    sparse_rows_dot(md->Sinv_p, n, &ws->tmp[k], n - k, ws->dv, &ws->tmp[k], n - k, 1, ws->rhs);
+    for (i = k; i < n; ++i) {
+        const int f = ws->tmp[i];
+        quadatt_real acc = ws->rhs[i - k];
         for (o = 0; o < nt; ++o) {
-            quadatt_real acc;
-            for (p = 0; p <= o; ++p) {
-                acc = R_(0.0);
-                for (a = 0; a < nw; ++a) {
-                    acc += md->Uv[o * n + ws->tmp[a]] * ws->ycol[p * QUADATT_N_MAX + a];
-                }
-                ws->tsmall[QUADATT_TRI(o, p)] = md->T[o * nt + p] - acc;
-            }
-            acc = R_(0.0);
-            for (a = 0; a < nw; ++a) {
-                acc += md->Uv[o * n + ws->tmp[a]] * ws->rhs[a];
-            }
-            ws->nu[o] = acc;
+            acc -= md->Uv[o * n + f] * ws->nu[o];
         }
-        if (quadatt_cholesky(ws->tsmall, nt) != 0) {
-            return -1;
-        }
-        quadatt_chol_solve(ws->tsmall, nt, ws->nu);
-    }
-    for (a = 0; a < nw; ++a) { /* beta = x1 + Y nu, kept in rhs */
-        quadatt_real acc = ws->rhs[a];
-        for (o = 0; o < nt; ++o) {
-            acc += ws->ycol[o * QUADATT_N_MAX + a] * ws->nu[o];
-        }
-        ws->rhs[a] = acc;
-        ws->z[a] = (md->row_sign[ws->wset[a]] > 0) ? -acc : acc;
-    }
-    for (i = 0; i < n; ++i) {
-        if (!ws->is_bound[i]) {
-            quadatt_real acc = R_(0.0);
-            for (a = 0; a < nw; ++a) {
-                const int q = ws->tmp[a];
-                acc += ((i >= q) ? md->Sinv_p[QUADATT_TRI(i, q)] : md->Sinv_p[QUADATT_TRI(q, i)]) * ws->rhs[a];
-            }
-            for (o = 0; o < nt; ++o) {
-                acc -= md->Uv[o * n + i] * ws->nu[o];
-            }
-            ws->th[i] = ws->th0[i] + acc;
-        }
+        ws->th[f] = ws->th0[f] + acc;
     }
     return 0;
 }
 
 /*
  * Primal solve on a working set of input-bound rows only (wset[0..nw), at most one row
- * per input): U_B at the bounds, d_B = U_B - th0_B, then the cheaper of the two forms.
+ * per input): U_B at the bounds, d_B = U_B - th0_B, then the factor of the previous solve
+ * updated, or a new one in the form of smaller order, whichever costs fewer
+ * multiply-adds (primal_cost()).
  * Writes ws->th; returns 1 when ws->z is written too (bound form), 0 when it is left to
  * free_multipliers() (free form), -1 if a factorisation breaks down.
  */
 static int primal_solve(quadatt_work *ws, const quadatt_mode_data *md, int nw)
 {
     const int n = md->n;
-    int i, nf = 0;
+    int i, k, head, from = 0, form = (nw < n - nw) ? FORM_BOUND : FORM_FREE, update = 0;
     for (i = 0; i < n; ++i) {
-        ws->is_bound[i] = 0;
+        ws->input_role[i] = (uint8_t)(ws->input_role[i] & ~ROLE_BOUND);
         ws->dv[i] = R_(0.0);
     }
     for (i = 0; i < nw; ++i) {
         const int r = ws->wset[i], q = md->row_q[r];
-        if (ws->is_bound[q]) {
+        if (ws->input_role[q] & ROLE_BOUND) {
             return -1; /* both bounds of one input: not a valid working set */
         }
-        ws->is_bound[q] = 1;
+        ws->input_role[q] = (uint8_t)(ws->input_role[q] | ROLE_BOUND);
         ws->th[q] = (md->row_sign[r] > 0) ? md->row_c[r] : -md->row_c[r];
         ws->dv[q] = ws->th[q] - ws->th0[q];
     }
-    if (nw < n - nw) {
-        for (i = 0; i < nw; ++i) {
-            ws->tmp[i] = md->row_q[ws->wset[i]];
+    k = (form == FORM_BOUND) ? nw : n - nw;
+    head = k;
+    /* the previous factor, if its form can hold the inputs (order < n: see chol's size) */
+    if (ws->primal_form != FORM_NONE && ((ws->primal_form == FORM_FREE) ? nw > 0 : nw < n)) {
+        int k_up, head_up;
+        k_up = primal_diff(ws, n, &from, &head_up);
+        update = ws->primal_form == form
+            || primal_cost(md, ws->primal_form, k_up, from) <= primal_cost(md, form, k, 0);
+        if (update) {
+            form = ws->primal_form;
+            k = k_up;
+            head = head_up;
         }
+    }
+    primal_order(ws, n, form, update, k, head);
+    if (primal_factor(ws, md, k, update ? from : 0) != 0) {
+        return -1;
+    }
+    if (form == FORM_BOUND) {
         return (primal_solve_bound(ws, md, nw) == 0) ? 1 : -1;
     }
-    for (i = 0; i < n; ++i) {
-        if (!ws->is_bound[i]) {
-            ws->tmp[nf++] = (int16_t)i;
-        }
-    }
-    return primal_solve_free(ws, md, nf);
+    return primal_solve_free(ws, md, k);
 }
 
 /*

@@ -66,7 +66,8 @@ typedef struct {
     quadatt_real K[QUADATT_M_MAX];      /**< gamma - M th0. */
     quadatt_real z[QUADATT_N_MAX];      /**< Polish multipliers / primal step. */
     quadatt_real rhs[QUADATT_N_MAX];    /**< Polish right-hand side. */
-    quadatt_real chol[QUADATT_CHOL_MAX];/**< Packed Cholesky factor. */
+    quadatt_real chol[QUADATT_CHOL_MAX];/**< Packed Cholesky factor (the primal polish's from
+                                                       chol[1], with NaN in chol[0]). */
     quadatt_real dv[QUADATT_N_MAX];     /**< Primal polish: U - th0. */
     quadatt_real ycol[QUADATT_NT_MAX * QUADATT_N_MAX]; /**< Primal polish: S_FF^-1 V_F'. */
     quadatt_real tsmall[QUADATT_NT_MAX * (QUADATT_NT_MAX + 1) / 2]; /**< Terminal Schur complement. */
@@ -78,7 +79,9 @@ typedef struct {
     int16_t wset[QUADATT_N_MAX];             /**< Rows of the polish working set. */
     int16_t tmp[QUADATT_N_MAX];              /**< Scratch index list. */
     uint8_t in_set[QUADATT_M_MAX];           /**< Membership flags of the sweep set. */
-    uint8_t is_bound[QUADATT_N_MAX];         /**< Primal polish: input fixed at a bound. */
+    uint8_t input_role[QUADATT_N_MAX];       /**< Primal polish: input bound now, row of the factor. */
+    int16_t primal_form;                          /**< Primal polish: form of the factor in chol (0: none). */
+    int16_t primal_head;                          /**< Primal polish: rows of its last full factorisation. */
     quadatt_real gam_out_min;                /**< Smallest right-hand side of an output row. */
     int out_slacks_ok;                            /**< K of the output rows is computed. */
 } quadatt_work;

@@ -56,6 +56,7 @@ extern const quadatt_mode_data quadatt_modes[QUADATT_N_MODES];
 int quadatt_cholesky(quadatt_real *a, int n);
 int quadatt_cholesky_from(quadatt_real *a, int from, int n);
 void quadatt_chol_lsolve(const quadatt_real *l, int n, quadatt_real *b);
+void quadatt_chol_lsolve_from(const quadatt_real *l, int from, int n, quadatt_real *b);
 void quadatt_chol_ltsolve(const quadatt_real *l, int n, quadatt_real *b);
 void quadatt_chol_solve(const quadatt_real *l, int n, quadatt_real *b);
 

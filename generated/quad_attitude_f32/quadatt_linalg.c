@@ -3,16 +3,127 @@
  * @brief Packed Cholesky factorisation and solves for the polish step.
  *
  * Operation order is fixed (sequential sums, no fused multiply-add) so the NumPy
- * reference reproduces every result bit for bit.
+ * reference reproduces every result bit for bit. Each sum runs from its first term to
+ * its last, one product at a time; the loops below only compute two or four such sums
+ * side by side, so that each element read from memory serves two products (a Cortex-M4F
+ * spends more cycles loading operands than multiplying them). The packed factor is the
+ * lower triangle by rows, element (i, j) at QUADATT_TRI(i, j), so row i + 1 starts
+ * i + 1 elements after row i.
  */
 #include <math.h>
 #include "quadatt_internal.h"
+
+/*
+ * Entries (i, j), (i, j + 1), (i + 1, j), (i + 1, j + 1) of L, from rows i, i + 1 of A
+ * (r0, r1 = r0 + i + 1) and rows j, j + 1 of L (q0, q1 = q0 + j + 1): each
+ * s = a - sum_k r[k] q[k] in k order, divided by its pivot.
+ */
+static void cholesky_block(quadatt_real *r0, quadatt_real *r1, const quadatt_real *q0,
+    int j)
+{
+    const quadatt_real *q1 = q0 + j + 1;
+    quadatt_real s00 = r0[j], s01 = r0[j + 1], s10 = r1[j], s11 = r1[j + 1];
+    const quadatt_real *x0 = r0, *x1 = r1, *y0 = q0, *y1 = q1, *end = q0 + j;
+    if (j & 1) {
+        const quadatt_real a0 = *x0++, a1 = *x1++, b0 = *y0++, b1 = *y1++;
+        s00 -= a0 * b0;
+        s01 -= a0 * b1;
+        s10 -= a1 * b0;
+        s11 -= a1 * b1;
+    }
+    while (y0 != end) { /* two k per trip */
+        quadatt_real a0 = x0[0], a1 = x1[0], b0 = y0[0], b1 = y1[0];
+        s00 -= a0 * b0;
+        s01 -= a0 * b1;
+        s10 -= a1 * b0;
+        s11 -= a1 * b1;
+        a0 = x0[1];
+        a1 = x1[1];
+        b0 = y0[1];
+        b1 = y1[1];
+        s00 -= a0 * b0;
+        s01 -= a0 * b1;
+        s10 -= a1 * b0;
+        s11 -= a1 * b1;
+        x0 += 2;
+        x1 += 2;
+        y0 += 2;
+        y1 += 2;
+    }
+    r0[j] = s00 / q0[j];
+    r1[j] = s10 / q0[j];
+    s01 -= r0[j] * q1[j];
+    s11 -= r1[j] * q1[j];
+    r0[j + 1] = s01 / q1[j + 1];
+    r1[j + 1] = s11 / q1[j + 1];
+}
+
+/* As cholesky_block() for one row of L (q0, column j) against rows r0, r1. */
+static void cholesky_column(quadatt_real *r0, quadatt_real *r1, const quadatt_real *q0,
+    int j)
+{
+    quadatt_real s0 = r0[j], s1 = r1[j];
+    const quadatt_real *x0 = r0, *x1 = r1, *y0 = q0, *end = q0 + j;
+    while (y0 != end) {
+        const quadatt_real b0 = *y0++;
+        s0 -= *x0++ * b0;
+        s1 -= *x1++ * b0;
+    }
+    r0[j] = s0 / q0[j];
+    r1[j] = s1 / q0[j];
+}
+
+/*
+ * One row i of L alone (r = row i, the rows above already factored), against two rows
+ * j, j + 1 of L at a time; -1 on a bad pivot.
+ */
+static int cholesky_row(quadatt_real *a, quadatt_real *r, int i)
+{
+    int j = 0;
+    quadatt_real s;
+    const quadatt_real *x, *end;
+    for (; j + 1 < i; j += 2) {
+        const quadatt_real *q0 = &a[QUADATT_TRI(j, 0)], *q1 = q0 + j + 1, *y0 = q0, *y1 = q1;
+        quadatt_real s0 = r[j], s1 = r[j + 1];
+        for (x = r, end = r + j; x != end; ++x) {
+            s0 -= *x * *y0++;
+            s1 -= *x * *y1++;
+        }
+        r[j] = s0 / q0[j];
+        s1 -= r[j] * q1[j];
+        r[j + 1] = s1 / q1[j + 1];
+    }
+    if (j < i) {
+        const quadatt_real *q = &a[QUADATT_TRI(j, 0)], *y = q;
+        s = r[j];
+        for (x = r, end = r + j; x != end;) {
+            s -= *x++ * *y++;
+        }
+        r[j] = s / q[j];
+    }
+    s = r[i];
+    for (x = r, end = r + i; x != end; ++x) {
+        s -= *x * *x;
+    }
+    if (!(s > QUADATT_R(0.0))) {
+        return -1;
+    }
+    r[i] = QUADATT_SQRT(s);
+    return 0;
+}
 
 /**
  * @brief Cholesky factorisation A = L L' of a packed lower triangle, from row @p from on.
  *
  * Rows 0..from-1 must already hold L (the row-oriented algorithm computes row i from the
- * rows above it), so a working set that lost a row refactors only the rows below it.
+ * rows above it), so a working set that lost a row refactors only the rows below it, and
+ * one that gained rows at the end computes only those (bordering). Rows are computed two
+ * at a time, against two rows of L at a time; every entry is the sequential sum of the
+ * plain algorithm, L_ij = (A_ij - sum_{k<j} L_ik L_jk) / L_jj, so the result does not
+ * depend on @p from (a division, not a multiplication by 1 / L_jj: the dual active set's
+ * infeasibility proofs on nearly dependent rows are sensitive to that rounding).
+ * Cost: sum_{i=from}^{n-1} i (i + 1) / 2 = (n^3 - n - from^3 + from) / 6 multiply-adds,
+ * (n - from)(n + from - 1) / 2 divisions and n - from square roots.
  * @param a Packed lower triangle: L in rows < from, A in rows >= from on entry; L on return.
  * @param from First row to factor (0 for the whole matrix).
  * @param n Order of A.
@@ -20,24 +131,40 @@
  */
 int quadatt_cholesky_from(quadatt_real *a, int from, int n)
 {
-    int i, j, k;
-    for (i = from; i < n; ++i) {
-        quadatt_real *ri = &a[QUADATT_TRI(i, 0)];
-        for (j = 0; j <= i; ++j) {
-            const quadatt_real *rj = &a[QUADATT_TRI(j, 0)];
-            quadatt_real s = ri[j];
-            for (k = 0; k < j; ++k) {
-                s -= ri[k] * rj[k];
-            }
-            if (i == j) {
-                if (!(s > QUADATT_R(0.0))) {
-                    return -1;
-                }
-                ri[i] = QUADATT_SQRT(s);
-            } else {
-                ri[j] = s / rj[j];
-            }
+    int i = from, j;
+    for (; i + 1 < n; i += 2) {
+        quadatt_real *r0 = &a[QUADATT_TRI(i, 0)], *r1 = r0 + i + 1;
+        quadatt_real s00, s10, s11;
+        const quadatt_real *x0 = r0, *x1 = r1, *end = r0 + i;
+        for (j = 0; j + 1 < i; j += 2) {
+            cholesky_block(r0, r1, &a[QUADATT_TRI(j, 0)], j);
         }
+        if (j < i) {
+            cholesky_column(r0, r1, &a[QUADATT_TRI(j, 0)], j);
+        }
+        /* the 2 x 2 diagonal block: (i, i), (i + 1, i), (i + 1, i + 1) */
+        s00 = r0[i];
+        s10 = r1[i];
+        s11 = r1[i + 1];
+        while (x0 != end) {
+            const quadatt_real a0 = *x0++, a1 = *x1++;
+            s00 -= a0 * a0;
+            s10 -= a1 * a0;
+            s11 -= a1 * a1;
+        }
+        if (!(s00 > QUADATT_R(0.0))) {
+            return -1;
+        }
+        r0[i] = QUADATT_SQRT(s00);
+        r1[i] = s10 / r0[i];
+        s11 -= r1[i] * r1[i];
+        if (!(s11 > QUADATT_R(0.0))) {
+            return -1;
+        }
+        r1[i + 1] = QUADATT_SQRT(s11);
+    }
+    if (i < n) {
+        return cholesky_row(a, &a[QUADATT_TRI(i, 0)], i);
     }
     return 0;
 }
@@ -54,6 +181,44 @@ int quadatt_cholesky(quadatt_real *a, int n)
 }
 
 /**
+ * @brief Solve L y = b in place (forward substitution) from row @p from on.
+ *
+ * b[0..from) must already hold y (they do not depend on the rows below), so a factor
+ * that kept its first rows keeps that part of its solves. Two rows at a time; each y_i
+ * is the sequential sum b_i - sum_{k<i} L_ik y_k divided by L_ii.
+ * Cost: (n^2 - n - from^2 + from) / 2 multiply-adds and n - from divisions.
+ * @param l Packed lower Cholesky factor.
+ * @param from First row to solve.
+ * @param n Order.
+ * @param b Right-hand side on entry (y in rows < from), y on return.
+ */
+void quadatt_chol_lsolve_from(const quadatt_real *l, int from, int n, quadatt_real *b)
+{
+    int i = from;
+    for (; i + 1 < n; i += 2) {
+        const quadatt_real *r0 = &l[QUADATT_TRI(i, 0)], *r1 = r0 + i + 1, *y = b;
+        const quadatt_real *end = b + i;
+        quadatt_real s0 = b[i], s1 = b[i + 1];
+        while (y != end) {
+            const quadatt_real v = *y++;
+            s0 -= *r0++ * v;
+            s1 -= *r1++ * v;
+        }
+        b[i] = s0 / *r0;
+        s1 -= r1[0] * b[i];
+        b[i + 1] = s1 / r1[1];
+    }
+    if (i < n) {
+        const quadatt_real *r0 = &l[QUADATT_TRI(i, 0)], *y = b, *end = b + i;
+        quadatt_real s0 = b[i];
+        while (y != end) {
+            s0 -= *r0++ * *y++;
+        }
+        b[i] = s0 / *r0;
+    }
+}
+
+/**
  * @brief Solve L y = b in place (forward substitution), L from quadatt_cholesky().
  * @param l Packed lower Cholesky factor.
  * @param n Order.
@@ -61,32 +226,38 @@ int quadatt_cholesky(quadatt_real *a, int n)
  */
 void quadatt_chol_lsolve(const quadatt_real *l, int n, quadatt_real *b)
 {
-    int i, k;
-    for (i = 0; i < n; ++i) {
-        const quadatt_real *li = &l[QUADATT_TRI(i, 0)];
-        quadatt_real s = b[i];
-        for (k = 0; k < i; ++k) {
-            s -= li[k] * b[k];
-        }
-        b[i] = s / li[i];
-    }
+    quadatt_chol_lsolve_from(l, 0, n, b);
 }
 
 /**
  * @brief Solve L' x = y in place (back substitution), L from quadatt_cholesky().
+ *
+ * x_i = (y_i - sum_{k>i} L_ki x_k) / L_ii, the sum in increasing k down column i of the
+ * packed rows (row k starts k + 1 after row k - 1), four terms per loop trip. (The order
+ * matters beyond rounding: the dual active set's infeasibility proofs on nearly dependent
+ * rows follow it.)
+ * Cost: (n^2 - n) / 2 multiply-adds and n divisions.
  * @param l Packed lower Cholesky factor.
  * @param n Order.
  * @param b y on entry, x on return.
  */
 void quadatt_chol_ltsolve(const quadatt_real *l, int n, quadatt_real *b)
 {
-    int i, k, off;
+    int i, k;
     for (i = n - 1; i >= 0; --i) {
+        const quadatt_real *lk = &l[QUADATT_TRI(i + 1, i)]; /* L_(i+1),i */
         quadatt_real s = b[i];
-        off = QUADATT_TRI(i + 1, i); /* column i below the diagonal: stride k + 1 */
-        for (k = i + 1; k < n; ++k) {
-            s -= l[off] * b[k];
-            off += k + 1;
+        for (k = i + 1; k + 3 < n; k += 4) {
+            const quadatt_real *l1 = lk + k + 1, *l2 = l1 + k + 2, *l3 = l2 + k + 3;
+            s -= *lk * b[k];
+            s -= *l1 * b[k + 1];
+            s -= *l2 * b[k + 2];
+            s -= *l3 * b[k + 3];
+            lk = l3 + k + 4;
+        }
+        for (; k < n; ++k) {
+            s -= *lk * b[k];
+            lk += k + 1;
         }
         b[i] = s / l[QUADATT_TRI(i, i)];
     }
