@@ -668,7 +668,7 @@ static int violated_outside(zones_work *ws, const zones_mode_data *md,
  *  - bound form (FORM_BOUND): Cholesky L of (S^-1)_BB over the bound inputs B.
  * Consecutive solves of one QP differ by a few inputs, so the factor is kept and updated:
  * its rows follow an order that keeps the rows of the last full factorisation first (the
- * head, ascending) and the inputs that joined since at the end (the tail, ascending). An
+ * head) and the inputs that joined since at the end (the tail; see primal_order()). An
  * input that leaves, or joins the tail before others, changes the rows from its position
  * on, and only those rows are factored again: the row-oriented Cholesky computes row i
  * from the rows above it alone, so the factor is bit for bit the one a full
