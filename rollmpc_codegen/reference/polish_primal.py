@@ -5,7 +5,7 @@ working set of input bounds only, in free-variable form (Cholesky of S_FF) or bo
 :class:`PrimalPolishMixin` is part of :class:`~.solver.SolverRef`; it reads ``md``,
 ``row_c``, ``S`` and ``Sinv``.  The C keeps its factor and refactors only the rows that
 change; each row is bit for bit the full factorisation's in the same row order, so the
-reference keeps only that order (:attr:`primal_factor`, reset by ``unconstrained()``) and
+reference keeps only that order (:attr:`factor_rows`, reset by ``unconstrained()``) and
 factors in full.  A free-form solve leaves (d, nu) in ``_free_state`` for
 :meth:`free_multipliers`, as the C leaves them in ``ws->dv`` and ``ws->nu``.
 """
@@ -22,7 +22,7 @@ from .linalg import (chol_lsolve_packed, chol_ltsolve_packed, cholesky_packed,
 FREE, BOUND = 1, 2  # FORM_FREE, FORM_BOUND
 
 
-class PrimalFactor(NamedTuple):
+class FactorRows(NamedTuple):
     """The C's ws->primal_form and its rows: the head (the last full factorisation's) then
     the tail (inputs that joined since), each in descending inputs in the free form and
     ascending in the bound form."""
@@ -31,15 +31,16 @@ class PrimalFactor(NamedTuple):
     tail: list
 
 
-def primal_cost(n: int, nt: int, form: int, k: int, p: int) -> int:
-    """Mirror of primal_cost(): multiply-adds of a solve of order k, rows p.. factored."""
-    factor = (k ** 3 - k - p ** 3 + p) // 6 + (k * (k + 1) - p * (p + 1)) // 2
-    solves = nt * (k * k - k - p * p + p) // 2 + (k * k - k)
-    return factor + solves + (k * n if form == FREE else (n - k) * k)
+def primal_cost(n: int, nt: int, k: int, p: int) -> int:
+    """Mirror of primal_cost(): six times the multiply-adds of a solve of order k, rows
+    p.. factored."""
+    factor = (k ** 3 - k - p ** 3 + p) + 3 * (k * (k + 1) - p * (p + 1))
+    solves = 3 * nt * (k * k - k - p * p + p) + 6 * (k * k - k)
+    return factor + solves + 6 * k * (n - k)
 
 
 class PrimalPolishMixin:
-    primal_factor: PrimalFactor | None = None
+    factor_rows: FactorRows | None = None
 
     def primal_solve(self, th0, W):
         """Mirror of primal_solve(): bounds, the updated or new factor; (ok, th, z or None)."""
@@ -55,18 +56,19 @@ class PrimalPolishMixin:
         bound = np.zeros(n, bool)
         bound[qW] = True
         form = BOUND if nw < n - nw else FREE
-        order = self._primal_order(bound, form)
-        ok = self._factor(order)
+        order = self.primal_order(bound, form)
+        ok = self.primal_factor(order)
         if not ok:
             return False, None, None
-        if self.primal_factor.form == BOUND:
+        if self.factor_rows.form == BOUND:
             return self.primal_solve_bound(th0, W, qW, th, dv, bound)
         return self.primal_solve_free(th0, th, dv, bound)
 
-    def _primal_order(self, bound, form):
-        """The rows of the factor (primal_diff(), primal_order()); sets primal_factor."""
+    def primal_order(self, bound, form):
+        """Mirror of primal_diff() and primal_order(): the rows of the factor, in order;
+        sets factor_rows."""
         n, nw = self.md.n, int(np.count_nonzero(bound))
-        prev = self.primal_factor
+        prev = self.factor_rows
         if prev is not None and (nw > 0 if prev.form == FREE else nw < n):
             member = bound if prev.form == BOUND else ~bound
             head = [q for q in prev.head if member[q]]
@@ -79,29 +81,29 @@ class PrimalPolishMixin:
                          min(len(old), len(new)))
             k_new = nw if form == BOUND else n - nw
             nt = self.md.nt
-            if prev.form == form or (primal_cost(n, nt, prev.form, len(new), start)
-                                     <= primal_cost(n, nt, form, k_new, 0)):
-                self.primal_factor = PrimalFactor(prev.form, head, tail)
+            if prev.form == form or (primal_cost(n, nt, len(new), start)
+                                     <= primal_cost(n, nt, k_new, 0)):
+                self.factor_rows = FactorRows(prev.form, head, tail)
                 return new
         member = bound if form == BOUND else ~bound
         head = [int(q) for q in np.flatnonzero(member)]
         if form == FREE:
             head.reverse()
-        self.primal_factor = PrimalFactor(form, head, [])
+        self.factor_rows = FactorRows(form, head, [])
         return head
 
-    def _factor(self, order):
+    def primal_factor(self, order):
         """Mirror of primal_factor(): L of S_FF or (S^-1)_BB and Y = L^-1 V_F' or
         L^-1 Uv_B' (rows by ``order``), in full; False (factor forgotten) on a bad pivot."""
         md = self.md
-        bound = self.primal_factor.form == BOUND
+        bound = self.factor_rows.form == BOUND
         A, cols = (self.Sinv, md.Uv) if bound else (self.S, md.V)
         k = len(order)
         idx = np.array(order, np.int64)
         chol = (np.concatenate([A[idx[a], idx[:a + 1]] for a in range(k)]) if k
                 else np.zeros(0, md.Kx.dtype))
         if not cholesky_packed(chol, k):
-            self.primal_factor = None
+            self.factor_rows = None
             return False
         Y = np.array(cols[:, idx], md.Kx.dtype) if md.nt else np.zeros((0, k), md.Kx.dtype)
         for y in Y:
@@ -109,7 +111,7 @@ class PrimalPolishMixin:
         self._chol, self._Y, self._idx = chol, Y, idx
         return True
 
-    def _terminal_step(self, y0, extra):
+    def terminal_step(self, y0, extra):
         """Mirror of terminal_step(): nu, and w = y0 -/+ Y nu in place on y0; None on a bad
         pivot.  ``extra(o)`` is the free form's V_B d_B term of row o (None: bound form)."""
         md = self.md
@@ -138,7 +140,7 @@ class PrimalPolishMixin:
         B = np.flatnonzero(bound)
         rhs = -s_row_dots(self.S, idx, dv)  # dv is 0 on the free inputs here
         chol_lsolve_packed(chol, k, rhs)
-        nu = self._terminal_step(rhs, lambda o: md.V[o, B] * dv[B])
+        nu = self.terminal_step(rhs, lambda o: md.V[o, B] * dv[B])
         if nu is None:
             return False, None, None
         chol_ltsolve_packed(chol, k, rhs)
@@ -162,7 +164,7 @@ class PrimalPolishMixin:
         idx, chol, k = self._idx, self._chol, self._idx.size
         beta = dv[idx].copy()
         chol_lsolve_packed(chol, k, beta)
-        nu = self._terminal_step(beta, None)
+        nu = self.terminal_step(beta, None)
         if nu is None:
             return False, None, None
         chol_ltsolve_packed(chol, k, beta)

@@ -32,7 +32,7 @@ class UnconstrainedMixin:
         """Mirror of unconstrained(): (th0, px = Phi x or None), th0 summed per run of
         equal w (see reference_runs()); a new QP, so no primal factor to update yet."""
         md, ny = self.md, self.md.ny
-        self.primal_factor = None
+        self.factor_rows = None
         rr = r.reshape(md.N, ny)
         w = np.empty(md.n_yq, md.Kx.dtype)
         for k in range(md.n_yq):
