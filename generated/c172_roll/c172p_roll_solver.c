@@ -142,6 +142,42 @@ static void packed_range_dot2(const c172p_roll_real *mp, int q0, int q1, const c
     *acc1 = s1;
 }
 
+/*
+ * out[t] = M(qa, q0 + t dir) for t < len (dir = 1 or -1): a run of consecutive columns of
+ * row qa, from row qa up to the diagonal and from column qa below it, with no index
+ * reads. Cost: len copies.
+ */
+static void packed_gather(const c172p_roll_real *mp, int qa, int q0, int dir, int len,
+    c172p_roll_real *out)
+{
+    int t = 0, q = q0;
+    const c172p_roll_real *m;
+    if (dir > 0) {
+        if (q0 <= qa) { /* row qa: q0 .. min(qa, q0 + len - 1) */
+            const int in_row = (qa - q0 + 1 < len) ? qa - q0 + 1 : len;
+            for (m = &mp[C172P_ROLL_TRI(qa, q0)]; t < in_row; ++t) {
+                out[t] = m[t];
+            }
+            q += in_row;
+        }
+        for (m = &mp[C172P_ROLL_TRI(q, qa)]; t < len; ++t) { /* column qa, rows q > qa */
+            out[t] = *m;
+            m += ++q;
+        }
+        return;
+    }
+    if (q0 > qa) { /* descending: column qa first, rows q0 .. qa + 1 */
+        const int in_col = (q0 - qa < len) ? q0 - qa : len;
+        for (m = &mp[C172P_ROLL_TRI(q, qa)]; t < in_col; ++t) {
+            out[t] = *m;
+            m -= q--;
+        }
+    }
+    for (m = &mp[C172P_ROLL_TRI(qa, q)]; t < len; ++t) { /* then row qa, backwards */
+        out[t] = *m--;
+    }
+}
+
 /* (M x)_q over all j. Cost: n multiply-adds. */
 static c172p_roll_real s_row_dot(const c172p_roll_real *mp, int n, int q, const c172p_roll_real *x)
 {
@@ -632,7 +668,7 @@ static int violated_outside(c172p_roll_work *ws, const c172p_roll_mode_data *md,
  *  - bound form (FORM_BOUND): Cholesky L of (S^-1)_BB over the bound inputs B.
  * Consecutive solves of one QP differ by a few inputs, so the factor is kept and updated:
  * its rows follow an order that keeps the rows of the last full factorisation first (the
- * head, ascending) and the inputs that joined since at the end (the tail, ascending). An
+ * head) and the inputs that joined since at the end (the tail; see primal_order()). An
  * input that leaves, or joins the tail before others, changes the rows from its position
  * on, and only those rows are factored again: the row-oriented Cholesky computes row i
  * from the rows above it alone, so the factor is bit for bit the one a full
@@ -649,14 +685,20 @@ static int violated_outside(c172p_roll_work *ws, const c172p_roll_mode_data *md,
 enum { ROLE_BOUND = 1, ROLE_HEAD = 2, ROLE_TAIL = 4 }; /* bound now; in the head, tail */
 enum { FORM_NONE = 0, FORM_FREE = 1, FORM_BOUND = 2 };
 
-/* Multiply-adds of a primal solve in form `form` of order k, its rows from p on factored
- * (the choice between updating and refactoring; see docs/solver.md for the terms). */
-static int64_t primal_cost(const c172p_roll_mode_data *md, int form, int64_t k, int64_t p)
+/*
+ * Six times the multiply-adds of a primal solve with a factor of order k whose rows from
+ * p on are factored (docs/solver.md): the rows of A, their Cholesky, Y's rows, the two
+ * solves and the k (n - k) product with the other inputs (-S_FB d_B, or S^-1_FB beta).
+ * The same in both forms; the choice between updating and refactoring compares it.
+ * (Six times: every term is then an integer product, with no 64-bit division, which
+ * the M4F would call libgcc for.)
+ */
+static int64_t primal_cost(const c172p_roll_mode_data *md, int64_t k, int64_t p)
 {
     const int64_t n = md->n, nt = md->nt;
-    const int64_t factor = (k * k * k - k - p * p * p + p) / 6 + (k * (k + 1) - p * (p + 1)) / 2;
-    const int64_t solves = nt * (k * k - k - p * p + p) / 2 + (k * k - k);
-    return factor + solves + ((form == FORM_FREE) ? k * n : (n - k) * k);
+    const int64_t factor = (k * k * k - k - p * p * p + p) + 3 * (k * (k + 1) - p * (p + 1));
+    const int64_t solves = 3 * nt * (k * k - k - p * p + p) + 6 * (k * k - k);
+    return factor + solves + 6 * k * (n - k);
 }
 
 /* Is an input of this role a row of a factor of this form (bound inputs, or free ones)? */
@@ -745,15 +787,21 @@ static int primal_factor(c172p_roll_work *ws, const c172p_roll_mode_data *md, in
     const c172p_roll_real *packed = bound ? md->Sinv_p : md->S_p;
     const c172p_roll_real *cols = bound ? md->Uv : md->V;
     c172p_roll_real *l = ws->chol + 1;
-    int a, c, o, start = isnan(ws->chol[0]) ? from : 0;
-    for (a = start; a < k; ++a) {
-        const int qa = ws->tmp[a];
-        const c172p_roll_real *row = &packed[C172P_ROLL_TRI(qa, 0)];
-        c172p_roll_real *out = &l[C172P_ROLL_TRI(a, 0)];
-        for (c = 0; c <= a; ++c) { /* packed lower: (max, min) */
-            const int qc = ws->tmp[c];
-            out[c] = (qc <= qa) ? row[qc] : packed[C172P_ROLL_TRI(qc, qa)];
+    int a, c = 0, o, start = isnan(ws->chol[0]) ? from : 0;
+    while (c < k) { /* A's rows start..k-1, by runs of consecutive inputs in the order */
+        const int q0 = ws->tmp[c];
+        int len = 1, dir = 1;
+        if (c + 1 < k && (ws->tmp[c + 1] == q0 + 1 || ws->tmp[c + 1] == q0 - 1)) {
+            dir = ws->tmp[c + 1] - q0;
+            while (c + len < k && ws->tmp[c + len] == q0 + len * dir) {
+                ++len;
+            }
         }
+        for (a = (start > c) ? start : c; a < k; ++a) { /* columns c.. of row a, up to a */
+            packed_gather(packed, ws->tmp[a], q0, dir, (a - c + 1 < len) ? a - c + 1 : len,
+                          &l[C172P_ROLL_TRI(a, c)]);
+        }
+        c += len;
     }
     if (c172p_roll_cholesky_from(l, start, k) != 0) {
         ws->primal_form = FORM_NONE;
@@ -956,7 +1004,7 @@ static int primal_solve(c172p_roll_work *ws, const c172p_roll_mode_data *md, int
         int k_up, head_up;
         k_up = primal_diff(ws, n, &from, &head_up);
         update = ws->primal_form == form
-            || primal_cost(md, ws->primal_form, k_up, from) <= primal_cost(md, form, k, 0);
+            || primal_cost(md, k_up, from) <= primal_cost(md, k, 0);
         if (update) {
             form = ws->primal_form;
             k = k_up;
