@@ -85,9 +85,12 @@ static int cholesky_row(zones_real *a, zones_real *r, int i)
     for (; j + 1 < i; j += 2) {
         const zones_real *q0 = &a[ZONES_TRI(j, 0)], *q1 = q0 + j + 1, *y0 = q0, *y1 = q1;
         zones_real s0 = r[j], s1 = r[j + 1];
-        for (x = r, end = r + j; x != end; ++x) {
+        x = r;
+        end = r + j;
+        while (x != end) {
             s0 -= *x * *y0++;
             s1 -= *x * *y1++;
+            ++x;
         }
         r[j] = s0 / q0[j];
         s1 -= r[j] * q1[j];
