@@ -76,7 +76,9 @@ _loaded: dict[str, Example] = {}
 
 def load_example(name: str, build_root) -> Example:
     """Build ``examples/<name>.yaml`` (double), run its scenario through the C, and replay
-    the observers, the scheduler and the preview independently (cached per session)."""
+    the observers, the scheduler and the preview independently (cached per session).
+    Examples with a disturbance model fly with a constant input disturbance of a tenth of
+    the smallest u_max, so that their disturbance estimate (and the input target) is not 0."""
     if name in _loaded:
         return _loaded[name]
     path = ROOT / "examples" / f"{name}.yaml"
@@ -86,7 +88,9 @@ def load_example(name: str, build_root) -> Example:
     qps = [IndependentQP(ModeSpec.from_yaml(doc, j), m, N) for j, m in enumerate(ctx["modes"])]
     ex = Example(name, built, doc, qps, reference_signal(doc), [])
     recorder = Recorder(built.fresh_c())
-    run_closed_loop(built.model.config, recorder, reference=ex.signal)
+    offset_free = any(q.nd for q in qps)
+    push = 0.1 * min(q.spec.u_max.min() for q in qps) if offset_free else 0.0
+    run_closed_loop(built.model.config, recorder, reference=ex.signal, disturbance=push)
     ex.steps = recorder.steps
     bank, mode = ObserverBank(ctx), ctx["initial_mode"]
     for k, (y, s, _, u, _, _) in enumerate(ex.steps):
