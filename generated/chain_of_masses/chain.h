@@ -61,26 +61,29 @@ typedef struct {
     chain_real th0[CHAIN_N_MAX];    /**< Unconstrained solution. */
     chain_real th[CHAIN_N_MAX];     /**< Current solution estimate. */
     chain_real px[CHAIN_NYQ_MAX];   /**< Phi x. */
-    chain_real yv[CHAIN_NYQ_MAX];   /**< Gamma th; 2 Omega R while th0 is formed. */
+    chain_real yv[CHAIN_NYQ_MAX];   /**< Gamma th; 2 Omega R while th0 is formed; scratch of correct(). */
     chain_real gam[CHAIN_M_MAX];    /**< Right-hand side c + W x. */
     chain_real K[CHAIN_M_MAX];      /**< gamma - M th0. */
     chain_real z[CHAIN_N_MAX];      /**< Polish multipliers / primal step. */
     chain_real rhs[CHAIN_N_MAX];    /**< Polish right-hand side. */
-    chain_real chol[CHAIN_CHOL_MAX];/**< Packed Cholesky factor. */
-    chain_real dv[CHAIN_N_MAX];     /**< Primal polish: U - th0. */
+    chain_real chol[CHAIN_CHOL_MAX];/**< Packed Cholesky factor (what it holds: chol_holds). */
+    chain_real hcol[CHAIN_N_MAX];   /**< Dual active set: H_Wp of the row being added. */
+    chain_real dv[CHAIN_N_MAX];     /**< Primal polish: U - th0; scratch of correct(). */
     chain_real ycol[CHAIN_NT_MAX * CHAIN_N_MAX]; /**< Primal polish: S_FF^-1 V_F'. */
     chain_real tsmall[CHAIN_NT_MAX * (CHAIN_NT_MAX + 1) / 2]; /**< Terminal Schur complement. */
-    chain_real nu[CHAIN_NT_MAX];     /**< Terminal multiplier step. */
+    chain_real nu[CHAIN_NT_MAX];     /**< Terminal multiplier step; scratch of correct(). */
     chain_real xn[CHAIN_NX_MAX];    /**< Observer: next state. */
     chain_real innov[CHAIN_N_OUTPUTS]; /**< Observer: innovation. */
     int16_t run[CHAIN_HORIZON + 1];       /**< First stages of the runs of equal reference. */
     int16_t set[CHAIN_M_MAX];              /**< Rows of the sweep set. */
     int16_t wset[CHAIN_N_MAX];             /**< Rows of the polish working set. */
     int16_t tmp[CHAIN_N_MAX];              /**< Scratch index list. */
-    uint8_t in_set[CHAIN_M_MAX];           /**< Membership flags of the sweep set. */
+    uint8_t in_set[CHAIN_M_MAX];           /**< Membership flags of the sweep set, or of the working
+                                                       set in polish() and the dual active set. */
     uint8_t is_bound[CHAIN_N_MAX];         /**< Primal polish: input fixed at a bound. */
     chain_real gam_out_min;                /**< Smallest right-hand side of an output row. */
     int out_slacks_ok;                            /**< K of the output rows is computed. */
+    int chol_holds;                               /**< What chol holds: CHAIN_CHOL_NONE, _DUAL or _PRIMAL. */
 } chain_work;
 
 /** Controller instance. Complete here so firmware can allocate it statically. */

@@ -75,26 +75,29 @@ typedef struct {
     chain_rb_real th0[CHAIN_RB_N_MAX];    /**< Unconstrained solution. */
     chain_rb_real th[CHAIN_RB_N_MAX];     /**< Current solution estimate. */
     chain_rb_real px[CHAIN_RB_NYQ_MAX];   /**< Phi x. */
-    chain_rb_real yv[CHAIN_RB_NYQ_MAX];   /**< Gamma th; 2 Omega R while th0 is formed. */
+    chain_rb_real yv[CHAIN_RB_NYQ_MAX];   /**< Gamma th; 2 Omega R while th0 is formed; scratch of correct(). */
     chain_rb_real gam[CHAIN_RB_M_MAX];    /**< Right-hand side c + W x. */
     chain_rb_real K[CHAIN_RB_M_MAX];      /**< gamma - M th0. */
     chain_rb_real z[CHAIN_RB_N_MAX];      /**< Polish multipliers / primal step. */
     chain_rb_real rhs[CHAIN_RB_N_MAX];    /**< Polish right-hand side. */
-    chain_rb_real chol[CHAIN_RB_CHOL_MAX];/**< Packed Cholesky factor. */
-    chain_rb_real dv[CHAIN_RB_N_MAX];     /**< Primal polish: U - th0. */
+    chain_rb_real chol[CHAIN_RB_CHOL_MAX];/**< Packed Cholesky factor (what it holds: chol_holds). */
+    chain_rb_real hcol[CHAIN_RB_N_MAX];   /**< Dual active set: H_Wp of the row being added. */
+    chain_rb_real dv[CHAIN_RB_N_MAX];     /**< Primal polish: U - th0; scratch of correct(). */
     chain_rb_real ycol[CHAIN_RB_NT_MAX * CHAIN_RB_N_MAX]; /**< Primal polish: S_FF^-1 V_F'. */
     chain_rb_real tsmall[CHAIN_RB_NT_MAX * (CHAIN_RB_NT_MAX + 1) / 2]; /**< Terminal Schur complement. */
-    chain_rb_real nu[CHAIN_RB_NT_MAX];     /**< Terminal multiplier step. */
+    chain_rb_real nu[CHAIN_RB_NT_MAX];     /**< Terminal multiplier step; scratch of correct(). */
     chain_rb_real xn[CHAIN_RB_NX_MAX];    /**< Observer: next state. */
     chain_rb_real innov[CHAIN_RB_N_OUTPUTS]; /**< Observer: innovation. */
     int16_t run[CHAIN_RB_HORIZON + 1];       /**< First stages of the runs of equal reference. */
     int16_t set[CHAIN_RB_M_MAX];              /**< Rows of the sweep set. */
     int16_t wset[CHAIN_RB_N_MAX];             /**< Rows of the polish working set. */
     int16_t tmp[CHAIN_RB_N_MAX];              /**< Scratch index list. */
-    uint8_t in_set[CHAIN_RB_M_MAX];           /**< Membership flags of the sweep set. */
+    uint8_t in_set[CHAIN_RB_M_MAX];           /**< Membership flags of the sweep set, or of the working
+                                                       set in polish() and the dual active set. */
     uint8_t is_bound[CHAIN_RB_N_MAX];         /**< Primal polish: input fixed at a bound. */
     chain_rb_real gam_out_min;                /**< Smallest right-hand side of an output row. */
     int out_slacks_ok;                            /**< K of the output rows is computed. */
+    int chol_holds;                               /**< What chol holds: CHAIN_RB_CHOL_NONE, _DUAL or _PRIMAL. */
     chain_rb_bounds bounds;                   /**< Copy of the live bounds of the mode being solved
                                                        (no pointer: the instance stays position-independent). */
 } chain_rb_work;

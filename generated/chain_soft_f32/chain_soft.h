@@ -65,26 +65,29 @@ typedef struct {
     chain_soft_real th0[CHAIN_SOFT_N_MAX];    /**< Unconstrained solution. */
     chain_soft_real th[CHAIN_SOFT_N_MAX];     /**< Current solution estimate. */
     chain_soft_real px[CHAIN_SOFT_NYQ_MAX];   /**< Phi x. */
-    chain_soft_real yv[CHAIN_SOFT_NYQ_MAX];   /**< Gamma th; 2 Omega R while th0 is formed. */
+    chain_soft_real yv[CHAIN_SOFT_NYQ_MAX];   /**< Gamma th; 2 Omega R while th0 is formed; scratch of correct(). */
     chain_soft_real gam[CHAIN_SOFT_M_MAX];    /**< Right-hand side c + W x. */
     chain_soft_real K[CHAIN_SOFT_M_MAX];      /**< gamma - M th0. */
     chain_soft_real z[CHAIN_SOFT_W_MAX];      /**< Polish multipliers / primal step. */
     chain_soft_real rhs[CHAIN_SOFT_W_MAX];    /**< Polish right-hand side. */
-    chain_soft_real chol[CHAIN_SOFT_CHOL_MAX];/**< Packed Cholesky factor. */
-    chain_soft_real dv[CHAIN_SOFT_W_MAX];     /**< Primal polish: U - th0. */
+    chain_soft_real chol[CHAIN_SOFT_CHOL_MAX];/**< Packed Cholesky factor (what it holds: chol_holds). */
+    chain_soft_real hcol[CHAIN_SOFT_W_MAX];   /**< Dual active set: H_Wp of the row being added. */
+    chain_soft_real dv[CHAIN_SOFT_W_MAX];     /**< Primal polish: U - th0; scratch of correct(). */
     chain_soft_real ycol[CHAIN_SOFT_NT_MAX * CHAIN_SOFT_N_MAX]; /**< Primal polish: S_FF^-1 V_F'. */
     chain_soft_real tsmall[CHAIN_SOFT_NT_MAX * (CHAIN_SOFT_NT_MAX + 1) / 2]; /**< Terminal Schur complement. */
-    chain_soft_real nu[CHAIN_SOFT_NT_MAX];     /**< Terminal multiplier step. */
+    chain_soft_real nu[CHAIN_SOFT_NT_MAX];     /**< Terminal multiplier step; scratch of correct(). */
     chain_soft_real xn[CHAIN_SOFT_NX_MAX];    /**< Observer: next state. */
     chain_soft_real innov[CHAIN_SOFT_N_OUTPUTS]; /**< Observer: innovation. */
     int16_t run[CHAIN_SOFT_HORIZON + 1];       /**< First stages of the runs of equal reference. */
     int16_t set[CHAIN_SOFT_M_MAX];              /**< Rows of the sweep set. */
     int16_t wset[CHAIN_SOFT_W_MAX];             /**< Rows of the polish working set. */
     int16_t tmp[CHAIN_SOFT_W_MAX];              /**< Scratch index list. */
-    uint8_t in_set[CHAIN_SOFT_M_MAX];           /**< Membership flags of the sweep set. */
+    uint8_t in_set[CHAIN_SOFT_M_MAX];           /**< Membership flags of the sweep set, or of the working
+                                                       set in polish() and the dual active set. */
     uint8_t is_bound[CHAIN_SOFT_N_MAX];         /**< Primal polish: input fixed at a bound. */
     chain_soft_real gam_out_min;                /**< Smallest right-hand side of an output row. */
     int out_slacks_ok;                            /**< K of the output rows is computed. */
+    int chol_holds;                               /**< What chol holds: CHAIN_SOFT_CHOL_NONE, _DUAL or _PRIMAL. */
     uint8_t slack_on[CHAIN_SOFT_M_MAX];         /**< Soft row in the working set with a positive slack. */
     chain_soft_real slack_max;                  /**< Largest slack of the last optimal plan. */
     int slack_rows;                               /**< Soft rows with a positive slack in it. */

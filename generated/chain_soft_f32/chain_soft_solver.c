@@ -59,13 +59,6 @@ static chain_soft_real h_rows(const chain_soft_mode_data *md, int r, int s)
     return (md->row_sign[r] == md->row_sign[s]) ? h : -h;
 }
 
-/* (E^-1 M_s')_i: input i's response to a unit multiplier on row s. */
-static chain_soft_real em_col(const chain_soft_mode_data *md, int i, int s)
-{
-    const chain_soft_real h = hq(md, i, md->row_q[s]);
-    return (md->row_sign[s] > 0) ? h : -h;
-}
-
 /* S(a, b) from the packed lower triangle. */
 static chain_soft_real s_at(const chain_soft_mode_data *md, int a, int b)
 {
@@ -350,6 +343,59 @@ static int row_violated(const chain_soft_work *ws, const chain_soft_mode_data *m
 }
 
 /*
+ * L L' +- v v' on the trailing block of the packed factor l (order n) from row and column
+ * `from` on, v holding the vector's entries from..n-1 (overwritten): the rotations of the
+ * classic rank-one update, hyperbolic ones for a downdate. No entry of H is read again.
+ * Returns -1 when a downdated pivot keeps no more than DEPENDENCE_TOL of its square: the
+ * factor is then not valid, and the caller refactors from scratch.
+ */
+static int chol_rank_one(chain_soft_real *l, int from, int n, chain_soft_real *v, int downdate)
+{
+    int i, j;
+    for (j = from; j < n; ++j) {
+        const chain_soft_real ljj = l[CHAIN_SOFT_TRI(j, j)], vj = v[j];
+        const chain_soft_real r2 = downdate ? (ljj - vj) * (ljj + vj) : ljj * ljj + vj * vj;
+        chain_soft_real r, c, s, ic;
+        int off = CHAIN_SOFT_TRI(j + 1, j); /* column j below the diagonal: stride i + 1 */
+        if (downdate && !(r2 > CHAIN_SOFT_SOLVER_DEPENDENCE_TOL * (ljj * ljj))) {
+            return -1;
+        }
+        r = CHAIN_SOFT_SQRT(r2);
+        c = r / ljj;
+        s = vj / ljj;
+        ic = ljj / r;
+        l[CHAIN_SOFT_TRI(j, j)] = r;
+        for (i = j + 1; i < n; ++i) {
+            const chain_soft_real lij = (downdate ? l[off] - s * v[i] : l[off] + s * v[i]) * ic;
+            l[off] = lij;
+            v[i] = c * v[i] - s * lij;
+            off += i + 1;
+        }
+    }
+    return 0;
+}
+
+/*
+ * Delete row and column k of the factored matrix (order n): the rows below k move up one,
+ * dropping their entry k, and that entry (the column below the old pivot) updates the
+ * trailing block by rank one. v: scratch of n entries.
+ */
+static void chol_delete(chain_soft_real *l, int k, int n, chain_soft_real *v)
+{
+    int i, j, dst = CHAIN_SOFT_TRI(k, 0), src = CHAIN_SOFT_TRI(k + 1, 0);
+    for (i = k + 1; i < n; ++i) {
+        for (j = 0; j <= i; ++j, ++src) {
+            if (j == k) {
+                v[i - 1] = l[src];
+            } else {
+                l[dst++] = l[src];
+            }
+        }
+    }
+    (void)chol_rank_one(l, k, n - 1, v, 0); /* an update cannot break down */
+}
+
+/*
  * Soft output bounds (rollmpc_codegen/features/soft_constraints.py): a soft row r has the slack
  * s_r = max(0, (lam_r - l1) w), w = 1/(2 l2). In the working set it is tight (s_r = 0,
  * lam_r <= l1, like a hard row) or, flagged in ws->slack_on, slack: M_r th - gamma_r = s_r,
@@ -388,6 +434,29 @@ static void set_state(chain_soft_work *ws, const chain_soft_mode_data *md, int r
 }
 
 /*
+ * Switch the state of working-set position k (of nw): w joins (slack) or leaves (tight)
+ * its diagonal entry of H_WW, so a kept dual factor takes a rank-one update or downdate
+ * with sqrt(w) e_k (scratch ws->rhs); a downdate that breaks down leaves no valid factor.
+ */
+static void switch_row(chain_soft_work *ws, const chain_soft_mode_data *md, int k, int nw)
+{
+    const int r = ws->wset[k];
+    chain_soft_real l1;
+    const chain_soft_real w = soft_of(md, r, &l1);
+    int i;
+    ws->slack_on[r] = (uint8_t)(ws->slack_on[r] ? 0 : 1);
+    if (ws->chol_holds == CHAIN_SOFT_CHOL_DUAL) {
+        ws->rhs[k] = CHAIN_SOFT_SQRT(w);
+        for (i = k + 1; i < nw; ++i) {
+            ws->rhs[i] = R_(0.0);
+        }
+        if (chol_rank_one(ws->chol, k, nw, ws->rhs, !ws->slack_on[r]) != 0) {
+            ws->chol_holds = CHAIN_SOFT_CHOL_NONE;
+        }
+    }
+}
+
+/*
  * Switch the working-set rows whose multiplier crossed l1 (tight -> slack above it,
  * slack -> tight below it); returns how many switched (then solve again).
  */
@@ -399,7 +468,7 @@ static int switch_states(chain_soft_work *ws, const chain_soft_mode_data *md, in
         chain_soft_real l1;
         const chain_soft_real w = soft_of(md, r, &l1);
         if (w > R_(0.0) && (ws->slack_on[r] ? (ws->z[i] < l1) : (ws->z[i] > l1))) {
-            ws->slack_on[r] = (uint8_t)(ws->slack_on[r] ? 0 : 1);
+            switch_row(ws, md, i, nw);
             ++count;
         }
     }
@@ -440,21 +509,72 @@ static int violated_beyond_slack(chain_soft_work *ws, const chain_soft_mode_data
     return count;
 }
 
-/* th = th0 - sum_j (E^-1 M_{list_j}') mult_j over positive multipliers. */
+/*
+ * th = th0 - E^-1 M_L' mult over the rows L = list[0..count) with a positive multiplier.
+ * The multipliers are first summed by quantity, v = M_L' mult (inputs into ws->dv, outputs
+ * into ws->yv, a Δu row into its two inputs), then E^-1 v = S^-1 v_in - Ew' (Ew v_in)
+ * + E^-1 G' v_out is accumulated in ws->th column by column over the nonzero entries of v
+ * (Ew v_in in ws->nu): n (nnz + nt) + nt nnz_in operations, where reading E^-1 M_L' entry
+ * by entry cost n |L| reads of E^-1 (nt operations each for an input, twice for a Δu row).
+ */
 static void correct(chain_soft_work *ws, const chain_soft_mode_data *md, const int16_t *list,
     int count, const chain_soft_real *mult, int mult_by_row)
 {
-    int i, j;
-    for (i = 0; i < md->n; ++i) {
-        chain_soft_real acc = R_(0.0);
-        for (j = 0; j < count; ++j) {
-            const int s = list[j];
-            const chain_soft_real mu = mult_by_row ? mult[s] : mult[j];
-            if (mu > R_(0.0)) {
-                acc += em_col(md, i, s) * mu;
+    const int n = md->n, nyq = md->nyq, nt = md->nt;
+    int i, j, o;
+    for (i = 0; i < n; ++i) {
+        ws->dv[i] = R_(0.0);
+        ws->th[i] = R_(0.0);
+    }
+    for (i = 0; i < nyq; ++i) {
+        ws->yv[i] = R_(0.0);
+    }
+    for (o = 0; o < nt; ++o) {
+        ws->nu[o] = R_(0.0);
+    }
+    for (j = 0; j < count; ++j) {
+        const int s = list[j], q = md->row_q[s];
+        const chain_soft_real mu = mult_by_row ? mult[s] : mult[j];
+        if (mu > R_(0.0)) {
+            const chain_soft_real v = (md->row_sign[s] > 0) ? mu : -mu;
+            if (q < n) {
+                ws->dv[q] += v;
+            } else {
+                ws->yv[q - n] += v;
             }
         }
-        ws->th[i] = ws->th0[i] - acc;
+    }
+    for (j = 0; j < n; ++j) {
+        const chain_soft_real v = ws->dv[j];
+        if (v < R_(0.0) || v > R_(0.0)) {
+            for (i = 0; i < j; ++i) { /* S^-1 is packed lower: row j, then column j */
+                ws->th[i] += md->Sinv_p[CHAIN_SOFT_TRI(j, i)] * v;
+            }
+            for (i = j; i < n; ++i) {
+                ws->th[i] += md->Sinv_p[CHAIN_SOFT_TRI(i, j)] * v;
+            }
+            for (o = 0; o < nt; ++o) {
+                ws->nu[o] += md->Ew[o * n + j] * v;
+            }
+        }
+    }
+    for (i = 0; i < n; ++i) {
+        chain_soft_real acc = ws->th[i];
+        for (o = 0; o < nt; ++o) {
+            acc -= md->Ew[o * n + i] * ws->nu[o];
+        }
+        ws->th[i] = acc;
+    }
+    for (j = 0; j < nyq; ++j) {
+        const chain_soft_real v = ws->yv[j];
+        if (v < R_(0.0) || v > R_(0.0)) {
+            for (i = 0; i < n; ++i) {
+                ws->th[i] += md->EinvGt[i * nyq + j] * v;
+            }
+        }
+    }
+    for (i = 0; i < n; ++i) {
+        ws->th[i] = ws->th0[i] - ws->th[i];
     }
 }
 
@@ -512,24 +632,22 @@ static chain_soft_real sweep(chain_soft_work *ws, const chain_soft_mode_data *md
 }
 
 /*
- * Rows of one kind (outputs = 0: input rows, 1: output rows) violated at th and not in
- * the sorted list, appended in row order to out; cap + 1 when more than cap.
+ * Rows of one kind (outputs = 0: input rows, 1: output rows) violated at th and not
+ * flagged in `member` (0: no row is), appended in row order to out; cap + 1 when more
+ * than cap.
  */
 static int violated_kind(chain_soft_work *ws, const chain_soft_mode_data *md,
-    const chain_soft_real *th, const int16_t *list, int count, int16_t *out, int cap, int outputs)
+    const chain_soft_real *th, const uint8_t *member, int16_t *out, int cap, int outputs)
 {
     const int n = md->n;
-    int r, p = 0, nout = 0;
+    int r, nout = 0;
     for (r = 0; r < md->m; ++r) {
         const int q = md->row_q[r];
         chain_soft_real v, g, viol, ag;
         if ((q >= n) != outputs) {
             continue;
         }
-        while (p < count && list[p] < r) {
-            ++p;
-        }
-        if (p < count && list[p] == r) {
+        if (member != 0 && member[r]) {
             continue;
         }
         /* row_violated() inline: the tolerance is at least FEAS_TOL, so reject early */
@@ -551,18 +669,18 @@ static int violated_kind(chain_soft_work *ws, const chain_soft_mode_data *md,
 }
 
 /*
- * Violated rows at th outside the sorted list (see violated_kind()): the input rows
+ * Violated rows at th outside the flagged ones (see violated_kind()): the input rows
  * first; only when none is violated, the output rows (predicted unless certified), so an
  * intermediate point far outside the input box costs no output prediction.
  */
 static int violated_outside(chain_soft_work *ws, const chain_soft_mode_data *md,
-    const chain_soft_real *th, const int16_t *list, int count, int16_t *out, int cap)
+    const chain_soft_real *th, const uint8_t *member, int16_t *out, int cap)
 {
-    const int nbox = violated_kind(ws, md, th, list, count, out, cap, 0);
+    const int nbox = violated_kind(ws, md, th, member, out, cap, 0);
     if (nbox != 0 || !outputs_to_check(ws, md, th)) {
         return nbox;
     }
-    return violated_kind(ws, md, th, list, count, out, cap, 1);
+    return violated_kind(ws, md, th, member, out, cap, 1);
 }
 
 /*
@@ -741,6 +859,7 @@ static int primal_solve(chain_soft_work *ws, const chain_soft_mode_data *md, int
 {
     const int n = md->n;
     int i, nf = 0;
+    ws->chol_holds = CHAIN_SOFT_CHOL_NONE; /* ws->chol is about to hold a primal factor */
     for (i = 0; i < n; ++i) {
         ws->is_bound[i] = 0;
         ws->dv[i] = R_(0.0);
@@ -769,14 +888,14 @@ static int primal_solve(chain_soft_work *ws, const chain_soft_mode_data *md, int
 }
 
 /*
- * Rows from..nw-1 of L = chol(H_WW) for W = wset[0..nw) into ws->chol (the rows above must
- * hold L already); -1 if a pivot breaks down.
+ * L = chol(H_WW) for W = wset[0..nw) (plus w on the diagonal of slack soft rows) into
+ * ws->chol, from scratch: the fallback whenever the kept factor may not be valid. Sets
+ * ws->chol_holds; -1 if a pivot breaks down.
  */
-static int factor_working_set(chain_soft_work *ws, const chain_soft_mode_data *md, int from,
-    int nw)
+static int factor_working_set(chain_soft_work *ws, const chain_soft_mode_data *md, int nw)
 {
     int i, j;
-    for (i = from; i < nw; ++i) {
+    for (i = 0; i < nw; ++i) {
         for (j = 0; j <= i; ++j) {
             ws->chol[CHAIN_SOFT_TRI(i, j)] = h_rows(md, ws->wset[i], ws->wset[j]);
         }
@@ -785,10 +904,84 @@ static int factor_working_set(chain_soft_work *ws, const chain_soft_mode_data *m
             ws->chol[CHAIN_SOFT_TRI(i, i)] += soft_of(md, ws->wset[i], &l1);
         }
     }
-    return chain_soft_cholesky_from(ws->chol, from, nw);
+    ws->chol_holds = (chain_soft_cholesky(ws->chol, nw) == 0) ? CHAIN_SOFT_CHOL_DUAL : CHAIN_SOFT_CHOL_NONE;
+    return (ws->chol_holds == CHAIN_SOFT_CHOL_DUAL) ? 0 : -1;
 }
 
-/* Dual solve on a general working set: z = -H_WW^-1 K_W, th = th0 - E^-1 M_W' z. */
+/*
+ * y = L^-1 H_Wp in place on ws->rhs (holding H_Wp on entry), and the pivot hpp - y'y that
+ * row p would have in the factor of W + p (hpp: its diagonal entry).
+ */
+static chain_soft_real factor_pivot(chain_soft_work *ws, int nw, chain_soft_real hpp)
+{
+    int i;
+    chain_soft_real zeta = hpp;
+    chain_soft_chol_lsolve(ws->chol, nw, ws->rhs);
+    for (i = 0; i < nw; ++i) {
+        zeta -= ws->rhs[i] * ws->rhs[i];
+    }
+    return zeta;
+}
+
+/* Row nw of the factor: y = L^-1 H_Wp from ws->rhs and the pivot sqrt(zeta). */
+static void factor_append(chain_soft_work *ws, int nw, chain_soft_real zeta)
+{
+    int i;
+    for (i = 0; i < nw; ++i) {
+        ws->chol[CHAIN_SOFT_TRI(nw, i)] = ws->rhs[i];
+    }
+    ws->chol[CHAIN_SOFT_TRI(nw, nw)] = CHAIN_SOFT_SQRT(zeta);
+}
+
+/*
+ * Row p joins the working set at position nw, tight. A kept dual factor gains its row
+ * (one forward solve with H_Wp) unless its pivot is below the dependence tolerance; then
+ * the next dual solve refactors from scratch.
+ */
+static void append_row(chain_soft_work *ws, const chain_soft_mode_data *md, int p, int nw)
+{
+    int i;
+    ws->wset[nw] = (int16_t)p;
+    ws->in_set[p] = 1;
+    ws->slack_on[p] = 0;
+    if (ws->chol_holds == CHAIN_SOFT_CHOL_DUAL) {
+        const chain_soft_real hpp = hq(md, md->row_q[p], md->row_q[p]);
+        chain_soft_real zeta;
+        for (i = 0; i < nw; ++i) {
+            ws->rhs[i] = h_rows(md, ws->wset[i], p);
+        }
+        zeta = factor_pivot(ws, nw, hpp);
+        if (zeta > CHAIN_SOFT_SOLVER_DEPENDENCE_TOL * hpp) {
+            factor_append(ws, nw, zeta);
+        } else {
+            ws->chol_holds = CHAIN_SOFT_CHOL_NONE;
+        }
+    }
+}
+
+/*
+ * Working-set position k leaves (wset and z shift down); a kept dual factor loses its row
+ * and column by a rank-one update of the rows below (chol_delete(), scratch ws->rhs).
+ */
+static void remove_row(chain_soft_work *ws, int k, int *nw)
+{
+    int i;
+    ws->in_set[ws->wset[k]] = 0;
+    ws->slack_on[ws->wset[k]] = 0;
+    if (ws->chol_holds == CHAIN_SOFT_CHOL_DUAL) {
+        chol_delete(ws->chol, k, *nw, ws->rhs);
+    }
+    for (i = k; i + 1 < *nw; ++i) {
+        ws->wset[i] = ws->wset[i + 1];
+        ws->z[i] = ws->z[i + 1];
+    }
+    --*nw;
+}
+
+/*
+ * Dual solve on a general working set: z = -H_WW^-1 K_W, th = th0 - E^-1 M_W' z, with the
+ * kept factor when ws->chol holds it, else factored from scratch.
+ */
 static int dual_solve(chain_soft_work *ws, const chain_soft_mode_data *md, int nw)
 {
     int i;
@@ -801,7 +994,7 @@ static int dual_solve(chain_soft_work *ws, const chain_soft_mode_data *md, int n
             ws->z[i] += l1 * w;
         }
     }
-    if (factor_working_set(ws, md, 0, nw) != 0) {
+    if (ws->chol_holds != CHAIN_SOFT_CHOL_DUAL && factor_working_set(ws, md, nw) != 0) {
         return -1;
     }
     chain_soft_chol_solve(ws->chol, nw, ws->z);
@@ -813,6 +1006,7 @@ static int seed_from_multipliers(chain_soft_work *ws, const chain_soft_mode_data
     const chain_soft_real *lam, const int16_t *list, int count)
 {
     int j, nw = 0;
+    ws->chol_holds = CHAIN_SOFT_CHOL_NONE; /* a new working set: no factor of it yet */
     for (j = 0; j < count; ++j) {
         const int r = list ? list[j] : j;
         if (lam[r] > R_(0.0)) {
@@ -834,6 +1028,7 @@ static int seed_shifted(chain_soft_work *ws, const chain_soft_mode_data *md,
     const chain_soft_real *lam)
 {
     int r, nw = 0;
+    ws->chol_holds = CHAIN_SOFT_CHOL_NONE;
     for (r = 0; r < md->m; ++r) {
         if (lam[md->row_next[r]] > R_(0.0)) {
             if (nw == md->w_cap) {
@@ -850,6 +1045,7 @@ static int seed_shifted(chain_soft_work *ws, const chain_soft_mode_data *md,
 static int seed_from_violated(chain_soft_work *ws, const chain_soft_mode_data *md)
 {
     int r, nw = 0;
+    ws->chol_holds = CHAIN_SOFT_CHOL_NONE;
     for (r = 0; r < md->m; ++r) {
         if ((ws->out_slacks_ok || md->row_q[r] < md->n) && ws->K[r] < R_(0.0)) {
             if (nw == md->w_cap) {
@@ -863,27 +1059,27 @@ static int seed_from_violated(chain_soft_work *ws, const chain_soft_mode_data *m
 }
 
 /*
- * Drop the working-set rows with negative multipliers. Returns 0 if none was dropped,
- * 1 if some were (solve again), -1 if the working set is to be given up: emptied, or a
- * guess (see polish()) that lost more than half of its rows.
+ * Drop the working-set rows with negative multipliers (remove_row(), from the last
+ * position down). Returns 0 if none was dropped, 1 if some were (solve again), -1 if the
+ * working set is to be given up: emptied, or a guess (see polish()) that would lose more
+ * than half of its rows.
  */
 static int drop_negative(chain_soft_work *ws, int *nw, int guess)
 {
     int i, keep = 0;
     for (i = 0; i < *nw; ++i) {
-        if (ws->z[i] >= R_(0.0)) {
-            ws->wset[keep] = ws->wset[i];
-            ws->z[keep] = ws->z[i];
-            ++keep;
-        }
+        keep += (ws->z[i] >= R_(0.0));
     }
     if (keep == *nw) {
         return 0;
     }
-    i = *nw;
-    *nw = keep;
-    if (keep == 0 || (guess && 2 * keep < i)) {
+    if (keep == 0 || (guess && 2 * keep < *nw)) {
         return -1;
+    }
+    for (i = *nw - 1; i >= 0; --i) {
+        if (!(ws->z[i] >= R_(0.0))) {
+            remove_row(ws, i, nw);
+        }
     }
     return 1;
 }
@@ -905,7 +1101,7 @@ static int working_set_holds(chain_soft_work *ws, const chain_soft_mode_data *md
 /*
  * Iterative refinement of a dual solve whose point misses its own working set: with
  * multipliers ~1e9 (float), th = th0 - E^-1 M_W' z cancels most digits. The residual
- * e = M_W th - gamma_W is small, so z += H_WW^-1 e (ws->chol still holds the factor) and
+ * e = M_W th - gamma_W is small, so z += H_WW^-1 e (ws->chol holds the factor) and
  * a new th lose far fewer. Up to two rounds; 0 once the working set holds, no multiplier
  * is negative and no other row is violated, else -1.
  */
@@ -931,7 +1127,7 @@ static int refine_dual(chain_soft_work *ws, const chain_soft_mode_data *md, int 
         }
         correct(ws, md, ws->wset, nw, ws->z, 0);
         if (working_set_holds(ws, md, nw)) {
-            return (violated_outside(ws, md, ws->th, ws->wset, nw, ws->tmp, 0) == 0) ? 0 : -1;
+            return (violated_outside(ws, md, ws->th, ws->in_set, ws->tmp, 0) == 0) ? 0 : -1;
         }
     }
     return -1;
@@ -954,12 +1150,14 @@ static int accept(chain_soft_work *ws, const chain_soft_mode_data *md, chain_sof
 
 /*
  * Exact solve on the working set W = wset[0..nw), primal when W holds only input bounds,
- * dual otherwise; violated rows join, rows with negative multipliers leave, repeat (the
- * primal form adds violated rows before it computes multipliers). A guessed working set
- * (guess = 1: the shifted warm start) is abandoned as soon as more than half of it has
- * negative multipliers: the operating point moved, and the caller's next seed is cheaper
- * than unwinding it row block by row block. Returns 0 with ws->th optimal and lam set to
- * the exact multipliers, or -1 (lam untouched).
+ * dual otherwise; violated rows join (appended: wset is in joining order), rows with
+ * negative multipliers leave, repeat (the primal form adds violated rows before it
+ * computes multipliers). The dual form keeps its factor of H_WW across the corrections
+ * (and takes the one dual_active_set() hands over): rows join and leave it by updates.
+ * A guessed working set (guess = 1: the shifted warm start) is abandoned as soon as more
+ * than half of it has negative multipliers: the operating point moved, and the caller's
+ * next seed is cheaper than unwinding it row block by row block. Returns 0 with ws->th
+ * optimal and lam set to the exact multipliers, or -1 (lam untouched).
  */
 static int polish(chain_soft_work *ws, const chain_soft_mode_data *md, chain_soft_real *lam,
     int nw, int guess, int *iterations, int *active)
@@ -969,8 +1167,14 @@ static int polish(chain_soft_work *ws, const chain_soft_mode_data *md, chain_sof
     if (nw <= 0 || nw > md->w_cap) {
         return -1;
     }
+    for (i = 0; i < md->m; ++i) {
+        ws->in_set[i] = 0; /* in_set flags the working set from here on */
+    }
+    for (i = 0; i < nw; ++i) {
+        ws->in_set[ws->wset[i]] = 1;
+    }
     for (it = 0; it < CHAIN_SOFT_SOLVER_POLISH_MAX; ++it) {
-        int nadd, p, q, total, dropped, box_only = 1, solved;
+        int nadd, dropped, box_only = 1, solved;
         ++*iterations;
         for (i = 0; i < nw; ++i) {
             box_only = box_only && md->row_q[ws->wset[i]] < n;
@@ -981,7 +1185,7 @@ static int polish(chain_soft_work *ws, const chain_soft_mode_data *md, chain_sof
             if (solved < 0) {
                 return -1;
             }
-            nadd = violated_outside(ws, md, ws->th, ws->wset, nw, ws->tmp, md->w_cap - nw);
+            nadd = violated_outside(ws, md, ws->th, ws->in_set, ws->tmp, md->w_cap - nw);
             if (nadd == 0) {
                 if (solved == 0) {
                     free_multipliers(ws, md, nw);
@@ -1010,7 +1214,7 @@ static int polish(chain_soft_work *ws, const chain_soft_mode_data *md, chain_sof
                 continue;
             }
             correct(ws, md, ws->wset, nw, ws->z, 0);
-            nadd = violated_outside(ws, md, ws->th, ws->wset, nw, ws->tmp, md->w_cap - nw);
+            nadd = violated_outside(ws, md, ws->th, ws->in_set, ws->tmp, md->w_cap - nw);
             if (nadd == 0) {
                 /* a (near-)singular H_WW, e.g. parallel rows of an infeasible QP, can give
                  * multipliers whose point misses its own working set: not optimal */
@@ -1022,20 +1226,8 @@ static int polish(chain_soft_work *ws, const chain_soft_mode_data *md, chain_sof
             return -1;
         }
         for (i = 0; i < nadd; ++i) {
-            ws->slack_on[ws->tmp[i]] = 0; /* joining rows start tight */
+            append_row(ws, md, ws->tmp[i], nw++);
         }
-        /* merge the sorted lists wset[0..nw) and tmp[0..nadd) into wset, back to front */
-        p = nw - 1;
-        q = nadd - 1;
-        total = nw + nadd;
-        for (i = total - 1; i >= 0; --i) {
-            if (q < 0 || (p >= 0 && ws->wset[p] > ws->tmp[q])) {
-                ws->wset[i] = ws->wset[p--];
-            } else {
-                ws->wset[i] = ws->tmp[q--];
-            }
-        }
-        nw = total;
     }
     return -1;
 }
@@ -1064,28 +1256,12 @@ static int most_violated(chain_soft_work *ws, const chain_soft_mode_data *md,
 }
 
 /*
- * Remove working-set position k: shift wset/z down and refactor the rows of L = chol(H_WW)
- * from k on (the rows above are unchanged). Returns -1 if a pivot breaks down.
- */
-static int remove_from_set(chain_soft_work *ws, const chain_soft_mode_data *md, int k, int *nw)
-{
-    int i;
-    ws->in_set[ws->wset[k]] = 0;
-    ws->slack_on[ws->wset[k]] = 0;
-    for (i = k; i + 1 < *nw; ++i) {
-        ws->wset[i] = ws->wset[i + 1];
-        ws->z[i] = ws->z[i + 1];
-    }
-    --*nw;
-    return factor_working_set(ws, md, k, *nw);
-}
-
-/*
  * Make the violated row p active (Goldfarb-Idnani): raise its multiplier t while the
  * working-set rows stay tight, their multipliers moving by -t H_WW^-1 H_Wp. A row whose
  * multiplier reaches 0 first leaves the set and the step repeats; once p's violation
  * reaches 0 it joins. A row p dependent on the set (zeta = H_pp - H_pW H_WW^-1 H_Wp ~ 0)
- * can only move the others; if none can move, the QP is infeasible (Farkas).
+ * can only move the others; if none can move, the QP is infeasible (Farkas). The factor
+ * L = chol(H_WW) is kept by updates: p appends its row, a leaving row is deleted.
  * Soft rows switch state where their multiplier crosses l1 (a breakpoint of the step,
  * like a row leaving): a tight row rising to l1 turns slack, a slack row falling to l1
  * turns tight; p itself turns slack at l1, after which its slack absorbs part of its
@@ -1101,20 +1277,22 @@ static int add_to_set(chain_soft_work *ws, const chain_soft_mode_data *md, int p
     const chain_soft_real wp = soft_of(md, p, &l1p);
     int p_on = 0; /* p's multiplier passed l1: its slack grows with it */
     int i;
+    for (i = 0; i < *nw; ++i) { /* H_Wp, read once for every step of this add */
+        ws->hcol[i] = h_rows(md, ws->wset[i], p);
+    }
     for (;;) {
-        chain_soft_real zeta = hpp, viol = -ws->K[p] - hpp * lp, tblock = R_(0.0), t;
+        chain_soft_real zeta, viol = -ws->K[p] - hpp * lp, tblock = R_(0.0), t;
         int k = -1, dependent;
         int event = 0; /* at tblock: 0 row k leaves, 1 row k switches state, 2 p turns slack */
         if (++*steps > CHAIN_SOFT_SOLVER_ACTIVE_SET_MAX) {
             return -1;
         }
         for (i = 0; i < *nw; ++i) { /* y = L^-1 H_Wp (rhs), d = L'^-1 y (dv) */
-            ws->rhs[i] = h_rows(md, ws->wset[i], p);
+            ws->rhs[i] = ws->hcol[i];
             viol -= ws->rhs[i] * ws->z[i];
         }
-        chain_soft_chol_lsolve(ws->chol, *nw, ws->rhs);
+        zeta = factor_pivot(ws, *nw, hpp);
         for (i = 0; i < *nw; ++i) {
-            zeta -= ws->rhs[i] * ws->rhs[i];
             ws->dv[i] = ws->rhs[i];
         }
         chain_soft_chol_ltsolve(ws->chol, *nw, ws->dv);
@@ -1167,10 +1345,7 @@ static int add_to_set(chain_soft_work *ws, const chain_soft_mode_data *md, int p
         }
         lp += t;
         if (k < 0) {
-            for (i = 0; i < *nw; ++i) {
-                ws->chol[CHAIN_SOFT_TRI(*nw, i)] = ws->rhs[i];
-            }
-            ws->chol[CHAIN_SOFT_TRI(*nw, *nw)] = CHAIN_SOFT_SQRT(zeta);
+            factor_append(ws, *nw, zeta);
             ws->wset[*nw] = (int16_t)p;
             ws->z[*nw] = lp;
             ws->in_set[p] = 1;
@@ -1182,15 +1357,16 @@ static int add_to_set(chain_soft_work *ws, const chain_soft_mode_data *md, int p
             p_on = 1;
             continue;
         }
-        if (event == 1) { /* row k's diagonal gains or loses w: refactor from it */
-            ws->slack_on[ws->wset[k]] = (uint8_t)(ws->slack_on[ws->wset[k]] ? 0 : 1);
-            if (factor_working_set(ws, md, k, *nw) != 0) {
+        if (event == 1) { /* row k's diagonal gains or loses w: update, else refactor */
+            switch_row(ws, md, k, *nw);
+            if (ws->chol_holds != CHAIN_SOFT_CHOL_DUAL && factor_working_set(ws, md, *nw) != 0) {
                 return -1;
             }
             continue;
         }
-        if (remove_from_set(ws, md, k, nw) != 0) {
-            return -1;
+        remove_row(ws, k, nw);
+        for (i = k; i < *nw; ++i) {
+            ws->hcol[i] = ws->hcol[i + 1];
         }
     }
 }
@@ -1202,14 +1378,16 @@ static int add_to_set(chain_soft_work *ws, const chain_soft_mode_data *md, int p
  * the shifted guess and the violated rows do not reach). Its working set then goes to
  * polish() for the exact solve and KKT check -- also after a claim of infeasibility,
  * because far from the origin (multipliers ~1e9 in float) th = th0 - E^-1 M' z loses the
- * digits the primal form keeps. Returns 0 (optimal, as polish()), 1 (infeasible: ws->th
- * is then th0) or -1 (step cap, breakdown, or the polish rejects the set).
+ * digits the primal form keeps; with it goes the factor of H_WW, which the polish keeps.
+ * Returns 0 (optimal, as polish()), 1 (infeasible: ws->th is then th0) or -1 (step cap,
+ * breakdown, or the polish rejects the set).
  */
 static int dual_active_set(chain_soft_work *ws, const chain_soft_mode_data *md,
     chain_soft_real *lam, int *iterations, int *active)
 {
-    int i, j, nw = 0, steps = 0, code = 0;
+    int i, nw = 0, steps = 0, code = 0;
     output_slacks(ws, md);
+    ws->chol_holds = CHAIN_SOFT_CHOL_DUAL; /* the factor of the empty working set */
     for (i = 0; i < md->m; ++i) {
         ws->in_set[i] = 0;
         ws->slack_on[i] = 0;
@@ -1231,13 +1409,6 @@ static int dual_active_set(chain_soft_work *ws, const chain_soft_mode_data *md,
     *iterations += steps;
     if (nw == 0) { /* code 0: violations of th0 within the tolerance only */
         return (code == 0) ? accept(ws, md, lam, 0, active) : code;
-    }
-    for (i = 1; i < nw; ++i) { /* polish() wants the working set sorted */
-        const int16_t row = ws->wset[i];
-        for (j = i; j > 0 && ws->wset[j - 1] > row; --j) {
-            ws->wset[j] = ws->wset[j - 1];
-        }
-        ws->wset[j] = row;
     }
     if (polish(ws, md, lam, nw, 0, iterations, active) == 0) {
         return 0;
@@ -1362,6 +1533,12 @@ int chain_soft_qp_solve(chain_soft_work *ws, chain_soft_real *lam, const chain_s
                 polish_iterations, active) == 0) {
             status = CHAIN_SOFT_OPTIMAL;
             break;
+        }
+        for (i = 0; i < md->m; ++i) { /* the polish flagged its working set in in_set */
+            ws->in_set[i] = 0;
+        }
+        for (i = 0; i < count; ++i) {
+            ws->in_set[ws->set[i]] = 1;
         }
         correct(ws, md, ws->set, count, lam, 1);
         nviol = violated_beyond_slack(ws, md, lam);

@@ -61,26 +61,29 @@ typedef struct {
     qtank_real th0[QTANK_N_MAX];    /**< Unconstrained solution. */
     qtank_real th[QTANK_N_MAX];     /**< Current solution estimate. */
     qtank_real px[QTANK_NYQ_MAX];   /**< Phi x. */
-    qtank_real yv[QTANK_NYQ_MAX];   /**< Gamma th; 2 Omega R while th0 is formed. */
+    qtank_real yv[QTANK_NYQ_MAX];   /**< Gamma th; 2 Omega R while th0 is formed; scratch of correct(). */
     qtank_real gam[QTANK_M_MAX];    /**< Right-hand side c + W x. */
     qtank_real K[QTANK_M_MAX];      /**< gamma - M th0. */
     qtank_real z[QTANK_N_MAX];      /**< Polish multipliers / primal step. */
     qtank_real rhs[QTANK_N_MAX];    /**< Polish right-hand side. */
-    qtank_real chol[QTANK_CHOL_MAX];/**< Packed Cholesky factor. */
-    qtank_real dv[QTANK_N_MAX];     /**< Primal polish: U - th0. */
+    qtank_real chol[QTANK_CHOL_MAX];/**< Packed Cholesky factor (what it holds: chol_holds). */
+    qtank_real hcol[QTANK_N_MAX];   /**< Dual active set: H_Wp of the row being added. */
+    qtank_real dv[QTANK_N_MAX];     /**< Primal polish: U - th0; scratch of correct(). */
     qtank_real ycol[QTANK_NT_MAX * QTANK_N_MAX]; /**< Primal polish: S_FF^-1 V_F'. */
     qtank_real tsmall[QTANK_NT_MAX * (QTANK_NT_MAX + 1) / 2]; /**< Terminal Schur complement. */
-    qtank_real nu[QTANK_NT_MAX];     /**< Terminal multiplier step. */
+    qtank_real nu[QTANK_NT_MAX];     /**< Terminal multiplier step; scratch of correct(). */
     qtank_real xn[QTANK_NX_MAX];    /**< Observer: next state. */
     qtank_real innov[QTANK_N_OUTPUTS]; /**< Observer: innovation. */
     int16_t run[QTANK_HORIZON + 1];       /**< First stages of the runs of equal reference. */
     int16_t set[QTANK_M_MAX];              /**< Rows of the sweep set. */
     int16_t wset[QTANK_N_MAX];             /**< Rows of the polish working set. */
     int16_t tmp[QTANK_N_MAX];              /**< Scratch index list. */
-    uint8_t in_set[QTANK_M_MAX];           /**< Membership flags of the sweep set. */
+    uint8_t in_set[QTANK_M_MAX];           /**< Membership flags of the sweep set, or of the working
+                                                       set in polish() and the dual active set. */
     uint8_t is_bound[QTANK_N_MAX];         /**< Primal polish: input fixed at a bound. */
     qtank_real gam_out_min;                /**< Smallest right-hand side of an output row. */
     int out_slacks_ok;                            /**< K of the output rows is computed. */
+    int chol_holds;                               /**< What chol holds: QTANK_CHOL_NONE, _DUAL or _PRIMAL. */
 } qtank_work;
 
 /** Controller instance. Complete here so firmware can allocate it statically. */

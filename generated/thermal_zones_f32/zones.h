@@ -61,26 +61,29 @@ typedef struct {
     zones_real th0[ZONES_N_MAX];    /**< Unconstrained solution. */
     zones_real th[ZONES_N_MAX];     /**< Current solution estimate. */
     zones_real px[ZONES_NYQ_MAX];   /**< Phi x. */
-    zones_real yv[ZONES_NYQ_MAX];   /**< Gamma th; 2 Omega R while th0 is formed. */
+    zones_real yv[ZONES_NYQ_MAX];   /**< Gamma th; 2 Omega R while th0 is formed; scratch of correct(). */
     zones_real gam[ZONES_M_MAX];    /**< Right-hand side c + W x. */
     zones_real K[ZONES_M_MAX];      /**< gamma - M th0. */
     zones_real z[ZONES_N_MAX];      /**< Polish multipliers / primal step. */
     zones_real rhs[ZONES_N_MAX];    /**< Polish right-hand side. */
-    zones_real chol[ZONES_CHOL_MAX];/**< Packed Cholesky factor. */
-    zones_real dv[ZONES_N_MAX];     /**< Primal polish: U - th0. */
+    zones_real chol[ZONES_CHOL_MAX];/**< Packed Cholesky factor (what it holds: chol_holds). */
+    zones_real hcol[ZONES_N_MAX];   /**< Dual active set: H_Wp of the row being added. */
+    zones_real dv[ZONES_N_MAX];     /**< Primal polish: U - th0; scratch of correct(). */
     zones_real ycol[ZONES_NT_MAX * ZONES_N_MAX]; /**< Primal polish: S_FF^-1 V_F'. */
     zones_real tsmall[ZONES_NT_MAX * (ZONES_NT_MAX + 1) / 2]; /**< Terminal Schur complement. */
-    zones_real nu[ZONES_NT_MAX];     /**< Terminal multiplier step. */
+    zones_real nu[ZONES_NT_MAX];     /**< Terminal multiplier step; scratch of correct(). */
     zones_real xn[ZONES_NX_MAX];    /**< Observer: next state. */
     zones_real innov[ZONES_N_OUTPUTS]; /**< Observer: innovation. */
     int16_t run[ZONES_HORIZON + 1];       /**< First stages of the runs of equal reference. */
     int16_t set[ZONES_M_MAX];              /**< Rows of the sweep set. */
     int16_t wset[ZONES_N_MAX];             /**< Rows of the polish working set. */
     int16_t tmp[ZONES_N_MAX];              /**< Scratch index list. */
-    uint8_t in_set[ZONES_M_MAX];           /**< Membership flags of the sweep set. */
+    uint8_t in_set[ZONES_M_MAX];           /**< Membership flags of the sweep set, or of the working
+                                                       set in polish() and the dual active set. */
     uint8_t is_bound[ZONES_N_MAX];         /**< Primal polish: input fixed at a bound. */
     zones_real gam_out_min;                /**< Smallest right-hand side of an output row. */
     int out_slacks_ok;                            /**< K of the output rows is computed. */
+    int chol_holds;                               /**< What chol holds: ZONES_CHOL_NONE, _DUAL or _PRIMAL. */
 } zones_work;
 
 /** Controller instance. Complete here so firmware can allocate it statically. */

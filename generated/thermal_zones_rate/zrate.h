@@ -61,26 +61,29 @@ typedef struct {
     zrate_real th0[ZRATE_N_MAX];    /**< Unconstrained solution. */
     zrate_real th[ZRATE_N_MAX];     /**< Current solution estimate. */
     zrate_real px[ZRATE_NYQ_MAX];   /**< Phi x. */
-    zrate_real yv[ZRATE_NYQ_MAX];   /**< Gamma th; 2 Omega R while th0 is formed. */
+    zrate_real yv[ZRATE_NYQ_MAX];   /**< Gamma th; 2 Omega R while th0 is formed; scratch of correct(). */
     zrate_real gam[ZRATE_M_MAX];    /**< Right-hand side c + W x. */
     zrate_real K[ZRATE_M_MAX];      /**< gamma - M th0. */
     zrate_real z[ZRATE_N_MAX];      /**< Polish multipliers / primal step. */
     zrate_real rhs[ZRATE_N_MAX];    /**< Polish right-hand side. */
-    zrate_real chol[ZRATE_CHOL_MAX];/**< Packed Cholesky factor. */
-    zrate_real dv[ZRATE_N_MAX];     /**< Primal polish: U - th0. */
+    zrate_real chol[ZRATE_CHOL_MAX];/**< Packed Cholesky factor (what it holds: chol_holds). */
+    zrate_real hcol[ZRATE_N_MAX];   /**< Dual active set: H_Wp of the row being added. */
+    zrate_real dv[ZRATE_N_MAX];     /**< Primal polish: U - th0; scratch of correct(). */
     zrate_real ycol[ZRATE_NT_MAX * ZRATE_N_MAX]; /**< Primal polish: S_FF^-1 V_F'. */
     zrate_real tsmall[ZRATE_NT_MAX * (ZRATE_NT_MAX + 1) / 2]; /**< Terminal Schur complement. */
-    zrate_real nu[ZRATE_NT_MAX];     /**< Terminal multiplier step. */
+    zrate_real nu[ZRATE_NT_MAX];     /**< Terminal multiplier step; scratch of correct(). */
     zrate_real xn[ZRATE_NX_MAX];    /**< Observer: next state. */
     zrate_real innov[ZRATE_N_OUTPUTS]; /**< Observer: innovation. */
     int16_t run[ZRATE_HORIZON + 1];       /**< First stages of the runs of equal reference. */
     int16_t set[ZRATE_M_MAX];              /**< Rows of the sweep set. */
     int16_t wset[ZRATE_N_MAX];             /**< Rows of the polish working set. */
     int16_t tmp[ZRATE_N_MAX];              /**< Scratch index list. */
-    uint8_t in_set[ZRATE_M_MAX];           /**< Membership flags of the sweep set. */
+    uint8_t in_set[ZRATE_M_MAX];           /**< Membership flags of the sweep set, or of the working
+                                                       set in polish() and the dual active set. */
     uint8_t is_bound[ZRATE_N_MAX];         /**< Primal polish: input fixed at a bound. */
     zrate_real gam_out_min;                /**< Smallest right-hand side of an output row. */
     int out_slacks_ok;                            /**< K of the output rows is computed. */
+    int chol_holds;                               /**< What chol holds: ZRATE_CHOL_NONE, _DUAL or _PRIMAL. */
 } zrate_work;
 
 /** Controller instance. Complete here so firmware can allocate it statically. */

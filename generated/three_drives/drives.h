@@ -61,26 +61,29 @@ typedef struct {
     drives_real th0[DRIVES_N_MAX];    /**< Unconstrained solution. */
     drives_real th[DRIVES_N_MAX];     /**< Current solution estimate. */
     drives_real px[DRIVES_NYQ_MAX];   /**< Phi x. */
-    drives_real yv[DRIVES_NYQ_MAX];   /**< Gamma th; 2 Omega R while th0 is formed. */
+    drives_real yv[DRIVES_NYQ_MAX];   /**< Gamma th; 2 Omega R while th0 is formed; scratch of correct(). */
     drives_real gam[DRIVES_M_MAX];    /**< Right-hand side c + W x. */
     drives_real K[DRIVES_M_MAX];      /**< gamma - M th0. */
     drives_real z[DRIVES_N_MAX];      /**< Polish multipliers / primal step. */
     drives_real rhs[DRIVES_N_MAX];    /**< Polish right-hand side. */
-    drives_real chol[DRIVES_CHOL_MAX];/**< Packed Cholesky factor. */
-    drives_real dv[DRIVES_N_MAX];     /**< Primal polish: U - th0. */
+    drives_real chol[DRIVES_CHOL_MAX];/**< Packed Cholesky factor (what it holds: chol_holds). */
+    drives_real hcol[DRIVES_N_MAX];   /**< Dual active set: H_Wp of the row being added. */
+    drives_real dv[DRIVES_N_MAX];     /**< Primal polish: U - th0; scratch of correct(). */
     drives_real ycol[DRIVES_NT_MAX * DRIVES_N_MAX]; /**< Primal polish: S_FF^-1 V_F'. */
     drives_real tsmall[DRIVES_NT_MAX * (DRIVES_NT_MAX + 1) / 2]; /**< Terminal Schur complement. */
-    drives_real nu[DRIVES_NT_MAX];     /**< Terminal multiplier step. */
+    drives_real nu[DRIVES_NT_MAX];     /**< Terminal multiplier step; scratch of correct(). */
     drives_real xn[DRIVES_NX_MAX];    /**< Observer: next state. */
     drives_real innov[DRIVES_N_OUTPUTS]; /**< Observer: innovation. */
     int16_t run[DRIVES_HORIZON + 1];       /**< First stages of the runs of equal reference. */
     int16_t set[DRIVES_M_MAX];              /**< Rows of the sweep set. */
     int16_t wset[DRIVES_N_MAX];             /**< Rows of the polish working set. */
     int16_t tmp[DRIVES_N_MAX];              /**< Scratch index list. */
-    uint8_t in_set[DRIVES_M_MAX];           /**< Membership flags of the sweep set. */
+    uint8_t in_set[DRIVES_M_MAX];           /**< Membership flags of the sweep set, or of the working
+                                                       set in polish() and the dual active set. */
     uint8_t is_bound[DRIVES_N_MAX];         /**< Primal polish: input fixed at a bound. */
     drives_real gam_out_min;                /**< Smallest right-hand side of an output row. */
     int out_slacks_ok;                            /**< K of the output rows is computed. */
+    int chol_holds;                               /**< What chol holds: DRIVES_CHOL_NONE, _DUAL or _PRIMAL. */
 } drives_work;
 
 /** Controller instance. Complete here so firmware can allocate it statically. */

@@ -61,26 +61,29 @@ typedef struct {
     rollmpc_real th0[ROLLMPC_N_MAX];    /**< Unconstrained solution. */
     rollmpc_real th[ROLLMPC_N_MAX];     /**< Current solution estimate. */
     rollmpc_real px[ROLLMPC_NYQ_MAX];   /**< Phi x. */
-    rollmpc_real yv[ROLLMPC_NYQ_MAX];   /**< Gamma th; 2 Omega R while th0 is formed. */
+    rollmpc_real yv[ROLLMPC_NYQ_MAX];   /**< Gamma th; 2 Omega R while th0 is formed; scratch of correct(). */
     rollmpc_real gam[ROLLMPC_M_MAX];    /**< Right-hand side c + W x. */
     rollmpc_real K[ROLLMPC_M_MAX];      /**< gamma - M th0. */
     rollmpc_real z[ROLLMPC_N_MAX];      /**< Polish multipliers / primal step. */
     rollmpc_real rhs[ROLLMPC_N_MAX];    /**< Polish right-hand side. */
-    rollmpc_real chol[ROLLMPC_CHOL_MAX];/**< Packed Cholesky factor. */
-    rollmpc_real dv[ROLLMPC_N_MAX];     /**< Primal polish: U - th0. */
+    rollmpc_real chol[ROLLMPC_CHOL_MAX];/**< Packed Cholesky factor (what it holds: chol_holds). */
+    rollmpc_real hcol[ROLLMPC_N_MAX];   /**< Dual active set: H_Wp of the row being added. */
+    rollmpc_real dv[ROLLMPC_N_MAX];     /**< Primal polish: U - th0; scratch of correct(). */
     rollmpc_real ycol[ROLLMPC_NT_MAX * ROLLMPC_N_MAX]; /**< Primal polish: S_FF^-1 V_F'. */
     rollmpc_real tsmall[ROLLMPC_NT_MAX * (ROLLMPC_NT_MAX + 1) / 2]; /**< Terminal Schur complement. */
-    rollmpc_real nu[ROLLMPC_NT_MAX];     /**< Terminal multiplier step. */
+    rollmpc_real nu[ROLLMPC_NT_MAX];     /**< Terminal multiplier step; scratch of correct(). */
     rollmpc_real xn[ROLLMPC_NX_MAX];    /**< Observer: next state. */
     rollmpc_real innov[ROLLMPC_N_OUTPUTS]; /**< Observer: innovation. */
     int16_t run[ROLLMPC_HORIZON + 1];       /**< First stages of the runs of equal reference. */
     int16_t set[ROLLMPC_M_MAX];              /**< Rows of the sweep set. */
     int16_t wset[ROLLMPC_N_MAX];             /**< Rows of the polish working set. */
     int16_t tmp[ROLLMPC_N_MAX];              /**< Scratch index list. */
-    uint8_t in_set[ROLLMPC_M_MAX];           /**< Membership flags of the sweep set. */
+    uint8_t in_set[ROLLMPC_M_MAX];           /**< Membership flags of the sweep set, or of the working
+                                                       set in polish() and the dual active set. */
     uint8_t is_bound[ROLLMPC_N_MAX];         /**< Primal polish: input fixed at a bound. */
     rollmpc_real gam_out_min;                /**< Smallest right-hand side of an output row. */
     int out_slacks_ok;                            /**< K of the output rows is computed. */
+    int chol_holds;                               /**< What chol holds: ROLLMPC_CHOL_NONE, _DUAL or _PRIMAL. */
 } rollmpc_work;
 
 /** Controller instance. Complete here so firmware can allocate it statically. */

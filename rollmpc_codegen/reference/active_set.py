@@ -3,14 +3,16 @@
 
 :class:`ActiveSetMixin` is part of :class:`~.solver.SolverRef`; it reads ``md``, ``H``,
 ``Hdiag``, ``wcap``, ``active_set_max``, ``dep_tol``, ``tol``, ``zero``, ``soft``,
-``soft_l1``/``soft_w`` and ``slack_on``.  The C's working-set arrays are the state dict
-of :meth:`dual_active_set` (W, z, the packed factor L, steps, in_set, K).
+``soft_l1``/``soft_w`` and ``slack_on``, and keeps the dual factor ``chol`` by updates
+(:mod:`.polish_dual`).  The C's other working-set arrays are the state dict of
+:meth:`dual_active_set` (W, z, steps, in_set, K).
 """
 from __future__ import annotations
 
 import numpy as np
 
-from .linalg import chol_lsolve_packed, chol_ltsolve_packed, seqsum
+from .linalg import chol_ltsolve_packed, seqsum
+from .polish_dual import CHOL_DUAL
 
 
 class ActiveSetMixin:
@@ -24,24 +26,23 @@ class ActiveSetMixin:
         return int(np.argmax(rel))
 
     def add_to_set(self, p, st):
-        """Mirror of add_to_set() on the state dict st (W, z, L, steps, in_set)."""
+        """Mirror of add_to_set() on the state dict st (W, z, steps, in_set)."""
         dt = self.md.Kx.dtype
         hpp = self.Hdiag[p]
         lp = self.zero
         wp, l1p, p_on = self.soft_w[p], self.soft_l1[p], False
+        hcol = self.H[st["W"], p].astype(dt)  # H_Wp, read once for every step
         while True:
             st["steps"] += 1
             if st["steps"] > self.active_set_max:
                 return -1
-            W, z, L = st["W"], st["z"], st["L"]
+            W, z = st["W"], st["z"]
             nw = len(W)
-            h = self.H[W, p].astype(dt) if nw else np.zeros(0, dt)
-            viol = seqsum(-(h * z), start=-st["K"][p] - hpp * lp)
-            y = h.copy()
-            chol_lsolve_packed(L, nw, y)
-            zeta = seqsum(-(y * y), start=hpp)
+            viol = seqsum(-(hcol * z), start=-st["K"][p] - hpp * lp)
+            y = hcol.copy()
+            zeta = self.factor_pivot(y, hpp)
             d = y.copy()
-            chol_ltsolve_packed(L, nw, d)
+            chol_ltsolve_packed(self.chol, nw, d)
             k, tblock, event = -1, self.zero, 0
             if self.soft:
                 k, tblock, event = self._first_event(W, z, d)
@@ -71,10 +72,8 @@ class ActiveSetMixin:
             lp = lp + t
             st["z"] = z
             if k < 0:
-                tri = nw * (nw + 1) // 2
-                L[tri:tri + nw] = y
-                L[tri + nw] = np.sqrt(zeta)
-                st["W"] = W + [p]
+                self.factor_append(y, zeta)
+                st["W"] = np.append(W, p)
                 st["z"] = np.concatenate((z, np.array([lp], dt)))
                 st["in_set"][p] = True
                 self.slack_on[p] = p_on
@@ -82,22 +81,14 @@ class ActiveSetMixin:
             if event == 2:
                 p_on = True
                 continue
-            if event == 1:  # row k's diagonal gains or loses w: refactor from it
-                self.slack_on[W[k]] = not self.slack_on[W[k]]
-                if not self.factor_working_set(W, start=k, chol=L)[0]:
+            if event == 1:  # row k's diagonal gains or loses w: update, else refactor
+                self.switch_row(W, k)
+                if self.chol_holds != CHOL_DUAL and not self.factor_working_set(W):
                     return -1
                 continue
-            if not self.remove_from_set(k, st):
-                return -1
-
-    def remove_from_set(self, k, st):
-        """Mirror of remove_from_set(): drop working-set position k and refactor the rows
-        of L from k on; False if a pivot breaks down."""
-        W = st["W"]
-        st["in_set"][W[k]] = False
-        self.slack_on[W[k]] = False
-        st["W"], st["z"] = W[:k] + W[k + 1:], np.delete(st["z"], k)
-        return self.factor_working_set(st["W"], start=k, chol=st["L"])[0]
+            st["in_set"][W[k]] = False
+            st["W"], st["z"] = self.remove_row(W, z, k)
+            hcol = np.delete(hcol, k)
 
     def _first_event(self, W, z, d):
         """The soft add_to_set()'s scan: (k, tblock, event) of the first multiplier to reach
@@ -120,9 +111,9 @@ class ActiveSetMixin:
     def dual_active_set(self, lam, th0, K, gam):
         """Mirror of dual_active_set(): (code 0/1/-1, th, active, steps + polish its)."""
         md = self.md
-        st = {"W": [], "z": np.zeros(0, md.Kx.dtype), "steps": 0, "K": K,
-              "L": np.zeros(self.wcap * (self.wcap + 1) // 2 + self.wcap + 1, md.Kx.dtype),
+        st = {"W": np.zeros(0, np.int64), "z": np.zeros(0, md.Kx.dtype), "steps": 0, "K": K,
               "in_set": np.zeros(md.m, bool)}
+        self.chol_holds = CHOL_DUAL  # the factor of the empty working set
         th = th0.copy()
         code = 0
         self.slack_on[:] = False
@@ -133,13 +124,12 @@ class ActiveSetMixin:
             code = self.add_to_set(p, st)
             if code != 0:
                 break
-            th = self.correct(th0, np.array(st["W"], np.int64), st["z"])
-        if not st["W"]:
+            th = self.correct(th0, st["W"], st["z"])
+        if not st["W"].size:
             if code == 0:
                 lam[:] = 0
             return code, th, 0, st["steps"]
-        W = np.sort(np.array(st["W"], np.int64))
-        ok, th_p, act, its = self.polish(W, lam, th0, K, gam)
+        ok, th_p, act, its = self.polish(st["W"], lam, th0, K, gam)
         if ok:
             return 0, th_p, act, st["steps"] + its
         return (1 if code == 1 else -1), th0, 0, st["steps"] + its

@@ -3,19 +3,22 @@ exact solve on a guessed working set, corrected until KKT holds.
 
 :class:`PolishMixin` is part of :class:`~.solver.SolverRef`; it reads ``md``, ``wcap``,
 ``polish_max``, ``soft``, ``tol`` and ``slack_on``, and solves through the primal and
-dual mixins (:mod:`.polish_primal`, :mod:`.polish_dual`).
+dual mixins (:mod:`.polish_primal`, :mod:`.polish_dual`); the dual one keeps its factor
+``chol`` across the corrections.  Working sets are in joining order, as in the C.
 """
 from __future__ import annotations
 
 import numpy as np
 
 from .linalg import chol_solve_packed
+from .polish_dual import CHOL_NONE
 
 
 class PolishMixin:
     def seed_from_multipliers(self, lam, S):
         """Mirror of seed_from_multipliers(): the rows of S with positive multipliers,
         slack where lam > l1."""
+        self.chol_holds = CHOL_NONE
         seed = S[lam[S] > 0]
         self.set_state(seed, lam[seed])
         return seed
@@ -23,6 +26,7 @@ class PolishMixin:
     def seed_shifted(self, lam):
         """Mirror of seed_shifted(): row r where its next-stage row was active, slack where
         that row's lam > l1."""
+        self.chol_holds = CHOL_NONE
         row_next = self.md.row_next
         W = np.flatnonzero(lam[row_next] > 0)
         self.set_state(W, lam[row_next[W]])
@@ -30,19 +34,23 @@ class PolishMixin:
 
     def seed_from_violated(self, K):
         """Mirror of seed_from_violated(): the rows th0 violates (K < 0), all tight."""
+        self.chol_holds = CHOL_NONE
         W = np.flatnonzero(K < 0)
         self.slack_on[W] = False
         return W
 
-    @staticmethod
-    def drop_negative(W, z, guess):
-        """Mirror of drop_negative(): (kept rows, 0 none dropped / 1 dropped / -1 give up)."""
+    def drop_negative(self, W, z, guess):
+        """Mirror of drop_negative(): (W, z, 0 none dropped / 1 dropped / -1 give up),
+        the negative rows removed from the last position down (remove_row())."""
         keep = z >= 0
-        if np.all(keep):
-            return W, 0
-        kept = W[keep]
-        give_up = kept.size == 0 or (guess and 2 * kept.size < W.size)
-        return kept, (-1 if give_up else 1)
+        kept = int(np.count_nonzero(keep))
+        if kept == W.size:
+            return W, z, 0
+        if kept == 0 or (guess and 2 * kept < W.size):
+            return W, z, -1
+        for k in np.flatnonzero(~keep)[::-1]:
+            W, z = self.remove_row(W, z, k)
+        return W, z, 1
 
     def working_set_holds(self, W, z, viol, scale):
         """Mirror of working_set_holds() (violated_in_set() with soft rows), from the
@@ -54,7 +62,7 @@ class PolishMixin:
     def refine_dual(self, W, z, th0, K, gam, th):
         """Mirror of refine_dual(): (ok, th, z) after up to two refinement rounds."""
         nw = W.size
-        chol = self.factor_working_set(W)[1]  # the factor dual_solve() left in ws->chol
+        chol = self.chol  # the factor dual_solve() used
         for _ in range(2):
             e = self.row_excess(th, gam)[0][W]
             if self.soft:
@@ -79,7 +87,8 @@ class PolishMixin:
         return W.size
 
     def polish(self, W, lam, th0, K, gam, guess=False):
-        """Mirror of polish() from working set W; returns (ok, th, active, iterations)."""
+        """Mirror of polish() from working set W (taking the dual factor ``chol`` when
+        ``chol_holds`` says it is W's); returns (ok, th, active, iterations)."""
         md = self.md
         n = md.n
         its = 0
@@ -96,7 +105,7 @@ class PolishMixin:
                 if add.size == 0:
                     if z is None:
                         z = self.free_multipliers(W)
-                    W, dropped = self.drop_negative(W, z, guess)
+                    W, z, dropped = self.drop_negative(W, z, guess)
                     if dropped < 0:
                         return False, None, 0, its
                     if dropped:
@@ -108,7 +117,7 @@ class PolishMixin:
                     return False, None, 0, its
                 if self.soft and self.switch_states(W, z):
                     continue
-                W, dropped = self.drop_negative(W, z, guess)
+                W, z, dropped = self.drop_negative(W, z, guess)
                 if dropped < 0:
                     return False, None, 0, its
                 if dropped:
@@ -123,6 +132,6 @@ class PolishMixin:
                     return True, th, self.accept(lam, W, z), its
             if add.size > self.wcap - W.size:
                 return False, None, 0, its
-            self.slack_on[add] = False  # joining rows start tight
-            W = np.union1d(W, add).astype(W.dtype)
+            for p in add:
+                W = self.append_row(W, p)
         return False, None, 0, its

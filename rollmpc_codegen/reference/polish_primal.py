@@ -12,6 +12,7 @@ import numpy as np
 
 from .dot import s_row_dots
 from .linalg import factor_and_solve_packed, seqsum, seqsum_rows
+from .polish_dual import CHOL_NONE
 
 
 class PrimalPolishMixin:
@@ -19,6 +20,7 @@ class PrimalPolishMixin:
         """Mirror of primal_solve(): bounds, then the cheaper form; (ok, th, z or None)."""
         md = self.md
         n, dt = md.n, md.Kx.dtype
+        self.chol_holds = CHOL_NONE  # ws->chol is about to hold a primal factor
         th = np.zeros(n, dt)
         dv = np.zeros(n, dt)
         qW = md.row_q[W]

@@ -2,7 +2,7 @@
 
 It mirrors ``templates/solver.c.j2``, a module per partial of ``templates/solver/``:
 :mod:`.hq`, :mod:`.dot`, :mod:`.unconstrained`, :mod:`.rows` (with ``violated_rows``),
-:mod:`.soft_rows`, :mod:`.sweeps`, :mod:`.polish_primal`, :mod:`.polish_dual`,
+:mod:`.factor_update`, :mod:`.soft_rows`, :mod:`.sweeps`, :mod:`.polish_primal`, :mod:`.polish_dual`,
 :mod:`.polish`, :mod:`.active_set`, and this module for ``qp_solve``; the ``row_const()``
 of ``bounds`` is :func:`rollmpc_codegen.features.runtime_bounds.row_constants`, and
 ``linalg.c.j2`` is :mod:`.linalg`.  Each method is named after the C function it mirrors.
@@ -26,7 +26,7 @@ from ..status import INACCURATE, INFEASIBLE, MAX_ITER, NUMERICAL, OPTIMAL
 from .active_set import ActiveSetMixin
 from .hq import hessian_reads
 from .polish import PolishMixin
-from .polish_dual import DualPolishMixin
+from .polish_dual import CHOL_NONE, DualPolishMixin
 from .polish_primal import PrimalPolishMixin
 from .rows import RowsMixin
 from .soft_rows import SoftRowsMixin
@@ -55,7 +55,7 @@ class SolverRef(UnconstrainedMixin, RowsMixin, SoftRowsMixin, SweepsMixin, Prima
         self.active_set = s.get("active_set", False)
         self.active_set_max = s.get("active_set_max", 0)
         self.dep_tol = dt(s.get("dependence_tol", 0.0))
-        self.Sinv, self.S, self.H, self.Hdiag, self.EM = hessian_reads(md)
+        self.Sinv, self.S, self.H, self.Hdiag = hessian_reads(md)
         self.Gam, self.expand = output_prediction(md)
         self.has_out, self.has_rate = md.has_output_rows, md.has_rate_rows
         self.lam = np.zeros(md.m, md.Kx.dtype)
@@ -68,6 +68,9 @@ class SolverRef(UnconstrainedMixin, RowsMixin, SoftRowsMixin, SweepsMixin, Prima
         self.soft = bool(np.any(self.soft_w > 0))
         self.slack_on = np.zeros(md.m, bool)
         self.wcap = md.w_cap if self.soft else md.n
+        # ws->chol and what it holds (polish_dual.CHOL_*), kept across the polish's steps
+        self.chol = np.zeros(self.wcap * (self.wcap + 1) // 2, md.Kx.dtype)
+        self.chol_holds = CHOL_NONE
         self.slack_max, self.slack_rows = self.zero, 0
 
     def solve(self, x, r):
