@@ -27,6 +27,136 @@
 
 #define R_ ROLLMPC_R
 
+/*
+ * Work units (docs/solver.md, "Work budget"): about one multiply-add with its loads. Each
+ * costly function adds its closed-form cost to ws->work once per call (never per loop
+ * iteration); the same formulas bound a unit of work before it starts (afford()), so the
+ * work of a solve never exceeds ROLLMPC_SOLVER_WORK_BUDGET. The NumPy reference charges the
+ * same numbers at the same places (rollmpc_codegen/qp/work.py: these formulas).
+ */
+#define OUT_OF_WORK (-2) /* a solver part stopped: the budget cannot afford its next unit */
+
+/* One read of H through hq(): the Woodbury sum of nt terms, twice for a Δu quantity. */
+static uint32_t hq_work(const rollmpc_mode_data *md)
+{
+    return ((uint32_t)md->nt + 4u) * 1u;
+}
+
+/* predict_outputs(): the Markov sum of every output over the stages before it. */
+static uint32_t predict_work(const rollmpc_mode_data *md)
+{
+    const uint32_t stages = (uint32_t)(md->nyq / md->ny);
+    return (uint32_t)md->ny * (uint32_t)md->nu * stages * (stages + 1u) / 2u
+        + (uint32_t)md->nyq;
+}
+
+/*
+ * A check of every row at a point (violated_outside(), most_violated()): the certificate,
+ * the prediction it may need, and the rows.
+ */
+static uint32_t scan_work(const rollmpc_mode_data *md)
+{
+    return 3u * (uint32_t)md->m + (uint32_t)md->n + predict_work(md);
+}
+
+/*
+ * correct() over `count` rows: n-long columns for at most min(2 count, n) input and
+ * min(count, nyq) output quantities, and the Woodbury term.
+ */
+static uint32_t correct_work(const rollmpc_mode_data *md, int count)
+{
+    const uint32_t n = (uint32_t)md->n, nt = (uint32_t)md->nt, c = (uint32_t)count;
+    const uint32_t nin = (2u * c < n) ? 2u * c : n;
+    const uint32_t nout = (c < (uint32_t)md->nyq) ? c : (uint32_t)md->nyq;
+    return c + 2u * n + (uint32_t)md->nyq + n * (nin + nout + nt) + nt * nin;
+}
+
+/* One Gauss-Seidel sweep over `count` rows. */
+static uint32_t sweep_work(const rollmpc_mode_data *md, int count)
+{
+    const uint32_t c = (uint32_t)count;
+    return c * c * hq_work(md) + 8u * c;
+}
+
+/* finish() and the slacks of the plan: always paid, so every check reserves it. */
+static uint32_t finish_work(const rollmpc_mode_data *md)
+{
+    return 2u * (uint32_t)md->n + 2u * (uint32_t)md->m;
+}
+
+/*
+ * Can the budget still pay for `need` units (and the final finish())? Every unit of work
+ * asks before it starts; ws->work + finish_work() <= budget holds throughout (the
+ * generator checks that the unconstrained step leaves room), so this cannot wrap.
+ */
+static int afford(const rollmpc_work *ws, const rollmpc_mode_data *md, uint32_t need)
+{
+    return need <= ROLLMPC_SOLVER_WORK_BUDGET - finish_work(md) - ws->work;
+}
+
+/* Cholesky factorisation of order n (n^3/6 multiply-adds, a division per entry). */
+static uint32_t chol_work(int n)
+{
+    const uint32_t u = (uint32_t)n;
+    return u * u * u / 6u + 2u * u * u + 4u * u;
+}
+
+/* One triangular solve of order n. */
+static uint32_t tri_work(int n)
+{
+    const uint32_t u = (uint32_t)n;
+    return u * u / 2u + 4u * u;
+}
+
+/* chol_rank_one() on a trailing block of order n: a rotation per column. */
+static uint32_t rank_one_work(int n)
+{
+    const uint32_t u = (uint32_t)n;
+    return 3u * u * u / 2u + 10u * u;
+}
+
+/* chol_delete() of row k from order n: the rows below move up, then one rank-one update. */
+static uint32_t delete_work(int k, int n)
+{
+    const uint32_t a = (uint32_t)n, b = (uint32_t)k;
+    return (a * a - b * b) / 2u + a + rank_one_work((n - 1 - k > 0) ? n - 1 - k : 0);
+}
+
+/* factor_working_set() of nw rows: their H entries, then the factorisation. */
+static uint32_t factor_work(const rollmpc_mode_data *md, int nw)
+{
+    const uint32_t u = (uint32_t)nw;
+    return u * (u + 1u) / 2u * hq_work(md) + chol_work(nw);
+}
+
+/* append_row() at position nw: the column H_Wp and its diagonal, a forward solve. */
+static uint32_t append_work(const rollmpc_mode_data *md, int nw)
+{
+    return ((uint32_t)nw + 1u) * hq_work(md) + tri_work(nw) + (uint32_t)nw;
+}
+
+/*
+ * primal_solve() on nw bound inputs and free_multipliers() after it: the Cholesky of the
+ * smaller of (S^-1)_BB and S_FF, its solves for the nt + 1 right-hand sides, the terminal
+ * Schur complement, and the n x nb (or n x nf) products.
+ */
+static uint32_t primal_work(const rollmpc_mode_data *md, int nw)
+{
+    const int n = md->n, nt = md->nt, k = (nw < n - nw) ? nw : n - nw;
+    const uint32_t u = (uint32_t)k, un = (uint32_t)n, ut = (uint32_t)nt;
+    return u * u / 2u + chol_work(k) + 2u * (ut + 1u) * tri_work(k) + ut * ut * u / 2u
+        + chol_work(nt) + 2u * tri_work(nt) + 3u * ut * un + 2u * un * (u + ut)
+        + (uint32_t)nw * (un + ut);
+}
+
+/* One step of add_to_set() on nw rows: two triangular solves, then a row leaves, switches
+ * state or joins. */
+static uint32_t add_step_work(int nw)
+{
+    const uint32_t leave = delete_work(0, nw), flip = rank_one_work(nw);
+    return 2u * tri_work(nw) + 5u * (uint32_t)nw + ((leave > flip) ? leave : flip);
+}
+
 /* Element (a, b) of Hq = [[E^-1, E^-1 G'], [G E^-1, G E^-1 G']] (quantities a, b). */
 static rollmpc_real hq(const rollmpc_mode_data *md, int a, int b)
 {
@@ -153,7 +283,7 @@ static void unconstrained(rollmpc_work *ws, const rollmpc_mode_data *md,
     const rollmpc_real *x, const rollmpc_real *r)
 {
     const int n = md->n, ny = md->ny, nyq = md->nyq, last = md->nyq / md->ny - 1;
-    int i, j, k, l, a, stage, nruns, longest;
+    int i, j, k, l, a, stage, nruns, longest, summed;
     for (k = 0; k < nyq; ++k) {
         const int st = k / ny, b = k % ny;
         rollmpc_real acc = R_(0.0);
@@ -163,6 +293,7 @@ static void unconstrained(rollmpc_work *ws, const rollmpc_mode_data *md,
         ws->yv[k] = acc;
     }
     nruns = reference_runs(ws, md, &longest);
+    summed = last - ((longest >= 0) ? ws->run[longest + 1] - ws->run[longest] : 0);
     for (i = 0; i < n; ++i) {
         const rollmpc_real *row = &md->EinvGt[i * nyq];
         rollmpc_real acc = R_(0.0);
@@ -188,7 +319,9 @@ static void unconstrained(rollmpc_work *ws, const rollmpc_mode_data *md,
         }
         ws->th0[i] = acc;
     }
+    ws->work += (uint32_t)(nyq * ny + n * md->nx + n * ny * (summed + nruns + 2));
     if (md->GEinvGt_p != 0) {
+        ws->work += (uint32_t)(nyq * md->nx);
         for (k = 0; k < nyq; ++k) {
             rollmpc_real acc = R_(0.0);
             for (l = 0; l < md->nx; ++l) {
@@ -199,21 +332,31 @@ static void unconstrained(rollmpc_work *ws, const rollmpc_mode_data *md,
     }
 }
 
-/* yv = Gamma T th: the Markov sum over the stages, stage t reading its block's input. */
+/*
+ * yv = Gamma T th: the Markov sum over the stages, stage t reading its block's input.
+ * Input (t, b) is spread over every later output in one strided pass, so each output
+ * still sums its terms in (t, b) order, as the reference does, with the longest loop
+ * innermost.
+ */
 static void predict_outputs(rollmpc_work *ws, const rollmpc_mode_data *md,
     const rollmpc_real *th)
 {
-    const int ny = md->ny, nu = md->nu;
-    int k, t, b;
-    for (k = 0; k < md->nyq; ++k) {
-        const int stage = k / ny, a = k % ny;
-        rollmpc_real acc = R_(0.0);
-        for (t = 0; t <= stage; ++t) {
-            for (b = 0; b < nu; ++b) {
-                acc += md->markov[((stage - t) * ny + a) * nu + b] * th[md->stage_block[t] * nu + b];
+    const int ny = md->ny, nu = md->nu, nyq = md->nyq;
+    int k, t, b, j;
+    ws->work += predict_work(md);
+    for (k = 0; k < nyq; ++k) {
+        ws->yv[k] = R_(0.0);
+    }
+    for (t = 0; t < nyq / ny; ++t) {
+        rollmpc_real *y = &ws->yv[t * ny]; /* outputs of stages t.. */
+        const int len = nyq - t * ny;
+        for (b = 0; b < nu; ++b) {
+            const rollmpc_real u = th[md->stage_block[t] * nu + b];
+            const rollmpc_real *mk = &md->markov[b]; /* (stage - t, a) with stride nu */
+            for (j = 0; j < len; ++j) {
+                y[j] += mk[j * nu] * u;
             }
         }
-        ws->yv[k] = acc;
     }
 }
 
@@ -229,11 +372,12 @@ static rollmpc_real row_value(const rollmpc_work *ws, const rollmpc_mode_data *m
  * 1 if no output row can be violated at th: |(Gamma th)_k| <= out_bound_k max|th| <= gamma_r
  * (out_bound carries the rounding margin), so the N^2/2 prediction can be skipped.
  */
-static int outputs_certified(const rollmpc_work *ws, const rollmpc_mode_data *md,
+static int outputs_certified(rollmpc_work *ws, const rollmpc_mode_data *md,
     const rollmpc_real *th)
 {
     rollmpc_real thmax = R_(0.0), bmax = R_(0.0);
     int i, r;
+    ws->work += (uint32_t)(md->n + md->m);
     for (i = 0; i < md->n; ++i) {
         const rollmpc_real v = ROLLMPC_FABS(th[i]);
         thmax = (v > thmax) ? v : thmax;
@@ -261,6 +405,7 @@ static void output_slacks(rollmpc_work *ws, const rollmpc_mode_data *md)
         return;
     }
     predict_outputs(ws, md, ws->th0);
+    ws->work += (uint32_t)md->m;
     for (r = 0; r < md->m; ++r) {
         const int q = md->row_q[r];
         if (q >= md->n) {
@@ -279,6 +424,7 @@ static void output_slacks(rollmpc_work *ws, const rollmpc_mode_data *md)
 static int slacks(rollmpc_work *ws, const rollmpc_mode_data *md)
 {
     int r, count = 0;
+    ws->work += 2u * (uint32_t)md->m;
     ws->gam_out_min = ROLLMPC_LAMBDA_LIMIT;
     for (r = 0; r < md->m; ++r) {
         const int q = md->row_q[r];
@@ -408,6 +554,7 @@ static void correct(rollmpc_work *ws, const rollmpc_mode_data *md, const int16_t
 {
     const int n = md->n, nyq = md->nyq, nt = md->nt;
     int i, j, o;
+    ws->work += correct_work(md, count);
     for (i = 0; i < n; ++i) {
         ws->dv[i] = R_(0.0);
         ws->th[i] = R_(0.0);
@@ -468,6 +615,7 @@ static void correct(rollmpc_work *ws, const rollmpc_mode_data *md, const int16_t
 static int build_set(rollmpc_work *ws, const rollmpc_mode_data *md)
 {
     int r, count = 0;
+    ws->work += (uint32_t)md->m;
     for (r = 0; r < md->m; ++r) {
         if (ws->in_set[r]) {
             ws->set[count++] = (int16_t)r;
@@ -486,6 +634,7 @@ static rollmpc_real sweep(rollmpc_work *ws, const rollmpc_mode_data *md,
     const rollmpc_real omega = ROLLMPC_SOLVER_OMEGA;
     rollmpc_real e2 = R_(0.0);
     int jr, js;
+    ws->work += sweep_work(md, count);
     for (jr = 0; jr < count; ++jr) {
         const int r = ws->set[jr];
         rollmpc_real acc = R_(0.0), t, wv, nl, d;
@@ -518,6 +667,7 @@ static int violated_kind(rollmpc_work *ws, const rollmpc_mode_data *md,
 {
     const int n = md->n;
     int r, nout = 0;
+    ws->work += (uint32_t)md->m;
     for (r = 0; r < md->m; ++r) {
         const int q = md->row_q[r];
         rollmpc_real v, g, viol, ag;
@@ -772,6 +922,7 @@ static int primal_solve(rollmpc_work *ws, const rollmpc_mode_data *md, int nw)
 static int factor_working_set(rollmpc_work *ws, const rollmpc_mode_data *md, int nw)
 {
     int i, j;
+    ws->work += factor_work(md, nw);
     for (i = 0; i < nw; ++i) {
         for (j = 0; j <= i; ++j) {
             ws->chol[ROLLMPC_TRI(i, j)] = h_rows(md, ws->wset[i], ws->wset[j]);
@@ -789,6 +940,7 @@ static rollmpc_real factor_pivot(rollmpc_work *ws, int nw, rollmpc_real hpp)
 {
     int i;
     rollmpc_real zeta = hpp;
+    ws->work += tri_work(nw) + (uint32_t)nw;
     rollmpc_chol_lsolve(ws->chol, nw, ws->rhs);
     for (i = 0; i < nw; ++i) {
         zeta -= ws->rhs[i] * ws->rhs[i];
@@ -819,6 +971,7 @@ static void append_row(rollmpc_work *ws, const rollmpc_mode_data *md, int p, int
     if (ws->chol_holds == ROLLMPC_CHOL_DUAL) {
         const rollmpc_real hpp = hq(md, md->row_q[p], md->row_q[p]);
         rollmpc_real zeta;
+        ws->work += ((uint32_t)nw + 1u) * hq_work(md);
         for (i = 0; i < nw; ++i) {
             ws->rhs[i] = h_rows(md, ws->wset[i], p);
         }
@@ -840,6 +993,7 @@ static void remove_row(rollmpc_work *ws, int k, int *nw)
     int i;
     ws->in_set[ws->wset[k]] = 0;
     if (ws->chol_holds == ROLLMPC_CHOL_DUAL) {
+        ws->work += delete_work(k, *nw);
         chol_delete(ws->chol, k, *nw, ws->rhs);
     }
     for (i = k; i + 1 < *nw; ++i) {
@@ -851,11 +1005,17 @@ static void remove_row(rollmpc_work *ws, int k, int *nw)
 
 /*
  * Dual solve on a general working set: z = -H_WW^-1 K_W, th = th0 - E^-1 M_W' z, with the
- * kept factor when ws->chol holds it, else factored from scratch.
+ * kept factor when ws->chol holds it, else factored from scratch. Returns 0, -1 if the
+ * factorisation breaks down, or OUT_OF_WORK.
  */
 static int dual_solve(rollmpc_work *ws, const rollmpc_mode_data *md, int nw)
 {
     int i;
+    const uint32_t need = (ws->out_slacks_ok ? 0u : (uint32_t)md->m + predict_work(md))
+        + ((ws->chol_holds == ROLLMPC_CHOL_DUAL) ? 0u : factor_work(md, nw)) + 2u * tri_work(nw);
+    if (!afford(ws, md, need)) {
+        return OUT_OF_WORK;
+    }
     output_slacks(ws, md);
     for (i = 0; i < nw; ++i) {
         ws->z[i] = -ws->K[ws->wset[i]];
@@ -863,6 +1023,7 @@ static int dual_solve(rollmpc_work *ws, const rollmpc_mode_data *md, int nw)
     if (ws->chol_holds != ROLLMPC_CHOL_DUAL && factor_working_set(ws, md, nw) != 0) {
         return -1;
     }
+    ws->work += 2u * tri_work(nw);
     rollmpc_chol_solve(ws->chol, nw, ws->z);
     return 0;
 }
@@ -873,6 +1034,7 @@ static int seed_from_multipliers(rollmpc_work *ws, const rollmpc_mode_data *md,
 {
     int j, nw = 0;
     ws->chol_holds = ROLLMPC_CHOL_NONE; /* a new working set: no factor of it yet */
+    ws->work += (uint32_t)count;
     for (j = 0; j < count; ++j) {
         const int r = list ? list[j] : j;
         if (lam[r] > R_(0.0)) {
@@ -886,14 +1048,16 @@ static int seed_from_multipliers(rollmpc_work *ws, const rollmpc_mode_data *md,
 }
 
 /*
- * Working set from the previous optimal active set shifted one stage along the horizon
- * (row r joins when its next-stage row was active): the receding-horizon guess.
+ * Working set from the previous active set (optimal, or where a TIME_LIMIT stopped)
+ * shifted one stage along the horizon (row r joins when its next-stage row was active):
+ * the receding-horizon guess; -1 if more than the working set holds.
  */
 static int seed_shifted(rollmpc_work *ws, const rollmpc_mode_data *md,
     const rollmpc_real *lam)
 {
     int r, nw = 0;
     ws->chol_holds = ROLLMPC_CHOL_NONE;
+    ws->work += (uint32_t)md->m;
     for (r = 0; r < md->m; ++r) {
         if (lam[md->row_next[r]] > R_(0.0)) {
             if (nw == md->n) {
@@ -910,6 +1074,7 @@ static int seed_from_violated(rollmpc_work *ws, const rollmpc_mode_data *md)
 {
     int r, nw = 0;
     ws->chol_holds = ROLLMPC_CHOL_NONE;
+    ws->work += (uint32_t)md->m;
     for (r = 0; r < md->m; ++r) {
         if ((ws->out_slacks_ok || md->row_q[r] < md->n) && ws->K[r] < R_(0.0)) {
             if (nw == md->n) {
@@ -925,9 +1090,9 @@ static int seed_from_violated(rollmpc_work *ws, const rollmpc_mode_data *md)
  * Drop the working-set rows with negative multipliers (remove_row(), from the last
  * position down). Returns 0 if none was dropped, 1 if some were (solve again), -1 if the
  * working set is to be given up: emptied, or a guess (see polish()) that would lose more
- * than half of its rows.
+ * than half of its rows; OUT_OF_WORK if the budget cannot afford the deletions.
  */
-static int drop_negative(rollmpc_work *ws, int *nw, int guess)
+static int drop_negative(rollmpc_work *ws, const rollmpc_mode_data *md, int *nw, int guess)
 {
     int i, keep = 0;
     for (i = 0; i < *nw; ++i) {
@@ -939,12 +1104,26 @@ static int drop_negative(rollmpc_work *ws, int *nw, int guess)
     if (keep == 0 || (guess && 2 * keep < *nw)) {
         return -1;
     }
+    if (ws->chol_holds == ROLLMPC_CHOL_DUAL
+        && !afford(ws, md, (uint32_t)(*nw - keep) * delete_work(0, *nw))) {
+        return OUT_OF_WORK;
+    }
     for (i = *nw - 1; i >= 0; --i) {
         if (!(ws->z[i] >= R_(0.0))) {
             remove_row(ws, i, nw);
         }
     }
     return 1;
+}
+
+/* Are the working-set rows all input bounds (the primal form's working sets)? */
+static int box_only(const rollmpc_work *ws, const rollmpc_mode_data *md, int nw)
+{
+    int i, box = 1;
+    for (i = 0; i < nw; ++i) {
+        box = box && md->row_q[ws->wset[i]] < md->n;
+    }
+    return box;
 }
 
 /* Do the working-set rows hold (within the feasibility tolerance) at ws->th? */
@@ -966,11 +1145,15 @@ static int working_set_holds(rollmpc_work *ws, const rollmpc_mode_data *md, int 
  * multipliers ~1e9 (float), th = th0 - E^-1 M_W' z cancels most digits. The residual
  * e = M_W th - gamma_W is small, so z += H_WW^-1 e (ws->chol holds the factor) and
  * a new th lose far fewer. Up to two rounds; 0 once the working set holds, no multiplier
- * is negative and no other row is violated, else -1.
+ * is negative and no other row is violated, else -1 (or OUT_OF_WORK).
  */
 static int refine_dual(rollmpc_work *ws, const rollmpc_mode_data *md, int nw)
 {
     int round, i;
+    if (!afford(ws, md, 2u * (2u * tri_work(nw) + correct_work(md, nw) + 2u * scan_work(md))
+                        + (uint32_t)md->m)) {
+        return OUT_OF_WORK;
+    }
     for (round = 0; round < 2; ++round) {
         int negative = 0;
         if (md->GEinvGt_p != 0) {
@@ -979,13 +1162,14 @@ static int refine_dual(rollmpc_work *ws, const rollmpc_mode_data *md, int nw)
         for (i = 0; i < nw; ++i) {
             ws->rhs[i] = row_excess(ws, md, ws->th, ws->wset[i]);
         }
+        ws->work += 2u * tri_work(nw);
         rollmpc_chol_solve(ws->chol, nw, ws->rhs);
         for (i = 0; i < nw; ++i) {
             ws->z[i] += ws->rhs[i];
             negative += (ws->z[i] < R_(0.0));
         }
         if (negative != 0) {
-            return -1;
+            return -1; /* a sign changed: not this working set's point */
         }
         correct(ws, md, ws->wset, nw, ws->z, 0);
         if (working_set_holds(ws, md, nw)) {
@@ -995,9 +1179,9 @@ static int refine_dual(rollmpc_work *ws, const rollmpc_mode_data *md, int nw)
     return -1;
 }
 
-/* The polish converged: the working set and its multipliers become the warm start. */
-static int accept(rollmpc_work *ws, const rollmpc_mode_data *md, rollmpc_real *lam,
-    int nw, int *active)
+/* lam = the working set's multipliers, 0 elsewhere: the next sample's warm start. */
+static void keep_working_set(const rollmpc_work *ws, const rollmpc_mode_data *md,
+    rollmpc_real *lam, int nw)
 {
     int i;
     for (i = 0; i < md->m; ++i) {
@@ -1006,6 +1190,14 @@ static int accept(rollmpc_work *ws, const rollmpc_mode_data *md, rollmpc_real *l
     for (i = 0; i < nw; ++i) {
         lam[ws->wset[i]] = ws->z[i];
     }
+}
+
+/* The polish converged: the working set and its multipliers become the warm start. */
+static int accept(rollmpc_work *ws, const rollmpc_mode_data *md, rollmpc_real *lam,
+    int nw, int *active)
+{
+    ws->work += (uint32_t)md->m;
+    keep_working_set(ws, md, lam, nw);
     *active = nw;
     return 0;
 }
@@ -1019,16 +1211,20 @@ static int accept(rollmpc_work *ws, const rollmpc_mode_data *md, rollmpc_real *l
  * A guessed working set (guess = 1: the shifted warm start) is abandoned as soon as more
  * than half of it has negative multipliers: the operating point moved, and the caller's
  * next seed is cheaper than unwinding it row block by row block. Returns 0 with ws->th
- * optimal and lam set to the exact multipliers, or -1 (lam untouched).
+ * optimal and lam set to the exact multipliers, -1 (lam untouched), or OUT_OF_WORK when
+ * the budget cannot afford the next step.
  */
 static int polish(rollmpc_work *ws, const rollmpc_mode_data *md, rollmpc_real *lam,
     int nw, int guess, int *iterations, int *active)
 {
-    const int n = md->n;
-    int i, it;
-    if (nw <= 0 || nw > n) {
+    int i, it, code;
+    if (nw <= 0 || nw > md->n) {
         return -1;
     }
+    if (!afford(ws, md, (uint32_t)md->m)) {
+        return OUT_OF_WORK;
+    }
+    ws->work += (uint32_t)md->m;
     for (i = 0; i < md->m; ++i) {
         ws->in_set[i] = 0; /* in_set flags the working set from here on */
     }
@@ -1036,53 +1232,61 @@ static int polish(rollmpc_work *ws, const rollmpc_mode_data *md, rollmpc_real *l
         ws->in_set[ws->wset[i]] = 1;
     }
     for (it = 0; it < ROLLMPC_SOLVER_POLISH_MAX; ++it) {
-        int nadd, dropped, box_only = 1, solved;
+        int nadd;
         ++*iterations;
-        for (i = 0; i < nw; ++i) {
-            box_only = box_only && md->row_q[ws->wset[i]] < n;
-        }
-        if (box_only) {
+        if (box_only(ws, md, nw)) {
             /* primal: bound rows first; the multipliers only at a feasible point */
-            solved = primal_solve(ws, md, nw);
-            if (solved < 0) {
+            if (!afford(ws, md, primal_work(md, nw) + scan_work(md) + (uint32_t)md->m)) {
+                return OUT_OF_WORK;
+            }
+            ws->work += primal_work(md, nw);
+            code = primal_solve(ws, md, nw);
+            if (code < 0) {
                 return -1;
             }
-            nadd = violated_outside(ws, md, ws->th, ws->in_set, ws->tmp, n - nw);
+            nadd = violated_outside(ws, md, ws->th, ws->in_set, ws->tmp, md->n - nw);
             if (nadd == 0) {
-                if (solved == 0) {
+                if (code == 0) {
                     free_multipliers(ws, md, nw);
                 }
-                dropped = drop_negative(ws, &nw, guess);
-                if (dropped != 0) {
-                    if (dropped < 0) {
-                        return -1;
+                code = drop_negative(ws, md, &nw, guess);
+                if (code != 0) {
+                    if (code < 0) {
+                        return code;
                     }
                     continue;
                 }
                 return accept(ws, md, lam, nw, active);
             }
         } else {
-            if (dual_solve(ws, md, nw) != 0) {
-                return -1;
+            code = dual_solve(ws, md, nw);
+            if (code != 0) {
+                return code;
             }
-            dropped = drop_negative(ws, &nw, guess);
-            if (dropped != 0) {
-                if (dropped < 0) {
-                    return -1;
+            code = drop_negative(ws, md, &nw, guess);
+            if (code != 0) {
+                if (code < 0) {
+                    return code;
                 }
                 continue;
             }
+            if (!afford(ws, md, correct_work(md, nw) + 2u * scan_work(md) + (uint32_t)md->m)) {
+                return OUT_OF_WORK;
+            }
             correct(ws, md, ws->wset, nw, ws->z, 0);
-            nadd = violated_outside(ws, md, ws->th, ws->in_set, ws->tmp, n - nw);
+            nadd = violated_outside(ws, md, ws->th, ws->in_set, ws->tmp, md->n - nw);
             if (nadd == 0) {
                 /* a (near-)singular H_WW, e.g. parallel rows of an infeasible QP, can give
                  * multipliers whose point misses its own working set: not optimal */
-                return (working_set_holds(ws, md, nw) || refine_dual(ws, md, nw) == 0)
-                    ? accept(ws, md, lam, nw, active) : -1;
+                code = working_set_holds(ws, md, nw) ? 0 : refine_dual(ws, md, nw);
+                return (code == 0) ? accept(ws, md, lam, nw, active) : code;
             }
         }
-        if (nadd > n - nw) {
+        if (nadd > md->n - nw) {
             return -1;
+        }
+        if (!afford(ws, md, (uint32_t)nadd * append_work(md, nw + nadd))) {
+            return OUT_OF_WORK;
         }
         for (i = 0; i < nadd; ++i) {
             append_row(ws, md, ws->tmp[i], nw++);
@@ -1091,27 +1295,43 @@ static int polish(rollmpc_work *ws, const rollmpc_mode_data *md, rollmpc_real *l
     return -1;
 }
 
+/* rows added per scan of every row: the scan and the corrected point are paid once for
+ * them, each checked again (in dual terms) before it joins */
+#define ADD_BATCH 4
 /*
- * The row most violated at th (violation relative to max(1, |gamma_r|)) among the rows
- * not in the working set (in_set flags); -1 if none is violated beyond the tolerance.
+ * The rows most violated at th (violation relative to max(1, |gamma_r|)) among the rows
+ * not in the working set (in_set flags), at most ADD_BATCH of them, most violated first
+ * (the lower row first among equals), into ws->tmp; returns how many (0: none is
+ * violated beyond the tolerance).
  */
 static int most_violated(rollmpc_work *ws, const rollmpc_mode_data *md,
     const rollmpc_real *th)
 {
     const int outputs = outputs_to_check(ws, md, th);
-    rollmpc_real worst = R_(0.0);
-    int r, best = -1;
+    rollmpc_real worst[ADD_BATCH];
+    int r, j, count = 0;
+    ws->work += 2u * (uint32_t)md->m;
     for (r = 0; r < md->m; ++r) {
         if (!ws->in_set[r] && (outputs || md->row_q[r] < md->n)) {
             const rollmpc_real viol = row_excess(ws, md, th, r);
             const rollmpc_real scale = tol_scale(ws, r);
-            if (viol > ROLLMPC_SOLVER_FEAS_TOL * scale && viol / scale > worst) {
-                worst = viol / scale;
-                best = r;
+            if (viol > ROLLMPC_SOLVER_FEAS_TOL * scale) {
+                const rollmpc_real rel = viol / scale;
+                for (j = count; j > 0 && rel > worst[j - 1]; --j) {
+                    if (j < ADD_BATCH) {
+                        worst[j] = worst[j - 1];
+                        ws->tmp[j] = ws->tmp[j - 1];
+                    }
+                }
+                if (j < ADD_BATCH) {
+                    worst[j] = rel;
+                    ws->tmp[j] = (int16_t)r;
+                    count += (count < ADD_BATCH);
+                }
             }
         }
     }
-    return best;
+    return count;
 }
 
 /*
@@ -1121,16 +1341,32 @@ static int most_violated(rollmpc_work *ws, const rollmpc_mode_data *md,
  * reaches 0 it joins. A row p dependent on the set (zeta = H_pp - H_pW H_WW^-1 H_Wp ~ 0)
  * can only move the others; if none can move, the QP is infeasible (Farkas). The factor
  * L = chol(H_WW) is kept by updates: p appends its row, a leaving row is deleted.
- * Returns 0 when p joined, 1 for infeasible, -1 on the step cap or a breakdown.
+ * With `recheck` (p was chosen at an earlier point), p is skipped unless its violation
+ * -K_p - H_pW z is still beyond the tolerance. Returns 0 when p joined, 2 when skipped, 1
+ * for infeasible, -1 on the step cap or a breakdown, or OUT_OF_WORK before a step the
+ * budget cannot afford (z has moved, p not joined).
  */
-static int add_to_set(rollmpc_work *ws, const rollmpc_mode_data *md, int p, int *nw,
-    int *steps)
+static int add_to_set(rollmpc_work *ws, const rollmpc_mode_data *md, int p, int recheck,
+    int *nw, int *steps)
 {
     const rollmpc_real hpp = hq(md, md->row_q[p], md->row_q[p]);
     rollmpc_real lp = R_(0.0);
     int i;
+    if (!afford(ws, md, ((uint32_t)*nw + 1u) * hq_work(md))) {
+        return OUT_OF_WORK;
+    }
+    ws->work += ((uint32_t)*nw + 1u) * hq_work(md);
     for (i = 0; i < *nw; ++i) { /* H_Wp, read once for every step of this add */
         ws->hcol[i] = h_rows(md, ws->wset[i], p);
+    }
+    if (recheck) { /* chosen at an earlier point: still violated at this one? */
+        rollmpc_real viol = -ws->K[p];
+        for (i = 0; i < *nw; ++i) {
+            viol -= ws->hcol[i] * ws->z[i];
+        }
+        if (!(viol > ROLLMPC_SOLVER_FEAS_TOL * tol_scale(ws, p))) {
+            return 2;
+        }
     }
     for (;;) {
         rollmpc_real zeta, viol = -ws->K[p] - hpp * lp, tblock = R_(0.0), t;
@@ -1138,6 +1374,10 @@ static int add_to_set(rollmpc_work *ws, const rollmpc_mode_data *md, int p, int 
         if (++*steps > ROLLMPC_SOLVER_ACTIVE_SET_MAX) {
             return -1;
         }
+        if (!afford(ws, md, add_step_work(*nw))) {
+            return OUT_OF_WORK;
+        }
+        ws->work += tri_work(*nw) + 4u * (uint32_t)*nw;
         for (i = 0; i < *nw; ++i) { /* y = L^-1 H_Wp (rhs), d = L'^-1 y (dv) */
             ws->rhs[i] = ws->hcol[i];
             viol -= ws->rhs[i] * ws->z[i];
@@ -1188,21 +1428,67 @@ static int add_to_set(rollmpc_work *ws, const rollmpc_mode_data *md, int p, int 
 }
 
 /*
- * Dual active-set solve (Goldfarb-Idnani) from the unconstrained optimum: add the most
- * violated row until none is, keeping the multipliers >= 0 and the working set linearly
- * independent, so it finishes where the polish fails (dependent active sets, working sets
- * the shifted guess and the violated rows do not reach). Its working set then goes to
- * polish() for the exact solve and KKT check -- also after a claim of infeasibility,
- * because far from the origin (multipliers ~1e9 in float) th = th0 - E^-1 M' z loses the
- * digits the primal form keeps; with it goes the factor of H_WW, which the polish keeps.
- * Returns 0 (optimal, as polish()), 1 (infeasible: ws->th is then th0) or -1 (step cap,
- * breakdown, or the polish rejects the set).
+ * The warm start of dual_active_set(): the previous working set shifted one stage
+ * (seed_shifted(): optimal, or where a TIME_LIMIT stopped), made dual feasible by solving
+ * on it, switching the soft states whose multipliers cross l1 and dropping the rows with
+ * negative multipliers until none is; ws->th is then its point. Returns its size (0: no
+ * seed, or it broke down or emptied: start cold) or OUT_OF_WORK.
+ */
+static int resume_working_set(rollmpc_work *ws, const rollmpc_mode_data *md,
+    const rollmpc_real *lam, int *steps)
+{
+    int i, round, code, nw = seed_shifted(ws, md, lam);
+    for (i = 0; i < nw; ++i) {
+        ws->in_set[ws->wset[i]] = 1;
+    }
+    for (round = 0; nw > 0 && round < ROLLMPC_SOLVER_POLISH_MAX; ++round) {
+        ++*steps;
+        code = dual_solve(ws, md, nw);
+        code = (code == 0) ? drop_negative(ws, md, &nw, 0) : code;
+        if (code == OUT_OF_WORK) {
+            return OUT_OF_WORK;
+        }
+        if (code == 0) {
+            if (!afford(ws, md, correct_work(md, nw))) {
+                return OUT_OF_WORK;
+            }
+            correct(ws, md, ws->wset, nw, ws->z, 0);
+            return nw;
+        }
+        if (code < 0) {
+            break;
+        }
+    }
+    for (i = 0; i < nw; ++i) { /* start cold */
+        ws->in_set[ws->wset[i]] = 0;
+    }
+    ws->chol_holds = ROLLMPC_CHOL_DUAL; /* the factor of the empty working set */
+    return 0;
+}
+
+/*
+ * Dual active-set solve (Goldfarb-Idnani) from the warm start (resume_working_set()) or the
+ * unconstrained optimum: add the most violated row until none is, keeping the multipliers
+ * >= 0 and the working set linearly independent, so it finishes where the polish fails
+ * (dependent active sets, working sets the shifted guess and the violated rows do not
+ * reach). Its working set then goes to polish() for the exact solve and KKT check -- also
+ * after a claim of infeasibility, because far from the origin (multipliers ~1e9 in float)
+ * th = th0 - E^-1 M' z loses the digits the primal form keeps; with it goes the factor of
+ * H_WW, which the polish keeps, and lam takes its multipliers (the next sample's warm
+ * start if the budget runs out). Returns 0 (optimal, as polish()), 1 (infeasible: ws->th
+ * is then th0), -1 (step cap, breakdown, or the polish rejects the set) or OUT_OF_WORK
+ * (ws->th the last point reached, lam its working set).
  */
 static int dual_active_set(rollmpc_work *ws, const rollmpc_mode_data *md,
     rollmpc_real *lam, int *iterations, int *active)
 {
     int i, nw = 0, steps = 0, code = 0;
+    if (!afford(ws, md, (ws->out_slacks_ok ? 0u : (uint32_t)md->m + predict_work(md))
+                        + (uint32_t)md->m)) {
+        return OUT_OF_WORK;
+    }
     output_slacks(ws, md);
+    ws->work += (uint32_t)md->m;
     ws->chol_holds = ROLLMPC_CHOL_DUAL; /* the factor of the empty working set */
     for (i = 0; i < md->m; ++i) {
         ws->in_set[i] = 0;
@@ -1210,23 +1496,49 @@ static int dual_active_set(rollmpc_work *ws, const rollmpc_mode_data *md,
     for (i = 0; i < md->n; ++i) {
         ws->th[i] = ws->th0[i];
     }
+    if (ROLLMPC_SOLVER_WARM_START) {
+        nw = afford(ws, md, (uint32_t)md->m) ? resume_working_set(ws, md, lam, &steps) : OUT_OF_WORK;
+        if (nw == OUT_OF_WORK) { /* lam stays the previous warm start */
+            *iterations += steps;
+            return OUT_OF_WORK;
+        }
+    }
     for (;;) {
-        const int p = most_violated(ws, md, ws->th);
-        if (p < 0) {
+        int p, c;
+        if (!afford(ws, md, scan_work(md) + (uint32_t)md->m)) {
+            code = OUT_OF_WORK;
             break;
         }
-        code = add_to_set(ws, md, p, &nw, &steps);
+        p = most_violated(ws, md, ws->th);
+        if (p == 0) {
+            break;
+        }
+        for (c = 0; c < p && code == 0; ++c) { /* 2: no longer violated, skipped */
+            code = add_to_set(ws, md, ws->tmp[c], c > 0, &nw, &steps);
+            code = (code == 2) ? 0 : code;
+        }
         if (code != 0) {
+            break;
+        }
+        if (!afford(ws, md, correct_work(md, nw))) {
+            code = OUT_OF_WORK;
             break;
         }
         correct(ws, md, ws->wset, nw, ws->z, 0);
     }
     *iterations += steps;
-    if (nw == 0) { /* code 0: violations of th0 within the tolerance only */
+    if (nw == 0 && code != OUT_OF_WORK) { /* code 0: violations of th0 within the tolerance only */
         return (code == 0) ? accept(ws, md, lam, 0, active) : code;
     }
-    if (polish(ws, md, lam, nw, 0, iterations, active) == 0) {
-        return 0;
+    /* the next sample's warm start, until polish() replaces it (its cost is part of the
+     * finish() every check reserves: finish() then leaves lam as it is) */
+    keep_working_set(ws, md, lam, nw);
+    i = (code == OUT_OF_WORK) ? OUT_OF_WORK : polish(ws, md, lam, nw, 0, iterations, active);
+    if (i == OUT_OF_WORK) {
+        *active = nw;
+    }
+    if (i == 0 || i == OUT_OF_WORK) {
+        return i;
     }
     if (code == 1) {
         for (i = 0; i < md->n; ++i) {
@@ -1236,12 +1548,17 @@ static int dual_active_set(rollmpc_work *ws, const rollmpc_mode_data *md,
     return (code == 1) ? 1 : -1;
 }
 
-/* Clamp th into the input bounds (or fall back) and write U; returns the final status. */
+/*
+ * Clamp th into the input bounds (or fall back) and write U; returns the final status.
+ * Only OPTIMAL and TIME_LIMIT keep lam: the exact multipliers, or the working set a
+ * TIME_LIMIT reached, which the next sample continues from.
+ */
 static int finish(rollmpc_work *ws, const rollmpc_mode_data *md, rollmpc_real *lam,
     int status, rollmpc_real *U)
 {
     const rollmpc_real *src = ws->th;
     int i, th_ok = 1, th0_ok = 1;
+    ws->work += finish_work(md);
     for (i = 0; i < md->n; ++i) {
         th_ok = th_ok && isfinite(ws->th[i]);
         th0_ok = th0_ok && isfinite(ws->th0[i]);
@@ -1255,12 +1572,23 @@ static int finish(rollmpc_work *ws, const rollmpc_mode_data *md, rollmpc_real *l
         const rollmpc_real v = src ? src[i] : R_(0.0);
         U[i] = (v < lo) ? lo : ((v > hi) ? hi : v);
     }
-    if (status != ROLLMPC_OPTIMAL) {
+    if (status != ROLLMPC_OPTIMAL && status != ROLLMPC_TIME_LIMIT) {
         for (i = 0; i < md->m; ++i) {
             lam[i] = R_(0.0); /* no sticky warm start after a failed sample */
         }
     }
     return status;
+}
+
+/* The budget ran out before the dual active set: the command is the clamped th0. */
+static int time_limit_at_th0(rollmpc_work *ws, const rollmpc_mode_data *md,
+    rollmpc_real *lam, rollmpc_real *U)
+{
+    int i;
+    for (i = 0; i < md->n; ++i) {
+        ws->th[i] = ws->th0[i];
+    }
+    return finish(ws, md, lam, ROLLMPC_TIME_LIMIT, U);
 }
 
 /**
@@ -1284,6 +1612,7 @@ int rollmpc_qp_solve(rollmpc_work *ws, rollmpc_real *lam, const rollmpc_mode_dat
     *iterations = 0;
     *polish_iterations = 0;
     *active = 0;
+    ws->work = 0u;
     unconstrained(ws, md, x, r);
     for (i = 0; i < md->n; ++i) {
         ws->th[i] = ws->th0[i];
@@ -1294,21 +1623,54 @@ int rollmpc_qp_solve(rollmpc_work *ws, rollmpc_real *lam, const rollmpc_mode_dat
         }
         return finish(ws, md, lam, ROLLMPC_OPTIMAL, U);
     }
-    /* Polish first: from the previous optimal active set (warm start), then from the rows
-     * the unconstrained solution violates; the sweeps below run only if both fail. */
-    if (ROLLMPC_SOLVER_WARM_START
-        && polish(ws, md, lam, seed_shifted(ws, md, lam), 1, polish_iterations, active) == 0) {
-        return finish(ws, md, lam, ROLLMPC_OPTIMAL, U);
+    /* Polish first: from the previous active set (warm start), then from the rows the
+     * unconstrained solution violates; what follows runs only if both fail. With a warm
+     * start the dual active set resumes from, the violated rows are polished only in the
+     * primal form: in the dual form the resumed dual active set costs less than a
+     * factor of H_WW over every violated row (which breaks down on dependent rows). */
+    count = 0; /* rows of the warm start */
+    if (ROLLMPC_SOLVER_WARM_START) {
+        if (!afford(ws, md, (uint32_t)md->m)) {
+            return time_limit_at_th0(ws, md, lam, U);
+        }
+        count = seed_shifted(ws, md, lam);
+        i = polish(ws, md, lam, count, 1, polish_iterations, active);
+        if (i == 0) {
+            return finish(ws, md, lam, ROLLMPC_OPTIMAL, U);
+        }
+        if (i == OUT_OF_WORK) {
+            return time_limit_at_th0(ws, md, lam, U);
+        }
     }
-    if (polish(ws, md, lam, seed_from_violated(ws, md), 0, polish_iterations, active) == 0) {
-        return finish(ws, md, lam, ROLLMPC_OPTIMAL, U);
+    if (!afford(ws, md, (uint32_t)md->m)) {
+        return time_limit_at_th0(ws, md, lam, U);
+    }
+    i = seed_from_violated(ws, md);
+    if (count <= 0 || !ROLLMPC_SOLVER_ACTIVE_SET || box_only(ws, md, i)) {
+        i = polish(ws, md, lam, i, 0, polish_iterations, active);
+        if (i == 0) {
+            return finish(ws, md, lam, ROLLMPC_OPTIMAL, U);
+        }
+        if (i == OUT_OF_WORK) {
+            return time_limit_at_th0(ws, md, lam, U);
+        }
     }
     /* Before any sweep: the dual active-set solve, which also proves infeasibility. */
     i = dual_active_set(ws, md, lam, polish_iterations, active);
     if (i >= 0) {
         return finish(ws, md, lam, (i == 0) ? ROLLMPC_OPTIMAL : ROLLMPC_INFEASIBLE, U);
     }
+    if (i == OUT_OF_WORK) {
+        return finish(ws, md, lam, ROLLMPC_TIME_LIMIT, U); /* at its last point */
+    }
+    if (!afford(ws, md, 3u * (uint32_t)md->m + (uint32_t)md->n
+                        + (ws->out_slacks_ok ? 0u : predict_work(md)))) {
+        return time_limit_at_th0(ws, md, lam, U);
+    }
     output_slacks(ws, md);
+    for (i = 0; i < md->n; ++i) {
+        ws->th[i] = ws->th0[i];
+    }
     for (i = 0; i < md->m; ++i) {
         ws->in_set[i] = (uint8_t)(ROLLMPC_SOLVER_REDUCED ? (ws->K[i] < ROLLMPC_SOLVER_SIGMA) : 1);
         if (!ROLLMPC_SOLVER_WARM_START || !ws->in_set[i]) {
@@ -1317,10 +1679,18 @@ int rollmpc_qp_solve(rollmpc_work *ws, rollmpc_real *lam, const rollmpc_mode_dat
     }
     count = build_set(ws, md);
     for (;;) {
-        int t, converged = 0, diverged = 0, nviol, added = 0;
+        int t, converged = 0, diverged = 0, nviol, added = 0, out = 0;
         const int chunk = ROLLMPC_SOLVER_POLISH ? ROLLMPC_SOLVER_POLISH_EVERY : ROLLMPC_SOLVER_MAX_ITER;
+        /* after the chunk: the corrected point, then the polish (which checks for itself)
+         * or the row checks */
+        const uint32_t after = correct_work(md, count) + (uint32_t)count;
         for (t = 0; t < chunk && total < ROLLMPC_SOLVER_MAX_ITER; ++t) {
-            const rollmpc_real e2 = sweep(ws, md, lam, count, &diverged);
+            rollmpc_real e2;
+            out = !afford(ws, md, sweep_work(md, count) + after);
+            if (out) {
+                break;
+            }
+            e2 = sweep(ws, md, lam, count, &diverged);
             ++total;
             if (diverged) {
                 break;
@@ -1330,14 +1700,27 @@ int rollmpc_qp_solve(rollmpc_work *ws, rollmpc_real *lam, const rollmpc_mode_dat
                 break;
             }
         }
+        if (out) {
+            status = ROLLMPC_TIME_LIMIT; /* ws->th: the last corrected point */
+            break;
+        }
         if (diverged) {
             status = ROLLMPC_INFEASIBLE;
             break;
         }
         correct(ws, md, ws->set, count, lam, 1);
-        if (polish(ws, md, lam, seed_from_multipliers(ws, md, lam, ws->set, count), 0,
-                polish_iterations, active) == 0) {
+        i = polish(ws, md, lam, seed_from_multipliers(ws, md, lam, ws->set, count), 0,
+                   polish_iterations, active);
+        if (i == 0) {
             status = ROLLMPC_OPTIMAL;
+            break;
+        }
+        if (i == OUT_OF_WORK
+            || !afford(ws, md, correct_work(md, count) + 2u * scan_work(md) + 2u * (uint32_t)md->m)) {
+            for (i = 0; i < md->n; ++i) { /* the polish overwrote the sweeps' point */
+                ws->th[i] = ws->th0[i];
+            }
+            status = ROLLMPC_TIME_LIMIT;
             break;
         }
         for (i = 0; i < md->m; ++i) { /* the polish flagged its working set in in_set */

@@ -69,6 +69,11 @@ def summary_text(rep: dict) -> str:
         f"({b['worst_load_percent']}% of {b['cycles_per_sample']:,} cycles)",
         f"  worst step by function: {top}",
     ]
+    cpw = rep.get("cycles_per_work_unit")
+    if cpw and cpw["steps"]:
+        lines.append(f"  cycles per work unit on {cpw['steps']} counted steps: max {cpw['max']} "
+                     f"(step {cpw['step_of_max']}), median {cpw['median']}; work budget "
+                     f"{rep['work_budget']:,} units")
     goals = ", ".join(f"{k}: {'met' if v else 'MISSED'}" for k, v in rep["goals"].items())
     lines.append(f"  goals (issue 7, paper config in float): {goals}")
     return "\n".join(lines)

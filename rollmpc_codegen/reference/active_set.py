@@ -11,33 +11,47 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..qp.work import add_step_work, correct_work, factor_work, hq_work, predict_work, scan_work, tri_work
 from .linalg import chol_ltsolve_packed, seqsum
-from .polish_dual import CHOL_DUAL
+from .polish_dual import CHOL_DUAL, OUT_OF_WORK
 
 
 class ActiveSetMixin:
     def most_violated(self, th, gam, in_set):
-        """Mirror of most_violated(): first row of largest relative violation, or -1."""
+        """Mirror of most_violated(): the rows of largest relative violation, at most
+        ``add_batch``, most violated first (the lower row among equals)."""
+        self.outputs_to_check(th, gam)  # its work; the mirror checks every row
+        self.work += 2 * self.md.m
         viol, scale = self.row_excess(th, gam)
-        cand = (~in_set) & (viol > self.tol * scale)
-        if not np.any(cand):
-            return -1
-        rel = np.where(cand, viol / scale, self.zero)
-        return int(np.argmax(rel))
+        cand = np.flatnonzero((~in_set) & (viol > self.tol * scale))
+        rel = viol[cand] / scale[cand]
+        return cand[np.lexsort((cand, -rel))][:self.add_batch]
 
-    def add_to_set(self, p, st):
+    def add_to_set(self, p, st, recheck=False):
         """Mirror of add_to_set() on the state dict st (W, z, steps, in_set)."""
-        dt = self.md.Kx.dtype
+        md = self.md
+        dt = md.Kx.dtype
         hpp = self.Hdiag[p]
         lp = self.zero
         wp, l1p, p_on = self.soft_w[p], self.soft_l1[p], False
+        if not self.afford((len(st["W"]) + 1) * hq_work(md, self.hq_factor)):
+            return OUT_OF_WORK
+        self.work += (len(st["W"]) + 1) * hq_work(md, self.hq_factor)
         hcol = self.H[st["W"], p].astype(dt)  # H_Wp, read once for every step
+        if recheck:  # chosen at an earlier point: still violated at this one?
+            viol = seqsum(-(hcol * st["z"]), start=-st["K"][p])
+            scale = abs(st["gam"][p]) if abs(st["gam"][p]) > self.one else self.one
+            if not viol > self.tol * scale:
+                return 2
         while True:
             st["steps"] += 1
             if st["steps"] > self.active_set_max:
                 return -1
             W, z = st["W"], st["z"]
             nw = len(W)
+            if not self.afford(add_step_work(nw)):
+                return OUT_OF_WORK
+            self.work += tri_work(nw) + 4 * nw
             viol = seqsum(-(hcol * z), start=-st["K"][p] - hpp * lp)
             y = hcol.copy()
             zeta = self.factor_pivot(y, hpp)
@@ -83,8 +97,11 @@ class ActiveSetMixin:
                 continue
             if event == 1:  # row k's diagonal gains or loses w: update, else refactor
                 self.switch_row(W, k)
-                if self.chol_holds != CHOL_DUAL and not self.factor_working_set(W):
-                    return -1
+                if self.chol_holds != CHOL_DUAL:
+                    if not self.afford(factor_work(md, nw, self.hq_factor)):
+                        return OUT_OF_WORK
+                    if not self.factor_working_set(W):
+                        return -1
                 continue
             st["in_set"][W[k]] = False
             st["W"], st["z"] = self.remove_row(W, z, k)
@@ -108,28 +125,86 @@ class ActiveSetMixin:
                     k, tblock, event = i, ratio, ev
         return k, tblock, event
 
+    def resume_working_set(self, lam, th0, K, st):
+        """Mirror of resume_working_set(): the shifted previous working set made dual
+        feasible in st (W, z, in_set); returns (its size, 0 to start cold, or
+        OUT_OF_WORK; th)."""
+        W = self.seed_shifted(lam)
+        if W.size > self.wcap:  # the C's seed gives up: cold
+            W = W[:0]
+        st["in_set"][W] = True
+        for _ in range(self.polish_max if W.size else 0):
+            st["steps"] += 1
+            code, z = self.dual_solve(W, K)
+            if code == 0 and self.soft:
+                code = self.switch_states(W, z)
+            if code == 0:
+                W, z, code = self.drop_negative(W, z, False)
+            if code == OUT_OF_WORK:
+                return OUT_OF_WORK, th0
+            if code == 0:
+                if not self.afford(correct_work(self.md, W.size)):
+                    return OUT_OF_WORK, th0
+                st["W"], st["z"] = W, z
+                st["in_set"][:] = False  # remove_row() unflagged the dropped rows
+                st["in_set"][W] = True
+                return W.size, self.correct(th0, W, z)
+            if code < 0:
+                break
+        st["in_set"][:] = False  # start cold
+        self.slack_on[W] = False
+        self.chol_holds = CHOL_DUAL
+        return 0, th0
+
     def dual_active_set(self, lam, th0, K, gam):
-        """Mirror of dual_active_set(): (code 0/1/-1, th, active, steps + polish its)."""
+        """Mirror of dual_active_set(): (code 0/1/-1/OUT_OF_WORK, th, active, steps +
+        polish its)."""
         md = self.md
         st = {"W": np.zeros(0, np.int64), "z": np.zeros(0, md.Kx.dtype), "steps": 0, "K": K,
-              "in_set": np.zeros(md.m, bool)}
+              "gam": gam, "in_set": np.zeros(md.m, bool)}
+        if not self.afford((0 if self.out_slacks_ok else md.m + predict_work(md)) + md.m):
+            return OUT_OF_WORK, th0, 0, 0
+        self.output_slacks()
+        self.work += md.m
         self.chol_holds = CHOL_DUAL  # the factor of the empty working set
         th = th0.copy()
-        code = 0
         self.slack_on[:] = False
+        if self.warm:
+            if not self.afford(md.m):
+                return OUT_OF_WORK, th, 0, st["steps"]
+            nw, th = self.resume_working_set(lam, th0, K, st)
+            if nw == OUT_OF_WORK:  # lam stays the previous warm start
+                return OUT_OF_WORK, th, 0, st["steps"]
+        code = 0
         while True:
-            p = self.most_violated(th, gam, st["in_set"])
-            if p < 0:
+            if not self.afford(scan_work(md) + md.m):
+                code = OUT_OF_WORK
                 break
-            code = self.add_to_set(p, st)
+            cands = self.most_violated(th, gam, st["in_set"])
+            if not cands.size:
+                break
+            for c, p in enumerate(cands):  # 2: no longer violated, skipped
+                code = self.add_to_set(p, st, c > 0)
+                code = 0 if code == 2 else code
+                if code != 0:
+                    break
             if code != 0:
                 break
+            if not self.afford(correct_work(md, len(st["W"]))):
+                code = OUT_OF_WORK
+                break
             th = self.correct(th0, st["W"], st["z"])
-        if not st["W"].size:
+        W = st["W"]
+        if not W.size and code != OUT_OF_WORK:
             if code == 0:
-                lam[:] = 0
+                self.accept(lam, W, st["z"])
             return code, th, 0, st["steps"]
-        ok, th_p, act, its = self.polish(st["W"], lam, th0, K, gam)
-        if ok:
+        self.keep_working_set(lam, W, st["z"])  # the warm start, until the polish's
+        if code == OUT_OF_WORK:
+            return OUT_OF_WORK, th, W.size, st["steps"]
+        code2, th_p, act, its = self.polish(W, lam, th0, K, gam, th=th)
+        if code2 == 0:
             return 0, th_p, act, st["steps"] + its
+        if code2 == OUT_OF_WORK:
+            return OUT_OF_WORK, th_p, W.size, st["steps"] + its
         return (1 if code == 1 else -1), th0, 0, st["steps"] + its

@@ -3,19 +3,21 @@ L = chol(H_WW) (plus w on the diagonal of slack soft rows), built from scratch, 
 by a joining row, shrunk by a leaving one, and the polish's dual solve with it.
 
 :class:`DualPolishMixin` is part of :class:`~.solver.SolverRef`; it reads ``md``, ``H``,
-``Hdiag``, ``dep_tol``, ``slack_on`` and ``soft_l1``/``soft_w``, and keeps the C's
-``ws->chol`` and ``ws->chol_holds`` as ``chol`` and ``chol_holds``.  A working set W is an
-integer array in its C order (joining order).
+``Hdiag``, ``dep_tol``, ``slack_on`` and ``soft_l1``/``soft_w``, keeps the C's ``ws->chol``
+and ``ws->chol_holds`` as ``chol`` and ``chol_holds``, and charges ``work`` as the C.  A
+working set W is an integer array in its C order (joining order).
 """
 from __future__ import annotations
 
 import numpy as np
 
+from ..qp.work import delete_work, factor_work, hq_work, predict_work, tri_work
 from .factor_update import chol_delete
 from .linalg import cholesky_packed, chol_lsolve_packed, chol_solve_packed, seqsum
 
 # what ws->chol holds (the C's P_CHOL_NONE / _DUAL / _PRIMAL of internal.h.j2)
 CHOL_NONE, CHOL_DUAL, CHOL_PRIMAL = 0, 1, 2
+OUT_OF_WORK = -2  # the C's: a solver part stopped, the budget cannot afford its next unit
 
 
 class DualPolishMixin:
@@ -23,6 +25,7 @@ class DualPolishMixin:
         """Mirror of factor_working_set(): chol(H_WW + w of the slack rows) from scratch
         into ``chol``; sets ``chol_holds``; False on a bad pivot."""
         chol = self.chol
+        self.work += factor_work(self.md, len(W), self.hq_factor)
         for i in range(len(W)):
             tri = i * (i + 1) // 2
             chol[tri:tri + i + 1] = self.H[W[i], W[:i + 1]]
@@ -34,6 +37,7 @@ class DualPolishMixin:
 
     def factor_pivot(self, y, hpp):
         """Mirror of factor_pivot(): y = L^-1 H_Wp in place, returns hpp - y'y."""
+        self.work += tri_work(y.size) + y.size
         chol_lsolve_packed(self.chol, y.size, y)
         return seqsum(-(y * y), start=hpp)
 
@@ -49,6 +53,7 @@ class DualPolishMixin:
         its pivot is below the dependence tolerance (then no factor is kept)."""
         self.slack_on[p] = False
         if self.chol_holds == CHOL_DUAL:
+            self.work += (len(W) + 1) * hq_work(self.md, self.hq_factor)
             hpp = self.Hdiag[p]
             y = self.H[W, p].astype(self.chol.dtype)
             zeta = self.factor_pivot(y, hpp)
@@ -62,15 +67,24 @@ class DualPolishMixin:
         """Mirror of remove_row(): position k leaves W and z (and the kept factor)."""
         self.slack_on[W[k]] = False
         if self.chol_holds == CHOL_DUAL:
+            self.work += delete_work(k, len(W))
             chol_delete(self.chol, k, len(W), np.zeros(len(W), self.chol.dtype))
         return np.delete(W, k), np.delete(z, k)
 
     def dual_solve(self, W, K):
-        """Mirror of dual_solve(): returns (ok, z)."""
+        """Mirror of dual_solve(): (0, z), or (-1 on a breakdown / OUT_OF_WORK, None)."""
+        md, nw = self.md, W.size
+        need = ((0 if self.out_slacks_ok else md.m + predict_work(md))
+                + (0 if self.chol_holds == CHOL_DUAL else factor_work(md, nw, self.hq_factor))
+                + 2 * tri_work(nw))
+        if not self.afford(need):
+            return OUT_OF_WORK, None
+        self.output_slacks()
         z = -K[W]
         on = self.slack_on[W]
         z[on] = z[on] + self.soft_l1[W][on] * self.soft_w[W][on]
         if self.chol_holds != CHOL_DUAL and not self.factor_working_set(W):
-            return False, None
-        chol_solve_packed(self.chol, W.size, z)
-        return True, z
+            return -1, None
+        self.work += 2 * tri_work(nw)
+        chol_solve_packed(self.chol, nw, z)
+        return 0, z

@@ -12,8 +12,9 @@ from __future__ import annotations
 import numpy as np
 
 from ..features.soft_constraints import slacks as multiplier_slacks
+from ..qp.work import rank_one_work
 from .factor_update import chol_rank_one
-from .polish_dual import CHOL_DUAL, CHOL_NONE
+from .polish_dual import CHOL_DUAL, CHOL_NONE, OUT_OF_WORK
 
 
 class SoftRowsMixin:
@@ -33,16 +34,20 @@ class SoftRowsMixin:
         r = W[k]
         self.slack_on[r] = not self.slack_on[r]
         if self.chol_holds == CHOL_DUAL:
+            self.work += rank_one_work(len(W) - k)
             v = np.zeros(len(W), self.chol.dtype)
             v[k] = np.sqrt(self.soft_w[r])
             if not chol_rank_one(self.chol, k, len(W), v, not self.slack_on[r], self.dep_tol):
                 self.chol_holds = CHOL_NONE
 
     def switch_states(self, W, z):
-        """Mirror of switch_states(): flip the rows whose multiplier crossed l1; count."""
+        """Mirror of switch_states(): flip the rows whose multiplier crossed l1; count, or
+        OUT_OF_WORK before a switch the budget cannot afford."""
         l1, on = self.soft_l1[W], self.slack_on[W]
         flip = (self.soft_w[W] > 0) & np.where(on, z < l1, z > l1)
         for k in np.flatnonzero(flip):
+            if not self.afford(rank_one_work(len(W) - k)):
+                return OUT_OF_WORK
             self.switch_row(W, k)
         return int(np.count_nonzero(flip))
 

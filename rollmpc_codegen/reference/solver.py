@@ -22,11 +22,12 @@ import numpy as np
 
 from ..features.soft_constraints import slacks as multiplier_slacks
 from ..qp.storage import ModeData
-from ..status import INACCURATE, INFEASIBLE, MAX_ITER, NUMERICAL, OPTIMAL
+from ..qp.work import correct_work, finish_work, predict_work, scan_work, sweep_work
+from ..status import INACCURATE, INFEASIBLE, MAX_ITER, NUMERICAL, OPTIMAL, TIME_LIMIT
 from .active_set import ActiveSetMixin
 from .hq import hessian_reads
 from .polish import PolishMixin
-from .polish_dual import CHOL_NONE, DualPolishMixin
+from .polish_dual import CHOL_NONE, OUT_OF_WORK, DualPolishMixin
 from .polish_primal import PrimalPolishMixin
 from .rows import RowsMixin
 from .soft_rows import SoftRowsMixin
@@ -72,13 +73,23 @@ class SolverRef(UnconstrainedMixin, RowsMixin, SoftRowsMixin, SweepsMixin, Prima
         self.chol = np.zeros(self.wcap * (self.wcap + 1) // 2, md.Kx.dtype)
         self.chol_holds = CHOL_NONE
         self.slack_max, self.slack_rows = self.zero, 0
+        # the work count of the last solve (ws->work; qp/work.py) and its budget
+        self.budget, self.hq_factor = s["work_budget"], s["hq_work_factor"]
+        self.add_batch = s["add_batch"]
+        self.work, self.out_slacks_ok, self.gam_out_min = 0, False, self.limit
+
+    def afford(self, need):
+        """Mirror of afford(): can the budget still pay ``need`` units and finish()?"""
+        return need <= self.budget - finish_work(self.md) - self.work
 
     def solve(self, x, r):
-        """Mirror of P_qp_solve(): returns (status, U, iterations, polish_iterations, active)."""
+        """Mirror of P_qp_solve(): returns (status, U, iterations, polish_iterations, active);
+        its work is ``work``."""
         md = self.md
         x = np.asarray(x, md.Kx.dtype)
         r = np.asarray(r, md.Kx.dtype)
         lam = self.lam
+        self.work = 0
         th0, px = self.unconstrained(x, r)
         gam, K = self.slacks(x, th0, px)
         if not np.any(K < 0):
@@ -87,31 +98,51 @@ class SolverRef(UnconstrainedMixin, RowsMixin, SoftRowsMixin, SweepsMixin, Prima
         total, polish_its, active = 0, 0, 0
         if self.polish_on and self.polish_first:
             # the previous active set shifted one stage (a guess), then the rows th0 violates
+            # (with a warm start, in the primal form only)
+            warm_rows = 0
             for guess in ((True, False) if self.warm else (False,)):
+                if not self.afford(md.m):
+                    return self.finish(th0, th0, TIME_LIMIT) + (0, polish_its, 0)
                 W = self.seed_shifted(lam) if guess else self.seed_from_violated(K)
-                ok, th_p, act, its = self.polish(W, lam, th0, K, gam, guess)
+                if guess:
+                    warm_rows = W.size if W.size <= self.wcap else -1
+                elif warm_rows > 0 and self.active_set and not np.all(md.row_q[W] < md.n):
+                    break
+                code, th_p, act, its = self.polish(W, lam, th0, K, gam, guess)
                 polish_its += its
-                if ok:
-                    status, U = self.finish(th_p, th0, OPTIMAL)
-                    return status, U, 0, polish_its, act
+                if code == 0:
+                    return self.finish(th_p, th0, OPTIMAL) + (0, polish_its, act)
+                if code == OUT_OF_WORK:
+                    return self.finish(th0, th0, TIME_LIMIT) + (0, polish_its, 0)
         if self.active_set:
             code, th_a, act, its = self.dual_active_set(lam, th0, K, gam)
             polish_its += its
             if code >= 0:
                 status, U = self.finish(th_a, th0, OPTIMAL if code == 0 else INFEASIBLE)
                 return status, U, 0, polish_its, act
+            if code == OUT_OF_WORK:  # at its last point
+                return self.finish(th_a, th0, TIME_LIMIT) + (0, polish_its, act)
+        if not self.afford(3 * md.m + md.n + (0 if self.out_slacks_ok else predict_work(md))):
+            return self.finish(th0, th0, TIME_LIMIT) + (0, polish_its, active)
+        self.output_slacks()
         in_set = (K < self.sigma) if self.reduced else np.ones(md.m, bool)
         if not self.warm:
             lam[:] = 0
         lam[~in_set] = 0
         S = np.flatnonzero(in_set)  # build_set()
+        self.work += md.m
         status = MAX_ITER
         th = th0
         while True:
-            converged = diverged = False
+            converged = diverged = out = False
             chunk = self.polish_every if self.polish_on else self.max_iter
+            after = correct_work(md, S.size) + (S.size if self.polish_on
+                                                else 2 * scan_work(md) + md.m)
             t = 0
             while t < chunk and total < self.max_iter:
+                out = not self.afford(sweep_work(md, S.size, self.hq_factor) + after)
+                if out:
+                    break
                 e2, diverged = self.sweep(S, K, lam)
                 total += 1
                 t += 1
@@ -120,25 +151,35 @@ class SolverRef(UnconstrainedMixin, RowsMixin, SoftRowsMixin, SweepsMixin, Prima
                 if e2 < self.delta:
                     converged = True
                     break
+            if out:
+                status = TIME_LIMIT  # at the last corrected point
+                break
             if diverged:
                 status = INFEASIBLE
                 break
             th = self.correct(th0, S, lam[S])
             if self.polish_on:
-                ok, th_p, act, its = self.polish(self.seed_from_multipliers(lam, S), lam,
-                                                 th0, K, gam)
+                code, th_p, act, its = self.polish(self.seed_from_multipliers(lam, S), lam,
+                                                   th0, K, gam)
                 polish_its += its
-                if ok:
+                if code == 0:
                     th, active, status = th_p, act, OPTIMAL
                     break
+                if code == OUT_OF_WORK or not self.afford(correct_work(md, S.size)
+                                                          + 2 * scan_work(md) + 2 * md.m):
+                    th, status = th0, TIME_LIMIT
+                    break
+                self.work += correct_work(md, S.size)  # the C corrects again: same th
             exc, scale = self.row_excess(th, gam)
             viol = exc > self.tol * scale
             if self.soft:
+                self.outputs_to_check(th, gam)  # violated_beyond_slack()'s work
                 nviol = self.violated_beyond_slack(exc, scale, lam)
             else:  # violated_outside() over every row (only nviol != 0 matters)
-                nviol = int(np.count_nonzero(viol))
+                nviol = self.violated_outside(th, gam, S[:0]).size
             added = 0
             if self.reduced and nviol:
+                self.outputs_to_check(th, gam)
                 new = viol & ~in_set
                 added = int(np.count_nonzero(new))
                 in_set |= new
@@ -153,6 +194,7 @@ class SolverRef(UnconstrainedMixin, RowsMixin, SoftRowsMixin, SweepsMixin, Prima
                 break
             if added:
                 S = np.flatnonzero(in_set)
+                self.work += md.m
         if active == 0:
             active = int(np.count_nonzero(lam > 0))
         status, U = self.finish(th, th0, status)
@@ -160,8 +202,10 @@ class SolverRef(UnconstrainedMixin, RowsMixin, SoftRowsMixin, SweepsMixin, Prima
 
     def finish(self, th, th0, status):
         """Mirror of finish(): clamp th (or th0, or 0 when not finite) into the input
-        bounds; clear the warm start unless optimal; the plan's slacks. (status, U)."""
+        bounds; keep the warm start only when optimal or out of time; the plan's slacks
+        (when optimal). (status, U)."""
         md = self.md
+        self.work += finish_work(md)
         src = th
         if not np.all(np.isfinite(th)):
             status = NUMERICAL
@@ -169,10 +213,11 @@ class SolverRef(UnconstrainedMixin, RowsMixin, SoftRowsMixin, SweepsMixin, Prima
         lo = np.tile(self.u_min, md.n // md.nu)  # per stage, or per block
         hi = np.tile(self.u_max, md.n // md.nu)
         U = np.where(src < lo, lo, np.where(src > hi, hi, src))
-        if status != OPTIMAL:
+        if status not in (OPTIMAL, TIME_LIMIT):
             self.lam[:] = 0
         if self.soft:  # the plan's slacks (finish()): 0 unless optimal
-            sl = multiplier_slacks(self.lam, self.soft_l1, self.soft_w)
+            sl = (multiplier_slacks(self.lam, self.soft_l1, self.soft_w) if status == OPTIMAL
+                  else np.zeros(0, md.Kx.dtype))
             self.slack_max = sl.max(initial=self.zero)
             self.slack_rows = int(np.count_nonzero(sl > 0))
         return status, U

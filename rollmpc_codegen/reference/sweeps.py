@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..qp.work import correct_work, sweep_work
 from .linalg import seqsum
 
 
@@ -18,6 +19,7 @@ class SweepsMixin:
         over the nonzero entries: S^-1 v_in, minus Ew' (Ew v_in), plus E^-1 G' v_out."""
         md = self.md
         n, nyq, dt = md.n, md.n_yq, md.Kx.dtype
+        self.work += correct_work(md, rows.size)
         sel = mult > 0
         rows, mult = rows[sel], mult[sel]
         v = np.where(md.row_sign[rows] > 0, mult, -mult)
@@ -49,6 +51,7 @@ class SweepsMixin:
         e2 = self.zero
         diverged = False
         om = self.omega
+        self.work += sweep_work(self.md, S.size, self.hq_factor)
         for r in S:
             mask = (S != r) & (lam[S] > 0)
             others = S[mask]

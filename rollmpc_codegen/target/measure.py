@@ -34,6 +34,18 @@ def _top_functions(counts, limit: int = 12) -> list[dict]:
             for name, (ins, cyc) in rows]
 
 
+def cycles_per_work(counts: dict, info: list) -> dict:
+    """Estimated cycles per work unit (qp/work.py) on the counted steps that solved a QP:
+    its largest and median ratio, and the step of the largest (the calibration of
+    CYCLES_PER_WORK_UNIT, docs/solver.md "Work budget")."""
+    ratios = {k: c.cycles / info[k]["work"] for k, c in counts.items() if info[k]["work"] > 0}
+    if not ratios:
+        return {"max": None, "median": None, "step_of_max": None, "steps": 0}
+    worst = max(ratios, key=lambda k: (ratios[k], -k))
+    return {"max": round(ratios[worst], 2), "median": round(float(np.median(list(ratios.values()))), 2),
+            "step_of_max": int(worst), "steps": len(ratios)}
+
+
 def measure(model, ctx: dict, build_root: Path, *, steps: int | None = None,
             sample_every: int = 20, hardest: int = 10, progress=None,
             extra_cflags: tuple[str, ...] = (), host_repeats: int = 5) -> dict:
@@ -81,6 +93,8 @@ def measure(model, ctx: dict, build_root: Path, *, steps: int | None = None,
         "worst_step": int(worst_k),
         "worst_step_mode": int(info_w["mode"]),
         "worst_step_host": {k: int(info_w[k]) for k in (*INFO_FIELDS, "solve_ticks")},
+        "work_budget": int(ctx["solver"]["work_budget"]),
+        "cycles_per_work_unit": cycles_per_work(run.counts, record.info),
         "worst_step_instructions": int(worst.instructions),
         "worst_step_cycles": int(worst.cycles),
         "median_step_cycles": int(np.median(sweep_cycles)),
@@ -100,8 +114,8 @@ def measure(model, ctx: dict, build_root: Path, *, steps: int | None = None,
         "hardest_step_cycles": [
             {"step": k, "cycles": int(run.counts[k].cycles),
              "instructions": int(run.counts[k].instructions),
-             **{f: int(record.info[k][f]) for f in ("mode", "iterations", "polish_iterations",
-                                                   "active")},
+             **{f: int(record.info[k][f]) for f in ("mode", "status", "iterations",
+                                                   "polish_iterations", "active", "work")},
              "host_solve_us": round(record.info[k]["solve_ticks"] / 1000.0, 1)}
             for k in sorted(hard, key=lambda k: -run.counts[k].cycles)],
         "cycle_model": "Cortex-M4 TRM weights, zero wait states, taken branch +2 "
