@@ -95,6 +95,9 @@ typedef struct {
     int out_slacks_ok;                            /**< K of the output rows is computed. */
     int chol_holds;                               /**< What chol holds: CHAIN_SOFT_CHOL_NONE, _DUAL or _PRIMAL. */
     uint32_t work;                                /**< Work units of the solve so far. */
+    uint32_t work_limit;                          /**< What the running part may spend up to (afford()). */
+    int stop_rows;                                /**< Rows of wset where polish() ran out of work, */
+    int stop_known;                               /**< the first of them with multipliers in z. */
     uint8_t slack_on[CHAIN_SOFT_M_MAX];         /**< Soft row in the working set with a positive slack. */
     chain_soft_real slack_max;                  /**< Largest slack of the last optimal plan. */
     int slack_rows;                               /**< Soft rows with a positive slack in it. */

@@ -86,12 +86,14 @@ static uint32_t finish_work(const qtank_mode_data *md)
 
 /*
  * Can the budget still pay for `need` units (and the final finish())? Every unit of work
- * asks before it starts; ws->work + finish_work() <= budget holds throughout (the
- * generator checks that the unconstrained step leaves room), so this cannot wrap.
+ * asks before it starts, so ws->work + finish_work() never passes the budget (the
+ * generator checks that the unconstrained step leaves room); ws->work_limit is the
+ * budget, or less while the shifted guess runs (P_qp_solve()).
  */
 static int afford(const qtank_work *ws, const qtank_mode_data *md, uint32_t need)
 {
-    return need <= QTANK_SOLVER_WORK_BUDGET - finish_work(md) - ws->work;
+    const uint32_t used = ws->work + finish_work(md);
+    return used <= ws->work_limit && need <= ws->work_limit - used;
 }
 
 /* Cholesky factorisation of order n (n^3/6 multiply-adds, a division per entry). */
@@ -1203,6 +1205,35 @@ static int accept(qtank_work *ws, const qtank_mode_data *md, qtank_real *lam,
 }
 
 /*
+ * Where polish() stopped when the budget ran out (code OUT_OF_WORK): its working set
+ * wset[0..nw), the first `known` of them with their multipliers in z. Returns code.
+ */
+static int stopped(qtank_work *ws, int nw, int known, int code)
+{
+    if (code == OUT_OF_WORK) {
+        ws->stop_rows = nw;
+        ws->stop_known = known;
+    }
+    return code;
+}
+
+/*
+ * A TIME_LIMIT in polish(): lam keeps the working set where it stopped as the next
+ * sample's warm start, closer than the one it started from: the rows with a positive
+ * multiplier among those solved for, and the rows that joined since with a token one
+ * (they joined tight).
+ */
+static void keep_progress(qtank_work *ws, const qtank_mode_data *md,
+    qtank_real *lam)
+{
+    int i;
+    for (i = 0; i < ws->stop_rows; ++i) {
+        ws->z[i] = (i >= ws->stop_known) ? R_(1.0e-30) : ((ws->z[i] > R_(0.0)) ? ws->z[i] : R_(0.0));
+    }
+    keep_working_set(ws, md, lam, ws->stop_rows);
+}
+
+/*
  * Exact solve on the working set W = wset[0..nw), primal when W holds only input bounds,
  * dual otherwise; violated rows join (appended: wset is in joining order), rows with
  * negative multipliers leave, repeat (the primal form adds violated rows before it
@@ -1212,17 +1243,17 @@ static int accept(qtank_work *ws, const qtank_mode_data *md, qtank_real *lam,
  * than half of it has negative multipliers: the operating point moved, and the caller's
  * next seed is cheaper than unwinding it row block by row block. Returns 0 with ws->th
  * optimal and lam set to the exact multipliers, -1 (lam untouched), or OUT_OF_WORK when
- * the budget cannot afford the next step.
+ * the budget cannot afford the next step (where: stopped()).
  */
 static int polish(qtank_work *ws, const qtank_mode_data *md, qtank_real *lam,
     int nw, int guess, int *iterations, int *active)
 {
-    int i, it, code;
+    int i, it, code, known = 0; /* known: the first wset rows whose z is their multiplier */
     if (nw <= 0 || nw > md->n) {
         return -1;
     }
     if (!afford(ws, md, (uint32_t)md->m)) {
-        return OUT_OF_WORK;
+        return stopped(ws, nw, 0, OUT_OF_WORK);
     }
     ws->work += (uint32_t)md->m;
     for (i = 0; i < md->m; ++i) {
@@ -1237,23 +1268,26 @@ static int polish(qtank_work *ws, const qtank_mode_data *md, qtank_real *lam,
         if (box_only(ws, md, nw)) {
             /* primal: bound rows first; the multipliers only at a feasible point */
             if (!afford(ws, md, primal_work(md, nw) + scan_work(md) + (uint32_t)md->m)) {
-                return OUT_OF_WORK;
+                return stopped(ws, nw, known, OUT_OF_WORK);
             }
             ws->work += primal_work(md, nw);
             code = primal_solve(ws, md, nw);
             if (code < 0) {
                 return -1;
             }
+            known = (code == 1) ? nw : 0;
             nadd = violated_outside(ws, md, ws->th, ws->in_set, ws->tmp, md->n - nw);
             if (nadd == 0) {
                 if (code == 0) {
                     free_multipliers(ws, md, nw);
                 }
+                known = nw;
                 code = drop_negative(ws, md, &nw, guess);
                 if (code != 0) {
                     if (code < 0) {
-                        return code;
+                        return stopped(ws, nw, known, code);
                     }
+                    known = nw;
                     continue;
                 }
                 return accept(ws, md, lam, nw, active);
@@ -1261,17 +1295,19 @@ static int polish(qtank_work *ws, const qtank_mode_data *md, qtank_real *lam,
         } else {
             code = dual_solve(ws, md, nw);
             if (code != 0) {
-                return code;
+                return stopped(ws, nw, known, code);
             }
+            known = nw;
             code = drop_negative(ws, md, &nw, guess);
             if (code != 0) {
                 if (code < 0) {
-                    return code;
+                    return stopped(ws, nw, known, code);
                 }
+                known = nw;
                 continue;
             }
             if (!afford(ws, md, correct_work(md, nw) + 2u * scan_work(md) + (uint32_t)md->m)) {
-                return OUT_OF_WORK;
+                return stopped(ws, nw, known, OUT_OF_WORK);
             }
             correct(ws, md, ws->wset, nw, ws->z, 0);
             nadd = violated_outside(ws, md, ws->th, ws->in_set, ws->tmp, md->n - nw);
@@ -1279,14 +1315,14 @@ static int polish(qtank_work *ws, const qtank_mode_data *md, qtank_real *lam,
                 /* a (near-)singular H_WW, e.g. parallel rows of an infeasible QP, can give
                  * multipliers whose point misses its own working set: not optimal */
                 code = working_set_holds(ws, md, nw) ? 0 : refine_dual(ws, md, nw);
-                return (code == 0) ? accept(ws, md, lam, nw, active) : code;
+                return (code == 0) ? accept(ws, md, lam, nw, active) : stopped(ws, nw, known, code);
             }
         }
         if (nadd > md->n - nw) {
             return -1;
         }
         if (!afford(ws, md, (uint32_t)nadd * append_work(md, nw + nadd))) {
-            return OUT_OF_WORK;
+            return stopped(ws, nw, known, OUT_OF_WORK);
         }
         for (i = 0; i < nadd; ++i) {
             append_row(ws, md, ws->tmp[i], nw++);
@@ -1428,29 +1464,33 @@ static int add_to_set(qtank_work *ws, const qtank_mode_data *md, int p, int rech
 }
 
 /*
- * The warm start of dual_active_set(): the previous working set shifted one stage
- * (seed_shifted(): optimal, or where a TIME_LIMIT stopped), made dual feasible by solving
- * on it, switching the soft states whose multipliers cross l1 and dropping the rows with
- * negative multipliers until none is; ws->th is then its point. Returns its size (0: no
- * seed, or it broke down or emptied: start cold) or OUT_OF_WORK.
+ * The warm start of dual_active_set(): the working set where the shifted guess' polish
+ * stopped (wset[0..from), its factor as ws->chol_holds says), or with from < 0 the
+ * previous working set shifted one stage (seed_shifted(): optimal, or where a TIME_LIMIT
+ * stopped), made dual feasible by solving on it, switching the soft states whose
+ * multipliers cross l1 and dropping the rows with negative multipliers until none is;
+ * ws->th is then its point. Returns its size (0: no seed, or it broke down or emptied:
+ * start cold) or OUT_OF_WORK (where: stopped()).
  */
 static int resume_working_set(qtank_work *ws, const qtank_mode_data *md,
-    const qtank_real *lam, int *steps)
+    const qtank_real *lam, int from, int *steps)
 {
-    int i, round, code, nw = seed_shifted(ws, md, lam);
+    int i, round, code, nw = (from >= 0) ? from : seed_shifted(ws, md, lam);
     for (i = 0; i < nw; ++i) {
         ws->in_set[ws->wset[i]] = 1;
     }
     for (round = 0; nw > 0 && round < QTANK_SOLVER_POLISH_MAX; ++round) {
+        int known;
         ++*steps;
         code = dual_solve(ws, md, nw);
+        known = (code == 0) ? nw : 0;
         code = (code == 0) ? drop_negative(ws, md, &nw, 0) : code;
         if (code == OUT_OF_WORK) {
-            return OUT_OF_WORK;
+            return stopped(ws, nw, known, OUT_OF_WORK);
         }
         if (code == 0) {
             if (!afford(ws, md, correct_work(md, nw))) {
-                return OUT_OF_WORK;
+                return stopped(ws, nw, nw, OUT_OF_WORK);
             }
             correct(ws, md, ws->wset, nw, ws->z, 0);
             return nw;
@@ -1467,8 +1507,9 @@ static int resume_working_set(qtank_work *ws, const qtank_mode_data *md,
 }
 
 /*
- * Dual active-set solve (Goldfarb-Idnani) from the warm start (resume_working_set()) or the
- * unconstrained optimum: add the most violated row until none is, keeping the multipliers
+ * Dual active-set solve (Goldfarb-Idnani) from the warm start (resume_working_set(), from
+ * where the shifted guess stopped if from >= 0) or the unconstrained optimum: add the
+ * most violated rows until none is, keeping the multipliers
  * >= 0 and the working set linearly independent, so it finishes where the polish fails
  * (dependent active sets, working sets the shifted guess and the violated rows do not
  * reach). Its working set then goes to polish() for the exact solve and KKT check -- also
@@ -1480,25 +1521,31 @@ static int resume_working_set(qtank_work *ws, const qtank_mode_data *md,
  * (ws->th the last point reached, lam its working set).
  */
 static int dual_active_set(qtank_work *ws, const qtank_mode_data *md,
-    qtank_real *lam, int *iterations, int *active)
+    qtank_real *lam, int from, int *iterations, int *active)
 {
     int i, nw = 0, steps = 0, code = 0;
+    for (i = 0; i < md->n; ++i) {
+        ws->th[i] = ws->th0[i]; /* the command until the dual active set has a point */
+    }
     if (!afford(ws, md, (ws->out_slacks_ok ? 0u : (uint32_t)md->m + predict_work(md))
-                        + (uint32_t)md->m)) {
+                        + 2u * (uint32_t)md->m)) {
+        if (from >= 0) {
+            keep_progress(ws, md, lam); /* where the shifted guess stopped */
+        }
         return OUT_OF_WORK;
     }
     output_slacks(ws, md);
     ws->work += (uint32_t)md->m;
-    ws->chol_holds = QTANK_CHOL_DUAL; /* the factor of the empty working set */
     for (i = 0; i < md->m; ++i) {
         ws->in_set[i] = 0;
     }
-    for (i = 0; i < md->n; ++i) {
-        ws->th[i] = ws->th0[i];
+    if (from < 0) {
+        ws->chol_holds = QTANK_CHOL_DUAL; /* the factor of the empty working set */
     }
-    if (QTANK_SOLVER_WARM_START) {
-        nw = afford(ws, md, (uint32_t)md->m) ? resume_working_set(ws, md, lam, &steps) : OUT_OF_WORK;
-        if (nw == OUT_OF_WORK) { /* lam stays the previous warm start */
+    if (from >= 0 || QTANK_SOLVER_WARM_START) {
+        nw = resume_working_set(ws, md, lam, from, &steps);
+        if (nw == OUT_OF_WORK) { /* lam: the warm start as far as it got */
+            keep_progress(ws, md, lam);
             *iterations += steps;
             return OUT_OF_WORK;
         }
@@ -1580,13 +1627,19 @@ static int finish(qtank_work *ws, const qtank_mode_data *md, qtank_real *lam,
     return status;
 }
 
-/* The budget ran out before the dual active set: the command is the clamped th0. */
+/*
+ * The budget ran out before the dual active set: the command is the clamped th0 and, if
+ * a polish stopped (polished = 1), lam its working set (keep_progress()).
+ */
 static int time_limit_at_th0(qtank_work *ws, const qtank_mode_data *md,
-    qtank_real *lam, qtank_real *U)
+    qtank_real *lam, int polished, qtank_real *U)
 {
     int i;
     for (i = 0; i < md->n; ++i) {
         ws->th[i] = ws->th0[i];
+    }
+    if (polished) {
+        keep_progress(ws, md, lam);
     }
     return finish(ws, md, lam, QTANK_TIME_LIMIT, U);
 }
@@ -1608,11 +1661,12 @@ int qtank_qp_solve(qtank_work *ws, qtank_real *lam, const qtank_mode_data *md,
     const qtank_real *x, const qtank_real *r, qtank_real *U, int *iterations,
     int *polish_iterations, int *active)
 {
-    int i, count, total = 0, status = QTANK_MAX_ITER;
+    int i, count, total = 0, status = QTANK_MAX_ITER, resume = -1;
     *iterations = 0;
     *polish_iterations = 0;
     *active = 0;
     ws->work = 0u;
+    ws->work_limit = QTANK_SOLVER_WORK_BUDGET;
     unconstrained(ws, md, x, r);
     for (i = 0; i < md->n; ++i) {
         ws->th[i] = ws->th0[i];
@@ -1624,39 +1678,48 @@ int qtank_qp_solve(qtank_work *ws, qtank_real *lam, const qtank_mode_data *md,
         return finish(ws, md, lam, QTANK_OPTIMAL, U);
     }
     /* Polish first: from the previous active set (warm start), then from the rows the
-     * unconstrained solution violates; what follows runs only if both fail. With a warm
-     * start the dual active set resumes from, the violated rows are polished only in the
-     * primal form: in the dual form the resumed dual active set costs less than a
-     * factor of H_WW over every violated row (which breaks down on dependent rows). */
+     * unconstrained solution violates; what follows runs only if both fail. The shifted
+     * guess may spend half of what the budget has left: the dual active set then
+     * continues from where it stopped. With a warm start, the violated rows are polished
+     * only in the primal form: in the dual form the resumed dual active set costs less
+     * than a factor of H_WW over every violated row (which breaks down on dependent rows). */
     count = 0; /* rows of the warm start */
     if (QTANK_SOLVER_WARM_START) {
         if (!afford(ws, md, (uint32_t)md->m)) {
-            return time_limit_at_th0(ws, md, lam, U);
+            return time_limit_at_th0(ws, md, lam, 0, U);
         }
         count = seed_shifted(ws, md, lam);
+        ws->work_limit = QTANK_SOLVER_ACTIVE_SET
+            ? ws->work + (QTANK_SOLVER_WORK_BUDGET - ws->work) / 3u : QTANK_SOLVER_WORK_BUDGET;
         i = polish(ws, md, lam, count, 1, polish_iterations, active);
+        ws->work_limit = QTANK_SOLVER_WORK_BUDGET;
         if (i == 0) {
             return finish(ws, md, lam, QTANK_OPTIMAL, U);
         }
         if (i == OUT_OF_WORK) {
-            return time_limit_at_th0(ws, md, lam, U);
+            if (!QTANK_SOLVER_ACTIVE_SET) {
+                return time_limit_at_th0(ws, md, lam, 1, U);
+            }
+            resume = ws->stop_rows; /* the dual active set takes over from there */
         }
     }
-    if (!afford(ws, md, (uint32_t)md->m)) {
-        return time_limit_at_th0(ws, md, lam, U);
-    }
-    i = seed_from_violated(ws, md);
-    if (count <= 0 || !QTANK_SOLVER_ACTIVE_SET || box_only(ws, md, i)) {
-        i = polish(ws, md, lam, i, 0, polish_iterations, active);
-        if (i == 0) {
-            return finish(ws, md, lam, QTANK_OPTIMAL, U);
+    if (resume < 0) {
+        if (!afford(ws, md, (uint32_t)md->m)) {
+            return time_limit_at_th0(ws, md, lam, 0, U);
         }
-        if (i == OUT_OF_WORK) {
-            return time_limit_at_th0(ws, md, lam, U);
+        i = seed_from_violated(ws, md);
+        if (count <= 0 || !QTANK_SOLVER_ACTIVE_SET || box_only(ws, md, i)) {
+            i = polish(ws, md, lam, i, 0, polish_iterations, active);
+            if (i == 0) {
+                return finish(ws, md, lam, QTANK_OPTIMAL, U);
+            }
+            if (i == OUT_OF_WORK) {
+                return time_limit_at_th0(ws, md, lam, 1, U);
+            }
         }
     }
     /* Before any sweep: the dual active-set solve, which also proves infeasibility. */
-    i = dual_active_set(ws, md, lam, polish_iterations, active);
+    i = dual_active_set(ws, md, lam, resume, polish_iterations, active);
     if (i >= 0) {
         return finish(ws, md, lam, (i == 0) ? QTANK_OPTIMAL : QTANK_INFEASIBLE, U);
     }
@@ -1665,7 +1728,7 @@ int qtank_qp_solve(qtank_work *ws, qtank_real *lam, const qtank_mode_data *md,
     }
     if (!afford(ws, md, 3u * (uint32_t)md->m + (uint32_t)md->n
                         + (ws->out_slacks_ok ? 0u : predict_work(md)))) {
-        return time_limit_at_th0(ws, md, lam, U);
+        return time_limit_at_th0(ws, md, lam, 0, U);
     }
     output_slacks(ws, md);
     for (i = 0; i < md->n; ++i) {

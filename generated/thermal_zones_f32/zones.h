@@ -91,6 +91,9 @@ typedef struct {
     int out_slacks_ok;                            /**< K of the output rows is computed. */
     int chol_holds;                               /**< What chol holds: ZONES_CHOL_NONE, _DUAL or _PRIMAL. */
     uint32_t work;                                /**< Work units of the solve so far. */
+    uint32_t work_limit;                          /**< What the running part may spend up to (afford()). */
+    int stop_rows;                                /**< Rows of wset where polish() ran out of work, */
+    int stop_known;                               /**< the first of them with multipliers in z. */
 } zones_work;
 
 /** Controller instance. Complete here so firmware can allocate it statically. */

@@ -20,7 +20,7 @@ from ..config.schema import DEFAULT_CPU_MHZ, WORK_BUDGET_AUTO
 # Estimated Cortex-M4F cycles per work unit: the largest cycles/work ratio `rollmpc report
 # --precision float` measured over the counted steps of every example, with a margin
 # (docs/solver.md, "Work budget"; the report prints the ratio to re-measure it).
-CYCLES_PER_WORK_UNIT = 8.0
+CYCLES_PER_WORK_UNIT = 18.0
 WORK_LIMIT = 2**31  # every count and bound stays below it (uint32 in the C)
 # rows the dual active set adds per scan of every row (it pays the scan and the corrected
 # point once for them); measured on fw_lateral, chain_soft, thermal_zones_rate: 4 cuts

@@ -125,26 +125,30 @@ class ActiveSetMixin:
                     k, tblock, event = i, ratio, ev
         return k, tblock, event
 
-    def resume_working_set(self, lam, th0, K, st):
-        """Mirror of resume_working_set(): the shifted previous working set made dual
-        feasible in st (W, z, in_set); returns (its size, 0 to start cold, or
-        OUT_OF_WORK; th)."""
-        W = self.seed_shifted(lam)
-        if W.size > self.wcap:  # the C's seed gives up: cold
-            W = W[:0]
+    def resume_working_set(self, lam, th0, K, st, resume):
+        """Mirror of resume_working_set(): the working set ``resume`` where the guess
+        stopped, else the shifted previous one, made dual feasible in st (W, z, in_set);
+        returns (its size, 0 to start cold, or OUT_OF_WORK with ``stop``; th)."""
+        if resume is None:
+            W = self.seed_shifted(lam)
+            if W.size > self.wcap:  # the C's seed gives up: cold
+                W = W[:0]
+        else:
+            W = resume
         st["in_set"][W] = True
         for _ in range(self.polish_max if W.size else 0):
             st["steps"] += 1
             code, z = self.dual_solve(W, K)
+            known = W.size if code == 0 else 0
             if code == 0 and self.soft:
                 code = self.switch_states(W, z)
             if code == 0:
                 W, z, code = self.drop_negative(W, z, False)
             if code == OUT_OF_WORK:
-                return OUT_OF_WORK, th0
+                return self.stopped(W, z, known, OUT_OF_WORK), th0
             if code == 0:
                 if not self.afford(correct_work(self.md, W.size)):
-                    return OUT_OF_WORK, th0
+                    return self.stopped(W, z, W.size, OUT_OF_WORK), th0
                 st["W"], st["z"] = W, z
                 st["in_set"][:] = False  # remove_row() unflagged the dropped rows
                 st["in_set"][W] = True
@@ -156,24 +160,26 @@ class ActiveSetMixin:
         self.chol_holds = CHOL_DUAL
         return 0, th0
 
-    def dual_active_set(self, lam, th0, K, gam):
-        """Mirror of dual_active_set(): (code 0/1/-1/OUT_OF_WORK, th, active, steps +
-        polish its)."""
+    def dual_active_set(self, lam, th0, K, gam, resume=None):
+        """Mirror of dual_active_set() (``resume``: the working set where the guess
+        stopped, or None): (code 0/1/-1/OUT_OF_WORK, th, active, steps + polish its)."""
         md = self.md
         st = {"W": np.zeros(0, np.int64), "z": np.zeros(0, md.Kx.dtype), "steps": 0, "K": K,
               "gam": gam, "in_set": np.zeros(md.m, bool)}
-        if not self.afford((0 if self.out_slacks_ok else md.m + predict_work(md)) + md.m):
-            return OUT_OF_WORK, th0, 0, 0
+        th = th0.copy()
+        if not self.afford((0 if self.out_slacks_ok else md.m + predict_work(md)) + 2 * md.m):
+            if resume is not None:
+                self.keep_progress(lam)  # where the shifted guess stopped
+            return OUT_OF_WORK, th, 0, 0
         self.output_slacks()
         self.work += md.m
-        self.chol_holds = CHOL_DUAL  # the factor of the empty working set
-        th = th0.copy()
-        self.slack_on[:] = False
-        if self.warm:
-            if not self.afford(md.m):
-                return OUT_OF_WORK, th, 0, st["steps"]
-            nw, th = self.resume_working_set(lam, th0, K, st)
-            if nw == OUT_OF_WORK:  # lam stays the previous warm start
+        if resume is None:
+            self.chol_holds = CHOL_DUAL  # the factor of the empty working set
+            self.slack_on[:] = False
+        if resume is not None or self.warm:
+            nw, th = self.resume_working_set(lam, th0, K, st, resume)
+            if nw == OUT_OF_WORK:  # lam: the warm start as far as it got
+                self.keep_progress(lam)
                 return OUT_OF_WORK, th, 0, st["steps"]
         code = 0
         while True:

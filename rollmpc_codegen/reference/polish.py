@@ -107,55 +107,78 @@ class PolishMixin:
         self.keep_working_set(lam, W, z)
         return W.size
 
+    def stopped(self, W, z, known, code):
+        """Mirror of stopped(): where polish() ran out of work (W, z, known); returns code."""
+        if code == OUT_OF_WORK:
+            self.stop = (W.copy(), np.zeros(0, self.md.Kx.dtype) if z is None else z.copy(),
+                         known)
+        return code
+
+    def keep_progress(self, lam):
+        """Mirror of keep_progress(): lam = the stopped working set, its first ``known``
+        rows with their positive multipliers, the others with a token one."""
+        W, z, known = self.stop
+        zk = np.full(W.size, self.dt(1.0e-30), self.md.Kx.dtype)
+        zk[:known] = np.where(z[:known] > 0, z[:known], self.zero)
+        self.keep_working_set(lam, W, zk)
+
     def polish(self, W, lam, th0, K, gam, guess=False, th=None):
         """Mirror of polish() from working set W (taking the dual factor ``chol`` when
         ``chol_holds`` says it is W's); returns (0 / -1 / OUT_OF_WORK, th, active,
-        iterations), th after OUT_OF_WORK being the C's ws->th then (``th`` on entry)."""
+        iterations), th after OUT_OF_WORK being the C's ws->th then (``th`` on entry) and
+        ``stop`` where it stopped."""
         md = self.md
         n = md.n
-        its = 0
+        its, known, z = 0, 0, None
         if W.size == 0 or W.size > self.wcap:
             return -1, None, 0, its
         if not self.afford(md.m):
-            return OUT_OF_WORK, th, 0, its
+            return self.stopped(W, z, 0, OUT_OF_WORK), th, 0, its
         self.work += md.m
         for _ in range(self.polish_max):
             its += 1
             if np.all(md.row_q[W] < n):  # box_only()
                 if not self.afford(primal_work(md, W.size) + scan_work(md) + md.m):
-                    return OUT_OF_WORK, th, 0, its
+                    return self.stopped(W, z, known, OUT_OF_WORK), th, 0, its
                 self.work += primal_work(md, W.size)
-                ok, th_p, z = self.primal_solve(th0, W)
+                ok, th_p, zp = self.primal_solve(th0, W)
                 if not ok:
                     return -1, None, 0, its
                 th = th_p
+                if zp is not None:
+                    z = zp
+                known = W.size if zp is not None else 0
                 add = self.violated_outside(th, gam, W)
                 if add.size == 0:
-                    if z is None:
+                    if zp is None:
                         z = self.free_multipliers(W)
+                    known = W.size
                     W, z, code = self.drop_negative(W, z, guess)
                     if code < 0:
-                        return code, th, 0, its
+                        return self.stopped(W, z, known, code), th, 0, its
                     if code:
+                        known = W.size
                         continue
                     return 0, th, self.accept(lam, W, z), its
             else:
-                code, z = self.dual_solve(W, K)
+                code, zd = self.dual_solve(W, K)
                 if code:
-                    return code, th, 0, its
+                    return self.stopped(W, z, known, code), th, 0, its
+                z, known = zd, W.size
                 if self.soft:
                     code = self.switch_states(W, z)
                     if code < 0:
-                        return code, th, 0, its
+                        return self.stopped(W, z, known, code), th, 0, its
                     if code:
                         continue
                 W, z, code = self.drop_negative(W, z, guess)
                 if code < 0:
-                    return code, th, 0, its
+                    return self.stopped(W, z, known, code), th, 0, its
                 if code:
+                    known = W.size
                     continue
                 if not self.afford(correct_work(md, W.size) + 2 * scan_work(md) + md.m):
-                    return OUT_OF_WORK, th, 0, its
+                    return self.stopped(W, z, known, OUT_OF_WORK), th, 0, its
                 th = self.correct(th0, W, z)
                 add = self.violated_outside(th, gam, W)
                 if add.size == 0:
@@ -163,12 +186,12 @@ class PolishMixin:
                     if not self.working_set_holds(W, z, th, gam):
                         code, th, z = self.refine_dual(W, z, th0, K, gam, th)
                     if code:
-                        return code, th, 0, its
+                        return self.stopped(W, z, known, code), th, 0, its
                     return 0, th, self.accept(lam, W, z), its
             if add.size > self.wcap - W.size:
                 return -1, th, 0, its
             if not self.afford(add.size * append_work(md, W.size + add.size, self.hq_factor)):
-                return OUT_OF_WORK, th, 0, its
+                return self.stopped(W, z, known, OUT_OF_WORK), th, 0, its
             for p in add:
                 W = self.append_row(W, p)
         return -1, th, 0, its

@@ -77,10 +77,18 @@ class SolverRef(UnconstrainedMixin, RowsMixin, SoftRowsMixin, SweepsMixin, Prima
         self.budget, self.hq_factor = s["work_budget"], s["hq_work_factor"]
         self.add_batch = s["add_batch"]
         self.work, self.out_slacks_ok, self.gam_out_min = 0, False, self.limit
+        self.work_limit, self.stop = self.budget, None
 
     def afford(self, need):
-        """Mirror of afford(): can the budget still pay ``need`` units and finish()?"""
-        return need <= self.budget - finish_work(self.md) - self.work
+        """Mirror of afford(): can the running part still pay ``need`` units and finish()?"""
+        used = self.work + finish_work(self.md)
+        return used <= self.work_limit and need <= self.work_limit - used
+
+    def time_limit_at_th0(self, th0, polished):
+        """Mirror of time_limit_at_th0(): TIME_LIMIT at th0, lam where a polish stopped."""
+        if polished:
+            self.keep_progress(self.lam)
+        return self.finish(th0, th0, TIME_LIMIT)
 
     def solve(self, x, r):
         """Mirror of P_qp_solve(): returns (status, U, iterations, polish_iterations, active);
@@ -89,33 +97,40 @@ class SolverRef(UnconstrainedMixin, RowsMixin, SoftRowsMixin, SweepsMixin, Prima
         x = np.asarray(x, md.Kx.dtype)
         r = np.asarray(r, md.Kx.dtype)
         lam = self.lam
-        self.work = 0
+        self.work, self.work_limit = 0, self.budget
         th0, px = self.unconstrained(x, r)
         gam, K = self.slacks(x, th0, px)
         if not np.any(K < 0):
             lam[:] = 0
             return self.finish(th0, th0, OPTIMAL) + (0, 0, 0)
-        total, polish_its, active = 0, 0, 0
+        total, polish_its, active, resume = 0, 0, 0, None
         if self.polish_on and self.polish_first:
-            # the previous active set shifted one stage (a guess), then the rows th0 violates
-            # (with a warm start, in the primal form only)
+            # the previous active set shifted one stage (a guess, on a third of what the
+            # budget has left when the dual active set can take over from where it stops),
+            # then the rows th0 violates (with a warm start, in the primal form only)
             warm_rows = 0
             for guess in ((True, False) if self.warm else (False,)):
                 if not self.afford(md.m):
-                    return self.finish(th0, th0, TIME_LIMIT) + (0, polish_its, 0)
+                    return self.time_limit_at_th0(th0, False) + (0, polish_its, 0)
                 W = self.seed_shifted(lam) if guess else self.seed_from_violated(K)
                 if guess:
                     warm_rows = W.size if W.size <= self.wcap else -1
+                    if self.active_set:
+                        self.work_limit = self.work + (self.budget - self.work) // 3
                 elif warm_rows > 0 and self.active_set and not np.all(md.row_q[W] < md.n):
                     break
                 code, th_p, act, its = self.polish(W, lam, th0, K, gam, guess)
+                self.work_limit = self.budget
                 polish_its += its
                 if code == 0:
                     return self.finish(th_p, th0, OPTIMAL) + (0, polish_its, act)
                 if code == OUT_OF_WORK:
-                    return self.finish(th0, th0, TIME_LIMIT) + (0, polish_its, 0)
+                    if guess and self.active_set:
+                        resume = self.stop[0]  # the dual active set takes over from there
+                        break
+                    return self.time_limit_at_th0(th0, True) + (0, polish_its, 0)
         if self.active_set:
-            code, th_a, act, its = self.dual_active_set(lam, th0, K, gam)
+            code, th_a, act, its = self.dual_active_set(lam, th0, K, gam, resume)
             polish_its += its
             if code >= 0:
                 status, U = self.finish(th_a, th0, OPTIMAL if code == 0 else INFEASIBLE)
@@ -123,7 +138,7 @@ class SolverRef(UnconstrainedMixin, RowsMixin, SoftRowsMixin, SweepsMixin, Prima
             if code == OUT_OF_WORK:  # at its last point
                 return self.finish(th_a, th0, TIME_LIMIT) + (0, polish_its, act)
         if not self.afford(3 * md.m + md.n + (0 if self.out_slacks_ok else predict_work(md))):
-            return self.finish(th0, th0, TIME_LIMIT) + (0, polish_its, active)
+            return self.time_limit_at_th0(th0, False) + (0, polish_its, active)
         self.output_slacks()
         in_set = (K < self.sigma) if self.reduced else np.ones(md.m, bool)
         if not self.warm:
