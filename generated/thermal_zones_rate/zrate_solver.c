@@ -140,15 +140,16 @@ static uint32_t append_work(const zrate_mode_data *md, int nw)
 /*
  * primal_solve() on nw bound inputs and free_multipliers() after it: the Cholesky of the
  * smaller of (S^-1)_BB and S_FF, its solves for the nt + 1 right-hand sides, the terminal
- * Schur complement, and the n x nb (or n x nf) products.
+ * Schur complement, and the n x nb (or n x nf) products; 2/5 of a unit each, as its
+ * dense loops run that much faster per operation than H reads (measured, qp/work.py).
  */
 static uint32_t primal_work(const zrate_mode_data *md, int nw)
 {
     const int n = md->n, nt = md->nt, k = (nw < n - nw) ? nw : n - nw;
     const uint32_t u = (uint32_t)k, un = (uint32_t)n, ut = (uint32_t)nt;
-    return u * u / 2u + chol_work(k) + 2u * (ut + 1u) * tri_work(k) + ut * ut * u / 2u
+    return (u * u / 2u + chol_work(k) + 2u * (ut + 1u) * tri_work(k) + ut * ut * u / 2u
         + chol_work(nt) + 2u * tri_work(nt) + 3u * ut * un + 2u * un * (u + ut)
-        + (uint32_t)nw * (un + ut);
+        + (uint32_t)nw * (un + ut)) * 2u / 5u;
 }
 
 /* One step of add_to_set() on nw rows: two triangular solves, then a row leaves, switches
@@ -1368,7 +1369,8 @@ static int polish(zrate_work *ws, const zrate_mode_data *md, zrate_real *lam,
         if (nadd > md->n - nw) {
             return -1;
         }
-        if (!afford(ws, md, (uint32_t)nadd * append_work(md, nw + nadd))) {
+        if (ws->chol_holds == ZRATE_CHOL_DUAL
+            && !afford(ws, md, (uint32_t)nadd * append_work(md, nw + nadd))) {
             return stopped(ws, nw, known, OUT_OF_WORK);
         }
         for (i = 0; i < nadd; ++i) {
@@ -1726,8 +1728,8 @@ int zrate_qp_solve(zrate_work *ws, zrate_real *lam, const zrate_mode_data *md,
     }
     /* Polish first: from the previous active set (warm start), then from the rows the
      * unconstrained solution violates; what follows runs only if both fail. The shifted
-     * guess may spend half of what the budget has left: the dual active set then
-     * continues from where it stopped. With a warm start, the violated rows are polished
+     * guess, in the dual form, may spend a third of what the budget has left: the dual
+     * active set then continues from where it stopped. With a warm start, the violated rows are polished
      * only in the primal form: in the dual form the resumed dual active set costs less
      * than a factor of H_WW over every violated row (which breaks down on dependent rows). */
     count = 0; /* rows of the warm start */
@@ -1736,8 +1738,9 @@ int zrate_qp_solve(zrate_work *ws, zrate_real *lam, const zrate_mode_data *md,
             return time_limit_at_th0(ws, md, lam, 0, U);
         }
         count = seed_shifted(ws, md, lam);
-        ws->work_limit = ZRATE_SOLVER_ACTIVE_SET
-            ? ws->work + (ZRATE_SOLVER_WORK_BUDGET - ws->work) / 3u : ZRATE_SOLVER_WORK_BUDGET;
+        if (ZRATE_SOLVER_ACTIVE_SET && !box_only(ws, md, count)) {
+            ws->work_limit = ws->work + (ZRATE_SOLVER_WORK_BUDGET - ws->work) / 3u;
+        }
         i = polish(ws, md, lam, count, 1, polish_iterations, active);
         ws->work_limit = ZRATE_SOLVER_WORK_BUDGET;
         if (i == 0) {

@@ -17,9 +17,11 @@ from __future__ import annotations
 from ..config.errors import ConfigError
 from ..config.schema import DEFAULT_CPU_MHZ, WORK_BUDGET_AUTO
 
-# Estimated Cortex-M4F cycles per work unit: the largest cycles/work ratio `rollmpc report
-# --precision float` measured over the counted steps of every example, with a margin
-# (docs/solver.md, "Work budget"; the report prints the ratio to re-measure it).
+# Estimated Cortex-M4F cycles per work unit, declared once: `rollmpc report --precision
+# float` (which prints the ratio) measured at most 15.75 cycles per unit on the counted
+# steps of 20,000 units or more of every example (thermal_zones_rate; fw_lateral 15.54,
+# quad_attitude 15.61, uav_roll 15.17), with 14 % of margin. Cheaper steps reach 24
+# (fw_lateral's first step: fixed costs per call), far below any budget.
 CYCLES_PER_WORK_UNIT = 18.0
 WORK_LIMIT = 2**31  # every count and bound stays below it (uint32 in the C)
 # rows the dual active set adds per scan of every row (it pays the scan and the corrected
@@ -80,10 +82,13 @@ def append_work(m, nw: int, factor: int) -> int:
 
 
 def primal_work(m, nw: int) -> int:
+    """primal_solve() and free_multipliers(), at 2/5 of a unit per operation: on the
+    paper config their dense loops ran at about 6 cycles per full unit where the dual
+    form's reads and scans run at up to 16 (rollmpc report, uav_roll against fw_lateral)."""
     k, nt = min(nw, m.n - nw), m.nt
     return (k * k // 2 + chol_work(k) + 2 * (nt + 1) * tri_work(k) + nt * nt * k // 2
             + chol_work(nt) + 2 * tri_work(nt) + 3 * nt * m.n + 2 * m.n * (k + nt)
-            + nw * (m.n + nt))
+            + nw * (m.n + nt)) * 2 // 5
 
 
 def add_step_work(nw: int) -> int:
@@ -109,7 +114,7 @@ def largest_unit(m, wcap: int, factor: int) -> int:
     cube of the working-set capacity, a factorisation, a sweep over every row."""
     return max(wcap ** 3, factor_work(m, wcap, factor) + append_work(m, wcap, factor),
                sweep_work(m, m.m, factor) + correct_work(m, m.m) + 2 * scan_work(m),
-               primal_work(m, m.n // 2), add_step_work(wcap))
+               5 * primal_work(m, m.n // 2), add_step_work(wcap))
 
 
 def auto_work_budget(sample_time: float, share: float, cpu_mhz: float = DEFAULT_CPU_MHZ) -> int:
@@ -122,8 +127,9 @@ def check_work_budget(cfg, modes, factor: int) -> int:
     unconstrained step of every mode (its ModeData in ``modes``): a budget below it could
     not even return the clamped unconstrained optimum."""
     s = cfg.solver
-    budget = (auto_work_budget(cfg.sample_time, s.budget_share) if s.work_budget == WORK_BUDGET_AUTO
-              else int(s.work_budget))
+    budget = int(s.work_budget) if s.work_budget != WORK_BUDGET_AUTO else (
+        auto_work_budget(cfg.sample_time, s.budget_share) if s.polish
+        else WORK_LIMIT - 1)  # the paper's variants: their sweep cap bounds the work
     need = max(base_work(m, m.has_output_rows) for m in modes)
     for m in modes:
         if largest_unit(m, m.w_cap, factor) >= WORK_LIMIT:

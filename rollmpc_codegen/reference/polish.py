@@ -190,7 +190,8 @@ class PolishMixin:
                     return 0, th, self.accept(lam, W, z), its
             if add.size > self.wcap - W.size:
                 return -1, th, 0, its
-            if not self.afford(add.size * append_work(md, W.size + add.size, self.hq_factor)):
+            if self.chol_holds == CHOL_DUAL and not self.afford(
+                    add.size * append_work(md, W.size + add.size, self.hq_factor)):
                 return self.stopped(W, z, known, OUT_OF_WORK), th, 0, its
             for p in add:
                 W = self.append_row(W, p)

@@ -105,8 +105,8 @@ class SolverRef(UnconstrainedMixin, RowsMixin, SoftRowsMixin, SweepsMixin, Prima
             return self.finish(th0, th0, OPTIMAL) + (0, 0, 0)
         total, polish_its, active, resume = 0, 0, 0, None
         if self.polish_on and self.polish_first:
-            # the previous active set shifted one stage (a guess, on a third of what the
-            # budget has left when the dual active set can take over from where it stops),
+            # the previous active set shifted one stage (a guess, in the dual form on a third
+            # of what the budget has left: the dual active set takes over where it stops),
             # then the rows th0 violates (with a warm start, in the primal form only)
             warm_rows = 0
             for guess in ((True, False) if self.warm else (False,)):
@@ -115,7 +115,7 @@ class SolverRef(UnconstrainedMixin, RowsMixin, SoftRowsMixin, SweepsMixin, Prima
                 W = self.seed_shifted(lam) if guess else self.seed_from_violated(K)
                 if guess:
                     warm_rows = W.size if W.size <= self.wcap else -1
-                    if self.active_set:
+                    if self.active_set and warm_rows > 0 and not np.all(md.row_q[W] < md.n):
                         self.work_limit = self.work + (self.budget - self.work) // 3
                 elif warm_rows > 0 and self.active_set and not np.all(md.row_q[W] < md.n):
                     break
