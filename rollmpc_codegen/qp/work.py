@@ -24,6 +24,7 @@ from ..config.schema import DEFAULT_CPU_MHZ, WORK_BUDGET_AUTO
 # (fw_lateral's first step: fixed costs per call), far below any budget.
 CYCLES_PER_WORK_UNIT = 18.0
 WORK_LIMIT = 2**31  # every count and bound stays below it (uint32 in the C)
+UNBOUNDED_WORK = WORK_LIMIT - 1  # the largest budget: in effect none
 # rows the dual active set adds per scan of every row (it pays the scan and the corrected
 # point once for them); measured on fw_lateral, chain_soft, thermal_zones_rate: 4 cuts
 # their largest work per solve by 23 %, 26 %, 39 %, 8 or 16 less
@@ -129,7 +130,7 @@ def check_work_budget(cfg, modes, factor: int) -> int:
     s = cfg.solver
     budget = int(s.work_budget) if s.work_budget != WORK_BUDGET_AUTO else (
         auto_work_budget(cfg.sample_time, s.budget_share) if s.polish
-        else WORK_LIMIT - 1)  # the paper's variants: their sweep cap bounds the work
+        else UNBOUNDED_WORK)  # the paper's variants: their sweep cap bounds the work
     need = max(base_work(m, m.has_output_rows) for m in modes)
     for m in modes:
         if largest_unit(m, m.w_cap, factor) >= WORK_LIMIT:
