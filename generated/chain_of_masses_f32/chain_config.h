@@ -61,7 +61,7 @@ typedef float chain_real;
  * budget"): before each unit of work the solver checks that it fits, else it returns
  * CHAIN_TIME_LIMIT with its best command so far. chain_last_info()->work is what a solve spent.
  */
-#define CHAIN_SOLVER_WORK_BUDGET 2333333u
+#define CHAIN_SOLVER_WORK_BUDGET 2210526u
 
 /**
  * Optional time stamp around the QP solve, e.g. a cycle counter on the target.

@@ -53,14 +53,13 @@ extern const zrate_mode_data zrate_modes[ZRATE_N_MODES];
 #define ZRATE_TRI(i, j) ((i) * ((i) + 1) / 2 + (j))
 
 /*
- * What the work array chol holds (ws->chol_holds): nothing valid; L = chol(H_WW) of the
- * working set wset[0..nw) in its order (kept by updates, solver/polish_dual.c.j2); or a
- * factor of the primal polish (solver/polish_primal.c.j2). Whoever changes chol or the
- * working set keeps the flag true, so the other form never reads a stale factor.
+ * What the work array chol holds (ws->chol_holds): nothing valid, or L = chol(H_WW) of the
+ * working set wset[0..nw) in its order (kept by updates, solver/polish_dual.c.j2); a
+ * factor the primal polish keeps (solver/polish_primal.c.j2) gets its own value. Whoever
+ * changes chol or the working set keeps the flag true, so no form reads a stale factor.
  */
 #define ZRATE_CHOL_NONE 0
 #define ZRATE_CHOL_DUAL 1
-#define ZRATE_CHOL_PRIMAL 2
 
 /* Linear algebra on packed symmetric matrices (zrate_linalg.c). */
 int zrate_cholesky(zrate_real *a, int n);

@@ -89,7 +89,7 @@ typedef struct {
     uint8_t is_bound[ZRATE_N_MAX];         /**< Primal polish: input fixed at a bound. */
     zrate_real gam_out_min;                /**< Smallest right-hand side of an output row. */
     int out_slacks_ok;                            /**< K of the output rows is computed. */
-    int chol_holds;                               /**< What chol holds: ZRATE_CHOL_NONE, _DUAL or _PRIMAL. */
+    int chol_holds;                               /**< What chol holds: ZRATE_CHOL_NONE or _DUAL. */
     uint32_t work;                                /**< Work units of the solve so far. */
     uint32_t work_limit;                          /**< What the running part may spend up to (afford()). */
     int stop_rows;                                /**< Rows of wset where polish() ran out of work, */

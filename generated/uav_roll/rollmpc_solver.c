@@ -45,7 +45,7 @@ static uint32_t hq_work(const rollmpc_mode_data *md)
 /* predict_outputs(): the Markov sum of every output over the stages before it. */
 static uint32_t predict_work(const rollmpc_mode_data *md)
 {
-    const uint32_t stages = (uint32_t)(md->nyq / md->ny);
+    const uint32_t stages = (uint32_t)md->nyq / (uint32_t)md->ny;
     return (uint32_t)md->ny * (uint32_t)md->nu * stages * (stages + 1u) / 2u
         + (uint32_t)md->nyq;
 }
@@ -139,17 +139,17 @@ static uint32_t append_work(const rollmpc_mode_data *md, int nw)
 
 /*
  * primal_solve() on nw bound inputs and free_multipliers() after it: the Cholesky of the
- * smaller of (S^-1)_BB and S_FF, its solves for the nt + 1 right-hand sides, the terminal
- * Schur complement, and the n x nb (or n x nf) products; 2/5 of a unit each, as its
- * dense loops run that much faster per operation than H reads (measured, qp/work.py).
+ * smaller of (S^-1)_BB and S_FF at 3/4 of a unit per operation; its solves for the nt + 1
+ * right-hand sides, the terminal Schur complement and the n x nb (or n x nf) products at
+ * 1/3: these dense loops run that much faster per operation than H reads (qp/work.py).
  */
 static uint32_t primal_work(const rollmpc_mode_data *md, int nw)
 {
     const int n = md->n, nt = md->nt, k = (nw < n - nw) ? nw : n - nw;
     const uint32_t u = (uint32_t)k, un = (uint32_t)n, ut = (uint32_t)nt;
-    return (u * u / 2u + chol_work(k) + 2u * (ut + 1u) * tri_work(k) + ut * ut * u / 2u
-        + chol_work(nt) + 2u * tri_work(nt) + 3u * ut * un + 2u * un * (u + ut)
-        + (uint32_t)nw * (un + ut)) * 2u / 5u;
+    const uint32_t loops = u * u / 2u + 2u * (ut + 1u) * tri_work(k) + ut * ut * u / 2u
+        + 2u * tri_work(nt) + 3u * ut * un + 2u * un * (u + ut) + (uint32_t)nw * (un + ut);
+    return (9u * (chol_work(k) + chol_work(nt)) + 4u * loops) / 12u;
 }
 
 /* One step of add_to_set() on nw rows: two triangular solves, then a row leaves, switches
@@ -322,9 +322,10 @@ static void unconstrained(rollmpc_work *ws, const rollmpc_mode_data *md,
         }
         ws->th0[i] = acc;
     }
-    ws->work += (uint32_t)(nyq * ny + n * md->nx + n * ny * (summed + nruns + 2));
+    ws->work += (uint32_t)nyq * (uint32_t)ny + (uint32_t)n * (uint32_t)md->nx
+        + (uint32_t)n * (uint32_t)ny * ((uint32_t)summed + (uint32_t)nruns + 2u);
     if (md->GEinvGt_p != 0) {
-        ws->work += (uint32_t)(nyq * md->nx);
+        ws->work += (uint32_t)nyq * (uint32_t)md->nx;
         for (k = 0; k < nyq; ++k) {
             rollmpc_real acc = R_(0.0);
             for (l = 0; l < md->nx; ++l) {
@@ -380,7 +381,7 @@ static int outputs_certified(rollmpc_work *ws, const rollmpc_mode_data *md,
 {
     rollmpc_real thmax = R_(0.0), bmax = R_(0.0);
     int i, r;
-    ws->work += (uint32_t)(md->n + md->m);
+    ws->work += (uint32_t)md->n + (uint32_t)md->m;
     for (i = 0; i < md->n; ++i) {
         const rollmpc_real v = ROLLMPC_FABS(th[i]);
         thmax = (v > thmax) ? v : thmax;
@@ -931,8 +932,12 @@ static int factor_working_set(rollmpc_work *ws, const rollmpc_mode_data *md, int
             ws->chol[ROLLMPC_TRI(i, j)] = h_rows(md, ws->wset[i], ws->wset[j]);
         }
     }
-    ws->chol_holds = (rollmpc_cholesky(ws->chol, nw) == 0) ? ROLLMPC_CHOL_DUAL : ROLLMPC_CHOL_NONE;
-    return (ws->chol_holds == ROLLMPC_CHOL_DUAL) ? 0 : -1;
+    if (rollmpc_cholesky_from(ws->chol, 0, nw) != 0) {
+        ws->chol_holds = ROLLMPC_CHOL_NONE;
+        return -1;
+    }
+    ws->chol_holds = ROLLMPC_CHOL_DUAL;
+    return 0;
 }
 
 /*
@@ -1108,7 +1113,7 @@ static int drop_negative(rollmpc_work *ws, const rollmpc_mode_data *md, int *nw,
         return -1;
     }
     if (ws->chol_holds == ROLLMPC_CHOL_DUAL
-        && !afford(ws, md, (uint32_t)(*nw - keep) * delete_work(0, *nw))) {
+        && !afford(ws, md, ((uint32_t)*nw - (uint32_t)keep) * delete_work(0, *nw))) {
         return OUT_OF_WORK;
     }
     for (i = *nw - 1; i >= 0; --i) {

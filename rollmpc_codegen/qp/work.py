@@ -18,11 +18,11 @@ from ..config.errors import ConfigError
 from ..config.schema import DEFAULT_CPU_MHZ, WORK_BUDGET_AUTO
 
 # Estimated Cortex-M4F cycles per work unit, declared once: `rollmpc report --precision
-# float` (which prints the ratio) measured at most 15.75 cycles per unit on the counted
-# steps of 20,000 units or more of every example (thermal_zones_rate; fw_lateral 15.54,
-# quad_attitude 15.61, uav_roll 15.17), with 14 % of margin. Cheaper steps reach 24
-# (fw_lateral's first step: fixed costs per call), far below any budget.
-CYCLES_PER_WORK_UNIT = 18.0
+# float` (which prints the ratio) measured at most 17.72 cycles per unit on the counted
+# steps that spend over 30 % of their budget (quad_attitude; uav_roll 16.86, thermal_zones_
+# rate 15.75, fw_lateral 15.16), with 7 % of margin. Cheaper steps reach 24 (fw_lateral's
+# first step: fixed costs per call), far below any budget.
+CYCLES_PER_WORK_UNIT = 19.0
 WORK_LIMIT = 2**31  # every count and bound stays below it (uint32 in the C)
 UNBOUNDED_WORK = WORK_LIMIT - 1  # the largest budget: in effect none
 # rows the dual active set adds per scan of every row (it pays the scan and the corrected
@@ -83,13 +83,14 @@ def append_work(m, nw: int, factor: int) -> int:
 
 
 def primal_work(m, nw: int) -> int:
-    """primal_solve() and free_multipliers(), at 2/5 of a unit per operation: on the
-    paper config their dense loops ran at about 6 cycles per full unit where the dual
-    form's reads and scans run at up to 16 (rollmpc report, uav_roll against fw_lateral)."""
+    """primal_solve() and free_multipliers(): the Cholesky at 3/4 of a unit per operation,
+    the solves and products at 1/3. Fitted on the counted steps of uav_roll, quad_attitude
+    and fw_lateral: 12.2 and 4-7 cycles per operation, where the rest of the solver runs at
+    13.8 per unit (rollmpc report's cycles against the reference's work by kind)."""
     k, nt = min(nw, m.n - nw), m.nt
-    return (k * k // 2 + chol_work(k) + 2 * (nt + 1) * tri_work(k) + nt * nt * k // 2
-            + chol_work(nt) + 2 * tri_work(nt) + 3 * nt * m.n + 2 * m.n * (k + nt)
-            + nw * (m.n + nt)) * 2 // 5
+    loops = (k * k // 2 + 2 * (nt + 1) * tri_work(k) + nt * nt * k // 2 + 2 * tri_work(nt)
+             + 3 * nt * m.n + 2 * m.n * (k + nt) + nw * (m.n + nt))
+    return (9 * (chol_work(k) + chol_work(nt)) + 4 * loops) // 12
 
 
 def add_step_work(nw: int) -> int:
@@ -115,7 +116,7 @@ def largest_unit(m, wcap: int, factor: int) -> int:
     cube of the working-set capacity, a factorisation, a sweep over every row."""
     return max(wcap ** 3, factor_work(m, wcap, factor) + append_work(m, wcap, factor),
                sweep_work(m, m.m, factor) + correct_work(m, m.m) + 2 * scan_work(m),
-               5 * primal_work(m, m.n // 2), add_step_work(wcap))
+               12 * primal_work(m, m.n // 2), add_step_work(wcap))
 
 
 def auto_work_budget(sample_time: float, share: float, cpu_mhz: float = DEFAULT_CPU_MHZ) -> int:

@@ -15,8 +15,8 @@ from ..qp.work import delete_work, factor_work, hq_work, predict_work, tri_work
 from .factor_update import chol_delete
 from .linalg import cholesky_packed, chol_lsolve_packed, chol_solve_packed, seqsum
 
-# what ws->chol holds (the C's P_CHOL_NONE / _DUAL / _PRIMAL of internal.h.j2)
-CHOL_NONE, CHOL_DUAL, CHOL_PRIMAL = 0, 1, 2
+# what ws->chol holds (the C's P_CHOL_NONE / _DUAL of internal.h.j2)
+CHOL_NONE, CHOL_DUAL = 0, 1
 OUT_OF_WORK = -2  # the C's: a solver part stopped, the budget cannot afford its next unit
 
 
