@@ -49,11 +49,17 @@ class Status(IntEnum):
     BOUND_NOT_CONFIGURED = (8, "bound not in the config (no constraint rows); nothing changed",
                             "`P_set_bounds` only: a finite value for an output bound the config "
                             "left infinite (no rows)", "nothing changed", True)
+    # appended (the codes above keep their values); docs/solver.md, "Work budget"
+    TIME_LIMIT = (9, "work budget reached; best command so far",
+                  "the solve reached `solver.work_budget` (`P_last_info()->work`) before the "
+                  "KKT conditions held; the next sample continues from the working set it "
+                  "reached", "the last point of the dual active set (or of the sweeps), else "
+                  "the unconstrained optimum, clamped")
 
 
 # the codes as module names, for the reference's and the tests' comparisons
 (OPTIMAL, MAX_ITER, INACCURATE, INFEASIBLE, NONFINITE_INPUT, NUMERICAL, BAD_ARGUMENT, BAD_BOUNDS,
- BOUND_NOT_CONFIGURED) = Status
+ BOUND_NOT_CONFIGURED, TIME_LIMIT) = Status
 
 # every build's codes (the runtime_bounds ones exist only in a runtime build) -> short name
 STATUS_NAMES = {s: s.name.lower() for s in Status if not s.runtime_bounds_only}

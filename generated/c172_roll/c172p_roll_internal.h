@@ -52,6 +52,16 @@ extern const c172p_roll_mode_data c172p_roll_modes[C172P_ROLL_N_MODES];
 /** Packed lower-triangle index of (i, j), j <= i. */
 #define C172P_ROLL_TRI(i, j) ((i) * ((i) + 1) / 2 + (j))
 
+/*
+ * What the work array chol holds (ws->chol_holds): nothing valid, or L = chol(H_WW) of the
+ * working set wset[0..nw) in its order (kept by updates, solver/polish_dual.c.j2), or the
+ * primal polish's factor of S_FF or (S^-1)_BB (solver/polish_primal.c.j2). Whoever changes
+ * chol or the working set keeps the flag true, so no form reads a stale factor.
+ */
+#define C172P_ROLL_CHOL_NONE 0
+#define C172P_ROLL_CHOL_DUAL 1
+#define C172P_ROLL_CHOL_PRIMAL 2
+
 /* Linear algebra on packed symmetric matrices (c172p_roll_linalg.c). */
 int c172p_roll_cholesky(c172p_roll_real *a, int n);
 int c172p_roll_cholesky_from(c172p_roll_real *a, int from, int n);

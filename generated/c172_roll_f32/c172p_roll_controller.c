@@ -130,6 +130,7 @@ void c172p_roll_init(c172p_roll_ctrl *c)
     c->info.active = 0;
     c->info.mode_switches = 0;
     c->info.solve_ticks = 0u;
+    c->info.work = 0u;
 }
 
 static int solve_mode(c172p_roll_ctrl *c, int mode, const c172p_roll_real *x,
@@ -141,6 +142,7 @@ static int solve_mode(c172p_roll_ctrl *c, int mode, const c172p_roll_real *x,
     c->info.solve_ticks = (uint32_t)(C172P_ROLL_TIMESTAMP() - t0);
     c->info.status = status;
     c->info.mode = mode;
+    c->info.work = c->work.work;
     return status;
 }
 
@@ -184,6 +186,7 @@ int c172p_roll_step(c172p_roll_ctrl *c, const c172p_roll_real *y, const c172p_ro
         }
         c->info.status = C172P_ROLL_NONFINITE_INPUT;
         c->info.iterations = 0;
+        c->info.work = 0u;
         return C172P_ROLL_NONFINITE_INPUT;
     }
     follow_schedule(c, sched);
@@ -265,6 +268,7 @@ const char *c172p_roll_status_message(int status)
     case C172P_ROLL_NONFINITE_INPUT: return "non-finite input; last command held";
     case C172P_ROLL_NUMERICAL: return "non-finite intermediate result; safe fallback";
     case C172P_ROLL_BAD_ARGUMENT: return "bad argument";
+    case C172P_ROLL_TIME_LIMIT: return "work budget reached; best command so far";
     default: return "unknown status";
     }
 }

@@ -90,6 +90,7 @@ void chain_init(chain_ctrl *c)
     c->info.active = 0;
     c->info.mode_switches = 0;
     c->info.solve_ticks = 0u;
+    c->info.work = 0u;
 }
 
 static int solve_mode(chain_ctrl *c, int mode, const chain_real *x,
@@ -101,6 +102,7 @@ static int solve_mode(chain_ctrl *c, int mode, const chain_real *x,
     c->info.solve_ticks = (uint32_t)(CHAIN_TIMESTAMP() - t0);
     c->info.status = status;
     c->info.mode = mode;
+    c->info.work = c->work.work;
     return status;
 }
 
@@ -137,6 +139,7 @@ int chain_step(chain_ctrl *c, const chain_real *y, const chain_real *sched,
         }
         c->info.status = CHAIN_NONFINITE_INPUT;
         c->info.iterations = 0;
+        c->info.work = 0u;
         return CHAIN_NONFINITE_INPUT;
     }
     follow_schedule(c, sched);
@@ -218,6 +221,7 @@ const char *chain_status_message(int status)
     case CHAIN_NONFINITE_INPUT: return "non-finite input; last command held";
     case CHAIN_NUMERICAL: return "non-finite intermediate result; safe fallback";
     case CHAIN_BAD_ARGUMENT: return "bad argument";
+    case CHAIN_TIME_LIMIT: return "work budget reached; best command so far";
     default: return "unknown status";
     }
 }

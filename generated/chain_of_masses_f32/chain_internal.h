@@ -52,6 +52,16 @@ extern const chain_mode_data chain_modes[CHAIN_N_MODES];
 /** Packed lower-triangle index of (i, j), j <= i. */
 #define CHAIN_TRI(i, j) ((i) * ((i) + 1) / 2 + (j))
 
+/*
+ * What the work array chol holds (ws->chol_holds): nothing valid, or L = chol(H_WW) of the
+ * working set wset[0..nw) in its order (kept by updates, solver/polish_dual.c.j2), or the
+ * primal polish's factor of S_FF or (S^-1)_BB (solver/polish_primal.c.j2). Whoever changes
+ * chol or the working set keeps the flag true, so no form reads a stale factor.
+ */
+#define CHAIN_CHOL_NONE 0
+#define CHAIN_CHOL_DUAL 1
+#define CHAIN_CHOL_PRIMAL 2
+
 /* Linear algebra on packed symmetric matrices (chain_linalg.c). */
 int chain_cholesky(chain_real *a, int n);
 int chain_cholesky_from(chain_real *a, int from, int n);

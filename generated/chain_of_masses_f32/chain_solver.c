@@ -27,6 +27,139 @@
 
 #define R_ CHAIN_R
 
+/*
+ * Work units (docs/solver.md, "Work budget"): about one multiply-add with its loads. Each
+ * costly function adds its closed-form cost to ws->work once per call (never per loop
+ * iteration); the same formulas bound a unit of work before it starts (afford()), so the
+ * work of a solve never exceeds CHAIN_SOLVER_WORK_BUDGET. The NumPy reference charges the
+ * same numbers at the same places (rollmpc_codegen/qp/work.py: these formulas).
+ */
+#define OUT_OF_WORK (-2) /* a solver part stopped: the budget cannot afford its next unit */
+
+/* One read of H through hq(): the Woodbury sum of nt terms, twice for a Δu quantity. */
+static uint32_t hq_work(const chain_mode_data *md)
+{
+    return ((uint32_t)md->nt + 4u) * 1u;
+}
+
+/* predict_outputs(): the Markov sum of every output over the stages before it. */
+static uint32_t predict_work(const chain_mode_data *md)
+{
+    const uint32_t stages = (uint32_t)md->nyq / (uint32_t)md->ny;
+    return (uint32_t)md->ny * (uint32_t)md->nu * stages * (stages + 1u) / 2u
+        + (uint32_t)md->nyq;
+}
+
+/*
+ * A check of every row at a point (violated_outside(), most_violated()): the certificate,
+ * the prediction it may need, and the rows.
+ */
+static uint32_t scan_work(const chain_mode_data *md)
+{
+    return 3u * (uint32_t)md->m + (uint32_t)md->n + predict_work(md);
+}
+
+/*
+ * correct() over `count` rows: n-long columns for at most min(2 count, n) input and
+ * min(count, nyq) output quantities, and the Woodbury term.
+ */
+static uint32_t correct_work(const chain_mode_data *md, int count)
+{
+    const uint32_t n = (uint32_t)md->n, nt = (uint32_t)md->nt, c = (uint32_t)count;
+    const uint32_t nin = (2u * c < n) ? 2u * c : n;
+    const uint32_t nout = (c < (uint32_t)md->nyq) ? c : (uint32_t)md->nyq;
+    return c + 2u * n + (uint32_t)md->nyq + n * (nin + nout + nt) + nt * nin;
+}
+
+/* One Gauss-Seidel sweep over `count` rows. */
+static uint32_t sweep_work(const chain_mode_data *md, int count)
+{
+    const uint32_t c = (uint32_t)count;
+    return c * c * hq_work(md) + 8u * c;
+}
+
+/* finish() and the slacks of the plan: always paid, so every check reserves it. */
+static uint32_t finish_work(const chain_mode_data *md)
+{
+    return 2u * (uint32_t)md->n + 2u * (uint32_t)md->m;
+}
+
+/*
+ * Can the budget still pay for `need` units (and the final finish())? Every unit of work
+ * asks before it starts, so ws->work + finish_work() never passes the budget (the
+ * generator checks that the unconstrained step leaves room); ws->work_limit is the
+ * budget, or less while the shifted guess runs (P_qp_solve()).
+ */
+static int afford(const chain_work *ws, const chain_mode_data *md, uint32_t need)
+{
+    const uint32_t used = ws->work + finish_work(md);
+    return used <= ws->work_limit && need <= ws->work_limit - used;
+}
+
+/* Cholesky factorisation of order n (n^3/6 multiply-adds, a division per entry). */
+static uint32_t chol_work(int n)
+{
+    const uint32_t u = (uint32_t)n;
+    return u * u * u / 6u + 2u * u * u + 4u * u;
+}
+
+/* One triangular solve of order n. */
+static uint32_t tri_work(int n)
+{
+    const uint32_t u = (uint32_t)n;
+    return u * u / 2u + 4u * u;
+}
+
+/* chol_rank_one() on a trailing block of order n: a rotation per column. */
+static uint32_t rank_one_work(int n)
+{
+    const uint32_t u = (uint32_t)n;
+    return 3u * u * u / 2u + 10u * u;
+}
+
+/* chol_delete() of row k from order n: the rows below move up, then one rank-one update. */
+static uint32_t delete_work(int k, int n)
+{
+    const uint32_t a = (uint32_t)n, b = (uint32_t)k;
+    return (a * a - b * b) / 2u + a + rank_one_work((n - 1 - k > 0) ? n - 1 - k : 0);
+}
+
+/* factor_working_set() of nw rows: their H entries, then the factorisation. */
+static uint32_t factor_work(const chain_mode_data *md, int nw)
+{
+    const uint32_t u = (uint32_t)nw;
+    return u * (u + 1u) / 2u * hq_work(md) + chol_work(nw);
+}
+
+/* append_row() at position nw: the column H_Wp and its diagonal, a forward solve. */
+static uint32_t append_work(const chain_mode_data *md, int nw)
+{
+    return ((uint32_t)nw + 1u) * hq_work(md) + tri_work(nw) + (uint32_t)nw;
+}
+
+/*
+ * primal_solve() on nw bound inputs and free_multipliers() after it: the Cholesky of the
+ * smaller of (S^-1)_BB and S_FF at 3/4 of a unit per operation; its solves for the nt + 1
+ * right-hand sides, the terminal Schur complement and the n x nb (or n x nf) products at
+ * 1/3: these dense loops run that much faster per operation than H reads (qp/work.py).
+ */
+static uint32_t primal_work(const chain_mode_data *md, int nw)
+{
+    const int n = md->n, nt = md->nt, k = (nw < n - nw) ? nw : n - nw;
+    const uint32_t u = (uint32_t)k, un = (uint32_t)n, ut = (uint32_t)nt;
+    const uint32_t loops = u * u / 2u + 2u * (ut + 1u) * tri_work(k) + ut * ut * u / 2u
+        + 2u * tri_work(nt) + 3u * ut * un + 2u * un * (u + ut) + (uint32_t)nw * (un + ut);
+    return (9u * (chol_work(k) + chol_work(nt)) + 4u * loops) / 12u;
+}
+
+/* One step of add_to_set() on nw rows: two triangular solves, then a row leaves, switches
+ * state or joins. */
+static uint32_t add_step_work(int nw)
+{
+    const uint32_t leave = delete_work(0, nw), flip = rank_one_work(nw);
+    return 2u * tri_work(nw) + 5u * (uint32_t)nw + ((leave > flip) ? leave : flip);
+}
+
 /* Element (a, b) of Hq = [[E^-1, E^-1 G'], [G E^-1, G E^-1 G']] (quantities a, b). */
 static chain_real hq(const chain_mode_data *md, int a, int b)
 {
@@ -57,13 +190,6 @@ static chain_real h_rows(const chain_mode_data *md, int r, int s)
 {
     const chain_real h = hq(md, md->row_q[r], md->row_q[s]);
     return (md->row_sign[r] == md->row_sign[s]) ? h : -h;
-}
-
-/* (E^-1 M_s')_i: input i's response to a unit multiplier on row s. */
-static chain_real em_col(const chain_mode_data *md, int i, int s)
-{
-    const chain_real h = hq(md, i, md->row_q[s]);
-    return (md->row_sign[s] > 0) ? h : -h;
 }
 
 /*
@@ -342,7 +468,7 @@ static void unconstrained(chain_work *ws, const chain_mode_data *md,
     const chain_real *x, const chain_real *r)
 {
     const int n = md->n, ny = md->ny, nyq = md->nyq, last = md->nyq / md->ny - 1;
-    int i, j, k, l, a, stage, nruns, longest;
+    int i, j, k, l, a, stage, nruns, longest, summed;
     ws->primal_form = 0;
     for (k = 0; k < nyq; ++k) {
         const int st = k / ny, b = k % ny;
@@ -353,6 +479,7 @@ static void unconstrained(chain_work *ws, const chain_mode_data *md,
         ws->yv[k] = acc;
     }
     nruns = reference_runs(ws, md, &longest);
+    summed = last - ((longest >= 0) ? ws->run[longest + 1] - ws->run[longest] : 0);
     for (i = 0; i < n; ++i) {
         const chain_real *row = &md->EinvGt[i * nyq];
         chain_real acc = R_(0.0);
@@ -378,7 +505,10 @@ static void unconstrained(chain_work *ws, const chain_mode_data *md,
         }
         ws->th0[i] = acc;
     }
+    ws->work += (uint32_t)nyq * (uint32_t)ny + (uint32_t)n * (uint32_t)md->nx
+        + (uint32_t)n * (uint32_t)ny * ((uint32_t)summed + (uint32_t)nruns + 2u);
     if (md->GEinvGt_p != 0) {
+        ws->work += (uint32_t)nyq * (uint32_t)md->nx;
         for (k = 0; k < nyq; ++k) {
             chain_real acc = R_(0.0);
             for (l = 0; l < md->nx; ++l) {
@@ -389,21 +519,31 @@ static void unconstrained(chain_work *ws, const chain_mode_data *md,
     }
 }
 
-/* yv = Gamma th (block Toeplitz in the Markov parameters). */
+/*
+ * yv = Gamma th (block Toeplitz in the Markov parameters).
+ * Input (t, b) is spread over every later output in one strided pass, so each output
+ * still sums its terms in (t, b) order, as the reference does, with the longest loop
+ * innermost.
+ */
 static void predict_outputs(chain_work *ws, const chain_mode_data *md,
     const chain_real *th)
 {
-    const int ny = md->ny, nu = md->nu;
-    int k, t, b;
-    for (k = 0; k < md->nyq; ++k) {
-        const int stage = k / ny, a = k % ny;
-        chain_real acc = R_(0.0);
-        for (t = 0; t <= stage; ++t) {
-            for (b = 0; b < nu; ++b) {
-                acc += md->markov[((stage - t) * ny + a) * nu + b] * th[t * nu + b];
+    const int ny = md->ny, nu = md->nu, nyq = md->nyq;
+    int k, t, b, j;
+    ws->work += predict_work(md);
+    for (k = 0; k < nyq; ++k) {
+        ws->yv[k] = R_(0.0);
+    }
+    for (t = 0; t < nyq / ny; ++t) {
+        chain_real *y = &ws->yv[t * ny]; /* outputs of stages t.. */
+        const int len = nyq - t * ny;
+        for (b = 0; b < nu; ++b) {
+            const chain_real u = th[t * nu + b];
+            const chain_real *mk = &md->markov[b]; /* (stage - t, a) with stride nu */
+            for (j = 0; j < len; ++j) {
+                y[j] += mk[j * nu] * u;
             }
         }
-        ws->yv[k] = acc;
     }
 }
 
@@ -419,11 +559,12 @@ static chain_real row_value(const chain_work *ws, const chain_mode_data *md,
  * 1 if no output row can be violated at th: |(Gamma th)_k| <= out_bound_k max|th| <= gamma_r
  * (out_bound carries the rounding margin), so the N^2/2 prediction can be skipped.
  */
-static int outputs_certified(const chain_work *ws, const chain_mode_data *md,
+static int outputs_certified(chain_work *ws, const chain_mode_data *md,
     const chain_real *th)
 {
     chain_real thmax = R_(0.0), bmax = R_(0.0);
     int i, r;
+    ws->work += (uint32_t)md->n + (uint32_t)md->m;
     for (i = 0; i < md->n; ++i) {
         const chain_real v = CHAIN_FABS(th[i]);
         thmax = (v > thmax) ? v : thmax;
@@ -451,6 +592,7 @@ static void output_slacks(chain_work *ws, const chain_mode_data *md)
         return;
     }
     predict_outputs(ws, md, ws->th0);
+    ws->work += (uint32_t)md->m;
     for (r = 0; r < md->m; ++r) {
         const int q = md->row_q[r];
         if (q >= md->n) {
@@ -473,6 +615,7 @@ static int slacks(chain_work *ws, const chain_mode_data *md)
     const chain_real *px = ws->px, *th0 = ws->th0;
     chain_real *gam = ws->gam, *K = ws->K, out_min = CHAIN_LAMBDA_LIMIT;
     int r, count = 0;
+    ws->work += 2u * (uint32_t)md->m;
     for (r = 0; r < md->m; ++r) {
         const int q = row_q[r];
         chain_real g = md->row_c[r];
@@ -539,21 +682,126 @@ static int row_violated(const chain_work *ws, const chain_mode_data *md,
     return row_excess(ws, md, th, r) > CHAIN_SOLVER_FEAS_TOL * tol_scale(ws, r);
 }
 
-/* th = th0 - sum_j (E^-1 M_{list_j}') mult_j over positive multipliers. */
+/*
+ * L L' +- v v' on the trailing block of the packed factor l (order n) from row and column
+ * `from` on, v holding the vector's entries from..n-1 (overwritten): the rotations of the
+ * classic rank-one update, hyperbolic ones for a downdate. No entry of H is read again.
+ * Returns -1 when a downdated pivot keeps no more than DEPENDENCE_TOL of its square: the
+ * factor is then not valid, and the caller refactors from scratch.
+ */
+static int chol_rank_one(chain_real *l, int from, int n, chain_real *v, int downdate)
+{
+    int i, j;
+    for (j = from; j < n; ++j) {
+        const chain_real ljj = l[CHAIN_TRI(j, j)], vj = v[j];
+        const chain_real r2 = downdate ? (ljj - vj) * (ljj + vj) : ljj * ljj + vj * vj;
+        chain_real r, c, s, ic;
+        int off = CHAIN_TRI(j + 1, j); /* column j below the diagonal: stride i + 1 */
+        if (downdate && !(r2 > CHAIN_SOLVER_DEPENDENCE_TOL * (ljj * ljj))) {
+            return -1;
+        }
+        r = CHAIN_SQRT(r2);
+        c = r / ljj;
+        s = vj / ljj;
+        ic = ljj / r;
+        l[CHAIN_TRI(j, j)] = r;
+        for (i = j + 1; i < n; ++i) {
+            const chain_real lij = (downdate ? l[off] - s * v[i] : l[off] + s * v[i]) * ic;
+            l[off] = lij;
+            v[i] = c * v[i] - s * lij;
+            off += i + 1;
+        }
+    }
+    return 0;
+}
+
+/*
+ * Delete row and column k of the factored matrix (order n): the rows below k move up one,
+ * dropping their entry k, and that entry (the column below the old pivot) updates the
+ * trailing block by rank one. v: scratch of n entries.
+ */
+static void chol_delete(chain_real *l, int k, int n, chain_real *v)
+{
+    int i, j, dst = CHAIN_TRI(k, 0), src = CHAIN_TRI(k + 1, 0);
+    for (i = k + 1; i < n; ++i) {
+        for (j = 0; j <= i; ++j, ++src) {
+            if (j == k) {
+                v[i - 1] = l[src];
+            } else {
+                l[dst++] = l[src];
+            }
+        }
+    }
+    (void)chol_rank_one(l, k, n - 1, v, 0); /* an update cannot break down */
+}
+
+/*
+ * th = th0 - E^-1 M_L' mult over the rows L = list[0..count) with a positive multiplier.
+ * The multipliers are first summed by quantity, v = M_L' mult (inputs into ws->dv, outputs
+ * into ws->yv, a Δu row into its two inputs), then E^-1 v = S^-1 v_in - Ew' (Ew v_in)
+ * + E^-1 G' v_out is accumulated in ws->th column by column over the nonzero entries of v
+ * (Ew v_in in ws->nu): n (nnz + nt) + nt nnz_in operations, where reading E^-1 M_L' entry
+ * by entry cost n |L| reads of E^-1 (nt operations each for an input, twice for a Δu row).
+ */
 static void correct(chain_work *ws, const chain_mode_data *md, const int16_t *list,
     int count, const chain_real *mult, int mult_by_row)
 {
-    int i, j;
-    for (i = 0; i < md->n; ++i) {
-        chain_real acc = R_(0.0);
-        for (j = 0; j < count; ++j) {
-            const int s = list[j];
-            const chain_real mu = mult_by_row ? mult[s] : mult[j];
-            if (mu > R_(0.0)) {
-                acc += em_col(md, i, s) * mu;
+    const int n = md->n, nyq = md->nyq, nt = md->nt;
+    int i, j, o;
+    ws->work += correct_work(md, count);
+    for (i = 0; i < n; ++i) {
+        ws->dv[i] = R_(0.0);
+        ws->th[i] = R_(0.0);
+    }
+    for (i = 0; i < nyq; ++i) {
+        ws->yv[i] = R_(0.0);
+    }
+    for (o = 0; o < nt; ++o) {
+        ws->nu[o] = R_(0.0);
+    }
+    for (j = 0; j < count; ++j) {
+        const int s = list[j], q = md->row_q[s];
+        const chain_real mu = mult_by_row ? mult[s] : mult[j];
+        if (mu > R_(0.0)) {
+            const chain_real v = (md->row_sign[s] > 0) ? mu : -mu;
+            if (q < n) {
+                ws->dv[q] += v;
+            } else {
+                ws->yv[q - n] += v;
             }
         }
-        ws->th[i] = ws->th0[i] - acc;
+    }
+    for (j = 0; j < n; ++j) {
+        const chain_real v = ws->dv[j];
+        if (v < R_(0.0) || v > R_(0.0)) {
+            for (i = 0; i < j; ++i) { /* S^-1 is packed lower: row j, then column j */
+                ws->th[i] += md->Sinv_p[CHAIN_TRI(j, i)] * v;
+            }
+            for (i = j; i < n; ++i) {
+                ws->th[i] += md->Sinv_p[CHAIN_TRI(i, j)] * v;
+            }
+            for (o = 0; o < nt; ++o) {
+                ws->nu[o] += md->Ew[o * n + j] * v;
+            }
+        }
+    }
+    for (i = 0; i < n; ++i) {
+        chain_real acc = ws->th[i];
+        for (o = 0; o < nt; ++o) {
+            acc -= md->Ew[o * n + i] * ws->nu[o];
+        }
+        ws->th[i] = acc;
+    }
+    for (j = 0; j < nyq; ++j) {
+        const chain_real v = ws->yv[j];
+        if (v < R_(0.0) || v > R_(0.0)) {
+            for (i = 0; i < n; ++i) {
+                ws->th[i] += md->EinvGt[i * nyq + j] * v;
+            }
+        }
+    }
+    for (i = 0; i < n; ++i) {
+        ws->th[i] = ws->th0[i] - ws->th[i];
     }
 }
 
@@ -561,6 +809,7 @@ static void correct(chain_work *ws, const chain_mode_data *md, const int16_t *li
 static int build_set(chain_work *ws, const chain_mode_data *md)
 {
     int r, count = 0;
+    ws->work += (uint32_t)md->m;
     for (r = 0; r < md->m; ++r) {
         if (ws->in_set[r]) {
             ws->set[count++] = (int16_t)r;
@@ -579,6 +828,7 @@ static chain_real sweep(chain_work *ws, const chain_mode_data *md,
     const chain_real omega = CHAIN_SOLVER_OMEGA;
     chain_real e2 = R_(0.0);
     int jr, js;
+    ws->work += sweep_work(md, count);
     for (jr = 0; jr < count; ++jr) {
         const int r = ws->set[jr];
         chain_real acc = R_(0.0), t, wv, nl, d;
@@ -602,11 +852,12 @@ static chain_real sweep(chain_work *ws, const chain_mode_data *md,
 }
 
 /*
- * Rows of one kind (outputs = 0: input rows, 1: output rows) violated at th and not in
- * the sorted list, appended in row order to out; cap + 1 when more than cap.
+ * Rows of one kind (outputs = 0: input rows, 1: output rows) violated at th and not
+ * flagged in `member` (0: no row is), appended in row order to out; cap + 1 when more
+ * than cap.
  */
 static int violated_kind(chain_work *ws, const chain_mode_data *md,
-    const chain_real *th, const int16_t *list, int count, int16_t *out, int cap, int outputs)
+    const chain_real *th, const uint8_t *member, int16_t *out, int cap, int outputs)
 {
     const int n = md->n, m = md->m;
     const int16_t *row_q = md->row_q;
@@ -614,15 +865,15 @@ static int violated_kind(chain_work *ws, const chain_mode_data *md,
     const chain_real *gam = ws->gam;
     const chain_real *values = outputs ? ws->yv : th; /* of quantity q at q - base */
     const int base = outputs ? n : 0;
-    int r, p = 0, nout = 0;
+    int r, nout = 0;
+    ws->work += (uint32_t)m;
     for (r = 0; r < m; ++r) {
         const int q = row_q[r];
         chain_real v, g, viol, ag;
         if ((q >= n) != outputs) {
             continue;
         }
-        /* row_violated() inline: the tolerance is at least FEAS_TOL, so reject early; the
-         * list is searched only for a violated row (most rows are not) */
+        /* row_violated() inline: the tolerance is at least FEAS_TOL, so reject early */
         v = values[q - base];
         g = gam[r];
         viol = (row_sign[r] > 0) ? v - g : -v - g;
@@ -633,10 +884,7 @@ static int violated_kind(chain_work *ws, const chain_mode_data *md,
         if (!(viol > CHAIN_SOLVER_FEAS_TOL * (ag > R_(1.0) ? ag : R_(1.0)))) {
             continue;
         }
-        while (p < count && list[p] < r) {
-            ++p;
-        }
-        if (p < count && list[p] == r) {
+        if (member != 0 && member[r]) {
             continue;
         }
         if (nout == cap) {
@@ -648,18 +896,18 @@ static int violated_kind(chain_work *ws, const chain_mode_data *md,
 }
 
 /*
- * Violated rows at th outside the sorted list (see violated_kind()): the input rows
+ * Violated rows at th outside the flagged ones (see violated_kind()): the input rows
  * first; only when none is violated, the output rows (predicted unless certified), so an
  * intermediate point far outside the input box costs no output prediction.
  */
 static int violated_outside(chain_work *ws, const chain_mode_data *md,
-    const chain_real *th, const int16_t *list, int count, int16_t *out, int cap)
+    const chain_real *th, const uint8_t *member, int16_t *out, int cap)
 {
-    const int nbox = violated_kind(ws, md, th, list, count, out, cap, 0);
+    const int nbox = violated_kind(ws, md, th, member, out, cap, 0);
     if (nbox != 0 || !outputs_to_check(ws, md, th)) {
         return nbox;
     }
-    return violated_kind(ws, md, th, list, count, out, cap, 1);
+    return violated_kind(ws, md, th, member, out, cap, 1);
 }
 
 /*
@@ -678,9 +926,8 @@ static int violated_outside(chain_work *ws, const chain_mode_data *md,
  *
  * ws->input_role[i] flags input i (ROLE_*); ws->primal_form and ws->primal_head (the
  * head's rows) describe the factor of the previous primal solve of this QP
- * (primal_form = FORM_NONE at the start of each QP, see unconstrained()). The factor
- * sits at ws->chol + 1 while ws->chol[0] holds NaN: every other writer of ws->chol
- * overwrites ws->chol[0] with a finite value, so a NaN there proves the factor intact.
+ * (primal_form = FORM_NONE at the start of each QP, see unconstrained()). The factor is
+ * intact while ws->chol_holds is CHOL_PRIMAL: every other writer of ws->chol changes it.
  */
 enum { ROLE_BOUND = 1, ROLE_HEAD = 2, ROLE_TAIL = 4 }; /* bound now; in the head, tail */
 enum { FORM_NONE = 0, FORM_FREE = 1, FORM_BOUND = 2 };
@@ -776,9 +1023,9 @@ static void primal_order(chain_work *ws, int n, int form, int update, int k, int
 }
 
 /*
- * Rows from..k-1 of the factor L (at ws->chol + 1) of S_FF (free form) or (S^-1)_BB (bound
+ * Rows from..k-1 of the factor L (ws->chol) of S_FF (free form) or (S^-1)_BB (bound
  * form) in the order of ws->tmp, and rows from..k-1 of Y = L^-1 V_F' or L^-1 Uv_B' (ws->ycol),
- * the rows above being kept (only the factor's when ws->chol[0] proves it intact).
+ * the rows above being kept (only the factor's when ws->chol_holds proves it intact).
  * -1 if a pivot breaks down (the factor is then forgotten).
  */
 static int primal_factor(chain_work *ws, const chain_mode_data *md, int k, int from)
@@ -786,8 +1033,8 @@ static int primal_factor(chain_work *ws, const chain_mode_data *md, int k, int f
     const int n = md->n, nt = md->nt, bound = ws->primal_form == FORM_BOUND;
     const chain_real *packed = bound ? md->Sinv_p : md->S_p;
     const chain_real *cols = bound ? md->Uv : md->V;
-    chain_real *l = ws->chol + 1;
-    int a, c = 0, o, start = isnan(ws->chol[0]) ? from : 0;
+    chain_real *l = ws->chol;
+    int a, c = 0, o, start = (ws->chol_holds == CHAIN_CHOL_PRIMAL) ? from : 0;
     while (c < k) { /* A's rows start..k-1, by runs of consecutive inputs in the order */
         const int q0 = ws->tmp[c];
         int len = 1, dir = 1;
@@ -805,9 +1052,10 @@ static int primal_factor(chain_work *ws, const chain_mode_data *md, int k, int f
     }
     if (chain_cholesky_from(l, start, k) != 0) {
         ws->primal_form = FORM_NONE;
+        ws->chol_holds = CHAIN_CHOL_NONE;
         return -1;
     }
-    ws->chol[0] = (chain_real)NAN;
+    ws->chol_holds = CHAIN_CHOL_PRIMAL;
     for (o = 0; o < nt; ++o) {
         chain_real *y = &ws->ycol[o * CHAIN_N_MAX];
         for (a = from; a < k; ++a) {
@@ -874,7 +1122,7 @@ static int terminal_step(chain_work *ws, const chain_mode_data *md, int k)
  */
 static int primal_solve_free(chain_work *ws, const chain_mode_data *md, int k)
 {
-    const chain_real *l = ws->chol + 1;
+    const chain_real *l = ws->chol;
     int a;
     /* -S_FB d_B: dv is 0 on the free inputs here, so the sums run over B = tmp[k..n) */
     sparse_rows_dot(md->S_p, md->n, ws->tmp, k, ws->dv, &ws->tmp[k], md->n - k, 0, ws->rhs);
@@ -940,7 +1188,7 @@ static void free_multipliers(chain_work *ws, const chain_mode_data *md, int nw)
 static int primal_solve_bound(chain_work *ws, const chain_mode_data *md, int nw)
 {
     const int n = md->n, nt = md->nt, k = nw;
-    const chain_real *l = ws->chol + 1;
+    const chain_real *l = ws->chol;
     int i, a, o;
     for (a = 0; a < k; ++a) {
         ws->rhs[a] = ws->dv[ws->tmp[a]];
@@ -999,7 +1247,7 @@ static int primal_solve(chain_work *ws, const chain_mode_data *md, int nw)
     }
     k = (form == FORM_BOUND) ? nw : n - nw;
     head = k;
-    /* the previous factor, if its form can hold the inputs (order < n: see chol's size) */
+    /* the previous factor, unless it would grow to every input (a new one is then cheaper) */
     if (ws->primal_form != FORM_NONE && ((ws->primal_form == FORM_FREE) ? nw > 0 : nw < n)) {
         int k_up, head_up;
         k_up = primal_diff(ws, n, &from, &head_up);
@@ -1022,34 +1270,132 @@ static int primal_solve(chain_work *ws, const chain_mode_data *md, int nw)
 }
 
 /*
- * Rows from..nw-1 of L = chol(H_WW) for W = wset[0..nw) into ws->chol (the rows above must
- * hold L already); -1 if a pivot breaks down.
+ * L = chol(H_WW) for W = wset[0..nw) (plus w on the diagonal of slack soft rows) into
+ * ws->chol, from scratch: the fallback whenever the kept factor may not be valid. Sets
+ * ws->chol_holds; -1 if a pivot breaks down.
  */
-static int factor_working_set(chain_work *ws, const chain_mode_data *md, int from,
-    int nw)
+static int factor_working_set(chain_work *ws, const chain_mode_data *md, int nw)
 {
     int i, j;
-    for (i = from; i < nw; ++i) {
+    ws->work += factor_work(md, nw);
+    for (i = 0; i < nw; ++i) {
         for (j = 0; j <= i; ++j) {
             ws->chol[CHAIN_TRI(i, j)] = h_rows(md, ws->wset[i], ws->wset[j]);
         }
     }
-    return chain_cholesky_from(ws->chol, from, nw);
+    if (chain_cholesky_from(ws->chol, 0, nw) != 0) {
+        ws->chol_holds = CHAIN_CHOL_NONE;
+        return -1;
+    }
+    ws->chol_holds = CHAIN_CHOL_DUAL;
+    return 0;
 }
 
-/* Dual solve on a general working set: z = -H_WW^-1 K_W, th = th0 - E^-1 M_W' z. */
+/*
+ * y = L^-1 H_Wp in place on ws->rhs (holding H_Wp on entry), and the pivot hpp - y'y that
+ * row p would have in the factor of W + p (hpp: its diagonal entry).
+ */
+static chain_real factor_pivot(chain_work *ws, int nw, chain_real hpp)
+{
+    int i;
+    chain_real zeta = hpp;
+    ws->work += tri_work(nw) + (uint32_t)nw;
+    chain_chol_lsolve(ws->chol, nw, ws->rhs);
+    for (i = 0; i < nw; ++i) {
+        zeta -= ws->rhs[i] * ws->rhs[i];
+    }
+    return zeta;
+}
+
+/* Row nw of the factor: y = L^-1 H_Wp from ws->rhs and the pivot sqrt(zeta). */
+static void factor_append(chain_work *ws, int nw, chain_real zeta)
+{
+    int i;
+    for (i = 0; i < nw; ++i) {
+        ws->chol[CHAIN_TRI(nw, i)] = ws->rhs[i];
+    }
+    ws->chol[CHAIN_TRI(nw, nw)] = CHAIN_SQRT(zeta);
+}
+
+/*
+ * Row p joins the working set at position nw, tight. A kept dual factor gains its row
+ * (one forward solve with H_Wp) unless its pivot is below the dependence tolerance; then
+ * the next dual solve refactors from scratch.
+ */
+static void append_row(chain_work *ws, const chain_mode_data *md, int p, int nw)
+{
+    int i;
+    ws->wset[nw] = (int16_t)p;
+    ws->in_set[p] = 1;
+    if (ws->chol_holds == CHAIN_CHOL_DUAL) {
+        const chain_real hpp = hq(md, md->row_q[p], md->row_q[p]);
+        chain_real zeta;
+        ws->work += ((uint32_t)nw + 1u) * hq_work(md);
+        for (i = 0; i < nw; ++i) {
+            ws->rhs[i] = h_rows(md, ws->wset[i], p);
+        }
+        zeta = factor_pivot(ws, nw, hpp);
+        if (zeta > CHAIN_SOLVER_DEPENDENCE_TOL * hpp) {
+            factor_append(ws, nw, zeta);
+        } else {
+            ws->chol_holds = CHAIN_CHOL_NONE;
+        }
+    }
+}
+
+/*
+ * Working-set position k leaves (wset and z shift down); a kept dual factor loses its row
+ * and column by a rank-one update of the rows below (chol_delete(), scratch ws->rhs).
+ */
+static void remove_row(chain_work *ws, int k, int *nw)
+{
+    int i;
+    ws->in_set[ws->wset[k]] = 0;
+    if (ws->chol_holds == CHAIN_CHOL_DUAL) {
+        ws->work += delete_work(k, *nw);
+        chol_delete(ws->chol, k, *nw, ws->rhs);
+    }
+    for (i = k; i + 1 < *nw; ++i) {
+        ws->wset[i] = ws->wset[i + 1];
+        ws->z[i] = ws->z[i + 1];
+    }
+    --*nw;
+}
+
+/*
+ * Dual solve on a general working set: z = -H_WW^-1 K_W, th = th0 - E^-1 M_W' z, with the
+ * kept factor when ws->chol holds it, else factored from scratch. Returns 0, -1 if the
+ * factorisation breaks down, or OUT_OF_WORK.
+ */
 static int dual_solve(chain_work *ws, const chain_mode_data *md, int nw)
 {
     int i;
+    const uint32_t need = (ws->out_slacks_ok ? 0u : (uint32_t)md->m + predict_work(md))
+        + ((ws->chol_holds == CHAIN_CHOL_DUAL) ? 0u : factor_work(md, nw)) + 2u * tri_work(nw);
+    if (!afford(ws, md, need)) {
+        return OUT_OF_WORK;
+    }
     output_slacks(ws, md);
     for (i = 0; i < nw; ++i) {
         ws->z[i] = -ws->K[ws->wset[i]];
     }
-    if (factor_working_set(ws, md, 0, nw) != 0) {
+    if (ws->chol_holds != CHAIN_CHOL_DUAL && factor_working_set(ws, md, nw) != 0) {
         return -1;
     }
+    ws->work += 2u * tri_work(nw);
     chain_chol_solve(ws->chol, nw, ws->z);
     return 0;
+}
+
+/*
+ * A new working set: a dual factor belongs to the old one; a primal factor describes
+ * inputs, not rows (polish_primal.c.j2), and stays.
+ */
+static void new_working_set(chain_work *ws)
+{
+    if (ws->chol_holds == CHAIN_CHOL_DUAL) {
+        ws->chol_holds = CHAIN_CHOL_NONE;
+    }
 }
 
 /* Working set from the rows with positive multipliers among list[0..count); -1 if > n. */
@@ -1057,6 +1403,8 @@ static int seed_from_multipliers(chain_work *ws, const chain_mode_data *md,
     const chain_real *lam, const int16_t *list, int count)
 {
     int j, nw = 0;
+    new_working_set(ws);
+    ws->work += (uint32_t)count;
     for (j = 0; j < count; ++j) {
         const int r = list ? list[j] : j;
         if (lam[r] > R_(0.0)) {
@@ -1070,13 +1418,16 @@ static int seed_from_multipliers(chain_work *ws, const chain_mode_data *md,
 }
 
 /*
- * Working set from the previous optimal active set shifted one stage along the horizon
- * (row r joins when its next-stage row was active): the receding-horizon guess.
+ * Working set from the previous active set (optimal, or where a TIME_LIMIT stopped)
+ * shifted one stage along the horizon (row r joins when its next-stage row was active):
+ * the receding-horizon guess; -1 if more than the working set holds.
  */
 static int seed_shifted(chain_work *ws, const chain_mode_data *md,
     const chain_real *lam)
 {
     int r, nw = 0;
+    new_working_set(ws);
+    ws->work += (uint32_t)md->m;
     for (r = 0; r < md->m; ++r) {
         if (lam[md->row_next[r]] > R_(0.0)) {
             if (nw == md->n) {
@@ -1092,6 +1443,8 @@ static int seed_shifted(chain_work *ws, const chain_mode_data *md,
 static int seed_from_violated(chain_work *ws, const chain_mode_data *md)
 {
     int r, nw = 0;
+    new_working_set(ws);
+    ws->work += (uint32_t)md->m;
     for (r = 0; r < md->m; ++r) {
         if ((ws->out_slacks_ok || md->row_q[r] < md->n) && ws->K[r] < R_(0.0)) {
             if (nw == md->n) {
@@ -1104,29 +1457,43 @@ static int seed_from_violated(chain_work *ws, const chain_mode_data *md)
 }
 
 /*
- * Drop the working-set rows with negative multipliers. Returns 0 if none was dropped,
- * 1 if some were (solve again), -1 if the working set is to be given up: emptied, or a
- * guess (see polish()) that lost more than half of its rows.
+ * Drop the working-set rows with negative multipliers (remove_row(), from the last
+ * position down). Returns 0 if none was dropped, 1 if some were (solve again), -1 if the
+ * working set is to be given up: emptied, or a guess (see polish()) that would lose more
+ * than half of its rows; OUT_OF_WORK if the budget cannot afford the deletions.
  */
-static int drop_negative(chain_work *ws, int *nw, int guess)
+static int drop_negative(chain_work *ws, const chain_mode_data *md, int *nw, int guess)
 {
     int i, keep = 0;
     for (i = 0; i < *nw; ++i) {
-        if (ws->z[i] >= R_(0.0)) {
-            ws->wset[keep] = ws->wset[i];
-            ws->z[keep] = ws->z[i];
-            ++keep;
-        }
+        keep += (ws->z[i] >= R_(0.0));
     }
     if (keep == *nw) {
         return 0;
     }
-    i = *nw;
-    *nw = keep;
-    if (keep == 0 || (guess && 2 * keep < i)) {
+    if (keep == 0 || (guess && 2 * keep < *nw)) {
         return -1;
     }
+    if (ws->chol_holds == CHAIN_CHOL_DUAL
+        && !afford(ws, md, ((uint32_t)*nw - (uint32_t)keep) * delete_work(0, *nw))) {
+        return OUT_OF_WORK;
+    }
+    for (i = *nw - 1; i >= 0; --i) {
+        if (!(ws->z[i] >= R_(0.0))) {
+            remove_row(ws, i, nw);
+        }
+    }
     return 1;
+}
+
+/* Are the working-set rows all input bounds (the primal form's working sets)? */
+static int box_only(const chain_work *ws, const chain_mode_data *md, int nw)
+{
+    int i, box = 1;
+    for (i = 0; i < nw; ++i) {
+        box = box && md->row_q[ws->wset[i]] < md->n;
+    }
+    return box;
 }
 
 /* Do the working-set rows hold (within the feasibility tolerance) at ws->th? */
@@ -1146,13 +1513,17 @@ static int working_set_holds(chain_work *ws, const chain_mode_data *md, int nw)
 /*
  * Iterative refinement of a dual solve whose point misses its own working set: with
  * multipliers ~1e9 (float), th = th0 - E^-1 M_W' z cancels most digits. The residual
- * e = M_W th - gamma_W is small, so z += H_WW^-1 e (ws->chol still holds the factor) and
+ * e = M_W th - gamma_W is small, so z += H_WW^-1 e (ws->chol holds the factor) and
  * a new th lose far fewer. Up to two rounds; 0 once the working set holds, no multiplier
- * is negative and no other row is violated, else -1.
+ * is negative and no other row is violated, else -1 (or OUT_OF_WORK).
  */
 static int refine_dual(chain_work *ws, const chain_mode_data *md, int nw)
 {
     int round, i;
+    if (!afford(ws, md, 2u * (2u * tri_work(nw) + correct_work(md, nw) + 2u * scan_work(md))
+                        + (uint32_t)md->m)) {
+        return OUT_OF_WORK;
+    }
     for (round = 0; round < 2; ++round) {
         int negative = 0;
         if (md->GEinvGt_p != 0) {
@@ -1161,25 +1532,26 @@ static int refine_dual(chain_work *ws, const chain_mode_data *md, int nw)
         for (i = 0; i < nw; ++i) {
             ws->rhs[i] = row_excess(ws, md, ws->th, ws->wset[i]);
         }
+        ws->work += 2u * tri_work(nw);
         chain_chol_solve(ws->chol, nw, ws->rhs);
         for (i = 0; i < nw; ++i) {
             ws->z[i] += ws->rhs[i];
             negative += (ws->z[i] < R_(0.0));
         }
         if (negative != 0) {
-            return -1;
+            return -1; /* a sign changed: not this working set's point */
         }
         correct(ws, md, ws->wset, nw, ws->z, 0);
         if (working_set_holds(ws, md, nw)) {
-            return (violated_outside(ws, md, ws->th, ws->wset, nw, ws->tmp, 0) == 0) ? 0 : -1;
+            return (violated_outside(ws, md, ws->th, ws->in_set, ws->tmp, 0) == 0) ? 0 : -1;
         }
     }
     return -1;
 }
 
-/* The polish converged: the working set and its multipliers become the warm start. */
-static int accept(chain_work *ws, const chain_mode_data *md, chain_real *lam,
-    int nw, int *active)
+/* lam = the working set's multipliers, 0 elsewhere: the next sample's warm start. */
+static void keep_working_set(const chain_work *ws, const chain_mode_data *md,
+    chain_real *lam, int nw)
 {
     int i;
     for (i = 0; i < md->m; ++i) {
@@ -1188,129 +1560,183 @@ static int accept(chain_work *ws, const chain_mode_data *md, chain_real *lam,
     for (i = 0; i < nw; ++i) {
         lam[ws->wset[i]] = ws->z[i];
     }
+}
+
+/* The polish converged: the working set and its multipliers become the warm start. */
+static int accept(chain_work *ws, const chain_mode_data *md, chain_real *lam,
+    int nw, int *active)
+{
+    ws->work += (uint32_t)md->m;
+    keep_working_set(ws, md, lam, nw);
     *active = nw;
     return 0;
 }
 
 /*
+ * Where polish() stopped when the budget ran out (code OUT_OF_WORK): its working set
+ * wset[0..nw), the first `known` of them with their multipliers in z. Returns code.
+ */
+static int stopped(chain_work *ws, int nw, int known, int code)
+{
+    if (code == OUT_OF_WORK) {
+        ws->stop_rows = nw;
+        ws->stop_known = known;
+    }
+    return code;
+}
+
+/*
+ * A TIME_LIMIT in polish(): lam keeps the working set where it stopped as the next
+ * sample's warm start, closer than the one it started from: the rows with a positive
+ * multiplier among those solved for, and the rows that joined since with a token one
+ * (they joined tight).
+ */
+static void keep_progress(chain_work *ws, const chain_mode_data *md,
+    chain_real *lam)
+{
+    int i;
+    for (i = 0; i < ws->stop_rows; ++i) {
+        ws->z[i] = (i >= ws->stop_known) ? R_(1.0e-30) : ((ws->z[i] > R_(0.0)) ? ws->z[i] : R_(0.0));
+    }
+    keep_working_set(ws, md, lam, ws->stop_rows);
+}
+
+/*
  * Exact solve on the working set W = wset[0..nw), primal when W holds only input bounds,
- * dual otherwise; violated rows join, rows with negative multipliers leave, repeat (the
- * primal form adds violated rows before it computes multipliers). A guessed working set
- * (guess = 1: the shifted warm start) is abandoned as soon as more than half of it has
- * negative multipliers: the operating point moved, and the caller's next seed is cheaper
- * than unwinding it row block by row block. Returns 0 with ws->th optimal and lam set to
- * the exact multipliers, or -1 (lam untouched).
+ * dual otherwise; violated rows join (appended: wset is in joining order), rows with
+ * negative multipliers leave, repeat (the primal form adds violated rows before it
+ * computes multipliers). The dual form keeps its factor of H_WW across the corrections
+ * (and takes the one dual_active_set() hands over): rows join and leave it by updates.
+ * A guessed working set (guess = 1: the shifted warm start) is abandoned as soon as more
+ * than half of it has negative multipliers: the operating point moved, and the caller's
+ * next seed is cheaper than unwinding it row block by row block. Returns 0 with ws->th
+ * optimal and lam set to the exact multipliers, -1 (lam untouched), or OUT_OF_WORK when
+ * the budget cannot afford the next step (where: stopped()).
  */
 static int polish(chain_work *ws, const chain_mode_data *md, chain_real *lam,
     int nw, int guess, int *iterations, int *active)
 {
-    const int n = md->n;
-    int i, it;
-    if (nw <= 0 || nw > n) {
+    int i, it, code, known = 0; /* known: the first wset rows whose z is their multiplier */
+    if (nw <= 0 || nw > md->n) {
         return -1;
     }
+    if (!afford(ws, md, (uint32_t)md->m)) {
+        return stopped(ws, nw, 0, OUT_OF_WORK);
+    }
+    ws->work += (uint32_t)md->m;
+    for (i = 0; i < md->m; ++i) {
+        ws->in_set[i] = 0; /* in_set flags the working set from here on */
+    }
+    for (i = 0; i < nw; ++i) {
+        ws->in_set[ws->wset[i]] = 1;
+    }
     for (it = 0; it < CHAIN_SOLVER_POLISH_MAX; ++it) {
-        int nadd, p, q, total, dropped, box_only = 1, solved;
+        int nadd;
         ++*iterations;
-        for (i = 0; i < nw; ++i) {
-            box_only = box_only && md->row_q[ws->wset[i]] < n;
-        }
-        if (box_only) {
+        if (box_only(ws, md, nw)) {
             /* primal: bound rows first; the multipliers only at a feasible point */
-            solved = primal_solve(ws, md, nw);
-            if (solved < 0) {
+            if (!afford(ws, md, primal_work(md, nw) + scan_work(md) + (uint32_t)md->m)) {
+                return stopped(ws, nw, known, OUT_OF_WORK);
+            }
+            ws->work += primal_work(md, nw);
+            code = primal_solve(ws, md, nw);
+            if (code < 0) {
                 return -1;
             }
-            nadd = violated_outside(ws, md, ws->th, ws->wset, nw, ws->tmp, n - nw);
+            known = (code == 1) ? nw : 0;
+            nadd = violated_outside(ws, md, ws->th, ws->in_set, ws->tmp, md->n - nw);
             if (nadd == 0) {
-                if (solved == 0) {
+                if (code == 0) {
                     free_multipliers(ws, md, nw);
                 }
-                dropped = drop_negative(ws, &nw, guess);
-                if (dropped != 0) {
-                    if (dropped < 0) {
-                        return -1;
+                known = nw;
+                code = drop_negative(ws, md, &nw, guess);
+                if (code != 0) {
+                    if (code < 0) {
+                        return stopped(ws, nw, known, code);
                     }
+                    known = nw;
                     continue;
                 }
                 return accept(ws, md, lam, nw, active);
             }
         } else {
-            if (dual_solve(ws, md, nw) != 0) {
-                return -1;
+            code = dual_solve(ws, md, nw);
+            if (code != 0) {
+                return stopped(ws, nw, known, code);
             }
-            dropped = drop_negative(ws, &nw, guess);
-            if (dropped != 0) {
-                if (dropped < 0) {
-                    return -1;
+            known = nw;
+            code = drop_negative(ws, md, &nw, guess);
+            if (code != 0) {
+                if (code < 0) {
+                    return stopped(ws, nw, known, code);
                 }
+                known = nw;
                 continue;
             }
+            if (!afford(ws, md, correct_work(md, nw) + 2u * scan_work(md) + (uint32_t)md->m)) {
+                return stopped(ws, nw, known, OUT_OF_WORK);
+            }
             correct(ws, md, ws->wset, nw, ws->z, 0);
-            nadd = violated_outside(ws, md, ws->th, ws->wset, nw, ws->tmp, n - nw);
+            nadd = violated_outside(ws, md, ws->th, ws->in_set, ws->tmp, md->n - nw);
             if (nadd == 0) {
                 /* a (near-)singular H_WW, e.g. parallel rows of an infeasible QP, can give
                  * multipliers whose point misses its own working set: not optimal */
-                return (working_set_holds(ws, md, nw) || refine_dual(ws, md, nw) == 0)
-                    ? accept(ws, md, lam, nw, active) : -1;
+                code = working_set_holds(ws, md, nw) ? 0 : refine_dual(ws, md, nw);
+                return (code == 0) ? accept(ws, md, lam, nw, active) : stopped(ws, nw, known, code);
             }
         }
-        if (nadd > n - nw) {
+        if (nadd > md->n - nw) {
             return -1;
         }
-        /* merge the sorted lists wset[0..nw) and tmp[0..nadd) into wset, back to front */
-        p = nw - 1;
-        q = nadd - 1;
-        total = nw + nadd;
-        for (i = total - 1; i >= 0; --i) {
-            if (q < 0 || (p >= 0 && ws->wset[p] > ws->tmp[q])) {
-                ws->wset[i] = ws->wset[p--];
-            } else {
-                ws->wset[i] = ws->tmp[q--];
-            }
+        if (ws->chol_holds == CHAIN_CHOL_DUAL
+            && !afford(ws, md, (uint32_t)nadd * append_work(md, nw + nadd))) {
+            return stopped(ws, nw, known, OUT_OF_WORK);
         }
-        nw = total;
+        for (i = 0; i < nadd; ++i) {
+            append_row(ws, md, ws->tmp[i], nw++);
+        }
     }
     return -1;
 }
 
+/* rows added per scan of every row: the scan and the corrected point are paid once for
+ * them, each checked again (in dual terms) before it joins */
+#define ADD_BATCH 4
 /*
- * The row most violated at th (violation relative to max(1, |gamma_r|)) among the rows
- * not in the working set (in_set flags); -1 if none is violated beyond the tolerance.
+ * The rows most violated at th (violation relative to max(1, |gamma_r|)) among the rows
+ * not in the working set (in_set flags), at most ADD_BATCH of them, most violated first
+ * (the lower row first among equals), into ws->tmp; returns how many (0: none is
+ * violated beyond the tolerance).
  */
 static int most_violated(chain_work *ws, const chain_mode_data *md,
     const chain_real *th)
 {
     const int outputs = outputs_to_check(ws, md, th);
-    chain_real worst = R_(0.0);
-    int r, best = -1;
+    chain_real worst[ADD_BATCH];
+    int r, j, count = 0;
+    ws->work += 2u * (uint32_t)md->m;
     for (r = 0; r < md->m; ++r) {
         if (!ws->in_set[r] && (outputs || md->row_q[r] < md->n)) {
             const chain_real viol = row_excess(ws, md, th, r);
             const chain_real scale = tol_scale(ws, r);
-            if (viol > CHAIN_SOLVER_FEAS_TOL * scale && viol / scale > worst) {
-                worst = viol / scale;
-                best = r;
+            if (viol > CHAIN_SOLVER_FEAS_TOL * scale) {
+                const chain_real rel = viol / scale;
+                for (j = count; j > 0 && rel > worst[j - 1]; --j) {
+                    if (j < ADD_BATCH) {
+                        worst[j] = worst[j - 1];
+                        ws->tmp[j] = ws->tmp[j - 1];
+                    }
+                }
+                if (j < ADD_BATCH) {
+                    worst[j] = rel;
+                    ws->tmp[j] = (int16_t)r;
+                    count += (count < ADD_BATCH);
+                }
             }
         }
     }
-    return best;
-}
-
-/*
- * Remove working-set position k: shift wset/z down and refactor the rows of L = chol(H_WW)
- * from k on (the rows above are unchanged). Returns -1 if a pivot breaks down.
- */
-static int remove_from_set(chain_work *ws, const chain_mode_data *md, int k, int *nw)
-{
-    int i;
-    ws->in_set[ws->wset[k]] = 0;
-    for (i = k; i + 1 < *nw; ++i) {
-        ws->wset[i] = ws->wset[i + 1];
-        ws->z[i] = ws->z[i + 1];
-    }
-    --*nw;
-    return factor_working_set(ws, md, k, *nw);
+    return count;
 }
 
 /*
@@ -1318,28 +1744,51 @@ static int remove_from_set(chain_work *ws, const chain_mode_data *md, int k, int
  * working-set rows stay tight, their multipliers moving by -t H_WW^-1 H_Wp. A row whose
  * multiplier reaches 0 first leaves the set and the step repeats; once p's violation
  * reaches 0 it joins. A row p dependent on the set (zeta = H_pp - H_pW H_WW^-1 H_Wp ~ 0)
- * can only move the others; if none can move, the QP is infeasible (Farkas).
- * Returns 0 when p joined, 1 for infeasible, -1 on the step cap or a breakdown.
+ * can only move the others; if none can move, the QP is infeasible (Farkas). The factor
+ * L = chol(H_WW) is kept by updates: p appends its row, a leaving row is deleted.
+ * With `recheck` (p was chosen at an earlier point), p is skipped unless its violation
+ * -K_p - H_pW z is still beyond the tolerance. Returns 0 when p joined, 2 when skipped, 1
+ * for infeasible, -1 on the step cap or a breakdown, or OUT_OF_WORK before a step the
+ * budget cannot afford (z has moved, p not joined).
  */
-static int add_to_set(chain_work *ws, const chain_mode_data *md, int p, int *nw,
-    int *steps)
+static int add_to_set(chain_work *ws, const chain_mode_data *md, int p, int recheck,
+    int *nw, int *steps)
 {
     const chain_real hpp = hq(md, md->row_q[p], md->row_q[p]);
     chain_real lp = R_(0.0);
     int i;
+    if (!afford(ws, md, ((uint32_t)*nw + 1u) * hq_work(md))) {
+        return OUT_OF_WORK;
+    }
+    ws->work += ((uint32_t)*nw + 1u) * hq_work(md);
+    for (i = 0; i < *nw; ++i) { /* H_Wp, read once for every step of this add */
+        ws->hcol[i] = h_rows(md, ws->wset[i], p);
+    }
+    if (recheck) { /* chosen at an earlier point: still violated at this one? */
+        chain_real viol = -ws->K[p];
+        for (i = 0; i < *nw; ++i) {
+            viol -= ws->hcol[i] * ws->z[i];
+        }
+        if (!(viol > CHAIN_SOLVER_FEAS_TOL * tol_scale(ws, p))) {
+            return 2;
+        }
+    }
     for (;;) {
-        chain_real zeta = hpp, viol = -ws->K[p] - hpp * lp, tblock = R_(0.0), t;
+        chain_real zeta, viol = -ws->K[p] - hpp * lp, tblock = R_(0.0), t;
         int k = -1, dependent;
         if (++*steps > CHAIN_SOLVER_ACTIVE_SET_MAX) {
             return -1;
         }
+        if (!afford(ws, md, add_step_work(*nw))) {
+            return OUT_OF_WORK;
+        }
+        ws->work += tri_work(*nw) + 4u * (uint32_t)*nw;
         for (i = 0; i < *nw; ++i) { /* y = L^-1 H_Wp (rhs), d = L'^-1 y (dv) */
-            ws->rhs[i] = h_rows(md, ws->wset[i], p);
+            ws->rhs[i] = ws->hcol[i];
             viol -= ws->rhs[i] * ws->z[i];
         }
-        chain_chol_lsolve(ws->chol, *nw, ws->rhs);
+        zeta = factor_pivot(ws, *nw, hpp);
         for (i = 0; i < *nw; ++i) {
-            zeta -= ws->rhs[i] * ws->rhs[i];
             ws->dv[i] = ws->rhs[i];
         }
         chain_chol_ltsolve(ws->chol, *nw, ws->dv);
@@ -1369,67 +1818,143 @@ static int add_to_set(chain_work *ws, const chain_mode_data *md, int p, int *nw,
         }
         lp += t;
         if (k < 0) {
-            for (i = 0; i < *nw; ++i) {
-                ws->chol[CHAIN_TRI(*nw, i)] = ws->rhs[i];
-            }
-            ws->chol[CHAIN_TRI(*nw, *nw)] = CHAIN_SQRT(zeta);
+            factor_append(ws, *nw, zeta);
             ws->wset[*nw] = (int16_t)p;
             ws->z[*nw] = lp;
             ws->in_set[p] = 1;
             ++*nw;
             return 0;
         }
-        if (remove_from_set(ws, md, k, nw) != 0) {
-            return -1;
+        remove_row(ws, k, nw);
+        for (i = k; i < *nw; ++i) {
+            ws->hcol[i] = ws->hcol[i + 1];
         }
     }
 }
 
 /*
- * Dual active-set solve (Goldfarb-Idnani) from the unconstrained optimum: add the most
- * violated row until none is, keeping the multipliers >= 0 and the working set linearly
- * independent, so it finishes where the polish fails (dependent active sets, working sets
- * the shifted guess and the violated rows do not reach). Its working set then goes to
- * polish() for the exact solve and KKT check -- also after a claim of infeasibility,
- * because far from the origin (multipliers ~1e9 in float) th = th0 - E^-1 M' z loses the
- * digits the primal form keeps. Returns 0 (optimal, as polish()), 1 (infeasible: ws->th
- * is then th0) or -1 (step cap, breakdown, or the polish rejects the set).
+ * The warm start of dual_active_set(): the working set where the shifted guess' polish
+ * stopped (wset[0..from), its factor as ws->chol_holds says), or with from < 0 the
+ * previous working set shifted one stage (seed_shifted(): optimal, or where a TIME_LIMIT
+ * stopped), made dual feasible by solving on it, switching the soft states whose
+ * multipliers cross l1 and dropping the rows with negative multipliers until none is;
+ * ws->th is then its point. Returns its size (0: no seed, or it broke down or emptied:
+ * start cold) or OUT_OF_WORK (where: stopped()).
+ */
+static int resume_working_set(chain_work *ws, const chain_mode_data *md,
+    const chain_real *lam, int from, int *steps)
+{
+    int i, round, code, nw = (from >= 0) ? from : seed_shifted(ws, md, lam);
+    for (i = 0; i < nw; ++i) {
+        ws->in_set[ws->wset[i]] = 1;
+    }
+    for (round = 0; nw > 0 && round < CHAIN_SOLVER_POLISH_MAX; ++round) {
+        int known;
+        ++*steps;
+        code = dual_solve(ws, md, nw);
+        known = (code == 0) ? nw : 0;
+        code = (code == 0) ? drop_negative(ws, md, &nw, 0) : code;
+        if (code == OUT_OF_WORK) {
+            return stopped(ws, nw, known, OUT_OF_WORK);
+        }
+        if (code == 0) {
+            if (!afford(ws, md, correct_work(md, nw))) {
+                return stopped(ws, nw, nw, OUT_OF_WORK);
+            }
+            correct(ws, md, ws->wset, nw, ws->z, 0);
+            return nw;
+        }
+        if (code < 0) {
+            break;
+        }
+    }
+    for (i = 0; i < nw; ++i) { /* start cold */
+        ws->in_set[ws->wset[i]] = 0;
+    }
+    ws->chol_holds = CHAIN_CHOL_DUAL; /* the factor of the empty working set */
+    return 0;
+}
+
+/*
+ * Dual active-set solve (Goldfarb-Idnani) from the warm start (resume_working_set(), from
+ * where the shifted guess stopped if from >= 0) or the unconstrained optimum: add the
+ * most violated rows until none is, keeping the multipliers
+ * >= 0 and the working set linearly independent, so it finishes where the polish fails
+ * (dependent active sets, working sets the shifted guess and the violated rows do not
+ * reach). Its working set then goes to polish() for the exact solve and KKT check -- also
+ * after a claim of infeasibility, because far from the origin (multipliers ~1e9 in float)
+ * th = th0 - E^-1 M' z loses the digits the primal form keeps; with it goes the factor of
+ * H_WW, which the polish keeps, and lam takes its multipliers (the next sample's warm
+ * start if the budget runs out). Returns 0 (optimal, as polish()), 1 (infeasible: ws->th
+ * is then th0), -1 (step cap, breakdown, or the polish rejects the set) or OUT_OF_WORK
+ * (ws->th the last point reached, lam its working set).
  */
 static int dual_active_set(chain_work *ws, const chain_mode_data *md,
-    chain_real *lam, int *iterations, int *active)
+    chain_real *lam, int from, int *iterations, int *active)
 {
-    int i, j, nw = 0, steps = 0, code = 0;
+    int i, nw = 0, steps = 0, code = 0;
+    for (i = 0; i < md->n; ++i) {
+        ws->th[i] = ws->th0[i]; /* the command until the dual active set has a point */
+    }
+    if (!afford(ws, md, (ws->out_slacks_ok ? 0u : (uint32_t)md->m + predict_work(md))
+                        + 2u * (uint32_t)md->m)) {
+        if (from >= 0) {
+            keep_progress(ws, md, lam); /* where the shifted guess stopped */
+        }
+        return OUT_OF_WORK;
+    }
     output_slacks(ws, md);
+    ws->work += (uint32_t)md->m;
     for (i = 0; i < md->m; ++i) {
         ws->in_set[i] = 0;
     }
-    for (i = 0; i < md->n; ++i) {
-        ws->th[i] = ws->th0[i];
+    if (from < 0) {
+        ws->chol_holds = CHAIN_CHOL_DUAL; /* the factor of the empty working set */
+    }
+    if (from >= 0 || CHAIN_SOLVER_WARM_START) {
+        nw = resume_working_set(ws, md, lam, from, &steps);
+        if (nw == OUT_OF_WORK) { /* lam: the warm start as far as it got */
+            keep_progress(ws, md, lam);
+            *iterations += steps;
+            return OUT_OF_WORK;
+        }
     }
     for (;;) {
-        const int p = most_violated(ws, md, ws->th);
-        if (p < 0) {
+        int p, c;
+        if (!afford(ws, md, scan_work(md) + (uint32_t)md->m)) {
+            code = OUT_OF_WORK;
             break;
         }
-        code = add_to_set(ws, md, p, &nw, &steps);
+        p = most_violated(ws, md, ws->th);
+        if (p == 0) {
+            break;
+        }
+        for (c = 0; c < p && code == 0; ++c) { /* 2: no longer violated, skipped */
+            code = add_to_set(ws, md, ws->tmp[c], c > 0, &nw, &steps);
+            code = (code == 2) ? 0 : code;
+        }
         if (code != 0) {
+            break;
+        }
+        if (!afford(ws, md, correct_work(md, nw))) {
+            code = OUT_OF_WORK;
             break;
         }
         correct(ws, md, ws->wset, nw, ws->z, 0);
     }
     *iterations += steps;
-    if (nw == 0) { /* code 0: violations of th0 within the tolerance only */
+    if (nw == 0 && code != OUT_OF_WORK) { /* code 0: violations of th0 within the tolerance only */
         return (code == 0) ? accept(ws, md, lam, 0, active) : code;
     }
-    for (i = 1; i < nw; ++i) { /* polish() wants the working set sorted */
-        const int16_t row = ws->wset[i];
-        for (j = i; j > 0 && ws->wset[j - 1] > row; --j) {
-            ws->wset[j] = ws->wset[j - 1];
-        }
-        ws->wset[j] = row;
+    /* the next sample's warm start, until polish() replaces it (its cost is part of the
+     * finish() every check reserves: finish() then leaves lam as it is) */
+    keep_working_set(ws, md, lam, nw);
+    i = (code == OUT_OF_WORK) ? OUT_OF_WORK : polish(ws, md, lam, nw, 0, iterations, active);
+    if (i == OUT_OF_WORK) {
+        *active = nw;
     }
-    if (polish(ws, md, lam, nw, 0, iterations, active) == 0) {
-        return 0;
+    if (i == 0 || i == OUT_OF_WORK) {
+        return i;
     }
     if (code == 1) {
         for (i = 0; i < md->n; ++i) {
@@ -1439,12 +1964,17 @@ static int dual_active_set(chain_work *ws, const chain_mode_data *md,
     return (code == 1) ? 1 : -1;
 }
 
-/* Clamp th into the input bounds (or fall back) and write U; returns the final status. */
+/*
+ * Clamp th into the input bounds (or fall back) and write U; returns the final status.
+ * Only OPTIMAL and TIME_LIMIT keep lam: the exact multipliers, or the working set a
+ * TIME_LIMIT reached, which the next sample continues from.
+ */
 static int finish(chain_work *ws, const chain_mode_data *md, chain_real *lam,
     int status, chain_real *U)
 {
     const chain_real *src = ws->th;
     int i, th_ok = 1, th0_ok = 1;
+    ws->work += finish_work(md);
     for (i = 0; i < md->n; ++i) {
         th_ok = th_ok && isfinite(ws->th[i]);
         th0_ok = th0_ok && isfinite(ws->th0[i]);
@@ -1458,12 +1988,29 @@ static int finish(chain_work *ws, const chain_mode_data *md, chain_real *lam,
         const chain_real v = src ? src[i] : R_(0.0);
         U[i] = (v < lo) ? lo : ((v > hi) ? hi : v);
     }
-    if (status != CHAIN_OPTIMAL) {
+    if (status != CHAIN_OPTIMAL && status != CHAIN_TIME_LIMIT) {
         for (i = 0; i < md->m; ++i) {
             lam[i] = R_(0.0); /* no sticky warm start after a failed sample */
         }
     }
     return status;
+}
+
+/*
+ * The budget ran out before the dual active set: the command is the clamped th0 and, if
+ * a polish stopped (polished = 1), lam its working set (keep_progress()).
+ */
+static int time_limit_at_th0(chain_work *ws, const chain_mode_data *md,
+    chain_real *lam, int polished, chain_real *U)
+{
+    int i;
+    for (i = 0; i < md->n; ++i) {
+        ws->th[i] = ws->th0[i];
+    }
+    if (polished) {
+        keep_progress(ws, md, lam);
+    }
+    return finish(ws, md, lam, CHAIN_TIME_LIMIT, U);
 }
 
 /**
@@ -1483,10 +2030,12 @@ int chain_qp_solve(chain_work *ws, chain_real *lam, const chain_mode_data *md,
     const chain_real *x, const chain_real *r, chain_real *U, int *iterations,
     int *polish_iterations, int *active)
 {
-    int i, count, total = 0, status = CHAIN_MAX_ITER;
+    int i, count, total = 0, status = CHAIN_MAX_ITER, resume = -1;
     *iterations = 0;
     *polish_iterations = 0;
     *active = 0;
+    ws->work = 0u;
+    ws->work_limit = CHAIN_SOLVER_WORK_BUDGET;
     unconstrained(ws, md, x, r);
     for (i = 0; i < md->n; ++i) {
         ws->th[i] = ws->th0[i];
@@ -1497,21 +2046,64 @@ int chain_qp_solve(chain_work *ws, chain_real *lam, const chain_mode_data *md,
         }
         return finish(ws, md, lam, CHAIN_OPTIMAL, U);
     }
-    /* Polish first: from the previous optimal active set (warm start), then from the rows
-     * the unconstrained solution violates; the sweeps below run only if both fail. */
-    if (CHAIN_SOLVER_WARM_START
-        && polish(ws, md, lam, seed_shifted(ws, md, lam), 1, polish_iterations, active) == 0) {
-        return finish(ws, md, lam, CHAIN_OPTIMAL, U);
+    /* Polish first: from the previous active set (warm start), then from the rows the
+     * unconstrained solution violates; what follows runs only if both fail. The shifted
+     * guess, in the dual form, may spend a third of what the budget has left: the dual
+     * active set then continues from where it stopped. With a warm start, the violated rows are polished
+     * only in the primal form: in the dual form the resumed dual active set costs less
+     * than a factor of H_WW over every violated row (which breaks down on dependent rows). */
+    count = 0; /* rows of the warm start */
+    if (CHAIN_SOLVER_WARM_START) {
+        if (!afford(ws, md, (uint32_t)md->m)) {
+            return time_limit_at_th0(ws, md, lam, 0, U);
+        }
+        count = seed_shifted(ws, md, lam);
+        if (CHAIN_SOLVER_ACTIVE_SET && !box_only(ws, md, count)) {
+            ws->work_limit = ws->work + (CHAIN_SOLVER_WORK_BUDGET - ws->work) / 3u;
+        }
+        i = polish(ws, md, lam, count, 1, polish_iterations, active);
+        ws->work_limit = CHAIN_SOLVER_WORK_BUDGET;
+        if (i == 0) {
+            return finish(ws, md, lam, CHAIN_OPTIMAL, U);
+        }
+        if (i == OUT_OF_WORK) {
+            if (!CHAIN_SOLVER_ACTIVE_SET) {
+                return time_limit_at_th0(ws, md, lam, 1, U);
+            }
+            resume = ws->stop_rows; /* the dual active set takes over from there */
+        }
     }
-    if (polish(ws, md, lam, seed_from_violated(ws, md), 0, polish_iterations, active) == 0) {
-        return finish(ws, md, lam, CHAIN_OPTIMAL, U);
+    if (resume < 0) {
+        if (!afford(ws, md, (uint32_t)md->m)) {
+            return time_limit_at_th0(ws, md, lam, 0, U);
+        }
+        i = seed_from_violated(ws, md);
+        if (count <= 0 || !CHAIN_SOLVER_ACTIVE_SET || box_only(ws, md, i)) {
+            i = polish(ws, md, lam, i, 0, polish_iterations, active);
+            if (i == 0) {
+                return finish(ws, md, lam, CHAIN_OPTIMAL, U);
+            }
+            if (i == OUT_OF_WORK) {
+                return time_limit_at_th0(ws, md, lam, 1, U);
+            }
+        }
     }
     /* Before any sweep: the dual active-set solve, which also proves infeasibility. */
-    i = dual_active_set(ws, md, lam, polish_iterations, active);
+    i = dual_active_set(ws, md, lam, resume, polish_iterations, active);
     if (i >= 0) {
         return finish(ws, md, lam, (i == 0) ? CHAIN_OPTIMAL : CHAIN_INFEASIBLE, U);
     }
+    if (i == OUT_OF_WORK) {
+        return finish(ws, md, lam, CHAIN_TIME_LIMIT, U); /* at its last point */
+    }
+    if (!afford(ws, md, 3u * (uint32_t)md->m + (uint32_t)md->n
+                        + (ws->out_slacks_ok ? 0u : predict_work(md)))) {
+        return time_limit_at_th0(ws, md, lam, 0, U);
+    }
     output_slacks(ws, md);
+    for (i = 0; i < md->n; ++i) {
+        ws->th[i] = ws->th0[i];
+    }
     for (i = 0; i < md->m; ++i) {
         ws->in_set[i] = (uint8_t)(CHAIN_SOLVER_REDUCED ? (ws->K[i] < CHAIN_SOLVER_SIGMA) : 1);
         if (!CHAIN_SOLVER_WARM_START || !ws->in_set[i]) {
@@ -1520,10 +2112,18 @@ int chain_qp_solve(chain_work *ws, chain_real *lam, const chain_mode_data *md,
     }
     count = build_set(ws, md);
     for (;;) {
-        int t, converged = 0, diverged = 0, nviol, added = 0;
+        int t, converged = 0, diverged = 0, nviol, added = 0, out = 0;
         const int chunk = CHAIN_SOLVER_POLISH ? CHAIN_SOLVER_POLISH_EVERY : CHAIN_SOLVER_MAX_ITER;
+        /* after the chunk: the corrected point, then the polish (which checks for itself)
+         * or the row checks */
+        const uint32_t after = correct_work(md, count) + (uint32_t)count;
         for (t = 0; t < chunk && total < CHAIN_SOLVER_MAX_ITER; ++t) {
-            const chain_real e2 = sweep(ws, md, lam, count, &diverged);
+            chain_real e2;
+            out = !afford(ws, md, sweep_work(md, count) + after);
+            if (out) {
+                break;
+            }
+            e2 = sweep(ws, md, lam, count, &diverged);
             ++total;
             if (diverged) {
                 break;
@@ -1533,18 +2133,37 @@ int chain_qp_solve(chain_work *ws, chain_real *lam, const chain_mode_data *md,
                 break;
             }
         }
+        if (out) {
+            status = CHAIN_TIME_LIMIT; /* ws->th: the last corrected point */
+            break;
+        }
         if (diverged) {
             status = CHAIN_INFEASIBLE;
             break;
         }
         correct(ws, md, ws->set, count, lam, 1);
-        if (polish(ws, md, lam, seed_from_multipliers(ws, md, lam, ws->set, count), 0,
-                polish_iterations, active) == 0) {
+        i = polish(ws, md, lam, seed_from_multipliers(ws, md, lam, ws->set, count), 0,
+                   polish_iterations, active);
+        if (i == 0) {
             status = CHAIN_OPTIMAL;
             break;
         }
+        if (i == OUT_OF_WORK
+            || !afford(ws, md, correct_work(md, count) + 2u * scan_work(md) + 2u * (uint32_t)md->m)) {
+            for (i = 0; i < md->n; ++i) { /* the polish overwrote the sweeps' point */
+                ws->th[i] = ws->th0[i];
+            }
+            status = CHAIN_TIME_LIMIT;
+            break;
+        }
+        for (i = 0; i < md->m; ++i) { /* the polish flagged its working set in in_set */
+            ws->in_set[i] = 0;
+        }
+        for (i = 0; i < count; ++i) {
+            ws->in_set[ws->set[i]] = 1;
+        }
         correct(ws, md, ws->set, count, lam, 1);
-        nviol = violated_outside(ws, md, ws->th, ws->set, 0, ws->tmp, 0);
+        nviol = violated_outside(ws, md, ws->th, 0, ws->tmp, 0);
         if (CHAIN_SOLVER_REDUCED && nviol != 0) {
             /* every violated row joins: predict the outputs unless certified */
             const int outputs = outputs_to_check(ws, md, ws->th);

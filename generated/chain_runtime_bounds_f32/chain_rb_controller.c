@@ -101,6 +101,7 @@ void chain_rb_init(chain_rb_ctrl *c)
     c->info.active = 0;
     c->info.mode_switches = 0;
     c->info.solve_ticks = 0u;
+    c->info.work = 0u;
 }
 
 static int solve_mode(chain_rb_ctrl *c, int mode, const chain_rb_real *x,
@@ -112,6 +113,7 @@ static int solve_mode(chain_rb_ctrl *c, int mode, const chain_rb_real *x,
     c->info.solve_ticks = (uint32_t)(CHAIN_RB_TIMESTAMP() - t0);
     c->info.status = status;
     c->info.mode = mode;
+    c->info.work = c->work.work;
     return status;
 }
 
@@ -148,6 +150,7 @@ int chain_rb_step(chain_rb_ctrl *c, const chain_rb_real *y, const chain_rb_real 
         }
         c->info.status = CHAIN_RB_NONFINITE_INPUT;
         c->info.iterations = 0;
+        c->info.work = 0u;
         return CHAIN_RB_NONFINITE_INPUT;
     }
     follow_schedule(c, sched);
@@ -317,6 +320,7 @@ const char *chain_rb_status_message(int status)
     case CHAIN_RB_BAD_ARGUMENT: return "bad argument";
     case CHAIN_RB_BAD_BOUNDS: return "bad bounds; nothing changed";
     case CHAIN_RB_BOUND_NOT_CONFIGURED: return "bound not in the config (no constraint rows); nothing changed";
+    case CHAIN_RB_TIME_LIMIT: return "work budget reached; best command so far";
     default: return "unknown status";
     }
 }

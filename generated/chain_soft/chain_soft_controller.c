@@ -90,6 +90,7 @@ void chain_soft_init(chain_soft_ctrl *c)
     c->info.active = 0;
     c->info.mode_switches = 0;
     c->info.solve_ticks = 0u;
+    c->info.work = 0u;
     c->info.slack_max = R_(0.0);
     c->info.slack_rows = 0;
 }
@@ -103,6 +104,7 @@ static int solve_mode(chain_soft_ctrl *c, int mode, const chain_soft_real *x,
     c->info.solve_ticks = (uint32_t)(CHAIN_SOFT_TIMESTAMP() - t0);
     c->info.status = status;
     c->info.mode = mode;
+    c->info.work = c->work.work;
     c->info.slack_max = c->work.slack_max;
     c->info.slack_rows = c->work.slack_rows;
     return status;
@@ -141,6 +143,7 @@ int chain_soft_step(chain_soft_ctrl *c, const chain_soft_real *y, const chain_so
         }
         c->info.status = CHAIN_SOFT_NONFINITE_INPUT;
         c->info.iterations = 0;
+        c->info.work = 0u;
         return CHAIN_SOFT_NONFINITE_INPUT;
     }
     follow_schedule(c, sched);
@@ -222,6 +225,7 @@ const char *chain_soft_status_message(int status)
     case CHAIN_SOFT_NONFINITE_INPUT: return "non-finite input; last command held";
     case CHAIN_SOFT_NUMERICAL: return "non-finite intermediate result; safe fallback";
     case CHAIN_SOFT_BAD_ARGUMENT: return "bad argument";
+    case CHAIN_SOFT_TIME_LIMIT: return "work budget reached; best command so far";
     default: return "unknown status";
     }
 }

@@ -55,6 +55,16 @@ extern const chain_soft_mode_data chain_soft_modes[CHAIN_SOFT_N_MODES];
 /** Packed lower-triangle index of (i, j), j <= i. */
 #define CHAIN_SOFT_TRI(i, j) ((i) * ((i) + 1) / 2 + (j))
 
+/*
+ * What the work array chol holds (ws->chol_holds): nothing valid, or L = chol(H_WW) of the
+ * working set wset[0..nw) in its order (kept by updates, solver/polish_dual.c.j2), or the
+ * primal polish's factor of S_FF or (S^-1)_BB (solver/polish_primal.c.j2). Whoever changes
+ * chol or the working set keeps the flag true, so no form reads a stale factor.
+ */
+#define CHAIN_SOFT_CHOL_NONE 0
+#define CHAIN_SOFT_CHOL_DUAL 1
+#define CHAIN_SOFT_CHOL_PRIMAL 2
+
 /* Linear algebra on packed symmetric matrices (chain_soft_linalg.c). */
 int chain_soft_cholesky(chain_soft_real *a, int n);
 int chain_soft_cholesky_from(chain_soft_real *a, int from, int n);

@@ -90,6 +90,7 @@ void fwlat_init(fwlat_ctrl *c)
     c->info.active = 0;
     c->info.mode_switches = 0;
     c->info.solve_ticks = 0u;
+    c->info.work = 0u;
     c->info.slack_max = R_(0.0);
     c->info.slack_rows = 0;
 }
@@ -103,6 +104,7 @@ static int solve_mode(fwlat_ctrl *c, int mode, const fwlat_real *x,
     c->info.solve_ticks = (uint32_t)(FWLAT_TIMESTAMP() - t0);
     c->info.status = status;
     c->info.mode = mode;
+    c->info.work = c->work.work;
     c->info.slack_max = c->work.slack_max;
     c->info.slack_rows = c->work.slack_rows;
     return status;
@@ -141,6 +143,7 @@ int fwlat_step(fwlat_ctrl *c, const fwlat_real *y, const fwlat_real *sched,
         }
         c->info.status = FWLAT_NONFINITE_INPUT;
         c->info.iterations = 0;
+        c->info.work = 0u;
         return FWLAT_NONFINITE_INPUT;
     }
     follow_schedule(c, sched);
@@ -222,6 +225,7 @@ const char *fwlat_status_message(int status)
     case FWLAT_NONFINITE_INPUT: return "non-finite input; last command held";
     case FWLAT_NUMERICAL: return "non-finite intermediate result; safe fallback";
     case FWLAT_BAD_ARGUMENT: return "bad argument";
+    case FWLAT_TIME_LIMIT: return "work budget reached; best command so far";
     default: return "unknown status";
     }
 }

@@ -90,6 +90,7 @@ void quadatt_init(quadatt_ctrl *c)
     c->info.active = 0;
     c->info.mode_switches = 0;
     c->info.solve_ticks = 0u;
+    c->info.work = 0u;
 }
 
 static int solve_mode(quadatt_ctrl *c, int mode, const quadatt_real *x,
@@ -101,6 +102,7 @@ static int solve_mode(quadatt_ctrl *c, int mode, const quadatt_real *x,
     c->info.solve_ticks = (uint32_t)(QUADATT_TIMESTAMP() - t0);
     c->info.status = status;
     c->info.mode = mode;
+    c->info.work = c->work.work;
     return status;
 }
 
@@ -137,6 +139,7 @@ int quadatt_step(quadatt_ctrl *c, const quadatt_real *y, const quadatt_real *sch
         }
         c->info.status = QUADATT_NONFINITE_INPUT;
         c->info.iterations = 0;
+        c->info.work = 0u;
         return QUADATT_NONFINITE_INPUT;
     }
     follow_schedule(c, sched);
@@ -218,6 +221,7 @@ const char *quadatt_status_message(int status)
     case QUADATT_NONFINITE_INPUT: return "non-finite input; last command held";
     case QUADATT_NUMERICAL: return "non-finite intermediate result; safe fallback";
     case QUADATT_BAD_ARGUMENT: return "bad argument";
+    case QUADATT_TIME_LIMIT: return "work budget reached; best command so far";
     default: return "unknown status";
     }
 }

@@ -52,6 +52,16 @@ extern const quadatt_mode_data quadatt_modes[QUADATT_N_MODES];
 /** Packed lower-triangle index of (i, j), j <= i. */
 #define QUADATT_TRI(i, j) ((i) * ((i) + 1) / 2 + (j))
 
+/*
+ * What the work array chol holds (ws->chol_holds): nothing valid, or L = chol(H_WW) of the
+ * working set wset[0..nw) in its order (kept by updates, solver/polish_dual.c.j2), or the
+ * primal polish's factor of S_FF or (S^-1)_BB (solver/polish_primal.c.j2). Whoever changes
+ * chol or the working set keeps the flag true, so no form reads a stale factor.
+ */
+#define QUADATT_CHOL_NONE 0
+#define QUADATT_CHOL_DUAL 1
+#define QUADATT_CHOL_PRIMAL 2
+
 /* Linear algebra on packed symmetric matrices (quadatt_linalg.c). */
 int quadatt_cholesky(quadatt_real *a, int n);
 int quadatt_cholesky_from(quadatt_real *a, int from, int n);

@@ -90,6 +90,7 @@ void qtank_init(qtank_ctrl *c)
     c->info.active = 0;
     c->info.mode_switches = 0;
     c->info.solve_ticks = 0u;
+    c->info.work = 0u;
 }
 
 static int solve_mode(qtank_ctrl *c, int mode, const qtank_real *x,
@@ -101,6 +102,7 @@ static int solve_mode(qtank_ctrl *c, int mode, const qtank_real *x,
     c->info.solve_ticks = (uint32_t)(QTANK_TIMESTAMP() - t0);
     c->info.status = status;
     c->info.mode = mode;
+    c->info.work = c->work.work;
     return status;
 }
 
@@ -137,6 +139,7 @@ int qtank_step(qtank_ctrl *c, const qtank_real *y, const qtank_real *sched,
         }
         c->info.status = QTANK_NONFINITE_INPUT;
         c->info.iterations = 0;
+        c->info.work = 0u;
         return QTANK_NONFINITE_INPUT;
     }
     follow_schedule(c, sched);
@@ -218,6 +221,7 @@ const char *qtank_status_message(int status)
     case QTANK_NONFINITE_INPUT: return "non-finite input; last command held";
     case QTANK_NUMERICAL: return "non-finite intermediate result; safe fallback";
     case QTANK_BAD_ARGUMENT: return "bad argument";
+    case QTANK_TIME_LIMIT: return "work budget reached; best command so far";
     default: return "unknown status";
     }
 }

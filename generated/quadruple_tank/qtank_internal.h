@@ -52,6 +52,16 @@ extern const qtank_mode_data qtank_modes[QTANK_N_MODES];
 /** Packed lower-triangle index of (i, j), j <= i. */
 #define QTANK_TRI(i, j) ((i) * ((i) + 1) / 2 + (j))
 
+/*
+ * What the work array chol holds (ws->chol_holds): nothing valid, or L = chol(H_WW) of the
+ * working set wset[0..nw) in its order (kept by updates, solver/polish_dual.c.j2), or the
+ * primal polish's factor of S_FF or (S^-1)_BB (solver/polish_primal.c.j2). Whoever changes
+ * chol or the working set keeps the flag true, so no form reads a stale factor.
+ */
+#define QTANK_CHOL_NONE 0
+#define QTANK_CHOL_DUAL 1
+#define QTANK_CHOL_PRIMAL 2
+
 /* Linear algebra on packed symmetric matrices (qtank_linalg.c). */
 int qtank_cholesky(qtank_real *a, int n);
 int qtank_cholesky_from(qtank_real *a, int from, int n);

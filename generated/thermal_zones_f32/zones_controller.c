@@ -90,6 +90,7 @@ void zones_init(zones_ctrl *c)
     c->info.active = 0;
     c->info.mode_switches = 0;
     c->info.solve_ticks = 0u;
+    c->info.work = 0u;
 }
 
 static int solve_mode(zones_ctrl *c, int mode, const zones_real *x,
@@ -101,6 +102,7 @@ static int solve_mode(zones_ctrl *c, int mode, const zones_real *x,
     c->info.solve_ticks = (uint32_t)(ZONES_TIMESTAMP() - t0);
     c->info.status = status;
     c->info.mode = mode;
+    c->info.work = c->work.work;
     return status;
 }
 
@@ -137,6 +139,7 @@ int zones_step(zones_ctrl *c, const zones_real *y, const zones_real *sched,
         }
         c->info.status = ZONES_NONFINITE_INPUT;
         c->info.iterations = 0;
+        c->info.work = 0u;
         return ZONES_NONFINITE_INPUT;
     }
     follow_schedule(c, sched);
@@ -218,6 +221,7 @@ const char *zones_status_message(int status)
     case ZONES_NONFINITE_INPUT: return "non-finite input; last command held";
     case ZONES_NUMERICAL: return "non-finite intermediate result; safe fallback";
     case ZONES_BAD_ARGUMENT: return "bad argument";
+    case ZONES_TIME_LIMIT: return "work budget reached; best command so far";
     default: return "unknown status";
     }
 }

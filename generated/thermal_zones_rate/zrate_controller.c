@@ -90,6 +90,7 @@ void zrate_init(zrate_ctrl *c)
     c->info.active = 0;
     c->info.mode_switches = 0;
     c->info.solve_ticks = 0u;
+    c->info.work = 0u;
 }
 
 static int solve_mode(zrate_ctrl *c, int mode, const zrate_real *x,
@@ -101,6 +102,7 @@ static int solve_mode(zrate_ctrl *c, int mode, const zrate_real *x,
     c->info.solve_ticks = (uint32_t)(ZRATE_TIMESTAMP() - t0);
     c->info.status = status;
     c->info.mode = mode;
+    c->info.work = c->work.work;
     return status;
 }
 
@@ -137,6 +139,7 @@ int zrate_step(zrate_ctrl *c, const zrate_real *y, const zrate_real *sched,
         }
         c->info.status = ZRATE_NONFINITE_INPUT;
         c->info.iterations = 0;
+        c->info.work = 0u;
         return ZRATE_NONFINITE_INPUT;
     }
     follow_schedule(c, sched);
@@ -218,6 +221,7 @@ const char *zrate_status_message(int status)
     case ZRATE_NONFINITE_INPUT: return "non-finite input; last command held";
     case ZRATE_NUMERICAL: return "non-finite intermediate result; safe fallback";
     case ZRATE_BAD_ARGUMENT: return "bad argument";
+    case ZRATE_TIME_LIMIT: return "work budget reached; best command so far";
     default: return "unknown status";
     }
 }

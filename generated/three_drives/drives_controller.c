@@ -130,6 +130,7 @@ void drives_init(drives_ctrl *c)
     c->info.active = 0;
     c->info.mode_switches = 0;
     c->info.solve_ticks = 0u;
+    c->info.work = 0u;
 }
 
 static int solve_mode(drives_ctrl *c, int mode, const drives_real *x,
@@ -141,6 +142,7 @@ static int solve_mode(drives_ctrl *c, int mode, const drives_real *x,
     c->info.solve_ticks = (uint32_t)(DRIVES_TIMESTAMP() - t0);
     c->info.status = status;
     c->info.mode = mode;
+    c->info.work = c->work.work;
     return status;
 }
 
@@ -184,6 +186,7 @@ int drives_step(drives_ctrl *c, const drives_real *y, const drives_real *sched,
         }
         c->info.status = DRIVES_NONFINITE_INPUT;
         c->info.iterations = 0;
+        c->info.work = 0u;
         return DRIVES_NONFINITE_INPUT;
     }
     follow_schedule(c, sched);
@@ -265,6 +268,7 @@ const char *drives_status_message(int status)
     case DRIVES_NONFINITE_INPUT: return "non-finite input; last command held";
     case DRIVES_NUMERICAL: return "non-finite intermediate result; safe fallback";
     case DRIVES_BAD_ARGUMENT: return "bad argument";
+    case DRIVES_TIME_LIMIT: return "work budget reached; best command so far";
     default: return "unknown status";
     }
 }

@@ -130,6 +130,7 @@ void rollmpc_init(rollmpc_ctrl *c)
     c->info.active = 0;
     c->info.mode_switches = 0;
     c->info.solve_ticks = 0u;
+    c->info.work = 0u;
 }
 
 static int solve_mode(rollmpc_ctrl *c, int mode, const rollmpc_real *x,
@@ -141,6 +142,7 @@ static int solve_mode(rollmpc_ctrl *c, int mode, const rollmpc_real *x,
     c->info.solve_ticks = (uint32_t)(ROLLMPC_TIMESTAMP() - t0);
     c->info.status = status;
     c->info.mode = mode;
+    c->info.work = c->work.work;
     return status;
 }
 
@@ -184,6 +186,7 @@ int rollmpc_step(rollmpc_ctrl *c, const rollmpc_real *y, const rollmpc_real *sch
         }
         c->info.status = ROLLMPC_NONFINITE_INPUT;
         c->info.iterations = 0;
+        c->info.work = 0u;
         return ROLLMPC_NONFINITE_INPUT;
     }
     follow_schedule(c, sched);
@@ -265,6 +268,7 @@ const char *rollmpc_status_message(int status)
     case ROLLMPC_NONFINITE_INPUT: return "non-finite input; last command held";
     case ROLLMPC_NUMERICAL: return "non-finite intermediate result; safe fallback";
     case ROLLMPC_BAD_ARGUMENT: return "bad argument";
+    case ROLLMPC_TIME_LIMIT: return "work budget reached; best command so far";
     default: return "unknown status";
     }
 }

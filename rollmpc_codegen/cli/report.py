@@ -90,6 +90,12 @@ def summary_text(rep: dict) -> str:
         f"({b['worst_load_percent']}% of {b['cycles_per_sample']:,} cycles)",
         f"  worst step by function: {top}",
     ]
+    cpw = rep.get("cycles_per_work_unit")
+    if cpw and cpw["steps"]:
+        flight = "" if cpw["flight_of_max"] is None else f"flight {cpw['flight_of_max']}, "
+        lines.append(f"  cycles per work unit on {cpw['steps']} counted steps: max {cpw['max']} "
+                     f"({flight}step {cpw['step_of_max']}), median {cpw['median']}; work budget "
+                     f"{rep['work_budget']:,} units")
     if rep["goals"]:
         goals = ", ".join(f"{k}: {'met' if v else 'MISSED'}" for k, v in rep["goals"].items())
         lines.append(f"  memory goals (the config's target: section): {goals}")

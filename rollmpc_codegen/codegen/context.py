@@ -15,6 +15,7 @@ from ..config.schema import default_dependence_tol, default_feasibility_tol
 from ..features.runtime_bounds import context_bounds
 from ..model.controller import ControllerModel
 from ..qp.arrays import REAL, declared_for
+from ..qp.work import ADD_BATCH, check_work_budget
 from ..status import UNKNOWN_MESSAGE, context_statuses
 
 
@@ -67,6 +68,8 @@ def build_context(model: ControllerModel) -> dict:
                  "epsilons": list(sc.epsilons), "below": list(sc.below),
                  "above": list(sc.above), "band_modes": list(sc.band_modes),
                  "n_bands": len(sc.band_modes), "initial": sc.initial}
+    has_rate_rows = any(mm.data.has_rate_rows for mm in model.modes)
+    hq_work_factor = 2 if has_rate_rows else 1  # a Δu read is a difference of reads
     n_max = max(m["n"] for m in modes)
     w_max = max(m["w_cap"] for m in modes) if features["has_soft_rows"] else n_max
     return {
@@ -90,7 +93,7 @@ def build_context(model: ControllerModel) -> dict:
         "statuses": context_statuses(cfg.prefix, cfg.runtime_bounds),
         "unknown_status_message": UNKNOWN_MESSAGE,
         # Δu rows in some mode: the solver's third row kind (else the C is unchanged)
-        "has_rate_rows": any(mm.data.has_rate_rows for mm in model.modes),
+        "has_rate_rows": has_rate_rows,
         **features,
         "solver": {
             "method": s.method, "reduced": flags["reduced"], "warm_start": flags["warm"]
@@ -102,6 +105,9 @@ def build_context(model: ControllerModel) -> dict:
             "active_set": s.polish and s.active_set, "active_set_max": s.active_set_max,
             "dependence_tol": s.dependence_tol if s.dependence_tol is not None
             else default_dependence_tol(cfg.precision),
+            # work units a solve may spend (qp/work.py), and the unit cost of an H read
+            "work_budget": check_work_budget(cfg, [mm.data for mm in model.modes], hq_work_factor),
+            "hq_work_factor": hq_work_factor, "add_batch": ADD_BATCH,
         },
         "sizes": {
             "nx_max": max(m["nx"] for m in modes), "nu_max": max(m["nu"] for m in modes),

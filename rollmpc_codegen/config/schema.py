@@ -67,6 +67,10 @@ RESERVED_PREFIXES = C_STANDARD_HEADERS + SYSTEM_HEADERS
 # --------------------------------------------------------------------------- defaults
 DEFAULT_PREFIX = "rollmpc"
 DEFAULT_PRECISION = "double"
+# the target's clock, from which `solver.work_budget: auto` follows (the `target.cpu_mhz`
+# key will set it; qp/work.py derives the budget)
+DEFAULT_CPU_MHZ = 168.0
+WORK_BUDGET_AUTO = "auto"  # solver.work_budget: derived from the sample time and the clock
 DEFAULT_EPSILON = 0.5  # scheduler.epsilon: the hysteresis margin of every threshold
 UNBOUNDED = math.inf  # an absent output or Δu bound: -UNBOUNDED .. UNBOUNDED, no QP rows
 NO_UNIT = ""  # units: a signal without a unit (none is shown)
@@ -199,6 +203,10 @@ class SolverConfig:
     active_set: bool = True  # dual active-set (Goldfarb-Idnani) solve before any sweep
     active_set_max: int = 500  # its cap on add/drop steps
     dependence_tol: float | None = None  # None -> precision default
+    # work units a solve may spend (docs/solver.md "Work budget"), or WORK_BUDGET_AUTO:
+    # budget_share of the sample time at DEFAULT_CPU_MHZ (qp/work.py)
+    work_budget: int | str = WORK_BUDGET_AUTO
+    budget_share: float = 0.5
 
 
 @dataclass(frozen=True)

@@ -3,7 +3,7 @@ from __future__ import annotations
 
 from .errors import ConfigError
 from .reader import Reader
-from .schema import MAX_C_INT, SOLVER_METHODS, SolverConfig
+from .schema import MAX_C_INT, SOLVER_METHODS, WORK_BUDGET_AUTO, SolverConfig
 
 
 def parse_solver(r: Reader) -> SolverConfig:
@@ -29,6 +29,16 @@ def parse_solver(r: Reader) -> SolverConfig:
                if r.has("dependence_tol") else None)
     if dep_tol is not None and not dep_tol < 1.0:
         raise ConfigError(r.key("dependence_tol"), f"must be < 1, got {dep_tol}")
+    work_budget = d.work_budget
+    if r.has("work_budget") and r.raw("work_budget") != WORK_BUDGET_AUTO:
+        try:
+            work_budget = r.integer("work_budget", minimum=1, maximum=MAX_C_INT)
+        except ConfigError as exc:
+            raise ConfigError(exc.key, f"{exc.problem} (work units) or {WORK_BUDGET_AUTO}") from None
+    budget_share = r.number("budget_share", d.budget_share, positive=True)
+    if not budget_share <= 1.0:
+        raise ConfigError(r.key("budget_share"), f"is a fraction of the sample time: 0 < "
+                          f"budget_share <= 1, got {budget_share}")
     if active_set and not polish and r.has("active_set"):
         raise ConfigError(r.key("active_set"), "needs polish: true (its working set is "
                           "finished by the polish step)")
@@ -37,4 +47,5 @@ def parse_solver(r: Reader) -> SolverConfig:
                         polish_first=polish_first,
                         polish_every=polish_every, polish_max=polish_max,
                         feasibility_tol=tol, active_set=active_set,
-                        active_set_max=active_set_max, dependence_tol=dep_tol)
+                        active_set_max=active_set_max, dependence_tol=dep_tol,
+                        work_budget=work_budget, budget_share=budget_share)

@@ -90,5 +90,5 @@ def run_program(exe: Path, args: tuple[str, ...] = (), valgrind: str | None = No
 
 
 SOAK_SUMMARY = (r"^soak: (\d+) steps, (\d+) faults injected, statuses (\d+) (\d+) (\d+) (\d+) "
-                r"(\d+) (\d+) (\d+), (\d+) violations$")
+                r"(\d+) (\d+) (\d+) (\d+), (\d+) violations$")  # codes 0..6, then TIME_LIMIT
 VECTORS_SUMMARY = r"^(\d+) passed, (\d+) failed$"

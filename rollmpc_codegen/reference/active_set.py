@@ -3,45 +3,60 @@
 
 :class:`ActiveSetMixin` is part of :class:`~.solver.SolverRef`; it reads ``md``, ``H``,
 ``Hdiag``, ``wcap``, ``active_set_max``, ``dep_tol``, ``tol``, ``zero``, ``soft``,
-``soft_l1``/``soft_w`` and ``slack_on``.  The C's working-set arrays are the state dict
-of :meth:`dual_active_set` (W, z, the packed factor L, steps, in_set, K).
+``soft_l1``/``soft_w`` and ``slack_on``, and keeps the dual factor ``chol`` by updates
+(:mod:`.polish_dual`).  The C's other working-set arrays are the state dict of
+:meth:`dual_active_set` (W, z, steps, in_set, K).
 """
 from __future__ import annotations
 
 import numpy as np
 
-from .linalg import chol_lsolve_packed, chol_ltsolve_packed, seqsum
+from ..qp.work import add_step_work, correct_work, factor_work, hq_work, predict_work, scan_work, tri_work
+from .linalg import chol_ltsolve_packed, seqsum
+from .polish_dual import CHOL_DUAL, OUT_OF_WORK
 
 
 class ActiveSetMixin:
     def most_violated(self, th, gam, in_set):
-        """Mirror of most_violated(): first row of largest relative violation, or -1."""
+        """Mirror of most_violated(): the rows of largest relative violation, at most
+        ``add_batch``, most violated first (the lower row among equals)."""
+        self.outputs_to_check(th, gam)  # its work; the mirror checks every row
+        self.work += 2 * self.md.m
         viol, scale = self.row_excess(th, gam)
-        cand = (~in_set) & (viol > self.tol * scale)
-        if not np.any(cand):
-            return -1
-        rel = np.where(cand, viol / scale, self.zero)
-        return int(np.argmax(rel))
+        cand = np.flatnonzero((~in_set) & (viol > self.tol * scale))
+        rel = viol[cand] / scale[cand]
+        return cand[np.lexsort((cand, -rel))][:self.add_batch]
 
-    def add_to_set(self, p, st):
-        """Mirror of add_to_set() on the state dict st (W, z, L, steps, in_set)."""
-        dt = self.md.Kx.dtype
+    def add_to_set(self, p, st, recheck=False):
+        """Mirror of add_to_set() on the state dict st (W, z, steps, in_set)."""
+        md = self.md
+        dt = md.Kx.dtype
         hpp = self.Hdiag[p]
         lp = self.zero
         wp, l1p, p_on = self.soft_w[p], self.soft_l1[p], False
+        if not self.afford((len(st["W"]) + 1) * hq_work(md, self.hq_factor)):
+            return OUT_OF_WORK
+        self.work += (len(st["W"]) + 1) * hq_work(md, self.hq_factor)
+        hcol = self.H[st["W"], p].astype(dt)  # H_Wp, read once for every step
+        if recheck:  # chosen at an earlier point: still violated at this one?
+            viol = seqsum(-(hcol * st["z"]), start=-st["K"][p])
+            scale = abs(st["gam"][p]) if abs(st["gam"][p]) > self.one else self.one
+            if not viol > self.tol * scale:
+                return 2
         while True:
             st["steps"] += 1
             if st["steps"] > self.active_set_max:
                 return -1
-            W, z, L = st["W"], st["z"], st["L"]
+            W, z = st["W"], st["z"]
             nw = len(W)
-            h = self.H[W, p].astype(dt) if nw else np.zeros(0, dt)
-            viol = seqsum(-(h * z), start=-st["K"][p] - hpp * lp)
-            y = h.copy()
-            chol_lsolve_packed(L, nw, y)
-            zeta = seqsum(-(y * y), start=hpp)
+            if not self.afford(add_step_work(nw)):
+                return OUT_OF_WORK
+            self.work += tri_work(nw) + 4 * nw
+            viol = seqsum(-(hcol * z), start=-st["K"][p] - hpp * lp)
+            y = hcol.copy()
+            zeta = self.factor_pivot(y, hpp)
             d = y.copy()
-            chol_ltsolve_packed(L, nw, d)
+            chol_ltsolve_packed(self.chol, nw, d)
             k, tblock, event = -1, self.zero, 0
             if self.soft:
                 k, tblock, event = self._first_event(W, z, d)
@@ -71,10 +86,8 @@ class ActiveSetMixin:
             lp = lp + t
             st["z"] = z
             if k < 0:
-                tri = nw * (nw + 1) // 2
-                L[tri:tri + nw] = y
-                L[tri + nw] = np.sqrt(zeta)
-                st["W"] = W + [p]
+                self.factor_append(y, zeta)
+                st["W"] = np.append(W, p)
                 st["z"] = np.concatenate((z, np.array([lp], dt)))
                 st["in_set"][p] = True
                 self.slack_on[p] = p_on
@@ -82,22 +95,17 @@ class ActiveSetMixin:
             if event == 2:
                 p_on = True
                 continue
-            if event == 1:  # row k's diagonal gains or loses w: refactor from it
-                self.slack_on[W[k]] = not self.slack_on[W[k]]
-                if not self.factor_working_set(W, start=k, chol=L)[0]:
-                    return -1
+            if event == 1:  # row k's diagonal gains or loses w: update, else refactor
+                self.switch_row(W, k)
+                if self.chol_holds != CHOL_DUAL:
+                    if not self.afford(factor_work(md, nw, self.hq_factor)):
+                        return OUT_OF_WORK
+                    if not self.factor_working_set(W):
+                        return -1
                 continue
-            if not self.remove_from_set(k, st):
-                return -1
-
-    def remove_from_set(self, k, st):
-        """Mirror of remove_from_set(): drop working-set position k and refactor the rows
-        of L from k on; False if a pivot breaks down."""
-        W = st["W"]
-        st["in_set"][W[k]] = False
-        self.slack_on[W[k]] = False
-        st["W"], st["z"] = W[:k] + W[k + 1:], np.delete(st["z"], k)
-        return self.factor_working_set(st["W"], start=k, chol=st["L"])[0]
+            st["in_set"][W[k]] = False
+            st["W"], st["z"] = self.remove_row(W, z, k)
+            hcol = np.delete(hcol, k)
 
     def _first_event(self, W, z, d):
         """The soft add_to_set()'s scan: (k, tblock, event) of the first multiplier to reach
@@ -117,29 +125,92 @@ class ActiveSetMixin:
                     k, tblock, event = i, ratio, ev
         return k, tblock, event
 
-    def dual_active_set(self, lam, th0, K, gam):
-        """Mirror of dual_active_set(): (code 0/1/-1, th, active, steps + polish its)."""
-        md = self.md
-        st = {"W": [], "z": np.zeros(0, md.Kx.dtype), "steps": 0, "K": K,
-              "L": np.zeros(self.wcap * (self.wcap + 1) // 2 + self.wcap + 1, md.Kx.dtype),
-              "in_set": np.zeros(md.m, bool)}
-        th = th0.copy()
-        code = 0
-        self.slack_on[:] = False
-        while True:
-            p = self.most_violated(th, gam, st["in_set"])
-            if p < 0:
+    def resume_working_set(self, lam, th0, K, st, resume):
+        """Mirror of resume_working_set(): the working set ``resume`` where the guess
+        stopped, else the shifted previous one, made dual feasible in st (W, z, in_set);
+        returns (its size, 0 to start cold, or OUT_OF_WORK with ``stop``; th)."""
+        if resume is None:
+            W = self.seed_shifted(lam)
+            if W.size > self.wcap:  # the C's seed gives up: cold
+                W = W[:0]
+        else:
+            W = resume
+        st["in_set"][W] = True
+        for _ in range(self.polish_max if W.size else 0):
+            st["steps"] += 1
+            code, z = self.dual_solve(W, K)
+            known = W.size if code == 0 else 0
+            if code == 0 and self.soft:
+                code = self.switch_states(W, z)
+            if code == 0:
+                W, z, code = self.drop_negative(W, z, False)
+            if code == OUT_OF_WORK:
+                return self.stopped(W, z, known, OUT_OF_WORK), th0
+            if code == 0:
+                if not self.afford(correct_work(self.md, W.size)):
+                    return self.stopped(W, z, W.size, OUT_OF_WORK), th0
+                st["W"], st["z"] = W, z
+                st["in_set"][:] = False  # remove_row() unflagged the dropped rows
+                st["in_set"][W] = True
+                return W.size, self.correct(th0, W, z)
+            if code < 0:
                 break
-            code = self.add_to_set(p, st)
+        st["in_set"][:] = False  # start cold
+        self.slack_on[W] = False
+        self.chol_holds = CHOL_DUAL
+        return 0, th0
+
+    def dual_active_set(self, lam, th0, K, gam, resume=None):
+        """Mirror of dual_active_set() (``resume``: the working set where the guess
+        stopped, or None): (code 0/1/-1/OUT_OF_WORK, th, active, steps + polish its)."""
+        md = self.md
+        st = {"W": np.zeros(0, np.int64), "z": np.zeros(0, md.Kx.dtype), "steps": 0, "K": K,
+              "gam": gam, "in_set": np.zeros(md.m, bool)}
+        th = th0.copy()
+        if not self.afford((0 if self.out_slacks_ok else md.m + predict_work(md)) + 2 * md.m):
+            if resume is not None:
+                self.keep_progress(lam)  # where the shifted guess stopped
+            return OUT_OF_WORK, th, 0, 0
+        self.output_slacks()
+        self.work += md.m
+        if resume is None:
+            self.chol_holds = CHOL_DUAL  # the factor of the empty working set
+            self.slack_on[:] = False
+        if resume is not None or self.warm:
+            nw, th = self.resume_working_set(lam, th0, K, st, resume)
+            if nw == OUT_OF_WORK:  # lam: the warm start as far as it got
+                self.keep_progress(lam)
+                return OUT_OF_WORK, th, 0, st["steps"]
+        code = 0
+        while True:
+            if not self.afford(scan_work(md) + md.m):
+                code = OUT_OF_WORK
+                break
+            cands = self.most_violated(th, gam, st["in_set"])
+            if not cands.size:
+                break
+            for c, p in enumerate(cands):  # 2: no longer violated, skipped
+                code = self.add_to_set(p, st, c > 0)
+                code = 0 if code == 2 else code
+                if code != 0:
+                    break
             if code != 0:
                 break
-            th = self.correct(th0, np.array(st["W"], np.int64), st["z"])
-        if not st["W"]:
+            if not self.afford(correct_work(md, len(st["W"]))):
+                code = OUT_OF_WORK
+                break
+            th = self.correct(th0, st["W"], st["z"])
+        W = st["W"]
+        if not W.size and code != OUT_OF_WORK:
             if code == 0:
-                lam[:] = 0
+                self.accept(lam, W, st["z"])
             return code, th, 0, st["steps"]
-        W = np.sort(np.array(st["W"], np.int64))
-        ok, th_p, act, its = self.polish(W, lam, th0, K, gam)
-        if ok:
+        self.keep_working_set(lam, W, st["z"])  # the warm start, until the polish's
+        if code == OUT_OF_WORK:
+            return OUT_OF_WORK, th, W.size, st["steps"]
+        code2, th_p, act, its = self.polish(W, lam, th0, K, gam, th=th)
+        if code2 == 0:
             return 0, th_p, act, st["steps"] + its
+        if code2 == OUT_OF_WORK:
+            return OUT_OF_WORK, th_p, W.size, st["steps"] + its
         return (1 if code == 1 else -1), th0, 0, st["steps"] + its

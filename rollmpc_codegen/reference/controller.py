@@ -37,7 +37,8 @@ class ControllerRef:
             s.lam[:] = 0
         self.u_last = np.zeros(self.ctx["n_actuators"], self.md[0].Kx.dtype)
         self.mode_switches = 0
-        self.last = {"status": 0, "iterations": 0, "polish_iterations": 0, "active": 0}
+        self.last = {"status": 0, "iterations": 0, "polish_iterations": 0, "active": 0,
+                     "work": 0}
         if self.ctx.get("runtime_bounds"):
             self.config_bounds = [runtime_bounds.config_bounds(m, md.Kx.dtype)
                                   for m, md in zip(self.ctx["modes"], self.md)]
@@ -128,14 +129,14 @@ class ControllerRef:
                 self._observe(md, self.xhat[j], y, u, False)
             self.last = {"status": NONFINITE_INPUT, "iterations": 0,
                          "polish_iterations": self.last["polish_iterations"],
-                         "active": self.last["active"]}
+                         "active": self.last["active"], "work": 0}
             return NONFINITE_INPUT, u
         self._follow_schedule(sched)
         md = self.md[self.mode]
         status, U, its, pits, active = self.solvers[self.mode].solve(self.xhat[self.mode], r)
         self.U = U
         self.last = {"status": status, "iterations": its, "polish_iterations": pits,
-                     "active": active}
+                     "active": active, "work": self.solvers[self.mode].work}
         if self.ctx.get("has_soft_rows"):  # info.slack_max / slack_rows of P_step
             solver = self.solvers[self.mode]
             self.last.update(slack_max=float(solver.slack_max), slack_rows=solver.slack_rows)

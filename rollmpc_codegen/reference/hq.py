@@ -1,7 +1,7 @@
 """Mirror of ``templates/solver/hq.c.j2`` (and ``s_at()`` of ``dot.c.j2``).
 
 The C reads the dual Hessian H = M E^-1 M' element by element through the quantity
-Hessian Hq (``hq()``, ``h_rows()``, ``em_col()``) and never stores it.  The reference
+Hessian Hq (``hq()``, ``h_rows()``) and never stores it.  The reference
 tabulates the same elements once per mode, each formed by the same operations in the same
 order, so every read agrees bit for bit.
 """
@@ -20,7 +20,6 @@ class HessianReads(NamedTuple):
     S: np.ndarray      # S, unpacked from S_p (s_at())
     H: np.ndarray      # H_rs for rows r, s (h_rows())
     Hdiag: np.ndarray  # H_rr
-    EM: np.ndarray     # (E^-1 M_s')_i, inputs i by rows s (em_col())
 
 
 def hessian_reads(md: ModeData) -> HessianReads:
@@ -40,10 +39,8 @@ def hessian_reads(md: ModeData) -> HessianReads:
     q, sg = md.row_q, md.row_sign
     same = sg[:, None] == sg[None, :]
     Hrows = Hq[np.ix_(q, q)]
-    EM = Hq[:n][:, q]
     return HessianReads(Sinv=Sinv, S=unpack_lower(md.S_p, n),
-                        H=np.where(same, Hrows, -Hrows), Hdiag=Hq[q, q],
-                        EM=np.where(sg[None, :] > 0, EM, -EM))
+                        H=np.where(same, Hrows, -Hrows), Hdiag=Hq[q, q])
 
 
 def _rate_extended(Hq: np.ndarray, n: int, nu: int) -> np.ndarray:

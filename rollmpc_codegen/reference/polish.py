@@ -3,19 +3,30 @@ exact solve on a guessed working set, corrected until KKT holds.
 
 :class:`PolishMixin` is part of :class:`~.solver.SolverRef`; it reads ``md``, ``wcap``,
 ``polish_max``, ``soft``, ``tol`` and ``slack_on``, and solves through the primal and
-dual mixins (:mod:`.polish_primal`, :mod:`.polish_dual`).
+dual mixins (:mod:`.polish_primal`, :mod:`.polish_dual`); the dual one keeps its factor
+``chol`` across the corrections.  Working sets are in joining order, as in the C.
 """
 from __future__ import annotations
 
 import numpy as np
 
+from ..qp.work import (append_work, correct_work, delete_work, predict_work, primal_work,
+                       scan_work, tri_work)
 from .linalg import chol_solve_packed
+from .polish_dual import CHOL_DUAL, CHOL_NONE, OUT_OF_WORK
 
 
 class PolishMixin:
+    def new_working_set(self):
+        """Mirror of new_working_set(): a dual factor belongs to the old working set."""
+        if self.chol_holds == CHOL_DUAL:
+            self.chol_holds = CHOL_NONE
+
     def seed_from_multipliers(self, lam, S):
         """Mirror of seed_from_multipliers(): the rows of S with positive multipliers,
         slack where lam > l1."""
+        self.new_working_set()
+        self.work += S.size
         seed = S[lam[S] > 0]
         self.set_state(seed, lam[seed])
         return seed
@@ -23,6 +34,8 @@ class PolishMixin:
     def seed_shifted(self, lam):
         """Mirror of seed_shifted(): row r where its next-stage row was active, slack where
         that row's lam > l1."""
+        self.new_working_set()
+        self.work += self.md.m
         row_next = self.md.row_next
         W = np.flatnonzero(lam[row_next] > 0)
         self.set_state(W, lam[row_next[W]])
@@ -30,99 +43,161 @@ class PolishMixin:
 
     def seed_from_violated(self, K):
         """Mirror of seed_from_violated(): the rows th0 violates (K < 0), all tight."""
+        self.new_working_set()
+        self.work += self.md.m
         W = np.flatnonzero(K < 0)
         self.slack_on[W] = False
         return W
 
-    @staticmethod
-    def drop_negative(W, z, guess):
-        """Mirror of drop_negative(): (kept rows, 0 none dropped / 1 dropped / -1 give up)."""
+    def drop_negative(self, W, z, guess):
+        """Mirror of drop_negative(): (W, z, 0 none dropped / 1 dropped / -1 give up /
+        OUT_OF_WORK), the negative rows removed from the last position down (remove_row())."""
         keep = z >= 0
-        if np.all(keep):
-            return W, 0
-        kept = W[keep]
-        give_up = kept.size == 0 or (guess and 2 * kept.size < W.size)
-        return kept, (-1 if give_up else 1)
+        kept = int(np.count_nonzero(keep))
+        if kept == W.size:
+            return W, z, 0
+        if kept == 0 or (guess and 2 * kept < W.size):
+            return W, z, -1
+        if self.chol_holds == CHOL_DUAL and not self.afford((W.size - kept)
+                                                            * delete_work(0, W.size)):
+            return W, z, OUT_OF_WORK
+        for k in np.flatnonzero(~keep)[::-1]:
+            W, z = self.remove_row(W, z, k)
+        return W, z, 1
 
-    def working_set_holds(self, W, z, viol, scale):
-        """Mirror of working_set_holds() (violated_in_set() with soft rows), from the
-        rows' excess and tolerance scale at th (:meth:`row_excess`)."""
+    def working_set_holds(self, W, z, th, gam):
+        """Mirror of working_set_holds() (violated_in_set() with soft rows) at th."""
+        self.outputs_to_check(th, gam)  # its work; the mirror checks every row
+        viol, scale = self.row_excess(th, gam)
         if self.soft:
             return not np.any(viol[W] - self.slack_in_set(W, z) > self.tol * scale[W])
         return not np.any((viol > self.tol * scale)[W])
 
     def refine_dual(self, W, z, th0, K, gam, th):
-        """Mirror of refine_dual(): (ok, th, z) after up to two refinement rounds."""
-        nw = W.size
-        chol = self.factor_working_set(W)[1]  # the factor dual_solve() left in ws->chol
+        """Mirror of refine_dual(): (0 / -1 / OUT_OF_WORK, th, z) after up to two rounds."""
+        md, nw = self.md, W.size
+        if not self.afford(2 * (2 * tri_work(nw) + correct_work(md, nw) + 2 * scan_work(md))
+                           + md.m):
+            return OUT_OF_WORK, th, z
+        chol = self.chol  # the factor dual_solve() used
         for _ in range(2):
+            if self.has_out:
+                self.work += predict_work(md)
             e = self.row_excess(th, gam)[0][W]
             if self.soft:
                 e = e - self.slack_in_set(W, z)
+            self.work += 2 * tri_work(nw)
             chol_solve_packed(chol, nw, e)
             z = z + e
-            if np.any(z < 0) or (self.soft and self.switch_states(W, z)):
-                return False, th, z
+            if np.any(z < 0):
+                return -1, th, z
+            if self.soft:
+                code = self.switch_states(W, z)
+                if code:
+                    return (OUT_OF_WORK if code == OUT_OF_WORK else -1), th, z
             th = self.correct(th0, W, z)
-            exc, scale = self.row_excess(th, gam)
-            if self.working_set_holds(W, z, exc, scale):
-                viol = exc > self.tol * scale
-                viol[W] = False  # violated_outside(): the rows outside W
-                return (not np.any(viol)), th, z
-        return False, th, z
+            if self.working_set_holds(W, z, th, gam):
+                return (0 if self.violated_outside(th, gam, W).size == 0 else -1), th, z
+        return -1, th, z
 
     @staticmethod
-    def accept(lam, W, z):
-        """Mirror of accept(): W's multipliers become the warm start; returns |W|."""
+    def keep_working_set(lam, W, z):
+        """Mirror of keep_working_set(): lam = W's multipliers, 0 elsewhere."""
         lam[:] = 0
         lam[W] = z
+
+    def accept(self, lam, W, z):
+        """Mirror of accept(): W's multipliers become the warm start; returns |W|."""
+        self.work += self.md.m
+        self.keep_working_set(lam, W, z)
         return W.size
 
-    def polish(self, W, lam, th0, K, gam, guess=False):
-        """Mirror of polish() from working set W; returns (ok, th, active, iterations)."""
+    def stopped(self, W, z, known, code):
+        """Mirror of stopped(): where polish() ran out of work (W, z, known); returns code."""
+        if code == OUT_OF_WORK:
+            self.stop = (W.copy(), np.zeros(0, self.md.Kx.dtype) if z is None else z.copy(),
+                         known)
+        return code
+
+    def keep_progress(self, lam):
+        """Mirror of keep_progress(): lam = the stopped working set, its first ``known``
+        rows with their positive multipliers, the others with a token one."""
+        W, z, known = self.stop
+        zk = np.full(W.size, self.dt(1.0e-30), self.md.Kx.dtype)
+        zk[:known] = np.where(z[:known] > 0, z[:known], self.zero)
+        self.keep_working_set(lam, W, zk)
+
+    def polish(self, W, lam, th0, K, gam, guess=False, th=None):
+        """Mirror of polish() from working set W (taking the dual factor ``chol`` when
+        ``chol_holds`` says it is W's); returns (0 / -1 / OUT_OF_WORK, th, active,
+        iterations), th after OUT_OF_WORK being the C's ws->th then (``th`` on entry) and
+        ``stop`` where it stopped."""
         md = self.md
         n = md.n
-        its = 0
+        its, known, z = 0, 0, None
         if W.size == 0 or W.size > self.wcap:
-            return False, None, 0, its
+            return -1, None, 0, its
+        if not self.afford(md.m):
+            return self.stopped(W, z, 0, OUT_OF_WORK), th, 0, its
+        self.work += md.m
         for _ in range(self.polish_max):
             its += 1
-            box_only = bool(np.all(md.row_q[W] < n))
-            if box_only:
-                ok, th, z = self.primal_solve(th0, W)
+            if np.all(md.row_q[W] < n):  # box_only()
+                if not self.afford(primal_work(md, W.size) + scan_work(md) + md.m):
+                    return self.stopped(W, z, known, OUT_OF_WORK), th, 0, its
+                self.work += primal_work(md, W.size)
+                ok, th_p, zp = self.primal_solve(th0, W)
                 if not ok:
-                    return False, None, 0, its
+                    return -1, None, 0, its
+                th = th_p
+                if zp is not None:
+                    z = zp
+                known = W.size if zp is not None else 0
                 add = self.violated_outside(th, gam, W)
                 if add.size == 0:
-                    if z is None:
+                    if zp is None:
                         z = self.free_multipliers(W)
-                    W, dropped = self.drop_negative(W, z, guess)
-                    if dropped < 0:
-                        return False, None, 0, its
-                    if dropped:
+                    known = W.size
+                    W, z, code = self.drop_negative(W, z, guess)
+                    if code < 0:
+                        return self.stopped(W, z, known, code), th, 0, its
+                    if code:
+                        known = W.size
                         continue
-                    return True, th, self.accept(lam, W, z), its
+                    return 0, th, self.accept(lam, W, z), its
             else:
-                ok, z = self.dual_solve(W, K)
-                if not ok:
-                    return False, None, 0, its
-                if self.soft and self.switch_states(W, z):
+                code, zd = self.dual_solve(W, K)
+                if code:
+                    return self.stopped(W, z, known, code), th, 0, its
+                z, known = zd, W.size
+                if self.soft:
+                    code = self.switch_states(W, z)
+                    if code < 0:
+                        return self.stopped(W, z, known, code), th, 0, its
+                    if code:
+                        continue
+                W, z, code = self.drop_negative(W, z, guess)
+                if code < 0:
+                    return self.stopped(W, z, known, code), th, 0, its
+                if code:
+                    known = W.size
                     continue
-                W, dropped = self.drop_negative(W, z, guess)
-                if dropped < 0:
-                    return False, None, 0, its
-                if dropped:
-                    continue
+                if not self.afford(correct_work(md, W.size) + 2 * scan_work(md) + md.m):
+                    return self.stopped(W, z, known, OUT_OF_WORK), th, 0, its
                 th = self.correct(th0, W, z)
                 add = self.violated_outside(th, gam, W)
                 if add.size == 0:
-                    if not self.working_set_holds(W, z, *self.row_excess(th, gam)):
-                        ok, th, z = self.refine_dual(W, z, th0, K, gam, th)
-                        if not ok:
-                            return False, None, 0, its
-                    return True, th, self.accept(lam, W, z), its
+                    code = 0
+                    if not self.working_set_holds(W, z, th, gam):
+                        code, th, z = self.refine_dual(W, z, th0, K, gam, th)
+                    if code:
+                        return self.stopped(W, z, known, code), th, 0, its
+                    return 0, th, self.accept(lam, W, z), its
             if add.size > self.wcap - W.size:
-                return False, None, 0, its
-            self.slack_on[add] = False  # joining rows start tight
-            W = np.union1d(W, add).astype(W.dtype)
-        return False, None, 0, its
+                return -1, th, 0, its
+            if self.chol_holds == CHOL_DUAL and not self.afford(
+                    add.size * append_work(md, W.size + add.size, self.hq_factor)):
+                return self.stopped(W, z, known, OUT_OF_WORK), th, 0, its
+            for p in add:
+                W = self.append_row(W, p)
+        return -1, th, 0, its

@@ -1,38 +1,90 @@
-"""Mirror of ``templates/solver/polish_dual.c.j2``: the polish's dual solve on a general
-working set, by Cholesky of H_WW (plus w on the diagonal of slack soft rows).
+"""Mirror of ``templates/solver/polish_dual.c.j2``: the working set's dual factor
+L = chol(H_WW) (plus w on the diagonal of slack soft rows), built from scratch, extended
+by a joining row, shrunk by a leaving one, and the polish's dual solve with it.
 
 :class:`DualPolishMixin` is part of :class:`~.solver.SolverRef`; it reads ``md``, ``H``,
-``slack_on`` and ``soft_l1``/``soft_w``.
+``Hdiag``, ``dep_tol``, ``slack_on`` and ``soft_l1``/``soft_w``, keeps the C's ``ws->chol``
+and ``ws->chol_holds`` as ``chol`` and ``chol_holds``, and charges ``work`` as the C.  A
+working set W is an integer array in its C order (joining order).
 """
 from __future__ import annotations
 
 import numpy as np
 
-from .linalg import cholesky_packed, chol_solve_packed
+from ..qp.work import delete_work, factor_work, hq_work, predict_work, tri_work
+from .factor_update import chol_delete
+from .linalg import cholesky_packed, chol_lsolve_packed, chol_solve_packed, seqsum
+
+# what ws->chol holds (the C's P_CHOL_NONE / _DUAL / _PRIMAL of internal.h.j2)
+CHOL_NONE, CHOL_DUAL, CHOL_PRIMAL = 0, 1, 2
+OUT_OF_WORK = -2  # the C's: a solver part stopped, the budget cannot afford its next unit
 
 
 class DualPolishMixin:
-    def factor_working_set(self, W, start=0, chol=None):
-        """Mirror of factor_working_set(): rows start.. of chol(H_WW + w of the slack rows);
-        (ok, packed factor)."""
-        nw = len(W)
-        if chol is None:
-            chol = np.zeros(nw * (nw + 1) // 2 + nw + 1, self.md.Kx.dtype)
-        for i in range(start, nw):
+    def factor_working_set(self, W):
+        """Mirror of factor_working_set(): chol(H_WW + w of the slack rows) from scratch
+        into ``chol``; sets ``chol_holds``; False on a bad pivot."""
+        chol = self.chol
+        self.work += factor_work(self.md, len(W), self.hq_factor)
+        for i in range(len(W)):
             tri = i * (i + 1) // 2
             chol[tri:tri + i + 1] = self.H[W[i], W[:i + 1]]
             if self.slack_on[W[i]]:
                 chol[tri + i] = chol[tri + i] + self.soft_w[W[i]]
-        return cholesky_packed(chol, nw, start=start), chol
+        ok = cholesky_packed(chol, len(W))
+        self.chol_holds = CHOL_DUAL if ok else CHOL_NONE
+        return ok
+
+    def factor_pivot(self, y, hpp):
+        """Mirror of factor_pivot(): y = L^-1 H_Wp in place, returns hpp - y'y."""
+        self.work += tri_work(y.size) + y.size
+        chol_lsolve_packed(self.chol, y.size, y)
+        return seqsum(-(y * y), start=hpp)
+
+    def factor_append(self, y, zeta):
+        """Mirror of factor_append(): row len(y) of the factor is (y, sqrt(zeta))."""
+        nw = y.size
+        tri = nw * (nw + 1) // 2
+        self.chol[tri:tri + nw] = y
+        self.chol[tri + nw] = np.sqrt(zeta)
+
+    def append_row(self, W, p):
+        """Mirror of append_row(): W + [p], p tight; the kept factor gains p's row unless
+        its pivot is below the dependence tolerance (then no factor is kept)."""
+        self.slack_on[p] = False
+        if self.chol_holds == CHOL_DUAL:
+            self.work += (len(W) + 1) * hq_work(self.md, self.hq_factor)
+            hpp = self.Hdiag[p]
+            y = self.H[W, p].astype(self.chol.dtype)
+            zeta = self.factor_pivot(y, hpp)
+            if zeta > self.dep_tol * hpp:
+                self.factor_append(y, zeta)
+            else:
+                self.chol_holds = CHOL_NONE
+        return np.append(W, p)
+
+    def remove_row(self, W, z, k):
+        """Mirror of remove_row(): position k leaves W and z (and the kept factor)."""
+        self.slack_on[W[k]] = False
+        if self.chol_holds == CHOL_DUAL:
+            self.work += delete_work(k, len(W))
+            chol_delete(self.chol, k, len(W), np.zeros(len(W), self.chol.dtype))
+        return np.delete(W, k), np.delete(z, k)
 
     def dual_solve(self, W, K):
-        """Mirror of dual_solve(): returns (ok, z)."""
-        nw = W.size
-        ok, chol = self.factor_working_set(W)
-        if not ok:
-            return False, None
+        """Mirror of dual_solve(): (0, z), or (-1 on a breakdown / OUT_OF_WORK, None)."""
+        md, nw = self.md, W.size
+        need = ((0 if self.out_slacks_ok else md.m + predict_work(md))
+                + (0 if self.chol_holds == CHOL_DUAL else factor_work(md, nw, self.hq_factor))
+                + 2 * tri_work(nw))
+        if not self.afford(need):
+            return OUT_OF_WORK, None
+        self.output_slacks()
         z = -K[W]
         on = self.slack_on[W]
         z[on] = z[on] + self.soft_l1[W][on] * self.soft_w[W][on]
-        chol_solve_packed(chol, nw, z)
-        return True, z
+        if self.chol_holds != CHOL_DUAL and not self.factor_working_set(W):
+            return -1, None
+        self.work += 2 * tri_work(nw)
+        chol_solve_packed(self.chol, nw, z)
+        return 0, z

@@ -18,6 +18,7 @@ import numpy as np
 from .dot import s_row_dots
 from .linalg import (chol_lsolve_packed, chol_ltsolve_packed, cholesky_packed,
                      factor_and_solve_packed, seqsum)
+from .polish_dual import CHOL_NONE, CHOL_PRIMAL
 
 FREE, BOUND = 1, 2  # FORM_FREE, FORM_BOUND
 
@@ -102,7 +103,9 @@ class PrimalPolishMixin:
         idx = np.array(order, np.int64)
         chol = (np.concatenate([A[idx[a], idx[:a + 1]] for a in range(k)]) if k
                 else np.zeros(0, md.Kx.dtype))
-        if not cholesky_packed(chol, k):
+        ok = cholesky_packed(chol, k)
+        self.chol_holds = CHOL_PRIMAL if ok else CHOL_NONE  # the C's ws->chol now
+        if not ok:
             self.factor_rows = None
             return False
         Y = np.array(cols[:, idx], md.Kx.dtype) if md.nt else np.zeros((0, k), md.Kx.dtype)

@@ -2,12 +2,16 @@
 slacks K = gamma - M th0, and the violation tests, each for every row at once.
 
 :class:`RowsMixin` is part of :class:`~.solver.SolverRef`; it reads ``md``, ``row_c``,
-``has_out``, ``has_rate``, ``one`` and ``tol``.  Where the C skips the output rows because
-``outputs_certified()`` proves none violated, the mirror evaluates them anyway.
+``has_out``, ``has_rate``, ``one``, ``limit`` and ``tol``.  Where the C skips the output rows
+because ``outputs_certified()`` proves none violated, the mirror evaluates them anyway; it
+decides the certificate only to charge the work the C does (:mod:`rollmpc_codegen.qp.work`),
+and keeps the C's ``out_slacks_ok`` as ``out_slacks_ok``.
 """
 from __future__ import annotations
 
 import numpy as np
+
+from ..qp.work import predict_work
 
 
 class RowsMixin:
@@ -32,9 +36,37 @@ class RowsMixin:
         q, n = self.md.row_q, self.md.n
         return (q >= n) & (q < n + self.md.n_yq)
 
+    def outputs_certified(self, th, gam):
+        """Mirror of outputs_certified(): can no output row be violated at th?"""
+        md = self.md
+        self.work += md.n + md.m
+        a = np.abs(th)
+        thmax = a[~np.isnan(a)].max(initial=self.zero)
+        bmax = md.out_bound[md.n_yq - md.ny:].max(initial=self.zero)
+        out = self.is_out()
+        if bmax * thmax <= self.gam_out_min:
+            return True
+        q = md.row_q[out] - md.n
+        return bool(np.all(md.out_bound[q] * thmax <= gam[out]))
+
+    def outputs_to_check(self, th, gam):
+        """Mirror of outputs_to_check()'s decision and work: must the output rows be
+        checked at th (then the C predicts them)?"""
+        if not self.has_out or self.outputs_certified(th, gam):
+            return False
+        self.work += predict_work(self.md)
+        return True
+
+    def output_slacks(self):
+        """The work of output_slacks() (the K of the output rows: slacks() has them)."""
+        if not self.out_slacks_ok:
+            self.work += self.md.m + predict_work(self.md)
+            self.out_slacks_ok = True
+
     def slacks(self, x, th0, px):
         """Mirror of slacks() with output_slacks(): (gamma = c + W x, K = gamma - M th0)."""
         md = self.md
+        self.work += 2 * md.m
         yv0 = self.predict_outputs(th0) if self.has_out else None
         v = self.row_value(th0, yv0)
         q, sg, n = md.row_q, md.row_sign, md.n
@@ -47,6 +79,10 @@ class RowsMixin:
             first = (d >= 0) & (d < md.nu)
             up = x[md.nx - md.nu + np.clip(d, 0, md.nu - 1)]
             gam = np.where(first, np.where(sg > 0, gam + up, gam - up), gam)
+        self.gam_out_min = gam[self.is_out()].min(initial=self.limit)
+        self.out_slacks_ok = not self.has_out
+        if self.has_out and not self.outputs_certified(th0, gam):
+            self.output_slacks()
         return gam, np.where(sg > 0, gam - v, gam + v)
 
     def row_excess(self, th, gam):
@@ -63,9 +99,15 @@ class RowsMixin:
         return viol > self.tol * scale
 
     def violated_outside(self, th, gam, W):
-        """Mirror of violated_outside(): violated input rows first, output rows only if none."""
+        """Mirror of violated_outside(): violated input rows first, output rows only if none
+        (the C skips them when certified: only its work differs)."""
         viol = self.row_violated(th, gam)
         viol[W] = False
         box = ~self.is_out()
         first = np.flatnonzero(viol & box)
-        return first if first.size else np.flatnonzero(viol)
+        self.work += self.md.m
+        if first.size:
+            return first
+        if self.outputs_to_check(th, gam):
+            self.work += self.md.m
+        return np.flatnonzero(viol)  # all, certified or not: an unsound certificate shows

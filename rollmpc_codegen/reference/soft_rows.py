@@ -3,14 +3,18 @@
 ``soft_of()`` is the per-row table ``soft_l1``/``soft_w`` (``ModeData.soft_rows()``, w = 0
 on hard rows) and ``multiplier_slack()`` is
 :func:`rollmpc_codegen.features.soft_constraints.slacks`.  :class:`SoftRowsMixin` is part of
-:class:`~.solver.SolverRef`; it reads ``soft_l1``, ``soft_w``, ``tol`` and ``zero`` and
-keeps the working-set rows' states in ``slack_on`` (``ws->slack_on``).
+:class:`~.solver.SolverRef`; it reads ``soft_l1``, ``soft_w``, ``tol`` and ``zero``, keeps the
+working-set rows' states in ``slack_on`` (``ws->slack_on``) and updates the dual factor
+``chol`` (:mod:`.polish_dual`) when a state switches.
 """
 from __future__ import annotations
 
 import numpy as np
 
 from ..features.soft_constraints import slacks as multiplier_slacks
+from ..qp.work import rank_one_work
+from .factor_update import chol_rank_one
+from .polish_dual import CHOL_DUAL, CHOL_NONE, OUT_OF_WORK
 
 
 class SoftRowsMixin:
@@ -23,11 +27,28 @@ class SoftRowsMixin:
         """Mirror of set_state() for rows joining with these multipliers."""
         self.slack_on[W] = (self.soft_w[W] > 0) & (lam_of_W > self.soft_l1[W])
 
+    def switch_row(self, W, k):
+        """Mirror of switch_row(): flip position k's state; the kept factor takes the
+        rank-one update (slack) or downdate (tight) of sqrt(w) e_k, or is dropped when
+        the downdate breaks down."""
+        r = W[k]
+        self.slack_on[r] = not self.slack_on[r]
+        if self.chol_holds == CHOL_DUAL:
+            self.work += rank_one_work(len(W) - k)
+            v = np.zeros(len(W), self.chol.dtype)
+            v[k] = np.sqrt(self.soft_w[r])
+            if not chol_rank_one(self.chol, k, len(W), v, not self.slack_on[r], self.dep_tol):
+                self.chol_holds = CHOL_NONE
+
     def switch_states(self, W, z):
-        """Mirror of switch_states(): flip the rows whose multiplier crossed l1; count."""
+        """Mirror of switch_states(): flip the rows whose multiplier crossed l1; count, or
+        OUT_OF_WORK before a switch the budget cannot afford."""
         l1, on = self.soft_l1[W], self.slack_on[W]
         flip = (self.soft_w[W] > 0) & np.where(on, z < l1, z > l1)
-        self.slack_on[W[flip]] = ~on[flip]
+        for k in np.flatnonzero(flip):
+            if not self.afford(rank_one_work(len(W) - k)):
+                return OUT_OF_WORK
+            self.switch_row(W, k)
         return int(np.count_nonzero(flip))
 
     def violated_beyond_slack(self, excess, scale, lam):

@@ -2,7 +2,7 @@
 
 It mirrors ``templates/solver.c.j2``, a module per partial of ``templates/solver/``:
 :mod:`.hq`, :mod:`.dot`, :mod:`.unconstrained`, :mod:`.rows` (with ``violated_rows``),
-:mod:`.soft_rows`, :mod:`.sweeps`, :mod:`.polish_primal`, :mod:`.polish_dual`,
+:mod:`.factor_update`, :mod:`.soft_rows`, :mod:`.sweeps`, :mod:`.polish_primal`, :mod:`.polish_dual`,
 :mod:`.polish`, :mod:`.active_set`, and this module for ``qp_solve``; the ``row_const()``
 of ``bounds`` is :func:`rollmpc_codegen.features.runtime_bounds.row_constants`, and
 ``linalg.c.j2`` is :mod:`.linalg`.  Each method is named after the C function it mirrors.
@@ -22,11 +22,12 @@ import numpy as np
 
 from ..features.soft_constraints import slacks as multiplier_slacks
 from ..qp.storage import ModeData
-from ..status import INACCURATE, INFEASIBLE, MAX_ITER, NUMERICAL, OPTIMAL
+from ..qp.work import correct_work, finish_work, predict_work, scan_work, sweep_work
+from ..status import INACCURATE, INFEASIBLE, MAX_ITER, NUMERICAL, OPTIMAL, TIME_LIMIT
 from .active_set import ActiveSetMixin
 from .hq import hessian_reads
 from .polish import PolishMixin
-from .polish_dual import DualPolishMixin
+from .polish_dual import CHOL_NONE, OUT_OF_WORK, DualPolishMixin
 from .polish_primal import PrimalPolishMixin
 from .rows import RowsMixin
 from .soft_rows import SoftRowsMixin
@@ -55,7 +56,7 @@ class SolverRef(UnconstrainedMixin, RowsMixin, SoftRowsMixin, SweepsMixin, Prima
         self.active_set = s.get("active_set", False)
         self.active_set_max = s.get("active_set_max", 0)
         self.dep_tol = dt(s.get("dependence_tol", 0.0))
-        self.Sinv, self.S, self.H, self.Hdiag, self.EM = hessian_reads(md)
+        self.Sinv, self.S, self.H, self.Hdiag = hessian_reads(md)
         self.Gam, self.expand = output_prediction(md)
         self.has_out, self.has_rate = md.has_output_rows, md.has_rate_rows
         self.lam = np.zeros(md.m, md.Kx.dtype)
@@ -68,47 +69,95 @@ class SolverRef(UnconstrainedMixin, RowsMixin, SoftRowsMixin, SweepsMixin, Prima
         self.soft = bool(np.any(self.soft_w > 0))
         self.slack_on = np.zeros(md.m, bool)
         self.wcap = md.w_cap if self.soft else md.n
+        # ws->chol and what it holds (polish_dual.CHOL_*), kept across the polish's steps
+        self.chol = np.zeros(self.wcap * (self.wcap + 1) // 2, md.Kx.dtype)
+        self.chol_holds = CHOL_NONE
         self.slack_max, self.slack_rows = self.zero, 0
+        # the work count of the last solve (ws->work; qp/work.py) and its budget
+        self.budget, self.hq_factor = s["work_budget"], s["hq_work_factor"]
+        self.add_batch = s["add_batch"]
+        self.work, self.out_slacks_ok, self.gam_out_min = 0, False, self.limit
+        self.work_limit, self.stop = self.budget, None
+
+    def afford(self, need):
+        """Mirror of afford(): can the running part still pay ``need`` units and finish()?"""
+        used = self.work + finish_work(self.md)
+        return used <= self.work_limit and need <= self.work_limit - used
+
+    def time_limit_at_th0(self, th0, polished):
+        """Mirror of time_limit_at_th0(): TIME_LIMIT at th0, lam where a polish stopped."""
+        if polished:
+            self.keep_progress(self.lam)
+        return self.finish(th0, th0, TIME_LIMIT)
 
     def solve(self, x, r):
-        """Mirror of P_qp_solve(): returns (status, U, iterations, polish_iterations, active)."""
+        """Mirror of P_qp_solve(): returns (status, U, iterations, polish_iterations, active);
+        its work is ``work``."""
         md = self.md
         x = np.asarray(x, md.Kx.dtype)
         r = np.asarray(r, md.Kx.dtype)
         lam = self.lam
+        self.work, self.work_limit = 0, self.budget
         th0, px = self.unconstrained(x, r)
         gam, K = self.slacks(x, th0, px)
         if not np.any(K < 0):
             lam[:] = 0
             return self.finish(th0, th0, OPTIMAL) + (0, 0, 0)
-        total, polish_its, active = 0, 0, 0
+        total, polish_its, active, resume = 0, 0, 0, None
         if self.polish_on and self.polish_first:
-            # the previous active set shifted one stage (a guess), then the rows th0 violates
+            # the previous active set shifted one stage (a guess, in the dual form on a third
+            # of what the budget has left: the dual active set takes over where it stops),
+            # then the rows th0 violates (with a warm start, in the primal form only)
+            warm_rows = 0
             for guess in ((True, False) if self.warm else (False,)):
+                if not self.afford(md.m):
+                    return self.time_limit_at_th0(th0, False) + (0, polish_its, 0)
                 W = self.seed_shifted(lam) if guess else self.seed_from_violated(K)
-                ok, th_p, act, its = self.polish(W, lam, th0, K, gam, guess)
+                if guess:
+                    warm_rows = W.size if W.size <= self.wcap else -1
+                    if self.active_set and warm_rows > 0 and not np.all(md.row_q[W] < md.n):
+                        self.work_limit = self.work + (self.budget - self.work) // 3
+                elif warm_rows > 0 and self.active_set and not np.all(md.row_q[W] < md.n):
+                    break
+                code, th_p, act, its = self.polish(W, lam, th0, K, gam, guess)
+                self.work_limit = self.budget
                 polish_its += its
-                if ok:
-                    status, U = self.finish(th_p, th0, OPTIMAL)
-                    return status, U, 0, polish_its, act
+                if code == 0:
+                    return self.finish(th_p, th0, OPTIMAL) + (0, polish_its, act)
+                if code == OUT_OF_WORK:
+                    if guess and self.active_set:
+                        resume = self.stop[0]  # the dual active set takes over from there
+                        break
+                    return self.time_limit_at_th0(th0, True) + (0, polish_its, 0)
         if self.active_set:
-            code, th_a, act, its = self.dual_active_set(lam, th0, K, gam)
+            code, th_a, act, its = self.dual_active_set(lam, th0, K, gam, resume)
             polish_its += its
             if code >= 0:
                 status, U = self.finish(th_a, th0, OPTIMAL if code == 0 else INFEASIBLE)
                 return status, U, 0, polish_its, act
+            if code == OUT_OF_WORK:  # at its last point
+                return self.finish(th_a, th0, TIME_LIMIT) + (0, polish_its, act)
+        if not self.afford(3 * md.m + md.n + (0 if self.out_slacks_ok else predict_work(md))):
+            return self.time_limit_at_th0(th0, False) + (0, polish_its, active)
+        self.output_slacks()
         in_set = (K < self.sigma) if self.reduced else np.ones(md.m, bool)
         if not self.warm:
             lam[:] = 0
         lam[~in_set] = 0
         S = np.flatnonzero(in_set)  # build_set()
+        self.work += md.m
         status = MAX_ITER
         th = th0
         while True:
-            converged = diverged = False
+            converged = diverged = out = False
             chunk = self.polish_every if self.polish_on else self.max_iter
+            after = correct_work(md, S.size) + (S.size if self.polish_on
+                                                else 2 * scan_work(md) + md.m)
             t = 0
             while t < chunk and total < self.max_iter:
+                out = not self.afford(sweep_work(md, S.size, self.hq_factor) + after)
+                if out:
+                    break
                 e2, diverged = self.sweep(S, K, lam)
                 total += 1
                 t += 1
@@ -117,25 +166,35 @@ class SolverRef(UnconstrainedMixin, RowsMixin, SoftRowsMixin, SweepsMixin, Prima
                 if e2 < self.delta:
                     converged = True
                     break
+            if out:
+                status = TIME_LIMIT  # at the last corrected point
+                break
             if diverged:
                 status = INFEASIBLE
                 break
             th = self.correct(th0, S, lam[S])
             if self.polish_on:
-                ok, th_p, act, its = self.polish(self.seed_from_multipliers(lam, S), lam,
-                                                 th0, K, gam)
+                code, th_p, act, its = self.polish(self.seed_from_multipliers(lam, S), lam,
+                                                   th0, K, gam)
                 polish_its += its
-                if ok:
+                if code == 0:
                     th, active, status = th_p, act, OPTIMAL
                     break
+                if code == OUT_OF_WORK or not self.afford(correct_work(md, S.size)
+                                                          + 2 * scan_work(md) + 2 * md.m):
+                    th, status = th0, TIME_LIMIT
+                    break
+                self.work += correct_work(md, S.size)  # the C corrects again: same th
             exc, scale = self.row_excess(th, gam)
             viol = exc > self.tol * scale
             if self.soft:
+                self.outputs_to_check(th, gam)  # violated_beyond_slack()'s work
                 nviol = self.violated_beyond_slack(exc, scale, lam)
             else:  # violated_outside() over every row (only nviol != 0 matters)
-                nviol = int(np.count_nonzero(viol))
+                nviol = self.violated_outside(th, gam, S[:0]).size
             added = 0
             if self.reduced and nviol:
+                self.outputs_to_check(th, gam)
                 new = viol & ~in_set
                 added = int(np.count_nonzero(new))
                 in_set |= new
@@ -150,6 +209,7 @@ class SolverRef(UnconstrainedMixin, RowsMixin, SoftRowsMixin, SweepsMixin, Prima
                 break
             if added:
                 S = np.flatnonzero(in_set)
+                self.work += md.m
         if active == 0:
             active = int(np.count_nonzero(lam > 0))
         status, U = self.finish(th, th0, status)
@@ -157,8 +217,10 @@ class SolverRef(UnconstrainedMixin, RowsMixin, SoftRowsMixin, SweepsMixin, Prima
 
     def finish(self, th, th0, status):
         """Mirror of finish(): clamp th (or th0, or 0 when not finite) into the input
-        bounds; clear the warm start unless optimal; the plan's slacks. (status, U)."""
+        bounds; keep the warm start only when optimal or out of time; the plan's slacks
+        (when optimal). (status, U)."""
         md = self.md
+        self.work += finish_work(md)
         src = th
         if not np.all(np.isfinite(th)):
             status = NUMERICAL
@@ -166,10 +228,11 @@ class SolverRef(UnconstrainedMixin, RowsMixin, SoftRowsMixin, SweepsMixin, Prima
         lo = np.tile(self.u_min, md.n // md.nu)  # per stage, or per block
         hi = np.tile(self.u_max, md.n // md.nu)
         U = np.where(src < lo, lo, np.where(src > hi, hi, src))
-        if status != OPTIMAL:
+        if status not in (OPTIMAL, TIME_LIMIT):
             self.lam[:] = 0
         if self.soft:  # the plan's slacks (finish()): 0 unless optimal
-            sl = multiplier_slacks(self.lam, self.soft_l1, self.soft_w)
+            sl = (multiplier_slacks(self.lam, self.soft_l1, self.soft_w) if status == OPTIMAL
+                  else np.zeros(0, md.Kx.dtype))
             self.slack_max = sl.max(initial=self.zero)
             self.slack_rows = int(np.count_nonzero(sl > 0))
         return status, U

@@ -1,26 +1,57 @@
 """Mirror of ``templates/solver/sweeps.c.j2``: the corrected point and Hildreth's sweeps.
 
 ``build_set()`` is ``np.flatnonzero(in_set)`` in :meth:`~.solver.SolverRef.solve`.
-:class:`SweepsMixin` is part of :class:`~.solver.SolverRef`; it reads ``EM``, ``H``,
-``Hdiag``, ``omega``, ``limit``, ``one``, ``zero`` and ``soft_l1``/``soft_w``.
+:class:`SweepsMixin` is part of :class:`~.solver.SolverRef`; it reads ``md``, ``Sinv``,
+``H``, ``Hdiag``, ``omega``, ``limit``, ``one``, ``zero`` and ``soft_l1``/``soft_w``.
 """
 from __future__ import annotations
 
-from .linalg import seqsum, seqsum_rows
+import numpy as np
+
+from ..qp.work import correct_work, sweep_work
+from .linalg import seqsum
 
 
 class SweepsMixin:
     def correct(self, th0, rows, mult):
-        """Mirror of correct(): th0 - sum_j (E^-1 M_{rows_j}') mult_j over mult_j > 0."""
+        """Mirror of correct(): th0 - E^-1 M' mult over the rows with mult > 0, the
+        multipliers summed by quantity first (in row order), then E^-1 v column by column
+        over the nonzero entries: S^-1 v_in, minus Ew' (Ew v_in), plus E^-1 G' v_out."""
+        md = self.md
+        n, nyq, dt = md.n, md.n_yq, md.Kx.dtype
+        self.work += correct_work(md, rows.size)
         sel = mult > 0
         rows, mult = rows[sel], mult[sel]
-        return th0 - seqsum_rows(self.EM[:, rows] * mult[None, :])
+        v = np.where(md.row_sign[rows] > 0, mult, -mult)
+        q = md.row_q[rows]
+        at, val = q.copy(), v.copy()  # quantity index in [inputs, outputs] and its term
+        if self.has_rate:  # a Δu row adds to U_d and, past the first stage, subtracts from U_(d-nu)
+            d = q - (n + nyq)
+            at = np.where(d >= 0, d, q)
+            prev = d >= md.nu
+            order = np.argsort(np.concatenate((2 * np.arange(rows.size),
+                                               2 * np.flatnonzero(prev) + 1)), kind="stable")
+            at = np.concatenate((at, d[prev] - md.nu))[order]
+            val = np.concatenate((val, -v[prev]))[order]
+        qv = np.zeros(n + nyq, dt)
+        np.add.at(qv, at, val)  # sequential, in the rows' order
+        th = np.zeros(n, dt)
+        ew_v = np.zeros(md.nt, dt)
+        for j in np.flatnonzero(qv[:n] != 0):
+            th = th + self.Sinv[:, j] * qv[j]
+            ew_v = ew_v + md.Ew[:, j] * qv[j]
+        for o in range(md.nt):
+            th = th - md.Ew[o] * ew_v[o]
+        for k in np.flatnonzero(qv[n:] != 0):
+            th = th + md.EinvGt[:, k] * qv[n + k]
+        return th0 - th
 
     def sweep(self, S, K, lam):
         """Mirror of sweep() over the sorted rows S, in place on lam: (e2, diverged)."""
         e2 = self.zero
         diverged = False
         om = self.omega
+        self.work += sweep_work(self.md, S.size, self.hq_factor)
         for r in S:
             mask = (S != r) & (lam[S] > 0)
             others = S[mask]

@@ -8,6 +8,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..qp.storage import ModeData
+from ..qp.work import unconstrained_work
 from .linalg import seqsum, seqsum_rows
 
 
@@ -45,6 +46,8 @@ class UnconstrainedMixin:
         bounds = list(zip(starts, starts[1:] + [last]))
         lengths = [e - b for b, e in bounds]
         longest = int(np.argmax(lengths)) if lengths else -1
+        self.work += unconstrained_work(md, last - (lengths[longest] if lengths else 0),
+                                        len(starts), self.has_out)
         G = md.EinvGt.reshape(md.n, md.N, ny)
         acc = seqsum_rows(md.Kx * x[None, :])
         for a in range(ny):

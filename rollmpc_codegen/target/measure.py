@@ -73,6 +73,21 @@ def cycles_by_mode(run: FlightRun, ctx: dict) -> dict:
     return out
 
 
+def cycles_per_work(runs) -> dict:
+    """Estimated cycles per work unit (qp/work.py) on the counted steps that solved a QP, over
+    every flight: its largest and median ratio, and the flight and step of the largest (the
+    calibration of CYCLES_PER_WORK_UNIT, docs/solver.md "Work budget")."""
+    ratios = {(f.flight.index, k): c.cycles / f.record.info[k]["work"]
+              for f in runs for k, c in f.run.counts.items() if f.record.info[k]["work"] > 0}
+    if not ratios:
+        return {"max": None, "median": None, "flight_of_max": None, "step_of_max": None,
+                "steps": 0}
+    worst = max(ratios, key=lambda fk: (ratios[fk], -fk[1]))
+    return {"max": round(ratios[worst], 2),
+            "median": round(float(np.median(list(ratios.values()))), 2),
+            "flight_of_max": worst[0], "step_of_max": int(worst[1]), "steps": len(ratios)}
+
+
 def measure(model, ctx: dict, build_root: Path, *, plan: FlightPlan = FlightPlan(),
             steps: int | None = None, sample_every: int = 20, hardest: int = 10,
             progress=None, extra_cflags: tuple[str, ...] = (), host_repeats: int = 5,
@@ -139,6 +154,8 @@ def measure(model, ctx: dict, build_root: Path, *, plan: FlightPlan = FlightPlan
         "worst_step": int(worst_k),
         "worst_step_mode": int(info_w["mode"]),
         "worst_step_host": {k: int(info_w[k]) for k in (*INFO_FIELDS, "solve_ticks")},
+        "work_budget": int(ctx["solver"]["work_budget"]),
+        "cycles_per_work_unit": cycles_per_work(runs),
         "worst_step_instructions": int(worst.instructions),
         "worst_step_cycles": int(worst.cycles),
         "median_step_cycles": int(np.median(sweep_cycles)),
@@ -151,8 +168,8 @@ def measure(model, ctx: dict, build_root: Path, *, plan: FlightPlan = FlightPlan
         "hardest_step_cycles": [
             {"step": k, "cycles": int(counts[k].cycles),
              "instructions": int(counts[k].instructions),
-             **{f: int(record.info[k][f]) for f in ("mode", "iterations", "polish_iterations",
-                                                   "active")},
+             **{f: int(record.info[k][f]) for f in ("mode", "status", "iterations",
+                                                   "polish_iterations", "active", "work")},
              "host_solve_us": round(record.info[k]["solve_ticks"] / 1000.0, 1)}
             for k in sorted(worst_run.hard, key=lambda k: -counts[k].cycles)],
         "cycle_model": "Cortex-M4 TRM weights, zero wait states, taken branch +2 "

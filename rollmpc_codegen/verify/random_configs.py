@@ -30,6 +30,7 @@ from ..config import ConfigError, parse
 from ..qp.condense import condense
 from ..model.observer import observer_gain
 from ..model.plant import discretise
+from ..qp.work import UNBOUNDED_WORK
 
 KINDS = ("generic", "delay", "twin_outputs")
 COND_DECADES = 7  # cond(E) targets span 1e0 .. 1e7
@@ -92,8 +93,10 @@ def _random_dynamics(rng: np.random.Generator, nx: int, N: int) -> np.ndarray:
 def _base(prefix: str, precision: str, N: int, Ts: float, n_out: int, n_act: int) -> dict:
     outputs = [f"y{i}" for i in range(n_out)]
     actuators = [f"u{i}" for i in range(n_act)]
+    # no work budget: the campaigns measure what the solver reaches, not when
     return {"prefix": prefix, "precision": precision, "sample_time": Ts, "horizon": int(N),
             "outputs": outputs, "actuators": actuators, "modes": [],
+            "solver": {"work_budget": UNBOUNDED_WORK},
             "simulation": {"schedule_source": "output"}}
 
 
@@ -319,7 +322,7 @@ def random_controller(seed: int, n_modes: int = 1, horizon: int = 8, method: str
                                  "epsilon": float(rng.uniform(0.0, 0.4) * half),
                                  "inside": "m0", "outside": "m1"}
         data["solver"] = {"method": method, "polish": polish, "warm_start": warm_start,
-                          "max_iterations": max_iterations,
+                          "max_iterations": max_iterations, "work_budget": UNBOUNDED_WORK,
                           "omega": float(rng.uniform(1.0, 1.6)),
                           "sigma": float(rng.uniform(0.0, 1.0))}
         try:

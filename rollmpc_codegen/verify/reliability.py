@@ -78,8 +78,8 @@ def measure_memory(work: Path, soak_steps: int = 100_000) -> dict:
         counts = run.counts(SOAK_SUMMARY)
         out[f"soak_asan_ubsan_{prec}"] = {
             "steps": counts[0] if counts else 0, "faults": counts[1] if counts else 0,
-            "statuses": list(counts[2:9]) if counts else [],
-            "violations": counts[9] if counts else -1,
+            "statuses": list(counts[2:-1]) if counts else [],
+            "violations": counts[-1] if counts else -1,
             "sanitizer_reports": run.sanitizer_reports, "seconds": round(time.time() - t0, 1)}
     return out
 

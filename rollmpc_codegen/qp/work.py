@@ -1,0 +1,146 @@
+"""The solver's work units and its budget (docs/solver.md, "Work budget").
+
+A work unit is about one multiply-add with its loads.  The generated solver charges the
+closed-form cost of each costly function to ``ws->work`` and checks every unit of work
+against ``solver.work_budget`` before it starts, with the same formulas as an upper bound
+(``templates/solver/work.c.j2``).  This module is their Python side, with the C's names:
+the reference (:mod:`rollmpc_codegen.reference`) charges the same numbers at the same
+places, and the generator derives the default budget from the sample time and the clock
+and checks that a budget leaves room for the unconstrained step.
+
+``m`` below is a mode's stored sizes (:class:`~rollmpc_codegen.qp.storage.ModeData`:
+n, m, n_yq, ny, nu, nx, nt).  All arithmetic is on unsigned 32-bit integers in the C; the
+generator keeps every bound below 2**31 (:func:`check_work_budget`).
+"""
+from __future__ import annotations
+
+from ..config.errors import ConfigError
+from ..config.schema import DEFAULT_CPU_MHZ, WORK_BUDGET_AUTO
+
+# Estimated Cortex-M4F cycles per work unit, declared once: `rollmpc report --precision
+# float` (which prints the ratio) measured at most 17.72 cycles per unit on the counted
+# steps that spend over 30 % of their budget (quad_attitude; uav_roll 16.86, thermal_zones_
+# rate 15.75, fw_lateral 15.16), with 7 % of margin. Cheaper steps reach 24 (fw_lateral's
+# first step: fixed costs per call), far below any budget.
+CYCLES_PER_WORK_UNIT = 19.0
+WORK_LIMIT = 2**31  # every count and bound stays below it (uint32 in the C)
+UNBOUNDED_WORK = WORK_LIMIT - 1  # the largest budget: in effect none
+# rows the dual active set adds per scan of every row (it pays the scan and the corrected
+# point once for them); measured on fw_lateral, chain_soft, thermal_zones_rate: 4 cuts
+# their largest work per solve by 23 %, 26 %, 39 %, 8 or 16 less
+ADD_BATCH = 4
+
+
+def hq_work(m, factor: int) -> int:
+    """One read of H through hq() (``factor`` 2 with Δu rows: differences of reads)."""
+    return (m.nt + 4) * factor
+
+
+def predict_work(m) -> int:
+    stages = m.n_yq // m.ny
+    return m.ny * m.nu * stages * (stages + 1) // 2 + m.n_yq
+
+
+def scan_work(m) -> int:
+    return 3 * m.m + m.n + predict_work(m)
+
+
+def correct_work(m, count: int) -> int:
+    nin, nout = min(2 * count, m.n), min(count, m.n_yq)
+    return count + 2 * m.n + m.n_yq + m.n * (nin + nout + m.nt) + m.nt * nin
+
+
+def sweep_work(m, count: int, factor: int) -> int:
+    return count * count * hq_work(m, factor) + 8 * count
+
+
+def finish_work(m) -> int:
+    return 2 * m.n + 2 * m.m
+
+
+def chol_work(n: int) -> int:
+    return n * n * n // 6 + 2 * n * n + 4 * n
+
+
+def tri_work(n: int) -> int:
+    return n * n // 2 + 4 * n
+
+
+def rank_one_work(n: int) -> int:
+    return 3 * n * n // 2 + 10 * n
+
+
+def delete_work(k: int, n: int) -> int:
+    return (n * n - k * k) // 2 + n + rank_one_work(max(n - 1 - k, 0))
+
+
+def factor_work(m, nw: int, factor: int) -> int:
+    return nw * (nw + 1) // 2 * hq_work(m, factor) + chol_work(nw)
+
+
+def append_work(m, nw: int, factor: int) -> int:
+    return (nw + 1) * hq_work(m, factor) + tri_work(nw) + nw
+
+
+def primal_work(m, nw: int) -> int:
+    """primal_solve() and free_multipliers(): the Cholesky at 3/4 of a unit per operation,
+    the solves and products at 1/3. Fitted on the counted steps of uav_roll, quad_attitude
+    and fw_lateral: 12.2 and 4-7 cycles per operation, where the rest of the solver runs at
+    13.8 per unit (rollmpc report's cycles against the reference's work by kind)."""
+    k, nt = min(nw, m.n - nw), m.nt
+    loops = (k * k // 2 + 2 * (nt + 1) * tri_work(k) + nt * nt * k // 2 + 2 * tri_work(nt)
+             + 3 * nt * m.n + 2 * m.n * (k + nt) + nw * (m.n + nt))
+    return (9 * (chol_work(k) + chol_work(nt)) + 4 * loops) // 12
+
+
+def add_step_work(nw: int) -> int:
+    return 2 * tri_work(nw) + 5 * nw + max(delete_work(0, nw), rank_one_work(nw))
+
+
+def unconstrained_work(m, summed: int, runs: int, has_outputs: bool) -> int:
+    """unconstrained(): ``summed`` stages outside the longest run of equal w, ``runs`` runs."""
+    return (m.n_yq * m.ny + m.n * m.nx + m.n * m.ny * (summed + runs + 2)
+            + (m.n_yq * m.nx if has_outputs else 0))
+
+
+def base_work(m, has_outputs: bool) -> int:
+    """The most a solve spends before its first check: th0 (every stage its own run), the
+    slacks K, the output certificate and prediction, and the final finish()."""
+    last = m.n_yq // m.ny - 1
+    return (unconstrained_work(m, last, last, has_outputs) + 4 * m.m + m.n + predict_work(m)
+            + finish_work(m))
+
+
+def largest_unit(m, wcap: int, factor: int) -> int:
+    """An upper bound of every count the C forms (its intermediates are uint32): the
+    cube of the working-set capacity, a factorisation, a sweep over every row."""
+    return max(wcap ** 3, factor_work(m, wcap, factor) + append_work(m, wcap, factor),
+               sweep_work(m, m.m, factor) + correct_work(m, m.m) + 2 * scan_work(m),
+               12 * primal_work(m, m.n // 2), add_step_work(wcap))
+
+
+def auto_work_budget(sample_time: float, share: float, cpu_mhz: float = DEFAULT_CPU_MHZ) -> int:
+    """``solver.work_budget: auto``: ``share`` of the sample time at ``cpu_mhz``, in units."""
+    return int(sample_time * share * cpu_mhz * 1e6 / CYCLES_PER_WORK_UNIT)
+
+
+def check_work_budget(cfg, modes, factor: int) -> int:
+    """The budget of ``cfg`` (a ControllerConfig) in work units, checked against the
+    unconstrained step of every mode (its ModeData in ``modes``): a budget below it could
+    not even return the clamped unconstrained optimum."""
+    s = cfg.solver
+    budget = int(s.work_budget) if s.work_budget != WORK_BUDGET_AUTO else (
+        auto_work_budget(cfg.sample_time, s.budget_share) if s.polish
+        else UNBOUNDED_WORK)  # the paper's variants: their sweep cap bounds the work
+    need = max(base_work(m, m.has_output_rows) for m in modes)
+    for m in modes:
+        if largest_unit(m, m.w_cap, factor) >= WORK_LIMIT:
+            raise ConfigError("solver", f"mode {m.name}: its QP (n = {m.n}, m = {m.m}) is too "
+                              f"large to count its work in 32 bits")
+    if budget < need or budget >= WORK_LIMIT:
+        how = (f"auto: {s.budget_share:g} of Ts = {cfg.sample_time:g} s at {DEFAULT_CPU_MHZ:g} "
+               f"MHz, {CYCLES_PER_WORK_UNIT:g} cycles per unit" if s.work_budget == WORK_BUDGET_AUTO
+               else "given")
+        raise ConfigError("solver.work_budget", f"{budget} work units ({how}) must be at least "
+                          f"the {need} of the unconstrained step and below {WORK_LIMIT}")
+    return budget
