@@ -108,7 +108,8 @@ def test_reference_rows_keep_the_head_and_append_the_tail(uav_double):
 
     def solve(bound_inputs):
         W = np.array(sorted(lower[q] for q in bound_inputs), np.int64)
-        ok, th, _ = ref.primal_solve(th0, W)
+        ref.work = 0  # each call within the budget, as a QP's first solve
+        ok, th, _ = ref.primal_solve(th0, W, 0)
         assert ok and np.all(np.isfinite(th))
         return ref.factor_rows
 

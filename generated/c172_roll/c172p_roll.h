@@ -73,9 +73,9 @@ typedef struct {
     c172p_roll_real z[C172P_ROLL_N_MAX];      /**< Polish multipliers / primal step. */
     c172p_roll_real rhs[C172P_ROLL_N_MAX];    /**< Polish right-hand side. */
     c172p_roll_real chol[C172P_ROLL_CHOL_MAX];/**< Packed Cholesky factor (what it holds: chol_holds). */
-    c172p_roll_real hcol[C172P_ROLL_N_MAX];   /**< Dual active set: H_Wp of the row being added. */
     c172p_roll_real dv[C172P_ROLL_N_MAX];     /**< Primal polish: U - th0; scratch of correct(). */
-    c172p_roll_real ycol[C172P_ROLL_NT_MAX * C172P_ROLL_N_MAX]; /**< Primal polish: S_FF^-1 V_F'. */
+    c172p_roll_real ycol[C172P_ROLL_YCOL_MAX]; /**< Primal polish: Y = L^-1 V_F' (L^-1 Uv_B'), nt rows of
+                                                    N_MAX; the dual active set: H_Wp of the row joining. */
     c172p_roll_real tsmall[C172P_ROLL_NT_MAX * (C172P_ROLL_NT_MAX + 1) / 2]; /**< Terminal Schur complement. */
     c172p_roll_real nu[C172P_ROLL_NT_MAX];     /**< Terminal multiplier step; scratch of correct(). */
     c172p_roll_real xn[C172P_ROLL_NX_MAX];    /**< Observer: next state. */

@@ -33,6 +33,7 @@ typedef float c172p_roll_real;
 #define C172P_ROLL_NYQ_MAX 100
 #define C172P_ROLL_NT_MAX 1
 #define C172P_ROLL_CHOL_MAX 5050
+#define C172P_ROLL_YCOL_MAX 100
 
 /*
  * Solver variant: method hildreth_plus_prime + polish (polish first).

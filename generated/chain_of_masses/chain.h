@@ -73,9 +73,9 @@ typedef struct {
     chain_real z[CHAIN_N_MAX];      /**< Polish multipliers / primal step. */
     chain_real rhs[CHAIN_N_MAX];    /**< Polish right-hand side. */
     chain_real chol[CHAIN_CHOL_MAX];/**< Packed Cholesky factor (what it holds: chol_holds). */
-    chain_real hcol[CHAIN_N_MAX];   /**< Dual active set: H_Wp of the row being added. */
     chain_real dv[CHAIN_N_MAX];     /**< Primal polish: U - th0; scratch of correct(). */
-    chain_real ycol[CHAIN_NT_MAX * CHAIN_N_MAX]; /**< Primal polish: S_FF^-1 V_F'. */
+    chain_real ycol[CHAIN_YCOL_MAX]; /**< Primal polish: Y = L^-1 V_F' (L^-1 Uv_B'), nt rows of
+                                                    N_MAX; the dual active set: H_Wp of the row joining. */
     chain_real tsmall[CHAIN_NT_MAX * (CHAIN_NT_MAX + 1) / 2]; /**< Terminal Schur complement. */
     chain_real nu[CHAIN_NT_MAX];     /**< Terminal multiplier step; scratch of correct(). */
     chain_real xn[CHAIN_NX_MAX];    /**< Observer: next state. */

@@ -40,6 +40,7 @@ typedef char chain_double_tree_built_with_single_precision_constants[
 #define CHAIN_NYQ_MAX 60
 #define CHAIN_NT_MAX 6
 #define CHAIN_CHOL_MAX 820
+#define CHAIN_YCOL_MAX 240
 
 /*
  * Solver variant: method hildreth_plus_prime + polish (polish first).

@@ -31,6 +31,7 @@ typedef float chain_real;
 #define CHAIN_NYQ_MAX 60
 #define CHAIN_NT_MAX 6
 #define CHAIN_CHOL_MAX 820
+#define CHAIN_YCOL_MAX 240
 
 /*
  * Solver variant: method hildreth_plus_prime + polish (polish first).

@@ -87,9 +87,9 @@ typedef struct {
     chain_rb_real z[CHAIN_RB_N_MAX];      /**< Polish multipliers / primal step. */
     chain_rb_real rhs[CHAIN_RB_N_MAX];    /**< Polish right-hand side. */
     chain_rb_real chol[CHAIN_RB_CHOL_MAX];/**< Packed Cholesky factor (what it holds: chol_holds). */
-    chain_rb_real hcol[CHAIN_RB_N_MAX];   /**< Dual active set: H_Wp of the row being added. */
     chain_rb_real dv[CHAIN_RB_N_MAX];     /**< Primal polish: U - th0; scratch of correct(). */
-    chain_rb_real ycol[CHAIN_RB_NT_MAX * CHAIN_RB_N_MAX]; /**< Primal polish: S_FF^-1 V_F'. */
+    chain_rb_real ycol[CHAIN_RB_YCOL_MAX]; /**< Primal polish: Y = L^-1 V_F' (L^-1 Uv_B'), nt rows of
+                                                    N_MAX; the dual active set: H_Wp of the row joining. */
     chain_rb_real tsmall[CHAIN_RB_NT_MAX * (CHAIN_RB_NT_MAX + 1) / 2]; /**< Terminal Schur complement. */
     chain_rb_real nu[CHAIN_RB_NT_MAX];     /**< Terminal multiplier step; scratch of correct(). */
     chain_rb_real xn[CHAIN_RB_NX_MAX];    /**< Observer: next state. */

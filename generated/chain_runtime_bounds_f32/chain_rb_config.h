@@ -31,6 +31,7 @@ typedef float chain_rb_real;
 #define CHAIN_RB_NYQ_MAX 60
 #define CHAIN_RB_NT_MAX 6
 #define CHAIN_RB_CHOL_MAX 820
+#define CHAIN_RB_YCOL_MAX 240
 
 /*
  * Solver variant: method hildreth_plus_prime + polish (polish first).

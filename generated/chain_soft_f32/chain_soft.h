@@ -77,9 +77,9 @@ typedef struct {
     chain_soft_real z[CHAIN_SOFT_W_MAX];      /**< Polish multipliers / primal step. */
     chain_soft_real rhs[CHAIN_SOFT_W_MAX];    /**< Polish right-hand side. */
     chain_soft_real chol[CHAIN_SOFT_CHOL_MAX];/**< Packed Cholesky factor (what it holds: chol_holds). */
-    chain_soft_real hcol[CHAIN_SOFT_W_MAX];   /**< Dual active set: H_Wp of the row being added. */
     chain_soft_real dv[CHAIN_SOFT_W_MAX];     /**< Primal polish: U - th0; scratch of correct(). */
-    chain_soft_real ycol[CHAIN_SOFT_NT_MAX * CHAIN_SOFT_N_MAX]; /**< Primal polish: S_FF^-1 V_F'. */
+    chain_soft_real ycol[CHAIN_SOFT_YCOL_MAX]; /**< Primal polish: Y = L^-1 V_F' (L^-1 Uv_B'), nt rows of
+                                                    N_MAX; the dual active set: H_Wp of the row joining. */
     chain_soft_real tsmall[CHAIN_SOFT_NT_MAX * (CHAIN_SOFT_NT_MAX + 1) / 2]; /**< Terminal Schur complement. */
     chain_soft_real nu[CHAIN_SOFT_NT_MAX];     /**< Terminal multiplier step; scratch of correct(). */
     chain_soft_real xn[CHAIN_SOFT_NX_MAX];    /**< Observer: next state. */

@@ -33,6 +33,7 @@ typedef float chain_soft_real;
 /** Working-set capacity: n plus the soft (output, stage) pairs (slack rows need no U freedom). */
 #define CHAIN_SOFT_W_MAX 100
 #define CHAIN_SOFT_CHOL_MAX 5050
+#define CHAIN_SOFT_YCOL_MAX 240
 
 /*
  * Solver variant: method hildreth_plus_prime + polish (polish first).

@@ -138,18 +138,20 @@ static uint32_t append_work(const chain_soft_mode_data *md, int nw)
 }
 
 /*
- * primal_solve() on nw bound inputs and free_multipliers() after it: the Cholesky of the
- * smaller of (S^-1)_BB and S_FF at 3/4 of a unit per operation; its solves for the nt + 1
+ * primal_solve() on nw bound inputs with a factor of order k whose rows from `start` are
+ * factored again (0: a new factor), and free_multipliers()
+ * after it: the Cholesky at 3/4 of a unit per operation; its solves for the nt + 1
  * right-hand sides, the terminal Schur complement and the n x nb (or n x nf) products at
  * 1/3: these dense loops run that much faster per operation than H reads (qp/work.py).
  */
-static uint32_t primal_work(const chain_soft_mode_data *md, int nw)
+static uint32_t primal_work(const chain_soft_mode_data *md, int nw, int k, int start)
 {
-    const int n = md->n, nt = md->nt, k = (nw < n - nw) ? nw : n - nw;
-    const uint32_t u = (uint32_t)k, un = (uint32_t)n, ut = (uint32_t)nt;
-    const uint32_t loops = u * u / 2u + 2u * (ut + 1u) * tri_work(k) + ut * ut * u / 2u
+    const int n = md->n, nt = md->nt;
+    const uint32_t u = (uint32_t)k, s = (uint32_t)start, un = (uint32_t)n, ut = (uint32_t)nt;
+    const uint32_t loops = (u * u - s * s) / 2u
+        + 2u * (ut * (tri_work(k) - tri_work(start)) + tri_work(k)) + ut * ut * u / 2u
         + 2u * tri_work(nt) + 3u * ut * un + 2u * un * (u + ut) + (uint32_t)nw * (un + ut);
-    return (9u * (chol_work(k) + chol_work(nt)) + 4u * loops) / 12u;
+    return (9u * (chol_work(k) - chol_work(start) + chol_work(nt)) + 4u * loops) / 12u;
 }
 
 /* One step of add_to_set() on nw rows: two triangular solves, then a row leaves, switches
@@ -1152,8 +1154,9 @@ static void primal_order(chain_soft_work *ws, int n, int form, int update, int k
 
 /*
  * Rows from..k-1 of the factor L (ws->chol) of S_FF (free form) or (S^-1)_BB (bound
- * form) in the order of ws->tmp, and rows from..k-1 of Y = L^-1 V_F' or L^-1 Uv_B' (ws->ycol),
- * the rows above being kept (only the factor's when ws->chol_holds proves it intact).
+ * form) in the order of ws->tmp, and the same rows of Y = L^-1 V_F' or L^-1 Uv_B'
+ * (ws->ycol), the rows above being kept, when ws->chol_holds proves both intact (the dual
+ * active set uses ycol too); else every row.
  * -1 if a pivot breaks down (the factor is then forgotten).
  */
 static int primal_factor(chain_soft_work *ws, const chain_soft_mode_data *md, int k, int from)
@@ -1186,10 +1189,10 @@ static int primal_factor(chain_soft_work *ws, const chain_soft_mode_data *md, in
     ws->chol_holds = CHAIN_SOFT_CHOL_PRIMAL;
     for (o = 0; o < nt; ++o) {
         chain_soft_real *y = &ws->ycol[o * CHAIN_SOFT_N_MAX];
-        for (a = from; a < k; ++a) {
+        for (a = start; a < k; ++a) {
             y[a] = cols[o * n + ws->tmp[a]];
         }
-        chain_soft_chol_lsolve_from(l, from, k, y);
+        chain_soft_chol_lsolve_from(l, start, k, y);
     }
     return 0;
 }
@@ -1352,11 +1355,14 @@ static int primal_solve_bound(chain_soft_work *ws, const chain_soft_mode_data *m
  * Primal solve on a working set of input-bound rows only (wset[0..nw), at most one row
  * per input): U_B at the bounds, d_B = U_B - th0_B, then the factor of the previous solve
  * updated, or a new one in the form of smaller order, whichever costs fewer
- * multiply-adds (primal_cost()).
+ * multiply-adds (primal_cost()). Charges its work (primal_work(): the rows it factors
+ * again) once afford() grants it and `reserve` more.
  * Writes ws->th; returns 1 when ws->z is written too (bound form), 0 when it is left to
- * free_multipliers() (free form), -1 if a factorisation breaks down.
+ * free_multipliers() (free form), -1 if a factorisation breaks down, OUT_OF_WORK (the
+ * factor and its rows unchanged) when the budget cannot pay.
  */
-static int primal_solve(chain_soft_work *ws, const chain_soft_mode_data *md, int nw)
+static int primal_solve(chain_soft_work *ws, const chain_soft_mode_data *md, int nw,
+    uint32_t reserve)
 {
     const int n = md->n;
     int i, k, head, from = 0, form = (nw < n - nw) ? FORM_BOUND : FORM_FREE, update = 0;
@@ -1387,8 +1393,19 @@ static int primal_solve(chain_soft_work *ws, const chain_soft_mode_data *md, int
             head = head_up;
         }
     }
+    if (!update) {
+        from = 0;
+    }
+    {
+        const int start = (ws->chol_holds == CHAIN_SOFT_CHOL_PRIMAL) ? from : 0;
+        const uint32_t cost = primal_work(md, nw, k, start);
+        if (!afford(ws, md, cost + reserve)) {
+            return OUT_OF_WORK;
+        }
+        ws->work += cost;
+    }
     primal_order(ws, n, form, update, k, head);
-    if (primal_factor(ws, md, k, update ? from : 0) != 0) {
+    if (primal_factor(ws, md, k, from) != 0) {
         return -1;
     }
     if (form == FORM_BOUND) {
@@ -1782,11 +1799,10 @@ static int polish(chain_soft_work *ws, const chain_soft_mode_data *md, chain_sof
         ++*iterations;
         if (box_only(ws, md, nw)) {
             /* primal: bound rows first; the multipliers only at a feasible point */
-            if (!afford(ws, md, primal_work(md, nw) + scan_work(md) + (uint32_t)md->m)) {
+            code = primal_solve(ws, md, nw, scan_work(md) + (uint32_t)md->m);
+            if (code == OUT_OF_WORK) {
                 return stopped(ws, nw, known, OUT_OF_WORK);
             }
-            ws->work += primal_work(md, nw);
-            code = primal_solve(ws, md, nw);
             if (code < 0) {
                 return -1;
             }
@@ -1917,18 +1933,19 @@ static int add_to_set(chain_soft_work *ws, const chain_soft_mode_data *md, int p
     chain_soft_real l1p;
     const chain_soft_real wp = soft_of(md, p, &l1p);
     int p_on = 0; /* p's multiplier passed l1: its slack grows with it */
+    chain_soft_real *hcol = ws->ycol; /* the primal factor's Y is not in use (chol_holds) */
     int i;
     if (!afford(ws, md, ((uint32_t)*nw + 1u) * hq_work(md))) {
         return OUT_OF_WORK;
     }
     ws->work += ((uint32_t)*nw + 1u) * hq_work(md);
     for (i = 0; i < *nw; ++i) { /* H_Wp, read once for every step of this add */
-        ws->hcol[i] = h_rows(md, ws->wset[i], p);
+        hcol[i] = h_rows(md, ws->wset[i], p);
     }
     if (recheck) { /* chosen at an earlier point: still violated at this one? */
         chain_soft_real viol = -ws->K[p];
         for (i = 0; i < *nw; ++i) {
-            viol -= ws->hcol[i] * ws->z[i];
+            viol -= hcol[i] * ws->z[i];
         }
         if (!(viol > CHAIN_SOFT_SOLVER_FEAS_TOL * tol_scale(ws, p))) {
             return 2;
@@ -1946,7 +1963,7 @@ static int add_to_set(chain_soft_work *ws, const chain_soft_mode_data *md, int p
         }
         ws->work += tri_work(*nw) + 4u * (uint32_t)*nw;
         for (i = 0; i < *nw; ++i) { /* y = L^-1 H_Wp (rhs), d = L'^-1 y (dv) */
-            ws->rhs[i] = ws->hcol[i];
+            ws->rhs[i] = hcol[i];
             viol -= ws->rhs[i] * ws->z[i];
         }
         zeta = factor_pivot(ws, *nw, hpp);
@@ -2029,7 +2046,7 @@ static int add_to_set(chain_soft_work *ws, const chain_soft_mode_data *md, int p
         }
         remove_row(ws, k, nw);
         for (i = k; i < *nw; ++i) {
-            ws->hcol[i] = ws->hcol[i + 1];
+            hcol[i] = hcol[i + 1];
         }
     }
 }

@@ -42,6 +42,7 @@ typedef char fwlat_double_tree_built_with_single_precision_constants[
 /** Working-set capacity: n plus the soft (output, stage) pairs (slack rows need no U freedom). */
 #define FWLAT_W_MAX 120
 #define FWLAT_CHOL_MAX 7260
+#define FWLAT_YCOL_MAX 160
 
 /*
  * Solver variant: method hildreth_plus_prime + polish (polish first).

@@ -77,9 +77,9 @@ typedef struct {
     fwlat_real z[FWLAT_W_MAX];      /**< Polish multipliers / primal step. */
     fwlat_real rhs[FWLAT_W_MAX];    /**< Polish right-hand side. */
     fwlat_real chol[FWLAT_CHOL_MAX];/**< Packed Cholesky factor (what it holds: chol_holds). */
-    fwlat_real hcol[FWLAT_W_MAX];   /**< Dual active set: H_Wp of the row being added. */
     fwlat_real dv[FWLAT_W_MAX];     /**< Primal polish: U - th0; scratch of correct(). */
-    fwlat_real ycol[FWLAT_NT_MAX * FWLAT_N_MAX]; /**< Primal polish: S_FF^-1 V_F'. */
+    fwlat_real ycol[FWLAT_YCOL_MAX]; /**< Primal polish: Y = L^-1 V_F' (L^-1 Uv_B'), nt rows of
+                                                    N_MAX; the dual active set: H_Wp of the row joining. */
     fwlat_real tsmall[FWLAT_NT_MAX * (FWLAT_NT_MAX + 1) / 2]; /**< Terminal Schur complement. */
     fwlat_real nu[FWLAT_NT_MAX];     /**< Terminal multiplier step; scratch of correct(). */
     fwlat_real xn[FWLAT_NX_MAX];    /**< Observer: next state. */

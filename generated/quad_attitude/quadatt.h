@@ -73,9 +73,9 @@ typedef struct {
     quadatt_real z[QUADATT_N_MAX];      /**< Polish multipliers / primal step. */
     quadatt_real rhs[QUADATT_N_MAX];    /**< Polish right-hand side. */
     quadatt_real chol[QUADATT_CHOL_MAX];/**< Packed Cholesky factor (what it holds: chol_holds). */
-    quadatt_real hcol[QUADATT_N_MAX];   /**< Dual active set: H_Wp of the row being added. */
     quadatt_real dv[QUADATT_N_MAX];     /**< Primal polish: U - th0; scratch of correct(). */
-    quadatt_real ycol[QUADATT_NT_MAX * QUADATT_N_MAX]; /**< Primal polish: S_FF^-1 V_F'. */
+    quadatt_real ycol[QUADATT_YCOL_MAX]; /**< Primal polish: Y = L^-1 V_F' (L^-1 Uv_B'), nt rows of
+                                                    N_MAX; the dual active set: H_Wp of the row joining. */
     quadatt_real tsmall[QUADATT_NT_MAX * (QUADATT_NT_MAX + 1) / 2]; /**< Terminal Schur complement. */
     quadatt_real nu[QUADATT_NT_MAX];     /**< Terminal multiplier step; scratch of correct(). */
     quadatt_real xn[QUADATT_NX_MAX];    /**< Observer: next state. */

@@ -40,6 +40,7 @@ typedef char quadatt_double_tree_built_with_single_precision_constants[
 #define QUADATT_NYQ_MAX 120
 #define QUADATT_NT_MAX 4
 #define QUADATT_CHOL_MAX 7260
+#define QUADATT_YCOL_MAX 480
 
 /*
  * Solver variant: method hildreth_plus_prime + polish (polish first).

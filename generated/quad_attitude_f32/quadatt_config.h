@@ -31,6 +31,7 @@ typedef float quadatt_real;
 #define QUADATT_NYQ_MAX 120
 #define QUADATT_NT_MAX 4
 #define QUADATT_CHOL_MAX 7260
+#define QUADATT_YCOL_MAX 480
 
 /*
  * Solver variant: method hildreth_plus_prime + polish (polish first).

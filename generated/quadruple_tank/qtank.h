@@ -73,9 +73,9 @@ typedef struct {
     qtank_real z[QTANK_N_MAX];      /**< Polish multipliers / primal step. */
     qtank_real rhs[QTANK_N_MAX];    /**< Polish right-hand side. */
     qtank_real chol[QTANK_CHOL_MAX];/**< Packed Cholesky factor (what it holds: chol_holds). */
-    qtank_real hcol[QTANK_N_MAX];   /**< Dual active set: H_Wp of the row being added. */
     qtank_real dv[QTANK_N_MAX];     /**< Primal polish: U - th0; scratch of correct(). */
-    qtank_real ycol[QTANK_NT_MAX * QTANK_N_MAX]; /**< Primal polish: S_FF^-1 V_F'. */
+    qtank_real ycol[QTANK_YCOL_MAX]; /**< Primal polish: Y = L^-1 V_F' (L^-1 Uv_B'), nt rows of
+                                                    N_MAX; the dual active set: H_Wp of the row joining. */
     qtank_real tsmall[QTANK_NT_MAX * (QTANK_NT_MAX + 1) / 2]; /**< Terminal Schur complement. */
     qtank_real nu[QTANK_NT_MAX];     /**< Terminal multiplier step; scratch of correct(). */
     qtank_real xn[QTANK_NX_MAX];    /**< Observer: next state. */

@@ -40,6 +40,7 @@ typedef char qtank_double_tree_built_with_single_precision_constants[
 #define QTANK_NYQ_MAX 40
 #define QTANK_NT_MAX 2
 #define QTANK_CHOL_MAX 820
+#define QTANK_YCOL_MAX 80
 
 /*
  * Solver variant: method hildreth_plus_prime + polish (polish first).

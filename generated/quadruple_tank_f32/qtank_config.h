@@ -31,6 +31,7 @@ typedef float qtank_real;
 #define QTANK_NYQ_MAX 40
 #define QTANK_NT_MAX 2
 #define QTANK_CHOL_MAX 820
+#define QTANK_YCOL_MAX 80
 
 /*
  * Solver variant: method hildreth_plus_prime + polish (polish first).

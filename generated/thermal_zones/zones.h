@@ -73,9 +73,9 @@ typedef struct {
     zones_real z[ZONES_N_MAX];      /**< Polish multipliers / primal step. */
     zones_real rhs[ZONES_N_MAX];    /**< Polish right-hand side. */
     zones_real chol[ZONES_CHOL_MAX];/**< Packed Cholesky factor (what it holds: chol_holds). */
-    zones_real hcol[ZONES_N_MAX];   /**< Dual active set: H_Wp of the row being added. */
     zones_real dv[ZONES_N_MAX];     /**< Primal polish: U - th0; scratch of correct(). */
-    zones_real ycol[ZONES_NT_MAX * ZONES_N_MAX]; /**< Primal polish: S_FF^-1 V_F'. */
+    zones_real ycol[ZONES_YCOL_MAX]; /**< Primal polish: Y = L^-1 V_F' (L^-1 Uv_B'), nt rows of
+                                                    N_MAX; the dual active set: H_Wp of the row joining. */
     zones_real tsmall[ZONES_NT_MAX * (ZONES_NT_MAX + 1) / 2]; /**< Terminal Schur complement. */
     zones_real nu[ZONES_NT_MAX];     /**< Terminal multiplier step; scratch of correct(). */
     zones_real xn[ZONES_NX_MAX];    /**< Observer: next state. */

@@ -40,6 +40,7 @@ typedef char zones_double_tree_built_with_single_precision_constants[
 #define ZONES_NYQ_MAX 40
 #define ZONES_NT_MAX 2
 #define ZONES_CHOL_MAX 820
+#define ZONES_YCOL_MAX 80
 
 /*
  * Solver variant: method hildreth_plus_prime + polish (polish first).

@@ -31,6 +31,7 @@ typedef float zones_real;
 #define ZONES_NYQ_MAX 40
 #define ZONES_NT_MAX 2
 #define ZONES_CHOL_MAX 820
+#define ZONES_YCOL_MAX 80
 
 /*
  * Solver variant: method hildreth_plus_prime + polish (polish first).

@@ -40,6 +40,7 @@ typedef char zrate_double_tree_built_with_single_precision_constants[
 #define ZRATE_NYQ_MAX 40
 #define ZRATE_NT_MAX 2
 #define ZRATE_CHOL_MAX 820
+#define ZRATE_YCOL_MAX 80
 
 /*
  * Solver variant: method hildreth_plus_prime + polish (polish first).

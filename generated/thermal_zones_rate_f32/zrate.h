@@ -73,9 +73,9 @@ typedef struct {
     zrate_real z[ZRATE_N_MAX];      /**< Polish multipliers / primal step. */
     zrate_real rhs[ZRATE_N_MAX];    /**< Polish right-hand side. */
     zrate_real chol[ZRATE_CHOL_MAX];/**< Packed Cholesky factor (what it holds: chol_holds). */
-    zrate_real hcol[ZRATE_N_MAX];   /**< Dual active set: H_Wp of the row being added. */
     zrate_real dv[ZRATE_N_MAX];     /**< Primal polish: U - th0; scratch of correct(). */
-    zrate_real ycol[ZRATE_NT_MAX * ZRATE_N_MAX]; /**< Primal polish: S_FF^-1 V_F'. */
+    zrate_real ycol[ZRATE_YCOL_MAX]; /**< Primal polish: Y = L^-1 V_F' (L^-1 Uv_B'), nt rows of
+                                                    N_MAX; the dual active set: H_Wp of the row joining. */
     zrate_real tsmall[ZRATE_NT_MAX * (ZRATE_NT_MAX + 1) / 2]; /**< Terminal Schur complement. */
     zrate_real nu[ZRATE_NT_MAX];     /**< Terminal multiplier step; scratch of correct(). */
     zrate_real xn[ZRATE_NX_MAX];    /**< Observer: next state. */

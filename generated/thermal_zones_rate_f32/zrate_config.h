@@ -31,6 +31,7 @@ typedef float zrate_real;
 #define ZRATE_NYQ_MAX 40
 #define ZRATE_NT_MAX 2
 #define ZRATE_CHOL_MAX 820
+#define ZRATE_YCOL_MAX 80
 
 /*
  * Solver variant: method hildreth_plus_prime + polish (polish first).

@@ -42,6 +42,7 @@ typedef char drives_double_tree_built_with_single_precision_constants[
 #define DRIVES_NYQ_MAX 25
 #define DRIVES_NT_MAX 1
 #define DRIVES_CHOL_MAX 325
+#define DRIVES_YCOL_MAX 25
 
 /*
  * Solver variant: method hildreth_plus_prime + polish (polish first).

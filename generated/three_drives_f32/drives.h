@@ -73,9 +73,9 @@ typedef struct {
     drives_real z[DRIVES_N_MAX];      /**< Polish multipliers / primal step. */
     drives_real rhs[DRIVES_N_MAX];    /**< Polish right-hand side. */
     drives_real chol[DRIVES_CHOL_MAX];/**< Packed Cholesky factor (what it holds: chol_holds). */
-    drives_real hcol[DRIVES_N_MAX];   /**< Dual active set: H_Wp of the row being added. */
     drives_real dv[DRIVES_N_MAX];     /**< Primal polish: U - th0; scratch of correct(). */
-    drives_real ycol[DRIVES_NT_MAX * DRIVES_N_MAX]; /**< Primal polish: S_FF^-1 V_F'. */
+    drives_real ycol[DRIVES_YCOL_MAX]; /**< Primal polish: Y = L^-1 V_F' (L^-1 Uv_B'), nt rows of
+                                                    N_MAX; the dual active set: H_Wp of the row joining. */
     drives_real tsmall[DRIVES_NT_MAX * (DRIVES_NT_MAX + 1) / 2]; /**< Terminal Schur complement. */
     drives_real nu[DRIVES_NT_MAX];     /**< Terminal multiplier step; scratch of correct(). */
     drives_real xn[DRIVES_NX_MAX];    /**< Observer: next state. */

@@ -33,6 +33,7 @@ typedef float drives_real;
 #define DRIVES_NYQ_MAX 25
 #define DRIVES_NT_MAX 1
 #define DRIVES_CHOL_MAX 325
+#define DRIVES_YCOL_MAX 25
 
 /*
  * Solver variant: method hildreth_plus_prime + polish (polish first).

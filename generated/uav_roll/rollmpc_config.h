@@ -42,6 +42,7 @@ typedef char rollmpc_double_tree_built_with_single_precision_constants[
 #define ROLLMPC_NYQ_MAX 100
 #define ROLLMPC_NT_MAX 1
 #define ROLLMPC_CHOL_MAX 5050
+#define ROLLMPC_YCOL_MAX 100
 
 /*
  * Solver variant: method hildreth_plus_prime + polish (polish first).

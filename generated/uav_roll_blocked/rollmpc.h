@@ -73,9 +73,9 @@ typedef struct {
     rollmpc_real z[ROLLMPC_N_MAX];      /**< Polish multipliers / primal step. */
     rollmpc_real rhs[ROLLMPC_N_MAX];    /**< Polish right-hand side. */
     rollmpc_real chol[ROLLMPC_CHOL_MAX];/**< Packed Cholesky factor (what it holds: chol_holds). */
-    rollmpc_real hcol[ROLLMPC_N_MAX];   /**< Dual active set: H_Wp of the row being added. */
     rollmpc_real dv[ROLLMPC_N_MAX];     /**< Primal polish: U - th0; scratch of correct(). */
-    rollmpc_real ycol[ROLLMPC_NT_MAX * ROLLMPC_N_MAX]; /**< Primal polish: S_FF^-1 V_F'. */
+    rollmpc_real ycol[ROLLMPC_YCOL_MAX]; /**< Primal polish: Y = L^-1 V_F' (L^-1 Uv_B'), nt rows of
+                                                    N_MAX; the dual active set: H_Wp of the row joining. */
     rollmpc_real tsmall[ROLLMPC_NT_MAX * (ROLLMPC_NT_MAX + 1) / 2]; /**< Terminal Schur complement. */
     rollmpc_real nu[ROLLMPC_NT_MAX];     /**< Terminal multiplier step; scratch of correct(). */
     rollmpc_real xn[ROLLMPC_NX_MAX];    /**< Observer: next state. */

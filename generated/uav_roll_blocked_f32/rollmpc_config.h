@@ -33,6 +33,7 @@ typedef float rollmpc_real;
 #define ROLLMPC_NYQ_MAX 100
 #define ROLLMPC_NT_MAX 1
 #define ROLLMPC_CHOL_MAX 210
+#define ROLLMPC_YCOL_MAX 20
 
 /*
  * Solver variant: method hildreth_plus_prime + polish (polish first).

@@ -115,6 +115,8 @@ def build_context(model: ControllerModel) -> dict:
             "nyq_max": max(m["nyq"] for m in modes),
             "nt_max": max(m["nt"] for m in modes),
             "w_max": w_max, "chol_max": w_max * (w_max + 1) // 2,
+            # ws->ycol: the primal polish's Y (nt columns of n), or the dual's H_Wp (w)
+            "ycol_max": max(max(max(m["nt"] for m in modes), 1) * n_max, w_max),
         },
         # the members of P_mode_data (qp/arrays.py); each mode lists the arrays it defines
         "mode_struct": stored_members(features, cfg.prefix),

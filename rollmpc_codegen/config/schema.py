@@ -67,8 +67,8 @@ RESERVED_PREFIXES = C_STANDARD_HEADERS + SYSTEM_HEADERS
 # --------------------------------------------------------------------------- defaults
 DEFAULT_PREFIX = "rollmpc"
 DEFAULT_PRECISION = "double"
-# the target's clock, from which `solver.work_budget: auto` follows (the `target.cpu_mhz`
-# key will set it; qp/work.py derives the budget)
+# the target's clock (`target.cpu_mhz`): `rollmpc report`'s cycle budget per sample and
+# what `solver.work_budget: auto` follows (qp/work.py derives the budget)
 DEFAULT_CPU_MHZ = 168.0
 WORK_BUDGET_AUTO = "auto"  # solver.work_budget: derived from the sample time and the clock
 DEFAULT_EPSILON = 0.5  # scheduler.epsilon: the hysteresis margin of every threshold
@@ -204,7 +204,7 @@ class SolverConfig:
     active_set_max: int = 500  # its cap on add/drop steps
     dependence_tol: float | None = None  # None -> precision default
     # work units a solve may spend (docs/solver.md "Work budget"), or WORK_BUDGET_AUTO:
-    # budget_share of the sample time at DEFAULT_CPU_MHZ (qp/work.py)
+    # budget_share of the sample time at target.cpu_mhz (qp/work.py)
     work_budget: int | str = WORK_BUDGET_AUTO
     budget_share: float = 0.5
 
@@ -241,7 +241,7 @@ class TargetConfig:
     """The microcontroller ``rollmpc report`` judges the design on (the top-level
     ``target`` key); the generated C never sees it.  ``None``: no verdict on that figure."""
 
-    cpu_mhz: float = 168.0  # core clock: the cycle budget per sample is cpu_mhz * 1e6 * Ts
+    cpu_mhz: float = DEFAULT_CPU_MHZ  # core clock: a sample has cpu_mhz * 1e6 * Ts cycles
     flash_kib: float | None = None  # flash the image must fit (KiB)
     ram_kib: float | None = None  # static RAM the image, and the instance alone, must fit
 

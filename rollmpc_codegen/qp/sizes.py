@@ -102,7 +102,8 @@ def struct_bytes(cfg: ControllerConfig, sizes: tuple[ModeSizes, ...]) -> int:
     nx, n, m, nyq, w = top["nx"], top["n"], top["m"], top["n_yq"], top["w_cap"]
     nt = max(1, max(s.nt for s in sizes))
     k, ny = len(cfg.modes), cfg.n_outputs
-    reals = (2 * n + 2 * nyq + 2 * m + 3 * w + w * (w + 1) // 2 + nt * n + nt * (nt + 1) // 2
+    reals = (2 * n + 2 * nyq + 2 * m + 3 * w + w * (w + 1) // 2 + max(nt * n, w)
+             + nt * (nt + 1) // 2
              + nt + nx + ny  # the work arrays
              + k * (nx + m) + len(cfg.actuators) + n)  # xhat, lam, u_last, U
     if cfg.runtime_bounds:  # the live bounds of every mode, and the solver's copy

@@ -82,15 +82,18 @@ def append_work(m, nw: int, factor: int) -> int:
     return (nw + 1) * hq_work(m, factor) + tri_work(nw) + nw
 
 
-def primal_work(m, nw: int) -> int:
-    """primal_solve() and free_multipliers(): the Cholesky at 3/4 of a unit per operation,
-    the solves and products at 1/3. Fitted on the counted steps of uav_roll, quad_attitude
-    and fw_lateral: 12.2 and 4-7 cycles per operation, where the rest of the solver runs at
-    13.8 per unit (rollmpc report's cycles against the reference's work by kind)."""
-    k, nt = min(nw, m.n - nw), m.nt
-    loops = (k * k // 2 + 2 * (nt + 1) * tri_work(k) + nt * nt * k // 2 + 2 * tri_work(nt)
-             + 3 * nt * m.n + 2 * m.n * (k + nt) + nw * (m.n + nt))
-    return (9 * (chol_work(k) + chol_work(nt)) + 4 * loops) // 12
+def primal_work(m, nw: int, k: int, start: int = 0) -> int:
+    """primal_solve() with a factor of order k whose rows (and Y's) from ``start`` are
+    factored again (0: a new factor), and free_multipliers(): the Cholesky at
+    3/4 of a unit per operation, the solves and products at 1/3. Fitted on the counted
+    steps of uav_roll, quad_attitude and fw_lateral: 12.2 and 4-7 cycles per operation,
+    where the rest of the solver runs at 13.8 per unit (rollmpc report's cycles against the
+    reference's work by kind)."""
+    nt = m.nt
+    loops = ((k * k - start * start) // 2
+             + 2 * (nt * (tri_work(k) - tri_work(start)) + tri_work(k)) + nt * nt * k // 2
+             + 2 * tri_work(nt) + 3 * nt * m.n + 2 * m.n * (k + nt) + nw * (m.n + nt))
+    return (9 * (chol_work(k) - chol_work(start) + chol_work(nt)) + 4 * loops) // 12
 
 
 def add_step_work(nw: int) -> int:
@@ -116,7 +119,7 @@ def largest_unit(m, wcap: int, factor: int) -> int:
     cube of the working-set capacity, a factorisation, a sweep over every row."""
     return max(wcap ** 3, factor_work(m, wcap, factor) + append_work(m, wcap, factor),
                sweep_work(m, m.m, factor) + correct_work(m, m.m) + 2 * scan_work(m),
-               12 * primal_work(m, m.n // 2), add_step_work(wcap))
+               12 * primal_work(m, m.n, m.n), add_step_work(wcap))
 
 
 def auto_work_budget(sample_time: float, share: float, cpu_mhz: float = DEFAULT_CPU_MHZ) -> int:
@@ -130,7 +133,7 @@ def check_work_budget(cfg, modes, factor: int) -> int:
     not even return the clamped unconstrained optimum."""
     s = cfg.solver
     budget = int(s.work_budget) if s.work_budget != WORK_BUDGET_AUTO else (
-        auto_work_budget(cfg.sample_time, s.budget_share) if s.polish
+        auto_work_budget(cfg.sample_time, s.budget_share, cfg.target.cpu_mhz) if s.polish
         else UNBOUNDED_WORK)  # the paper's variants: their sweep cap bounds the work
     need = max(base_work(m, m.has_output_rows) for m in modes)
     for m in modes:
@@ -138,7 +141,7 @@ def check_work_budget(cfg, modes, factor: int) -> int:
             raise ConfigError("solver", f"mode {m.name}: its QP (n = {m.n}, m = {m.m}) is too "
                               f"large to count its work in 32 bits")
     if budget < need or budget >= WORK_LIMIT:
-        how = (f"auto: {s.budget_share:g} of Ts = {cfg.sample_time:g} s at {DEFAULT_CPU_MHZ:g} "
+        how = (f"auto: {s.budget_share:g} of Ts = {cfg.sample_time:g} s at {cfg.target.cpu_mhz:g} "
                f"MHz, {CYCLES_PER_WORK_UNIT:g} cycles per unit" if s.work_budget == WORK_BUDGET_AUTO
                else "given")
         raise ConfigError("solver.work_budget", f"{budget} work units ({how}) must be at least "

@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..qp.work import (append_work, correct_work, delete_work, predict_work, primal_work,
+from ..qp.work import (append_work, correct_work, delete_work, predict_work,
                        scan_work, tri_work)
 from .linalg import chol_solve_packed
 from .polish_dual import CHOL_DUAL, CHOL_NONE, OUT_OF_WORK
@@ -143,10 +143,9 @@ class PolishMixin:
         for _ in range(self.polish_max):
             its += 1
             if np.all(md.row_q[W] < n):  # box_only()
-                if not self.afford(primal_work(md, W.size) + scan_work(md) + md.m):
+                ok, th_p, zp = self.primal_solve(th0, W, scan_work(md) + md.m)
+                if ok == OUT_OF_WORK:
                     return self.stopped(W, z, known, OUT_OF_WORK), th, 0, its
-                self.work += primal_work(md, W.size)
-                ok, th_p, zp = self.primal_solve(th0, W)
                 if not ok:
                     return -1, None, 0, its
                 th = th_p

@@ -18,7 +18,8 @@ import numpy as np
 from .dot import s_row_dots
 from .linalg import (chol_lsolve_packed, chol_ltsolve_packed, cholesky_packed,
                      factor_and_solve_packed, seqsum)
-from .polish_dual import CHOL_NONE, CHOL_PRIMAL
+from ..qp.work import primal_work
+from .polish_dual import CHOL_NONE, CHOL_PRIMAL, OUT_OF_WORK
 
 FREE, BOUND = 1, 2  # FORM_FREE, FORM_BOUND
 
@@ -43,8 +44,10 @@ def primal_cost(n: int, nt: int, k: int, p: int) -> int:
 class PrimalPolishMixin:
     factor_rows: FactorRows | None = None
 
-    def primal_solve(self, th0, W):
-        """Mirror of primal_solve(): bounds, the updated or new factor; (ok, th, z or None)."""
+    def primal_solve(self, th0, W, reserve):
+        """Mirror of primal_solve(): bounds, the updated or new factor, its work charged
+        once afford() grants it and ``reserve`` more; (ok, th, z or None), or
+        (OUT_OF_WORK, None, None) with the factor's rows unchanged."""
         md = self.md
         n, nw, dt = md.n, W.size, md.Kx.dtype
         th = np.zeros(n, dt)
@@ -57,7 +60,13 @@ class PrimalPolishMixin:
         bound = np.zeros(n, bool)
         bound[qW] = True
         form = BOUND if nw < n - nw else FREE
-        order = self.primal_order(bound, form)
+        order, rows, first = self.primal_order(bound, form)
+        start = first if self.chol_holds == CHOL_PRIMAL else 0
+        cost = primal_work(md, nw, len(order), start)
+        if not self.afford(cost + reserve):
+            return OUT_OF_WORK, None, None
+        self.work += cost
+        self.factor_rows = rows
         ok = self.primal_factor(order)
         if not ok:
             return False, None, None
@@ -66,8 +75,8 @@ class PrimalPolishMixin:
         return self.primal_solve_free(th0, th, dv, bound)
 
     def primal_order(self, bound, form):
-        """Mirror of primal_diff() and primal_order(): the rows of the factor, in order;
-        sets factor_rows."""
+        """Mirror of primal_diff() and primal_order(): the rows of the factor in order, the
+        factor_rows they make and the first row factored again."""
         n, nw = self.md.n, int(np.count_nonzero(bound))
         prev = self.factor_rows
         if prev is not None and (nw > 0 if prev.form == FREE else nw < n):
@@ -84,14 +93,12 @@ class PrimalPolishMixin:
             nt = self.md.nt
             if prev.form == form or (primal_cost(n, nt, len(new), start)
                                      <= primal_cost(n, nt, k_new, 0)):
-                self.factor_rows = FactorRows(prev.form, head, tail)
-                return new
+                return new, FactorRows(prev.form, head, tail), start
         member = bound if form == BOUND else ~bound
         head = [int(q) for q in np.flatnonzero(member)]
         if form == FREE:
             head.reverse()
-        self.factor_rows = FactorRows(form, head, [])
-        return head
+        return head, FactorRows(form, head, []), 0
 
     def primal_factor(self, order):
         """Mirror of primal_factor(): L of S_FF or (S^-1)_BB and Y = L^-1 V_F' or
