@@ -103,6 +103,7 @@ def test_constraints_eq6_hold_exactly_for_the_prediction(model):
 
 def test_structured_dual_hessian_equals_dense(model):
     """H = L E^-1 L' is what the C reads through hq() from the packed blocks."""
+    from rollmpc_codegen.qp.work import ADD_BATCH, UNBOUNDED_WORK
     from rollmpc_codegen.reference.solver import SolverRef
 
     for mm in model.modes:
@@ -110,7 +111,9 @@ def test_structured_dual_hessian_equals_dense(model):
         ref = SolverRef(mm.data, {"reduced": True, "warm_start": True, "polish": True,
                                   "omega": 1.2, "sigma": 0.2, "delta": 1e-13,
                                   "feasibility_tol": 1e-9, "max_iterations": 10,
-                                  "polish_every": 10, "polish_max": 8})
+                                  "polish_every": 10, "polish_max": 8,
+                                  "work_budget": UNBOUNDED_WORK, "hq_work_factor": 1,
+                                  "add_batch": ADD_BATCH})
         assert np.allclose(ref.H, H, rtol=1e-9, atol=1e-12 * np.abs(H).max())
         Lo, D, Up = mm.qp.ldu()
         assert np.allclose(Lo + D + Up, H) and np.allclose(Lo, Up.T)
