@@ -139,3 +139,10 @@ def test_check_float_library_call(tmp_path):
     assert (a.qps, a.perturbed) == (10, 2)
     assert sum(a.float_statuses.values()) == 12 and not a.unsafe and a.warning() is None
     assert (a.error, a.first_move_error, a.floor) == (b.error, b.first_move_error, b.floor)
+
+
+def test_a_scenario_without_moves_checks_nothing_and_does_not_warn(tmp_path, capsys):
+    code, _, cap = _generate(tmp_path, capsys, ROLL.replace("[0, 30, -30, 60, 0]", "[0]"))
+    assert code == 0 and cap.err == ""
+    assert "rollmpc: float check: nothing to check (the scenario's states and references " \
+           "are all zero)\n" in cap.out

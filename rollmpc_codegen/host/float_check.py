@@ -67,11 +67,14 @@ class FloatCheck:
 
     @property
     def unsafe(self) -> bool:
-        return self.float_not_optimal > 0 or not self.error <= FLOAT_ERROR_LIMIT
+        return self.float_not_optimal > 0 or self.error > FLOAT_ERROR_LIMIT  # NaN: none
 
     def line(self) -> str:
         """The one-line figure ``rollmpc generate`` prints."""
         total = self.qps + self.perturbed
+        if total == 0:
+            return ("float check: nothing to check (the scenario's states and references "
+                    "are all zero)")
         return (f"float check ({self.qps} scenario + {self.perturbed} perturbed QPs, "
                 f"{self.seconds:.1f} s): float plans within {self.error:.2g} of double "
                 f"(first moves {self.first_move_error:.2g}), stored-data floor "
@@ -83,7 +86,7 @@ class FloatCheck:
         if not self.unsafe:
             return None
         what = []
-        if not self.error <= FLOAT_ERROR_LIMIT:
+        if self.error > FLOAT_ERROR_LIMIT:
             cause = ("rounding the stored data alone costs" if self.floor > FLOAT_ERROR_LIMIT
                      else "mostly float arithmetic: the stored-data floor is")
             what.append(f"a plan is {self.error:.2g} off double's ({self.worst}; {cause} "
