@@ -80,8 +80,14 @@ def print_summary(cfg, ctx: dict, s: dict) -> None:
     y_unit, u_unit = cfg.units.label("outputs"), cfg.units.label("actuators")
     print(f"rollmpc simulate: {s['samples']} samples ({s['duration_s']:g} s), "
           f"{ctx['precision']}, solver {solver_text(ctx)}")
-    errs = ", ".join(f"{x['settled_error']:.3g}" for x in s["segments"])
-    print(f"  settled |y - r| per segment{y_unit}: {errs} (max {s['max_settled_error']:.3g})")
+    errs = ", ".join(f"{x['settled_error']:.3g}"  # *: the window includes the preview
+                     + ("*" if x["settled_window_includes_preview"] else "")
+                     for x in s["segments"])
+    top = s["max_settled_error"]
+    print(f"  settled |y - r| per segment{y_unit}: {errs} "
+          f"(max {'-' if top is None else f'{top:.3g}'})")
+    for warning in s["warnings"]:  # * marks the segments it names
+        print(f"  warning: * {warning}")
     over = ", ".join(f"{x['overshoot']:.3g}" for x in s["segments"])
     print(f"  overshoot per segment{y_unit}: {over}")
     modes = ", ".join(f"{n} {s['by_mode'][n]['samples']}" for n in names)
@@ -89,11 +95,14 @@ def print_summary(cfg, ctx: dict, s: dict) -> None:
     umax = ", ".join(f"{a} {v:g}" for a, v in s["max_abs_u"].items())
     cv = s["constraint_violations"]
     print(f"  max |u|{u_unit}: {umax}; constraint violations: {cv['total']} "
-          f"(u {cv['u']}, inactive {cv['inactive_actuator_nonzero']}, y {cv['y']})")
+          f"(u {cv['u']}, inactive {cv['inactive_actuator_nonzero']}, y {cv['y']}; hard "
+          f"bounds, beyond {s['violation_tolerance']:g} max(1, |bound|))")
     if s.get("soft_bounds"):
         sb = s["soft_bounds"]
         print(f"  soft output bounds: a plan exceeds one (slack > 0) in "
-              f"{sb['samples_with_slack']} samples, max slack {sb['max_slack']:.3g}{y_unit}")
+              f"{sb['samples_with_slack']} samples, max slack {sb['max_slack']:.3g}{y_unit}; "
+              f"the output is beyond one in {sb['samples_beyond']} samples, max "
+              f"{sb['max_beyond']:.3g}{y_unit} (not violations)")
     st = s["solve_us"]
     if st["median"] is not None:
         print(f"  non-optimal: {s['non_optimal']}; max iterations: {s['max_iterations']}; "

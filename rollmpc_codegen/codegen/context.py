@@ -11,7 +11,7 @@ import json
 import numpy as np
 
 from .. import __version__
-from ..config.schema import default_dependence_tol, default_feasibility_tol
+from ..config.schema import default_dependence_tol
 from ..features.runtime_bounds import context_bounds
 from ..model.controller import ControllerModel
 from ..qp.arrays import REAL, declared_for
@@ -100,8 +100,7 @@ def build_context(model: ControllerModel) -> dict:
             and s.warm_start, "omega": s.omega if flags["sor"] else 1.0, "sigma": s.sigma,
             "delta": s.delta, "max_iterations": s.max_iterations, "polish": s.polish,
             "polish_first": s.polish and s.polish_first, "polish_every": s.polish_every, "polish_max": s.polish_max,
-            "feasibility_tol": s.feasibility_tol if s.feasibility_tol is not None
-            else default_feasibility_tol(cfg.precision),
+            "feasibility_tol": cfg.feasibility_tol,
             "active_set": s.polish and s.active_set, "active_set_max": s.active_set_max,
             "dependence_tol": s.dependence_tol if s.dependence_tol is not None
             else default_dependence_tol(cfg.precision),

@@ -19,7 +19,9 @@ def parse_mode(r: Reader, outputs: tuple[str, ...], actuators: tuple[str, ...], 
     name = r.string("name")
     if not IDENTIFIER.fullmatch(name):
         raise ConfigError(r.key("name"), f"must be an identifier-like name, got {name!r}")
-    acts = r.names("actuators")
+    # a mode drives a subset of the physical actuators, in its own input order (B's
+    # columns); absent, it drives every one in the top-level order (a one-mode design)
+    acts = r.names("actuators") if r.has("actuators") else actuators
     for i, a in enumerate(acts):
         if a not in actuators:
             raise ConfigError(f"{r.key('actuators')}[{i}]", f"unknown actuator {a!r}; "

@@ -283,6 +283,13 @@ class ControllerConfig:
         return len(self.outputs)
 
     @property
+    def feasibility_tol(self) -> float:
+        """The solver's relative feasibility tolerance: the configured one, else the
+        precision's default."""
+        tol = self.solver.feasibility_tol
+        return default_feasibility_tol(self.precision) if tol is None else tol
+
+    @property
     def n_schedule(self) -> int:
         return 0 if self.scheduler is None else 1
 

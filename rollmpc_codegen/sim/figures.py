@@ -1,11 +1,11 @@
 """The paper's figures as PNGs (matplotlib, Agg backend).
 
 * Fig. 2 (:func:`plot_closed_loop`, ``rollmpc simulate --plot``): panel (a) the output y
-  and the reference r, with the actuator commands u in a subplot beneath; panel (b) the
-  scheduling signal rho (the UAV's roll rate) with the eq. (3) thresholds, and the active
-  mode on a second axis.  An optional baseline (the saturated LQR) is drawn dashed.  The
-  labels use the config's output, actuator and signal names, with units only where the
-  config's ``units`` gives them.
+  and the reference r, with the actuator commands u in a subplot beneath; panel (b), with
+  two modes or more only, the scheduling signal rho (the UAV's roll rate) with the eq. (3)
+  thresholds, and the active mode on a second axis.  An optional baseline (the saturated
+  LQR) is drawn dashed.  The labels use the config's output, actuator and signal names,
+  with units only where the config's ``units`` gives them.
 * Fig. 3 (:func:`plot_solve_times`, ``rollmpc bench --plot``): every QP's solve time per
   solver against the sample index, log scale.
 """
@@ -43,15 +43,36 @@ BASELINE_STYLE = {"linestyle": "--", "linewidth": 1.0, "alpha": 0.85}
 def plot_closed_loop(path: str | Path, cfg: ControllerConfig, log: ClosedLoopLog,
                      baseline: ClosedLoopLog | None = None, title: str = "",
                      baseline_label: str = "LQR + saturation") -> Path:
-    """Write Fig. 2 (three stacked axes sharing time) to ``path``; returns the path."""
+    """Write Fig. 2 to ``path``; returns the path."""
     plt = _pyplot()
+    fig = closed_loop_figure(plt, cfg, log, baseline, title, baseline_label)
+    return _save(plt, fig, path)
+
+
+def closed_loop_figure(plt, cfg: ControllerConfig, log: ClosedLoopLog,
+                       baseline: ClosedLoopLog | None = None, title: str = "",
+                       baseline_label: str = "LQR + saturation"):
+    """Fig. 2 as a matplotlib figure: stacked axes sharing time, the outputs, the inputs
+    and, with two modes or more, the scheduling panel (one mode has nothing to schedule)."""
     runs = [("MPC", log, MPC_STYLE)]
     if baseline is not None:
         runs.append((baseline_label, baseline, BASELINE_STYLE))
-    fig, (ax_y, ax_u, ax_s) = plt.subplots(
-        3, 1, figsize=(10, 8.5), sharex=True, gridspec_kw={"height_ratios": [2.2, 1.3, 1.8]})
+    scheduled = cfg.scheduler is not None
+    ratios = [2.2, 1.3, 1.8] if scheduled else [2.2, 1.3]
+    fig, axes = plt.subplots(len(ratios), 1, figsize=(10, 8.5 if scheduled else 6.5),
+                             sharex=True, gridspec_kw={"height_ratios": ratios})
     colors = plt.rcParams["axes.prop_cycle"].by_key()["color"]
+    _draw_outputs(axes[0], cfg, log, runs, colors)
+    _draw_inputs(axes[1], cfg, runs, colors)
+    if scheduled:
+        _draw_schedule(axes[2], cfg, runs, colors)
+    axes[-1].set_xlabel("time t [s]")
+    if title:
+        fig.suptitle(title, fontsize=11)
+    return fig
 
+
+def _draw_outputs(ax_y, cfg: ControllerConfig, log: ClosedLoopLog, runs, colors) -> None:
     for o, name in enumerate(cfg.outputs):
         ax_y.plot(log.t, log.r[:, o], color="0.35", linestyle=":", linewidth=1.4,
                   label=f"r ({name})")
@@ -66,6 +87,8 @@ def plot_closed_loop(path: str | Path, cfg: ControllerConfig, log: ClosedLoopLog
     ax_y.legend(loc="upper left", fontsize=8, ncol=2)
     ax_y.grid(alpha=0.3)
 
+
+def _draw_inputs(ax_u, cfg: ControllerConfig, runs, colors) -> None:
     for a, name in enumerate(cfg.actuators):
         color = colors[(a + 2) % len(colors)]
         for label, run, style in runs:
@@ -73,24 +96,22 @@ def plot_closed_loop(path: str | Path, cfg: ControllerConfig, log: ClosedLoopLog
     limits = sorted({float(v) for m in cfg.modes for v in (*m.u_min, *m.u_max)})
     for v in limits:
         ax_u.axhline(v, color="0.6", linewidth=0.8, linestyle="-.")
-    ax_u.set_ylabel(f"input u{units.label('actuators')}")
+    ax_u.set_ylabel(f"input u{cfg.units.label('actuators')}")
     ax_u.set_title("control inputs u(k) (dash-dot: actuator limits)", loc="left", fontsize=10)
     ax_u.legend(loc="upper left", fontsize=8, ncol=len(cfg.actuators))
     ax_u.grid(alpha=0.3)
 
+
+def _draw_schedule(ax_s, cfg: ControllerConfig, runs, colors) -> None:
     sc = cfg.scheduler
-    signal = sc.signal if sc is not None else "scheduling signal"
-    if log.sched.shape[1]:
-        for label, run, style in runs:
-            ax_s.plot(run.t, run.sched[:, 0], color=colors[4 % len(colors)], **style,
-                      label=f"{signal}, {label}")
-    if sc is not None:
-        for v, eps in zip(sc.thresholds, sc.epsilons):
-            ax_s.axhline(v, color="0.5", linewidth=0.8)
-            for e in (-eps, eps):
-                ax_s.axhline(v + e, color="0.7", linewidth=0.6, linestyle=":")
-    ax_s.set_ylabel(f"{signal} rho{units.label('schedule')}")
-    ax_s.set_xlabel("time t [s]")
+    for label, run, style in runs:
+        ax_s.plot(run.t, run.sched[:, 0], color=colors[4 % len(colors)], **style,
+                  label=f"{sc.signal}, {label}")
+    for v, eps in zip(sc.thresholds, sc.epsilons):
+        ax_s.axhline(v, color="0.5", linewidth=0.8)
+        for e in (-eps, eps):
+            ax_s.axhline(v + e, color="0.7", linewidth=0.6, linestyle=":")
+    ax_s.set_ylabel(f"{sc.signal} rho{cfg.units.label('schedule')}")
     ax_s.grid(alpha=0.3)
     ax_m = ax_s.twinx()
     names = [m.name for m in cfg.modes]
@@ -101,15 +122,11 @@ def plot_closed_loop(path: str | Path, cfg: ControllerConfig, log: ClosedLoopLog
                     [f"{j + 1}: {n}" for j, n in enumerate(names)])
     ax_m.set_ylim(0.5, len(names) + 0.5 + 0.6 * len(names))
     ax_m.set_ylabel("mode j")
-    ax_s.set_title(f"(b) {signal} rho(k) (solid: band thresholds of eq. 3, dotted: "
+    ax_s.set_title(f"(b) {sc.signal} rho(k) (solid: band thresholds of eq. 3, dotted: "
                    "+/- epsilon) and switching mode j(k)", loc="left", fontsize=10)
     h1, l1 = ax_s.get_legend_handles_labels()
     h2, l2 = ax_m.get_legend_handles_labels()
     ax_s.legend(h1 + h2, l1 + l2, loc="upper left", fontsize=8, ncol=2)
-
-    if title:
-        fig.suptitle(title, fontsize=11)
-    return _save(plt, fig, path)
 
 
 def plot_solve_times(path: str | Path, rows: list[dict], replays: dict, sample: np.ndarray,

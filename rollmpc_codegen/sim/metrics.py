@@ -9,7 +9,11 @@ Definitions (also in docs/paper-reproduction.md):
   of its own step nor the controller's anticipation of the next one (with the preview
   the MPC starts to move up to N samples early).  The last segment's window runs to its
   end.  For the paper's scenario: 7 s to 9 s of each 10 s segment (7 s to 10 s for the
-  last).  It measures the steady-state offset, not the speed of the tail.
+  last).  It measures the steady-state offset, not the speed of the tail.  A segment
+  other than the last that is not longer than N/0.3 samples (:func:`preview_free`) has
+  no such window: its window falls back to its last 30 %, which contains the
+  anticipation, so its settled error is flagged (``settled_window_includes_preview``),
+  left out of ``max_settled_error`` and named in ``warnings``.
 * **Settled error**: max |y - r| over the settled window (in the output's unit: deg for
   the UAV; the config's optional ``units`` only labels it).
 * **Settling time**: time from the step after which |y - r| stays within 2 % of the
@@ -17,9 +21,15 @@ Definitions (also in docs/paper-reproduction.md):
 * **Overshoot**: how far y goes past the new reference, in the direction of the step,
   from the step up to the same anticipation cut-off (0 when it never goes past); in
   percent of the step size too.  For the first segment (no step) it is max |y - r|.
-* **Constraint violation**: a sample where an active actuator is outside its mode's
-  [u_min, u_max], an inactive actuator is not exactly 0, or an output is outside the
-  active mode's [y_min, y_max].  No tolerance: the C clamps exactly.
+* **Constraint violation** (hard): a sample where an active actuator is outside its
+  mode's [u_min, u_max], an inactive actuator is not exactly 0, or an output is outside a
+  *hard* bound of the active mode, by more than the solver's own acceptance,
+  ``feasibility_tol * max(1, |bound|)`` (the config's ``solver.feasibility_tol``: 1e-9
+  double, 1e-4 float; e.g. 4.5e-8 deg at a 45 deg bound in double).  Roundoff at a bound
+  is not a violation.
+* **Soft-bound excursion**: a sample where an output is beyond a *soft* bound by more
+  than that tolerance (``soft_bounds.samples_beyond``, largest ``max_beyond``), reported
+  beside the plans' slack (``samples_with_slack``, ``max_slack``), never as a violation.
 * **Total variation** of each actuator's command: sum over k of |u(k) - u(k-1)| (what
   Δu weighting, ``weights.R_delta``, reduces).
 """
@@ -54,6 +64,30 @@ def settled_window(start: int, end: int, last: bool, horizon: int) -> tuple[int,
     return lo, hi
 
 
+def preview_free(start: int, end: int, last: bool, horizon: int) -> bool:
+    """Does the settled window of this segment leave out the anticipation of the next step?"""
+    return last or settled_window(start, end, last, horizon)[1] <= end - horizon
+
+
+def shortest_preview_free_segment(horizon: int) -> int:
+    """Samples a segment other than the last needs for a preview-free settled window."""
+    return next(n for n in range(horizon, 4 * horizon + 10)
+                if preview_free(0, n, False, horizon))
+
+
+def short_segment_warnings(segments: list[dict], horizon: int, ts: float) -> list[str]:
+    """One line naming the segments whose settled error includes the preview, if any."""
+    short = [f"{s['t_start']:g}-{s['t_end']:g} s" for s in segments
+             if s["settled_window_includes_preview"]]
+    if not short:
+        return []
+    need = _time(shortest_preview_free_segment(horizon), ts)
+    return [f"segment{'s' if len(short) > 1 else ''} {', '.join(short)} shorter than the "
+            f"{need:g} s a settled window needs with N*Ts = {_time(horizon, ts):g} s of "
+            "preview: the settled error there includes the anticipation of the next step "
+            "and is left out of the max (lengthen simulation.reference.segment)"]
+
+
 def _segment_metrics(log: ClosedLoopLog, start: int, end: int, last: bool, horizon: int,
                      ts: float, outputs: tuple[str, ...]) -> dict:
     r_new = log.r[start]
@@ -78,6 +112,7 @@ def _segment_metrics(log: ClosedLoopLog, start: int, end: int, last: bool, horiz
         overs.append(over)
     seg = {"t_start": _time(start, ts), "t_end": _time(end, ts),
            "settled_window_s": [_time(lo, ts), _time(hi, ts)],
+           "settled_window_includes_preview": not preview_free(start, end, last, horizon),
            "reference": float(r_new[0]) if len(outputs) == 1 else r_new.tolist(),
            "step": float(r_new[0] - r_old[0]) if len(outputs) == 1 else (r_new - r_old).tolist(),
            "settled_error": float(err.max()),
@@ -91,23 +126,56 @@ def _segment_metrics(log: ClosedLoopLog, start: int, end: int, last: bool, horiz
     return seg
 
 
+def beyond(values: np.ndarray, lower: np.ndarray, upper: np.ndarray, tol: float) -> np.ndarray:
+    """How far each value lies outside [lower, upper] (0 inside), counted only where that
+    exceeds ``tol * max(1, |bound|)`` (the solver's acceptance of a row)."""
+    with np.errstate(invalid="ignore"):  # an infinite value at an absent bound: NaN, not beyond
+        low, high = lower - values, values - upper
+        low = np.where(low > tol * np.maximum(1.0, np.abs(lower)), low, 0.0)
+        high = np.where(high > tol * np.maximum(1.0, np.abs(upper)), high, 0.0)
+    return np.maximum(low, high)
+
+
+def _output_bounds(mode, soft: bool) -> tuple[np.ndarray, np.ndarray]:
+    """The mode's hard (``soft`` False) or soft output bounds; the others unbounded."""
+    is_soft = (np.zeros((len(mode.y_min), 2), bool) if mode.soft_l2 is None
+               else mode.soft_l2 > 0)
+    keep = is_soft if soft else ~is_soft
+    return (np.where(keep[:, 0], mode.y_min, -np.inf), np.where(keep[:, 1], mode.y_max, np.inf))
+
+
 def constraint_violations(cfg: ControllerConfig, log: ClosedLoopLog) -> dict:
-    """Counts of samples breaking an input or output constraint of the active mode."""
+    """Counts of samples breaking a hard input or output constraint of the active mode by
+    more than the solver's tolerance (module docstring)."""
     u_bad = inactive = y_bad = 0
+    tol = cfg.feasibility_tol
     for j, mode in enumerate(cfg.modes):
         rows = log.mode == j
         if not rows.any():
             continue
         acts = [cfg.actuators.index(a) for a in mode.actuators]
         u = log.u[rows][:, acts]
-        u_bad += int(np.any((u < mode.u_min) | (u > mode.u_max), axis=1).sum())
+        u_bad += int(np.any(beyond(u, mode.u_min, mode.u_max, tol) > 0, axis=1).sum())
         others = [a for a in range(len(cfg.actuators)) if a not in acts]
         if others:
             inactive += int(np.any(log.u[rows][:, others] != 0, axis=1).sum())
-        y = log.y[rows]
-        y_bad += int(np.any((y < mode.y_min) | (y > mode.y_max), axis=1).sum())
+        y_bad += int(np.any(beyond(log.y[rows], *_output_bounds(mode, False), tol) > 0,
+                            axis=1).sum())
     return {"u": u_bad, "inactive_actuator_nonzero": inactive, "y": y_bad,
             "total": u_bad + inactive + y_bad}
+
+
+def soft_bound_excursions(cfg: ControllerConfig, log: ClosedLoopLog) -> dict:
+    """Samples whose output is beyond a soft bound of the active mode by more than the
+    solver's tolerance, and the largest excursion (output units)."""
+    excess = np.zeros(len(log.t))
+    for j, mode in enumerate(cfg.modes):
+        rows = log.mode == j
+        if rows.any():
+            excess[rows] = beyond(log.y[rows], *_output_bounds(mode, True),
+                                  cfg.feasibility_tol).max(axis=1)
+    return {"samples_beyond": int(np.count_nonzero(excess)),
+            "max_beyond": float(excess.max()) if excess.size else 0.0}
 
 
 def _stats(values: np.ndarray) -> dict:
@@ -136,13 +204,15 @@ def summarize(cfg: ControllerConfig, log: ClosedLoopLog) -> dict:
                          "solve_us": _stats(log.solve_us[rows])}
     soft = (None if log.slack_max is None else  # soft output bounds: slacks of the plans
             {"samples_with_slack": int(np.count_nonzero(log.slack_max > 0)),
-             "max_slack": float(log.slack_max.max())})
+             "max_slack": float(log.slack_max.max()), **soft_bound_excursions(cfg, log)})
+    clean = [s["settled_error"] for s in segments if not s["settled_window_includes_preview"]]
     return {
         "soft_bounds": soft,
         "samples": int(len(log.t)),
         "duration_s": float(len(log.t) * ts),
         "segments": segments,
-        "max_settled_error": max(s["settled_error"] for s in segments),
+        "max_settled_error": max(clean, default=None),
+        "warnings": short_segment_warnings(segments, N, ts),
         "max_overshoot": max(s["overshoot"] for s in segments),
         "switches": int(switch_k.size),
         "switch_times_s": [_time(k, ts) for k in switch_k],
@@ -152,6 +222,7 @@ def summarize(cfg: ControllerConfig, log: ClosedLoopLog) -> dict:
         "units": {"outputs": list(cfg.units.outputs), "actuators": list(cfg.units.actuators),
                   "schedule": cfg.units.schedule},
         "constraint_violations": constraint_violations(cfg, log),
+        "violation_tolerance": cfg.feasibility_tol,
         "non_optimal": int(np.count_nonzero(log.status != OPTIMAL)),
         "status_counts": statuses,
         "max_iterations": int(log.iterations.max()) if len(log.t) else 0,
