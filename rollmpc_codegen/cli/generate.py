@@ -6,10 +6,12 @@ its ``target:`` section (qp/footprint.py); ``--force-size`` generates it anyway.
 flag of its own, not ``--force``: that one lets rollmpc write into a directory it did not
 write, a data-safety rule, and a user who asks for a large design must not waive it by
 the same word (nor waive the size check by forcing a directory).  The prediction is
-printed on stdout, before the maths when the maths is slow.
+printed on stdout, before the maths when the maths is slow; design warnings (hard output
+bounds no input can meet from rest, qp/feasibility.py) go to stderr and leave exit 0.
 """
 from __future__ import annotations
 
+import sys
 from pathlib import Path
 
 from .options import add_force, add_precision
@@ -40,6 +42,7 @@ def _print_footprint(footprint) -> None:
 
 def run(args) -> int:
     from ..pipeline import generate
+    from ..qp.feasibility import rest_warnings
 
     predicted = []
 
@@ -50,9 +53,12 @@ def run(args) -> int:
 
     # `-o ''` reaches the writer, which refuses it (it is not the default directory)
     out = args.output if args.output is not None else default_out_dir(args.config, args.precision)
-    _, ctx = generate(args.config, out, args.precision, args.force, args.force_size, announce)
+    model, ctx = generate(args.config, out, args.precision, args.force, args.force_size,
+                          announce)
     if not predicted[0].slow:
         _print_footprint(predicted[0])
     sizes = ", ".join(f"{m['name']}: n={m['n']} m={m['m']}" for m in ctx["modes"])
     print(f"rollmpc: wrote {out}/ ({ctx['precision']}; {sizes})")
+    for warning in rest_warnings(model):
+        print(f"rollmpc: warning: {warning}", file=sys.stderr)
     return 0
