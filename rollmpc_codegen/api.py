@@ -209,13 +209,19 @@ class Design:
         return self._built[cfg.precision]
 
     def generate(self, out_dir: str | Path, precision: str | None = None,
-                 force: bool = False) -> Path:
+                 force: bool = False, force_size: bool = False) -> Path:
         """Write the generated C into ``out_dir`` (the files of ``rollmpc generate``, and
-        its rules: only rollmpc's own files are replaced; ``force`` as ``--force``)."""
+        its rules: only rollmpc's own files are replaced; ``force`` as ``--force``; a
+        design beyond its target is refused before the maths unless ``force_size``, as
+        ``--force-size``)."""
         from .codegen.output import check_output_dir, write_output
         from .codegen.render import render_sources
+        from .qp.footprint import check_fits, predict
 
         check_output_dir(out_dir, force)
+        cfg = self._config(precision)
+        if not force_size:
+            check_fits(cfg, predict(cfg))
         write_output(render_sources(self.build(precision)[1]), out_dir, force)
         return Path(out_dir)
 

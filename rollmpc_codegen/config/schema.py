@@ -236,10 +236,19 @@ class UnitsConfig:
         return f" [{found.pop()}]" if len(found) == 1 and NO_UNIT not in found else ""
 
 
+# What `rollmpc generate` refuses (unless --force-size) when the target: section leaves
+# flash_kib / ram_kib out (qp/footprint.py): the largest autopilot part `rollmpc report
+# --horizons` knows (target/horizons.py PARTS: 2 MiB of flash, a 512 KiB RAM region).
+DEFAULT_FLASH_LIMIT_KIB = 2048
+DEFAULT_RAM_LIMIT_KIB = 512
+
+
 @dataclass(frozen=True)
 class TargetConfig:
-    """The microcontroller ``rollmpc report`` judges the design on (the top-level
-    ``target`` key); the generated C never sees it.  ``None``: no verdict on that figure."""
+    """The microcontroller ``rollmpc report`` judges the design on and ``rollmpc
+    generate`` checks its predicted size against (the top-level ``target`` key); the
+    generated C never sees it.  ``None``: no verdict on that figure in the report, the
+    DEFAULT_*_LIMIT_KIB above at generation."""
 
     cpu_mhz: float = DEFAULT_CPU_MHZ  # core clock: a sample has cpu_mhz * 1e6 * Ts cycles
     flash_kib: float | None = None  # flash the image must fit (KiB)
@@ -292,6 +301,11 @@ class ControllerConfig:
     @property
     def n_schedule(self) -> int:
         return 0 if self.scheduler is None else 1
+
+    @property
+    def cycles_per_sample(self) -> int:
+        """The cycle budget of one step: one sample time at ``target.cpu_mhz``."""
+        return int(round(self.target.cpu_mhz * 1e6 * self.sample_time))
 
 
 

@@ -82,6 +82,8 @@ def augment(plant: DiscretePlant, kind: str, key: str) -> DiscretePlant:
         input_target=np.hstack([np.zeros((nu, nx)), Mu]))
 
 
-def prediction_model(mode, Ts: float, key: str) -> DiscretePlant:
-    """The mode's discrete plant (plant.discretise), augmented by its disturbance model."""
-    return augment(discretise(mode, Ts, key), mode.disturbance, key)
+def prediction_model(mode, Ts: float, key: str,
+                     outputs: tuple[str, ...] | None = None) -> DiscretePlant:
+    """The mode's discrete plant (plant.discretise, whose errors name ``outputs``),
+    augmented by its disturbance model."""
+    return augment(discretise(mode, Ts, key, outputs), mode.disturbance, key)

@@ -22,6 +22,7 @@ import control
 import numpy as np
 
 from ..config import ConfigError, ModeConfig
+from .pbh import defect_text, more_text, pbh_defects, state_names
 from .plant import DiscretePlant
 
 DEFAULT_POLE_RANGE = (0.80, 0.90)
@@ -68,24 +69,16 @@ def process_noise(plant: DiscretePlant, mode: ModeConfig) -> np.ndarray:
     return 0.5 * (Qx + Qx.T)
 
 
-def _undetectable(A: np.ndarray, C: np.ndarray) -> bool:
-    """PBH: is some eigenvalue on or outside the unit circle unobservable?"""
-    n = A.shape[0]
-    scale = max(1.0, np.abs(A).max(), np.abs(C).max())
-    for lam in np.linalg.eigvals(A):
-        if abs(lam) < 1.0 - 1e-9:
-            continue
-        s = np.linalg.svd(np.vstack([A - lam * np.eye(n), C]), compute_uv=False)
-        if s[-1] <= 1e-9 * scale:
-            return True
-    return False
-
-
 def kalman_gain(plant: DiscretePlant, mode: ModeConfig, key: str):
     """Predictor-form steady-state Kalman gain and the observer poles eig(A - L C)."""
     okey = f"{key}.observer"
-    if _undetectable(plant.A, plant.C):
-        raise ConfigError(okey, "(A, C) is not detectable: no Kalman filter converges")
+    # PBH on |z| >= 1 only: a stable mode no output sees needs no correction
+    undetectable = pbh_defects(plant.A, plant.C, inputs=False, only_unstable=True)
+    if undetectable:
+        names = state_names(mode, plant.nx, plant.nd, plant.n_prev)
+        raise ConfigError(okey, "(A, C) is not detectable: no Kalman filter converges: "
+                          f"{defect_text(undetectable[0], names, None, False)} does not reach any "
+                          f"output{more_text(undetectable)}")
     Qx = process_noise(plant, mode)
     try:
         L, _, poles = control.dlqe(plant.A, np.eye(plant.nx), plant.C, Qx, mode.observer_Rn)

@@ -16,6 +16,7 @@ import numpy as np
 import scipy.linalg
 
 from . import tf_realisation
+from .pbh import RANK_TOL, Defect, defect_text, more_text, pbh_defects, state_names
 from ..config import ConfigError, ModeConfig, PlantConfig
 
 
@@ -120,20 +121,36 @@ def zoh(cont: ContinuousPlant, Ts: float) -> DiscretePlant:
                          Cr=cont.Cr, Dr=cont.Dr)
 
 
-def _pbh_rank_deficient(A: np.ndarray, X: np.ndarray, left: bool) -> bool:
-    """PBH test: is some eigenvalue of A uncontrollable (X=B) / unobservable (X=C)?"""
-    n = A.shape[0]
-    scale = max(1.0, np.abs(A).max(), np.abs(X).max())
-    for lam in np.linalg.eigvals(A):
-        M = np.hstack([A - lam * np.eye(n), X]) if left else np.vstack([A - lam * np.eye(n), X])
-        s = np.linalg.svd(M, compute_uv=False)
-        if s[n - 1] <= 1e-9 * scale:
-            return True
-    return False
+def _remedy(mode: ModeConfig, defect: Defect, inputs: bool) -> str:
+    """What the user can change, in the terms of the plant they wrote."""
+    if mode.plant.kind != "state_space":  # the generator's states: a cancelled pole
+        if mode.plant.integrator and abs(defect.eigenvalue - 1.0) <= RANK_TOL:
+            return ("cancels a zero of G(s) at s = 0: remove the factor s from num, or set "
+                    "integrator: false")
+        return "cancels a zero of the transfer function: remove the common factor from num and den"
+    if inputs:
+        return (f"is not moved by any of the mode's actuators ({', '.join(mode.actuators)}); "
+                "drop it or actuate it (B)")
+    return "does not reach any output; drop it or measure it (C)"
 
 
-def discretise(mode: ModeConfig, Ts: float, key: str) -> DiscretePlant:
-    """The mode's discrete model for prediction, checked for controllability/observability."""
+def _check_pbh(disc: DiscretePlant, mode: ModeConfig, key: str, sample_time: float | None,
+               outputs: tuple[str, ...] | None) -> None:
+    """Controllability, then observability (PBH per eigenvalue, model/pbh.py): the first
+    eigenvalue that fails, its direction and the remedy, as one line."""
+    names = state_names(mode, disc.nx, 0, 0, outputs)
+    for inputs, X, prop in ((True, disc.B, "controllable"), (False, disc.C, "observable")):
+        defects = pbh_defects(disc.A, X, inputs)
+        if defects:
+            raise ConfigError(f"{key}.plant", f"the discrete model of mode {mode.name!r} is "
+                              f"not {prop}: {defect_text(defects[0], names, sample_time, inputs)} "
+                              f"{_remedy(mode, defects[0], inputs)}{more_text(defects)}")
+
+
+def discretise(mode: ModeConfig, Ts: float, key: str,
+               outputs: tuple[str, ...] | None = None) -> DiscretePlant:
+    """The mode's discrete model for prediction, checked for controllability/observability
+    (``outputs``: the output names its errors use)."""
     plant = mode.plant
     if plant.kind == "state_space" and plant.discrete:
         disc = DiscretePlant(A=plant.A, B=plant.B, C=plant.C, Cr=None, Dr=None)
@@ -141,8 +158,5 @@ def discretise(mode: ModeConfig, Ts: float, key: str) -> DiscretePlant:
         disc = zoh(continuous_realisation(plant, key), Ts)
     if not np.all(np.isfinite(disc.A)) or not np.all(np.isfinite(disc.B)):
         raise ConfigError(f"{key}.plant", "sampling produced non-finite matrices")
-    if _pbh_rank_deficient(disc.A, disc.B, left=True):
-        raise ConfigError(f"{key}.plant", "the discrete model is not controllable")
-    if _pbh_rank_deficient(disc.A, disc.C, left=False):
-        raise ConfigError(f"{key}.plant", "the discrete model is not observable")
+    _check_pbh(disc, mode, key, None if plant.discrete else Ts, outputs)
     return disc

@@ -138,8 +138,14 @@ def _block_diag(block: np.ndarray, count: int, last: np.ndarray | None = None) -
     return out
 
 
-def condense(plant: DiscretePlant, mode: ModeConfig, N: int, key: str) -> CondensedQP:
-    """Build the condensed QP of one mode; ``key`` (e.g. ``modes[0]``) names it in errors."""
+def _overflow(key: str, N: int) -> ConfigError:
+    return ConfigError(f"{key}.plant", f"its predictions overflow double over the horizon "
+                       f"(N = {N}): the plant grows too fast for this horizon")
+
+
+def predictions(plant: DiscretePlant, N: int, key: str) -> tuple[np.ndarray, np.ndarray]:
+    """(Phi, the Markov parameters C A^i B, i < N) of eq. (4): O(N nx^3), so the pipeline
+    checks them for overflow before the size verdict and the dense maths."""
     A, B, C = plant.A, plant.B, plant.C
     nx, nu, ny = plant.nx, plant.nu, plant.ny
     Phi = np.zeros((N * ny, nx))
@@ -149,6 +155,15 @@ def condense(plant: DiscretePlant, mode: ModeConfig, N: int, key: str) -> Conden
         markov[i] = C @ Ak @ B  # C A^i B
         Ak = Ak @ A
         Phi[i * ny:(i + 1) * ny] = C @ Ak  # C A^{i+1}
+    if not (np.all(np.isfinite(Phi)) and np.all(np.isfinite(markov))):  # an unstable plant
+        raise _overflow(key, N)
+    return Phi, markov
+
+
+def condense(plant: DiscretePlant, mode: ModeConfig, N: int, key: str) -> CondensedQP:
+    """Build the condensed QP of one mode; ``key`` (e.g. ``modes[0]``) names it in errors."""
+    nx, nu, ny = plant.nx, plant.nu, plant.ny
+    Phi, markov = predictions(plant, N, key)
     Gamma = np.zeros((N * ny, N * nu))
     for i in range(N):  # output step i+1
         for k in range(i + 1):  # input step k
@@ -168,9 +183,8 @@ def condense(plant: DiscretePlant, mode: ModeConfig, N: int, key: str) -> Conden
         Tb = move_blocking.expansion(mode.blocks, nu)
         Gamma, Psi = Gamma @ Tb, Tb.T @ Psi @ Tb
         Gx = None if Gx is None else Tb.T @ Gx
-    if not (np.all(np.isfinite(Phi)) and np.all(np.isfinite(Gamma))):  # an unstable plant
-        raise ConfigError(f"{key}.plant", f"its predictions overflow double over the horizon "
-                          f"(N = {N}): the plant grows too fast for this horizon")
+    if not np.all(np.isfinite(Gamma)):  # the blocks' sums of finite Markov parameters
+        raise _overflow(key, N)
     E = 2.0 * (Psi + Gamma.T @ Omega @ Gamma)
     E = 0.5 * (E + E.T)
     if not np.all(np.isfinite(E)):  # before eigvalsh, which fails on inf

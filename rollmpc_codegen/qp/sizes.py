@@ -86,17 +86,25 @@ def features_of(cfg: ControllerConfig) -> dict:
             "has_soft_rows": any(m.soft_l2 is not None for m in cfg.modes)}
 
 
-def stored_bytes(cfg: ControllerConfig, sizes: tuple[ModeSizes, ...]) -> int:
-    """Bytes of every mode's stored arrays (the generated data, in flash)."""
-    real = 4 if cfg.precision == "float" else 8
+def real_bytes(precision: str) -> int:
+    return 4 if precision == "float" else 8
+
+
+def stored_bytes(cfg: ControllerConfig, sizes: tuple[ModeSizes, ...],
+                 precision: str | None = None) -> int:
+    """Bytes of every mode's stored arrays (the generated data, in flash), in ``precision``
+    (default: the config's)."""
+    real = real_bytes(precision or cfg.precision)
     _, arrays = declared_for(features_of(cfg))
     return sum(prod(a.shape(s)) * (real if a.ctype == REAL else C_TYPE_BYTES[a.ctype])
                for s in sizes for a in arrays if a.exists_in(s))
 
 
-def struct_bytes(cfg: ControllerConfig, sizes: tuple[ModeSizes, ...]) -> int:
-    """Bytes of the arrays of one P_ctrl instance (api.h.j2), a lower bound of its size."""
-    real = 4 if cfg.precision == "float" else 8
+def struct_bytes(cfg: ControllerConfig, sizes: tuple[ModeSizes, ...],
+                 precision: str | None = None) -> int:
+    """Bytes of the arrays of one P_ctrl instance (api.h.j2), a lower bound of its size,
+    in ``precision`` (default: the config's)."""
+    real = real_bytes(precision or cfg.precision)
     top = {name: max(getattr(s, name) for s in sizes)
            for name in ("nx", "nu", "n", "m", "n_yq", "w_cap")}
     nx, n, m, nyq, w = top["nx"], top["n"], top["m"], top["n_yq"], top["w_cap"]
@@ -140,7 +148,11 @@ def check_sizes(cfg: ControllerConfig) -> None:
                               ("controller instance", struct_bytes(cfg, sizes),
                                MAX_STRUCT_BYTES)):
         if size > limit:
-            worst = max(range(len(sizes)), key=lambda i: sizes[i].n * sizes[i].m)
             raise ConfigError("horizon", f"too long: the {what} would take {size:,} bytes "
-                              f"(modes[{worst}]: n = {sizes[worst].n} variables, m = "
-                              f"{sizes[worst].m} rows); at most {limit:,} supported")
+                              f"({largest_mode(sizes)}); at most {limit:,} supported")
+
+
+def largest_mode(sizes: tuple[ModeSizes, ...]) -> str:
+    """``modes[j]: n = .. variables, m = .. rows`` of the mode with the largest QP."""
+    j = max(range(len(sizes)), key=lambda i: sizes[i].n * sizes[i].m)
+    return f"modes[{j}]: n = {sizes[j].n} variables, m = {sizes[j].m} rows"

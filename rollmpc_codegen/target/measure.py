@@ -35,7 +35,7 @@ def _top_functions(counts, limit: int = 16) -> list[dict]:
 
 def budget_verdict(cfg, worst_cycles: int) -> dict:
     """The worst step against one sample time at the config's ``target.cpu_mhz``."""
-    budget = int(round(cfg.target.cpu_mhz * 1e6 * cfg.sample_time))
+    budget = cfg.cycles_per_sample
     return {"cpu_mhz": cfg.target.cpu_mhz, "sample_time": cfg.sample_time,
             "cycles_per_sample": budget, "worst_fits": bool(worst_cycles <= budget),
             "worst_load_percent": round(100.0 * worst_cycles / budget, 1)}
