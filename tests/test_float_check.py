@@ -5,6 +5,7 @@ check that cannot make generation fail."""
 from __future__ import annotations
 
 import re
+from pathlib import Path
 
 import numpy as np
 
@@ -13,6 +14,7 @@ from rollmpc_codegen.host.build import build_host_controller
 from rollmpc_codegen.host.float_check import (FLOAT_ERROR_LIMIT, check_float, double_twin,
                                               floor_context)
 from rollmpc_codegen.pipeline import load_model, load_model_from_config
+from rollmpc_codegen.qp.work import UNBOUNDED_WORK
 from rollmpc_codegen.status import OPTIMAL
 from rollmpc_codegen.verify.float_floor import stored_data_floor
 
@@ -54,6 +56,7 @@ modes:
 simulation:
   reference: {segment: 3.0, levels: [0, 30, -30, 60, 0]}
 """
+CHAIN_SOFT = Path(__file__).resolve().parents[1] / "examples" / "chain_soft.yaml"
 FIGURE = re.compile(r"float plans within (\S+) of double \(first moves (\S+)\), stored-data "
                     r"floor (\S+),.* (\d+) of 48 not OPTIMAL in float")
 
@@ -68,12 +71,14 @@ def _generate(tmp_path, capsys, text: str, *extra: str):
 
 
 def test_float_check_warns_on_a_design_float_does_not_serve(tmp_path, capsys):
-    code, out, cap = _generate(tmp_path, capsys, TWIN)
-    assert code == 0 and (out / "twin_data.c").is_file()  # warned, not refused
+    # the TWIN design warned (0.033) until the dual active set kept its factor by updates
+    # (1.7e-5 since); chain_soft's soft rows still leave float 4.5e-3 off double
+    code, out, cap = _generate(tmp_path, capsys, CHAIN_SOFT.read_text())
+    assert code == 0 and (out / "chain_soft_data.c").is_file()  # warned, not refused
     line = next(ln for ln in cap.out.splitlines() if "float check" in ln)
     assert "(40 scenario + 8 perturbed QPs, " in line
     error, first, floor, not_optimal = FIGURE.search(line).groups()
-    assert float(error) > 10 * FLOAT_ERROR_LIMIT  # measured 0.033
+    assert float(error) > 2 * FLOAT_ERROR_LIMIT  # measured 4.5e-3
     assert float(floor) < FLOAT_ERROR_LIMIT  # the data are fine: float arithmetic is not
     assert float(first) <= float(error)
     warning = cap.err.strip()
@@ -112,7 +117,8 @@ def test_floor_build_is_the_stored_data_floor(tmp_path):
     """The floor build (double C on the float-stored numbers) solves as
     float_floor.stored_data_floor's reference does, bit for bit, on a constrained QP."""
     cfg = tmp_path / "twin.yaml"
-    cfg.write_text(TWIN)
+    # a cold solve from far outside the bound needs more than the default work budget
+    cfg.write_text(TWIN + f"solver: {{work_budget: {UNBOUNDED_WORK}}}\n")
     model, _ = load_model(cfg, "float")
     double_model, double_ctx = load_model_from_config(double_twin(model.config))
     floor_c = build_host_controller(floor_context(double_model, model), tmp_path / "b")

@@ -167,7 +167,9 @@ TOO_LARGE = [
 def test_generate_prints_the_prediction(tmp_path, capsys):
     rc, out, err, directory = run(tmp_path, capsys, ship(precision="float"))
     assert (rc, err) == (0, "")
-    assert out == f"{PREDICTION}\nrollmpc: wrote {directory}/ (float; cruise: n=50 m=200)\n"
+    lines = out.splitlines()  # then the float check's line (tests/test_float_check.py)
+    assert lines[:2] == [PREDICTION, f"rollmpc: wrote {directory}/ (float; cruise: n=50 m=200)"]
+    assert len(lines) == 3 and lines[2].startswith("rollmpc: float check (")
 
 
 def test_a_double_build_is_judged_as_its_float_build_and_shows_its_own_size(tmp_path, capsys):
