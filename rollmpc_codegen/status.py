@@ -49,11 +49,19 @@ class Status(IntEnum):
     BOUND_NOT_CONFIGURED = (8, "bound not in the config (no constraint rows); nothing changed",
                             "`P_set_bounds` only: a finite value for an output bound the config "
                             "left infinite (no rows)", "nothing changed", True)
+    # code 9 is reserved for the solver's work budget (TIME_LIMIT); the
+    # observer's plausibility check (docs/features.md, "Measurement plausibility") reports
+    # only when the solve was OPTIMAL: any solver status above wins
+    MEASUREMENT_CLIPPED = (10, "optimal; an implausible measurement was clipped",
+                           "the solve was optimal, and an innovation y − C x̂ of this sample was "
+                           "beyond ±`observer.innovation_limit` and was clipped to it "
+                           "(`P_last_info()->clipped` counts the clips whatever the status)",
+                           "the solution (this sample's y enters only the next one)")
 
 
 # the codes as module names, for the reference's and the tests' comparisons
 (OPTIMAL, MAX_ITER, INACCURATE, INFEASIBLE, NONFINITE_INPUT, NUMERICAL, BAD_ARGUMENT, BAD_BOUNDS,
- BOUND_NOT_CONFIGURED) = Status
+ BOUND_NOT_CONFIGURED, MEASUREMENT_CLIPPED) = Status
 
 # every build's codes (the runtime_bounds ones exist only in a runtime build) -> short name
 STATUS_NAMES = {s: s.name.lower() for s in Status if not s.runtime_bounds_only}

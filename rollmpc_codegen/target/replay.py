@@ -29,7 +29,8 @@ from ..sim.simulate import run_closed_loop, start_phase
 from .emulate import CortexM4
 
 # the diagnostics compared per step, in the order of the harness' {prefix}_target_info
-INFO_FIELDS = ("status", "mode", "iterations", "polish_iterations", "active", "mode_switches")
+INFO_FIELDS = ("status", "mode", "iterations", "polish_iterations", "active", "mode_switches",
+               "clipped")
 
 
 @dataclass
