@@ -81,8 +81,8 @@ def _mode_model(cfg: ControllerConfig, mode: ModeConfig, key: str,
     qp = condense(plant, mode, cfg.horizon, key)
     L, poles = input_rate.observer_gain(plant, mode, key)
     act_index = [cfg.actuators.index(a) for a in mode.actuators]
-    data = mode_data(mode.name, act_index, plant, L, qp, mode.u_min, mode.u_max,
-                     cfg.precision, mode.soft_l1, mode.soft_l2)
+    data = mode_data(mode.name, act_index, plant, L, mode.innovation_limit, qp, mode.u_min,
+                     mode.u_max, cfg.precision, mode.soft_l1, mode.soft_l2)
     for array in STORED_ARRAYS:
         value = getattr(data, array.name)
         if array.ctype == REAL and value is not None and not np.all(np.isfinite(value)):

@@ -55,11 +55,18 @@ class Status(IntEnum):
                   "KKT conditions held; the next sample continues from the working set it "
                   "reached", "the last point of the dual active set (or of the sweeps), else "
                   "the unconstrained optimum, clamped")
+    # the observer's plausibility check (docs/features.md, "Measurement plausibility")
+    # reports only when the solve was OPTIMAL: any solver status above wins
+    MEASUREMENT_CLIPPED = (10, "optimal; an implausible measurement was clipped",
+                           "the solve was optimal, and an innovation y − C x̂ of this sample was "
+                           "beyond ±`observer.innovation_limit` and was clipped to it "
+                           "(`P_last_info()->clipped` counts the clips whatever the status)",
+                           "the solution (this sample's y enters only the next one)")
 
 
 # the codes as module names, for the reference's and the tests' comparisons
 (OPTIMAL, MAX_ITER, INACCURATE, INFEASIBLE, NONFINITE_INPUT, NUMERICAL, BAD_ARGUMENT, BAD_BOUNDS,
- BOUND_NOT_CONFIGURED, TIME_LIMIT) = Status
+ BOUND_NOT_CONFIGURED, TIME_LIMIT, MEASUREMENT_CLIPPED) = Status
 
 # every build's codes (the runtime_bounds ones exist only in a runtime build) -> short name
 STATUS_NAMES = {s: s.name.lower() for s in Status if not s.runtime_bounds_only}

@@ -57,7 +57,8 @@ def test_readme_table_is_the_declaration():
 def test_names_and_messages():
     assert all(getattr(status, s.name) is s for s in Status)
     assert STATUS_NAMES == {s: s.name.lower() for s in Status
-                            if s <= Status.BAD_ARGUMENT or s == Status.TIME_LIMIT}
+                            if s <= Status.BAD_ARGUMENT or s in (Status.TIME_LIMIT,
+                                                                 Status.MEASUREMENT_CLIPPED)}
     messages = [s.message for s in Status] + [UNKNOWN_MESSAGE]
     assert len(set(messages)) == len(messages)
     assert not any('"' in m or "\\" in m for m in messages)  # plain C string literals

@@ -24,6 +24,7 @@ typedef struct {
     const c172p_roll_real *B;           /**< [nx][nu] discrete input matrix. */
     const c172p_roll_real *C;           /**< [ny][nx] output matrix. */
     const c172p_roll_real *L;           /**< [nx][ny] observer gain. */
+    const c172p_roll_real *innovation_limit;/**< [ny] observer innovation y - C xhat clipped to +-this (the largest finite number: clip off). */
     const c172p_roll_real *Kx;          /**< [n][nx] unconstrained state gain. */
     const c172p_roll_real *EinvGt;      /**< [n][nyq] E^-1 Gamma'. */
     const c172p_roll_real *Sinv_p;      /**< [n(n+1)/2] packed S^-1. */

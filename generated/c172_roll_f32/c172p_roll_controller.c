@@ -65,17 +65,35 @@ static int all_finite(const c172p_roll_real *v, int n)
     return 1;
 }
 
-/* One observer update; use_y = 0 propagates open loop (no valid measurement). */
-static void observe(c172p_roll_work *ws, const c172p_roll_mode_data *md, c172p_roll_real *x,
+/*
+ * One observer update; use_y = 0 propagates open loop (no valid measurement). Each
+ * innovation y - C xhat is clipped to +-innovation_limit, so that a spike moves the
+ * estimate by a bounded step while a real large change is still followed, slewed.
+ * Returns how many innovations were clipped.
+ */
+static int observe(c172p_roll_work *ws, const c172p_roll_mode_data *md, c172p_roll_real *x,
     const c172p_roll_real *y, const c172p_roll_real *u_phys, int use_y)
 {
     int i, l, a;
+    int clipped = 0;
     for (a = 0; a < md->ny; ++a) {
         c172p_roll_real acc = R_(0.0);
         for (l = 0; l < md->nx; ++l) {
             acc += md->C[a * md->nx + l] * x[l];
         }
-        ws->innov[a] = use_y ? y[a] - acc : R_(0.0);
+        ws->innov[a] = R_(0.0);
+        if (use_y) {
+            const c172p_roll_real limit = md->innovation_limit[a];
+            ws->innov[a] = y[a] - acc;
+            if (ws->innov[a] > limit) {
+                ws->innov[a] = limit;
+                ++clipped;
+            }
+            if (ws->innov[a] < -limit) { /* limit > 0: never both */
+                ws->innov[a] = -limit;
+                ++clipped;
+            }
+        }
     }
     for (i = 0; i < md->nx; ++i) {
         c172p_roll_real acc = R_(0.0);
@@ -95,6 +113,7 @@ static void observe(c172p_roll_work *ws, const c172p_roll_mode_data *md, c172p_r
     for (i = 0; i < md->nx; ++i) {
         x[i] = ws->xn[i];
     }
+    return clipped;
 }
 
 size_t c172p_roll_ctrl_size(void)
@@ -129,6 +148,7 @@ void c172p_roll_init(c172p_roll_ctrl *c)
     c->info.polish_iterations = 0;
     c->info.active = 0;
     c->info.mode_switches = 0;
+    c->info.clipped = 0;
     c->info.solve_ticks = 0u;
     c->info.work = 0u;
 }
@@ -164,6 +184,7 @@ int c172p_roll_step(c172p_roll_ctrl *c, const c172p_roll_real *y, const c172p_ro
     const c172p_roll_real *r, c172p_roll_real *u)
 {
     int j, i, status, inputs_ok;
+    int clipped = 0;
     const c172p_roll_mode_data *md;
     if (c == 0 || u == 0) {
         return C172P_ROLL_BAD_ARGUMENT;
@@ -182,11 +203,12 @@ int c172p_roll_step(c172p_roll_ctrl *c, const c172p_roll_real *y, const c172p_ro
             u[i] = c->u_last[i];
         }
         for (j = 0; j < C172P_ROLL_N_MODES; ++j) {
-            observe(&c->work, &c172p_roll_modes[j], c->xhat[j], y, u, 0);
+            (void)observe(&c->work, &c172p_roll_modes[j], c->xhat[j], y, u, 0);
         }
         c->info.status = C172P_ROLL_NONFINITE_INPUT;
         c->info.iterations = 0;
         c->info.work = 0u;
+        c->info.clipped = 0;
         return C172P_ROLL_NONFINITE_INPUT;
     }
     follow_schedule(c, sched);
@@ -199,10 +221,15 @@ int c172p_roll_step(c172p_roll_ctrl *c, const c172p_roll_real *y, const c172p_ro
         u[md->actuator_index[i]] = c->U[i];
     }
     for (j = 0; j < C172P_ROLL_N_MODES; ++j) {
-        observe(&c->work, &c172p_roll_modes[j], c->xhat[j], y, u, 1);
+        clipped += observe(&c->work, &c172p_roll_modes[j], c->xhat[j], y, u, 1);
     }
     for (i = 0; i < C172P_ROLL_N_ACTUATORS; ++i) {
         c->u_last[i] = u[i];
+    }
+    c->info.clipped = clipped;
+    if (status == C172P_ROLL_OPTIMAL && clipped > 0) {
+        status = C172P_ROLL_MEASUREMENT_CLIPPED; /* a solver status wins over the report */
+        c->info.status = status;
     }
     return status;
 }
@@ -211,6 +238,7 @@ int c172p_roll_observe(c172p_roll_ctrl *c, const c172p_roll_real *y,
     const c172p_roll_real *sched, const c172p_roll_real *u_applied)
 {
     int j, use_y;
+    int clipped = 0;
     if (c == 0 || y == 0 || u_applied == 0 || (C172P_ROLL_N_SCHEDULE != 0 && sched == 0)) {
         return C172P_ROLL_BAD_ARGUMENT;
     }
@@ -222,9 +250,12 @@ int c172p_roll_observe(c172p_roll_ctrl *c, const c172p_roll_real *y,
         follow_schedule(c, sched);
     }
     for (j = 0; j < C172P_ROLL_N_MODES; ++j) {
-        observe(&c->work, &c172p_roll_modes[j], c->xhat[j], y, u_applied, use_y);
+        clipped += observe(&c->work, &c172p_roll_modes[j], c->xhat[j], y, u_applied, use_y);
     }
-    return use_y ? C172P_ROLL_OPTIMAL : C172P_ROLL_NONFINITE_INPUT;
+    if (!use_y) {
+        return C172P_ROLL_NONFINITE_INPUT;
+    }
+    return (clipped > 0) ? C172P_ROLL_MEASUREMENT_CLIPPED : C172P_ROLL_OPTIMAL;
 }
 
 int c172p_roll_solve_qp(c172p_roll_ctrl *c, int mode, const c172p_roll_real *x,
@@ -269,6 +300,7 @@ const char *c172p_roll_status_message(int status)
     case C172P_ROLL_NUMERICAL: return "non-finite intermediate result; safe fallback";
     case C172P_ROLL_BAD_ARGUMENT: return "bad argument";
     case C172P_ROLL_TIME_LIMIT: return "work budget reached; best command so far";
+    case C172P_ROLL_MEASUREMENT_CLIPPED: return "optimal; an implausible measurement was clipped";
     default: return "unknown status";
     }
 }

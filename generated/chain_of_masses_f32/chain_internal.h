@@ -24,6 +24,7 @@ typedef struct {
     const chain_real *B;                /**< [nx][nu] discrete input matrix. */
     const chain_real *C;                /**< [ny][nx] output matrix. */
     const chain_real *L;                /**< [nx][ny] observer gain. */
+    const chain_real *innovation_limit; /**< [ny] observer innovation y - C xhat clipped to +-this (the largest finite number: clip off). */
     const chain_real *Kx;               /**< [n][nx] unconstrained state gain. */
     const chain_real *EinvGt;           /**< [n][nyq] E^-1 Gamma'. */
     const chain_real *Sinv_p;           /**< [n(n+1)/2] packed S^-1. */

@@ -32,17 +32,35 @@ static int all_finite(const chain_rb_real *v, int n)
     return 1;
 }
 
-/* One observer update; use_y = 0 propagates open loop (no valid measurement). */
-static void observe(chain_rb_work *ws, const chain_rb_mode_data *md, chain_rb_real *x,
+/*
+ * One observer update; use_y = 0 propagates open loop (no valid measurement). Each
+ * innovation y - C xhat is clipped to +-innovation_limit, so that a spike moves the
+ * estimate by a bounded step while a real large change is still followed, slewed.
+ * Returns how many innovations were clipped.
+ */
+static int observe(chain_rb_work *ws, const chain_rb_mode_data *md, chain_rb_real *x,
     const chain_rb_real *y, const chain_rb_real *u_phys, int use_y)
 {
     int i, l, a;
+    int clipped = 0;
     for (a = 0; a < md->ny; ++a) {
         chain_rb_real acc = R_(0.0);
         for (l = 0; l < md->nx; ++l) {
             acc += md->C[a * md->nx + l] * x[l];
         }
-        ws->innov[a] = use_y ? y[a] - acc : R_(0.0);
+        ws->innov[a] = R_(0.0);
+        if (use_y) {
+            const chain_rb_real limit = md->innovation_limit[a];
+            ws->innov[a] = y[a] - acc;
+            if (ws->innov[a] > limit) {
+                ws->innov[a] = limit;
+                ++clipped;
+            }
+            if (ws->innov[a] < -limit) { /* limit > 0: never both */
+                ws->innov[a] = -limit;
+                ++clipped;
+            }
+        }
     }
     for (i = 0; i < md->nx; ++i) {
         chain_rb_real acc = R_(0.0);
@@ -62,6 +80,7 @@ static void observe(chain_rb_work *ws, const chain_rb_mode_data *md, chain_rb_re
     for (i = 0; i < md->nx; ++i) {
         x[i] = ws->xn[i];
     }
+    return clipped;
 }
 
 size_t chain_rb_ctrl_size(void)
@@ -100,6 +119,7 @@ void chain_rb_init(chain_rb_ctrl *c)
     c->info.polish_iterations = 0;
     c->info.active = 0;
     c->info.mode_switches = 0;
+    c->info.clipped = 0;
     c->info.solve_ticks = 0u;
     c->info.work = 0u;
 }
@@ -128,6 +148,7 @@ int chain_rb_step(chain_rb_ctrl *c, const chain_rb_real *y, const chain_rb_real 
     const chain_rb_real *r, chain_rb_real *u)
 {
     int j, i, status, inputs_ok;
+    int clipped = 0;
     const chain_rb_mode_data *md;
     if (c == 0 || u == 0) {
         return CHAIN_RB_BAD_ARGUMENT;
@@ -146,11 +167,12 @@ int chain_rb_step(chain_rb_ctrl *c, const chain_rb_real *y, const chain_rb_real 
             u[i] = c->u_last[i];
         }
         for (j = 0; j < CHAIN_RB_N_MODES; ++j) {
-            observe(&c->work, &chain_rb_modes[j], c->xhat[j], y, u, 0);
+            (void)observe(&c->work, &chain_rb_modes[j], c->xhat[j], y, u, 0);
         }
         c->info.status = CHAIN_RB_NONFINITE_INPUT;
         c->info.iterations = 0;
         c->info.work = 0u;
+        c->info.clipped = 0;
         return CHAIN_RB_NONFINITE_INPUT;
     }
     follow_schedule(c, sched);
@@ -164,10 +186,15 @@ int chain_rb_step(chain_rb_ctrl *c, const chain_rb_real *y, const chain_rb_real 
         u[md->actuator_index[i]] = c->U[i];
     }
     for (j = 0; j < CHAIN_RB_N_MODES; ++j) {
-        observe(&c->work, &chain_rb_modes[j], c->xhat[j], y, u, 1);
+        clipped += observe(&c->work, &chain_rb_modes[j], c->xhat[j], y, u, 1);
     }
     for (i = 0; i < CHAIN_RB_N_ACTUATORS; ++i) {
         c->u_last[i] = u[i];
+    }
+    c->info.clipped = clipped;
+    if (status == CHAIN_RB_OPTIMAL && clipped > 0) {
+        status = CHAIN_RB_MEASUREMENT_CLIPPED; /* a solver status wins over the report */
+        c->info.status = status;
     }
     return status;
 }
@@ -176,6 +203,7 @@ int chain_rb_observe(chain_rb_ctrl *c, const chain_rb_real *y,
     const chain_rb_real *sched, const chain_rb_real *u_applied)
 {
     int j, use_y;
+    int clipped = 0;
     if (c == 0 || y == 0 || u_applied == 0 || (CHAIN_RB_N_SCHEDULE != 0 && sched == 0)) {
         return CHAIN_RB_BAD_ARGUMENT;
     }
@@ -187,9 +215,12 @@ int chain_rb_observe(chain_rb_ctrl *c, const chain_rb_real *y,
         follow_schedule(c, sched);
     }
     for (j = 0; j < CHAIN_RB_N_MODES; ++j) {
-        observe(&c->work, &chain_rb_modes[j], c->xhat[j], y, u_applied, use_y);
+        clipped += observe(&c->work, &chain_rb_modes[j], c->xhat[j], y, u_applied, use_y);
     }
-    return use_y ? CHAIN_RB_OPTIMAL : CHAIN_RB_NONFINITE_INPUT;
+    if (!use_y) {
+        return CHAIN_RB_NONFINITE_INPUT;
+    }
+    return (clipped > 0) ? CHAIN_RB_MEASUREMENT_CLIPPED : CHAIN_RB_OPTIMAL;
 }
 
 int chain_rb_solve_qp(chain_rb_ctrl *c, int mode, const chain_rb_real *x,
@@ -321,6 +352,7 @@ const char *chain_rb_status_message(int status)
     case CHAIN_RB_BAD_BOUNDS: return "bad bounds; nothing changed";
     case CHAIN_RB_BOUND_NOT_CONFIGURED: return "bound not in the config (no constraint rows); nothing changed";
     case CHAIN_RB_TIME_LIMIT: return "work budget reached; best command so far";
+    case CHAIN_RB_MEASUREMENT_CLIPPED: return "optimal; an implausible measurement was clipped";
     default: return "unknown status";
     }
 }

@@ -25,17 +25,35 @@ static int all_finite(const chain_soft_real *v, int n)
     return 1;
 }
 
-/* One observer update; use_y = 0 propagates open loop (no valid measurement). */
-static void observe(chain_soft_work *ws, const chain_soft_mode_data *md, chain_soft_real *x,
+/*
+ * One observer update; use_y = 0 propagates open loop (no valid measurement). Each
+ * innovation y - C xhat is clipped to +-innovation_limit, so that a spike moves the
+ * estimate by a bounded step while a real large change is still followed, slewed.
+ * Returns how many innovations were clipped.
+ */
+static int observe(chain_soft_work *ws, const chain_soft_mode_data *md, chain_soft_real *x,
     const chain_soft_real *y, const chain_soft_real *u_phys, int use_y)
 {
     int i, l, a;
+    int clipped = 0;
     for (a = 0; a < md->ny; ++a) {
         chain_soft_real acc = R_(0.0);
         for (l = 0; l < md->nx; ++l) {
             acc += md->C[a * md->nx + l] * x[l];
         }
-        ws->innov[a] = use_y ? y[a] - acc : R_(0.0);
+        ws->innov[a] = R_(0.0);
+        if (use_y) {
+            const chain_soft_real limit = md->innovation_limit[a];
+            ws->innov[a] = y[a] - acc;
+            if (ws->innov[a] > limit) {
+                ws->innov[a] = limit;
+                ++clipped;
+            }
+            if (ws->innov[a] < -limit) { /* limit > 0: never both */
+                ws->innov[a] = -limit;
+                ++clipped;
+            }
+        }
     }
     for (i = 0; i < md->nx; ++i) {
         chain_soft_real acc = R_(0.0);
@@ -55,6 +73,7 @@ static void observe(chain_soft_work *ws, const chain_soft_mode_data *md, chain_s
     for (i = 0; i < md->nx; ++i) {
         x[i] = ws->xn[i];
     }
+    return clipped;
 }
 
 size_t chain_soft_ctrl_size(void)
@@ -89,6 +108,7 @@ void chain_soft_init(chain_soft_ctrl *c)
     c->info.polish_iterations = 0;
     c->info.active = 0;
     c->info.mode_switches = 0;
+    c->info.clipped = 0;
     c->info.solve_ticks = 0u;
     c->info.work = 0u;
     c->info.slack_max = R_(0.0);
@@ -121,6 +141,7 @@ int chain_soft_step(chain_soft_ctrl *c, const chain_soft_real *y, const chain_so
     const chain_soft_real *r, chain_soft_real *u)
 {
     int j, i, status, inputs_ok;
+    int clipped = 0;
     const chain_soft_mode_data *md;
     if (c == 0 || u == 0) {
         return CHAIN_SOFT_BAD_ARGUMENT;
@@ -139,11 +160,12 @@ int chain_soft_step(chain_soft_ctrl *c, const chain_soft_real *y, const chain_so
             u[i] = c->u_last[i];
         }
         for (j = 0; j < CHAIN_SOFT_N_MODES; ++j) {
-            observe(&c->work, &chain_soft_modes[j], c->xhat[j], y, u, 0);
+            (void)observe(&c->work, &chain_soft_modes[j], c->xhat[j], y, u, 0);
         }
         c->info.status = CHAIN_SOFT_NONFINITE_INPUT;
         c->info.iterations = 0;
         c->info.work = 0u;
+        c->info.clipped = 0;
         return CHAIN_SOFT_NONFINITE_INPUT;
     }
     follow_schedule(c, sched);
@@ -156,10 +178,15 @@ int chain_soft_step(chain_soft_ctrl *c, const chain_soft_real *y, const chain_so
         u[md->actuator_index[i]] = c->U[i];
     }
     for (j = 0; j < CHAIN_SOFT_N_MODES; ++j) {
-        observe(&c->work, &chain_soft_modes[j], c->xhat[j], y, u, 1);
+        clipped += observe(&c->work, &chain_soft_modes[j], c->xhat[j], y, u, 1);
     }
     for (i = 0; i < CHAIN_SOFT_N_ACTUATORS; ++i) {
         c->u_last[i] = u[i];
+    }
+    c->info.clipped = clipped;
+    if (status == CHAIN_SOFT_OPTIMAL && clipped > 0) {
+        status = CHAIN_SOFT_MEASUREMENT_CLIPPED; /* a solver status wins over the report */
+        c->info.status = status;
     }
     return status;
 }
@@ -168,6 +195,7 @@ int chain_soft_observe(chain_soft_ctrl *c, const chain_soft_real *y,
     const chain_soft_real *sched, const chain_soft_real *u_applied)
 {
     int j, use_y;
+    int clipped = 0;
     if (c == 0 || y == 0 || u_applied == 0 || (CHAIN_SOFT_N_SCHEDULE != 0 && sched == 0)) {
         return CHAIN_SOFT_BAD_ARGUMENT;
     }
@@ -179,9 +207,12 @@ int chain_soft_observe(chain_soft_ctrl *c, const chain_soft_real *y,
         follow_schedule(c, sched);
     }
     for (j = 0; j < CHAIN_SOFT_N_MODES; ++j) {
-        observe(&c->work, &chain_soft_modes[j], c->xhat[j], y, u_applied, use_y);
+        clipped += observe(&c->work, &chain_soft_modes[j], c->xhat[j], y, u_applied, use_y);
     }
-    return use_y ? CHAIN_SOFT_OPTIMAL : CHAIN_SOFT_NONFINITE_INPUT;
+    if (!use_y) {
+        return CHAIN_SOFT_NONFINITE_INPUT;
+    }
+    return (clipped > 0) ? CHAIN_SOFT_MEASUREMENT_CLIPPED : CHAIN_SOFT_OPTIMAL;
 }
 
 int chain_soft_solve_qp(chain_soft_ctrl *c, int mode, const chain_soft_real *x,
@@ -226,6 +257,7 @@ const char *chain_soft_status_message(int status)
     case CHAIN_SOFT_NUMERICAL: return "non-finite intermediate result; safe fallback";
     case CHAIN_SOFT_BAD_ARGUMENT: return "bad argument";
     case CHAIN_SOFT_TIME_LIMIT: return "work budget reached; best command so far";
+    case CHAIN_SOFT_MEASUREMENT_CLIPPED: return "optimal; an implausible measurement was clipped";
     default: return "unknown status";
     }
 }

@@ -25,6 +25,7 @@ typedef struct {
     const fwlat_real *B;                /**< [nx][nu] discrete input matrix. */
     const fwlat_real *C;                /**< [ny][nx] output matrix. */
     const fwlat_real *L;                /**< [nx][ny] observer gain. */
+    const fwlat_real *innovation_limit; /**< [ny] observer innovation y - C xhat clipped to +-this (the largest finite number: clip off). */
     const fwlat_real *Kx;               /**< [n][nx] unconstrained state gain. */
     const fwlat_real *EinvGt;           /**< [n][nyq] E^-1 Gamma'. */
     const fwlat_real *Sinv_p;           /**< [n(n+1)/2] packed S^-1. */

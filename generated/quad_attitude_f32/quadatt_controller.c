@@ -25,17 +25,35 @@ static int all_finite(const quadatt_real *v, int n)
     return 1;
 }
 
-/* One observer update; use_y = 0 propagates open loop (no valid measurement). */
-static void observe(quadatt_work *ws, const quadatt_mode_data *md, quadatt_real *x,
+/*
+ * One observer update; use_y = 0 propagates open loop (no valid measurement). Each
+ * innovation y - C xhat is clipped to +-innovation_limit, so that a spike moves the
+ * estimate by a bounded step while a real large change is still followed, slewed.
+ * Returns how many innovations were clipped.
+ */
+static int observe(quadatt_work *ws, const quadatt_mode_data *md, quadatt_real *x,
     const quadatt_real *y, const quadatt_real *u_phys, int use_y)
 {
     int i, l, a;
+    int clipped = 0;
     for (a = 0; a < md->ny; ++a) {
         quadatt_real acc = R_(0.0);
         for (l = 0; l < md->nx; ++l) {
             acc += md->C[a * md->nx + l] * x[l];
         }
-        ws->innov[a] = use_y ? y[a] - acc : R_(0.0);
+        ws->innov[a] = R_(0.0);
+        if (use_y) {
+            const quadatt_real limit = md->innovation_limit[a];
+            ws->innov[a] = y[a] - acc;
+            if (ws->innov[a] > limit) {
+                ws->innov[a] = limit;
+                ++clipped;
+            }
+            if (ws->innov[a] < -limit) { /* limit > 0: never both */
+                ws->innov[a] = -limit;
+                ++clipped;
+            }
+        }
     }
     for (i = 0; i < md->nx; ++i) {
         quadatt_real acc = R_(0.0);
@@ -55,6 +73,7 @@ static void observe(quadatt_work *ws, const quadatt_mode_data *md, quadatt_real 
     for (i = 0; i < md->nx; ++i) {
         x[i] = ws->xn[i];
     }
+    return clipped;
 }
 
 size_t quadatt_ctrl_size(void)
@@ -89,6 +108,7 @@ void quadatt_init(quadatt_ctrl *c)
     c->info.polish_iterations = 0;
     c->info.active = 0;
     c->info.mode_switches = 0;
+    c->info.clipped = 0;
     c->info.solve_ticks = 0u;
     c->info.work = 0u;
 }
@@ -117,6 +137,7 @@ int quadatt_step(quadatt_ctrl *c, const quadatt_real *y, const quadatt_real *sch
     const quadatt_real *r, quadatt_real *u)
 {
     int j, i, status, inputs_ok;
+    int clipped = 0;
     const quadatt_mode_data *md;
     if (c == 0 || u == 0) {
         return QUADATT_BAD_ARGUMENT;
@@ -135,11 +156,12 @@ int quadatt_step(quadatt_ctrl *c, const quadatt_real *y, const quadatt_real *sch
             u[i] = c->u_last[i];
         }
         for (j = 0; j < QUADATT_N_MODES; ++j) {
-            observe(&c->work, &quadatt_modes[j], c->xhat[j], y, u, 0);
+            (void)observe(&c->work, &quadatt_modes[j], c->xhat[j], y, u, 0);
         }
         c->info.status = QUADATT_NONFINITE_INPUT;
         c->info.iterations = 0;
         c->info.work = 0u;
+        c->info.clipped = 0;
         return QUADATT_NONFINITE_INPUT;
     }
     follow_schedule(c, sched);
@@ -152,10 +174,15 @@ int quadatt_step(quadatt_ctrl *c, const quadatt_real *y, const quadatt_real *sch
         u[md->actuator_index[i]] = c->U[i];
     }
     for (j = 0; j < QUADATT_N_MODES; ++j) {
-        observe(&c->work, &quadatt_modes[j], c->xhat[j], y, u, 1);
+        clipped += observe(&c->work, &quadatt_modes[j], c->xhat[j], y, u, 1);
     }
     for (i = 0; i < QUADATT_N_ACTUATORS; ++i) {
         c->u_last[i] = u[i];
+    }
+    c->info.clipped = clipped;
+    if (status == QUADATT_OPTIMAL && clipped > 0) {
+        status = QUADATT_MEASUREMENT_CLIPPED; /* a solver status wins over the report */
+        c->info.status = status;
     }
     return status;
 }
@@ -164,6 +191,7 @@ int quadatt_observe(quadatt_ctrl *c, const quadatt_real *y,
     const quadatt_real *sched, const quadatt_real *u_applied)
 {
     int j, use_y;
+    int clipped = 0;
     if (c == 0 || y == 0 || u_applied == 0 || (QUADATT_N_SCHEDULE != 0 && sched == 0)) {
         return QUADATT_BAD_ARGUMENT;
     }
@@ -175,9 +203,12 @@ int quadatt_observe(quadatt_ctrl *c, const quadatt_real *y,
         follow_schedule(c, sched);
     }
     for (j = 0; j < QUADATT_N_MODES; ++j) {
-        observe(&c->work, &quadatt_modes[j], c->xhat[j], y, u_applied, use_y);
+        clipped += observe(&c->work, &quadatt_modes[j], c->xhat[j], y, u_applied, use_y);
     }
-    return use_y ? QUADATT_OPTIMAL : QUADATT_NONFINITE_INPUT;
+    if (!use_y) {
+        return QUADATT_NONFINITE_INPUT;
+    }
+    return (clipped > 0) ? QUADATT_MEASUREMENT_CLIPPED : QUADATT_OPTIMAL;
 }
 
 int quadatt_solve_qp(quadatt_ctrl *c, int mode, const quadatt_real *x,
@@ -222,6 +253,7 @@ const char *quadatt_status_message(int status)
     case QUADATT_NUMERICAL: return "non-finite intermediate result; safe fallback";
     case QUADATT_BAD_ARGUMENT: return "bad argument";
     case QUADATT_TIME_LIMIT: return "work budget reached; best command so far";
+    case QUADATT_MEASUREMENT_CLIPPED: return "optimal; an implausible measurement was clipped";
     default: return "unknown status";
     }
 }

@@ -24,6 +24,7 @@ typedef struct {
     const quadatt_real *B;              /**< [nx][nu] discrete input matrix. */
     const quadatt_real *C;              /**< [ny][nx] output matrix. */
     const quadatt_real *L;              /**< [nx][ny] observer gain. */
+    const quadatt_real *innovation_limit;/**< [ny] observer innovation y - C xhat clipped to +-this (the largest finite number: clip off). */
     const quadatt_real *Kx;             /**< [n][nx] unconstrained state gain. */
     const quadatt_real *EinvGt;         /**< [n][nyq] E^-1 Gamma'. */
     const quadatt_real *Sinv_p;         /**< [n(n+1)/2] packed S^-1. */

@@ -24,6 +24,7 @@ typedef struct {
     const qtank_real *B;                /**< [nx][nu] discrete input matrix. */
     const qtank_real *C;                /**< [ny][nx] output matrix. */
     const qtank_real *L;                /**< [nx][ny] observer gain. */
+    const qtank_real *innovation_limit; /**< [ny] observer innovation y - C xhat clipped to +-this (the largest finite number: clip off). */
     const qtank_real *Kx;               /**< [n][nx] unconstrained state gain. */
     const qtank_real *EinvGt;           /**< [n][nyq] E^-1 Gamma'. */
     const qtank_real *Sinv_p;           /**< [n(n+1)/2] packed S^-1. */

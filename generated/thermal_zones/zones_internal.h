@@ -24,6 +24,7 @@ typedef struct {
     const zones_real *B;                /**< [nx][nu] discrete input matrix. */
     const zones_real *C;                /**< [ny][nx] output matrix. */
     const zones_real *L;                /**< [nx][ny] observer gain. */
+    const zones_real *innovation_limit; /**< [ny] observer innovation y - C xhat clipped to +-this (the largest finite number: clip off). */
     const zones_real *Kx;               /**< [n][nx] unconstrained state gain. */
     const zones_real *EinvGt;           /**< [n][nyq] E^-1 Gamma'. */
     const zones_real *Sinv_p;           /**< [n(n+1)/2] packed S^-1. */

@@ -24,6 +24,7 @@ typedef struct {
     const zrate_real *B;                /**< [nx][nu] discrete input matrix. */
     const zrate_real *C;                /**< [ny][nx] output matrix. */
     const zrate_real *L;                /**< [nx][ny] observer gain. */
+    const zrate_real *innovation_limit; /**< [ny] observer innovation y - C xhat clipped to +-this (the largest finite number: clip off). */
     const zrate_real *Kx;               /**< [n][nx] unconstrained state gain. */
     const zrate_real *EinvGt;           /**< [n][nyq] E^-1 Gamma'. */
     const zrate_real *Sinv_p;           /**< [n(n+1)/2] packed S^-1. */

@@ -24,6 +24,7 @@ typedef struct {
     const drives_real *B;               /**< [nx][nu] discrete input matrix. */
     const drives_real *C;               /**< [ny][nx] output matrix. */
     const drives_real *L;               /**< [nx][ny] observer gain. */
+    const drives_real *innovation_limit;/**< [ny] observer innovation y - C xhat clipped to +-this (the largest finite number: clip off). */
     const drives_real *Kx;              /**< [n][nx] unconstrained state gain. */
     const drives_real *EinvGt;          /**< [n][nyq] E^-1 Gamma'. */
     const drives_real *Sinv_p;          /**< [n(n+1)/2] packed S^-1. */

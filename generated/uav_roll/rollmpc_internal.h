@@ -24,6 +24,7 @@ typedef struct {
     const rollmpc_real *B;              /**< [nx][nu] discrete input matrix. */
     const rollmpc_real *C;              /**< [ny][nx] output matrix. */
     const rollmpc_real *L;              /**< [nx][ny] observer gain. */
+    const rollmpc_real *innovation_limit;/**< [ny] observer innovation y - C xhat clipped to +-this (the largest finite number: clip off). */
     const rollmpc_real *Kx;             /**< [n][nx] unconstrained state gain. */
     const rollmpc_real *EinvGt;         /**< [n][nyq] E^-1 Gamma'. */
     const rollmpc_real *Sinv_p;         /**< [n(n+1)/2] packed S^-1. */

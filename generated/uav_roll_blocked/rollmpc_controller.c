@@ -65,17 +65,35 @@ static int all_finite(const rollmpc_real *v, int n)
     return 1;
 }
 
-/* One observer update; use_y = 0 propagates open loop (no valid measurement). */
-static void observe(rollmpc_work *ws, const rollmpc_mode_data *md, rollmpc_real *x,
+/*
+ * One observer update; use_y = 0 propagates open loop (no valid measurement). Each
+ * innovation y - C xhat is clipped to +-innovation_limit, so that a spike moves the
+ * estimate by a bounded step while a real large change is still followed, slewed.
+ * Returns how many innovations were clipped.
+ */
+static int observe(rollmpc_work *ws, const rollmpc_mode_data *md, rollmpc_real *x,
     const rollmpc_real *y, const rollmpc_real *u_phys, int use_y)
 {
     int i, l, a;
+    int clipped = 0;
     for (a = 0; a < md->ny; ++a) {
         rollmpc_real acc = R_(0.0);
         for (l = 0; l < md->nx; ++l) {
             acc += md->C[a * md->nx + l] * x[l];
         }
-        ws->innov[a] = use_y ? y[a] - acc : R_(0.0);
+        ws->innov[a] = R_(0.0);
+        if (use_y) {
+            const rollmpc_real limit = md->innovation_limit[a];
+            ws->innov[a] = y[a] - acc;
+            if (ws->innov[a] > limit) {
+                ws->innov[a] = limit;
+                ++clipped;
+            }
+            if (ws->innov[a] < -limit) { /* limit > 0: never both */
+                ws->innov[a] = -limit;
+                ++clipped;
+            }
+        }
     }
     for (i = 0; i < md->nx; ++i) {
         rollmpc_real acc = R_(0.0);
@@ -95,6 +113,7 @@ static void observe(rollmpc_work *ws, const rollmpc_mode_data *md, rollmpc_real 
     for (i = 0; i < md->nx; ++i) {
         x[i] = ws->xn[i];
     }
+    return clipped;
 }
 
 size_t rollmpc_ctrl_size(void)
@@ -129,6 +148,7 @@ void rollmpc_init(rollmpc_ctrl *c)
     c->info.polish_iterations = 0;
     c->info.active = 0;
     c->info.mode_switches = 0;
+    c->info.clipped = 0;
     c->info.solve_ticks = 0u;
     c->info.work = 0u;
 }
@@ -164,6 +184,7 @@ int rollmpc_step(rollmpc_ctrl *c, const rollmpc_real *y, const rollmpc_real *sch
     const rollmpc_real *r, rollmpc_real *u)
 {
     int j, i, status, inputs_ok;
+    int clipped = 0;
     const rollmpc_mode_data *md;
     if (c == 0 || u == 0) {
         return ROLLMPC_BAD_ARGUMENT;
@@ -182,11 +203,12 @@ int rollmpc_step(rollmpc_ctrl *c, const rollmpc_real *y, const rollmpc_real *sch
             u[i] = c->u_last[i];
         }
         for (j = 0; j < ROLLMPC_N_MODES; ++j) {
-            observe(&c->work, &rollmpc_modes[j], c->xhat[j], y, u, 0);
+            (void)observe(&c->work, &rollmpc_modes[j], c->xhat[j], y, u, 0);
         }
         c->info.status = ROLLMPC_NONFINITE_INPUT;
         c->info.iterations = 0;
         c->info.work = 0u;
+        c->info.clipped = 0;
         return ROLLMPC_NONFINITE_INPUT;
     }
     follow_schedule(c, sched);
@@ -199,10 +221,15 @@ int rollmpc_step(rollmpc_ctrl *c, const rollmpc_real *y, const rollmpc_real *sch
         u[md->actuator_index[i]] = c->U[i];
     }
     for (j = 0; j < ROLLMPC_N_MODES; ++j) {
-        observe(&c->work, &rollmpc_modes[j], c->xhat[j], y, u, 1);
+        clipped += observe(&c->work, &rollmpc_modes[j], c->xhat[j], y, u, 1);
     }
     for (i = 0; i < ROLLMPC_N_ACTUATORS; ++i) {
         c->u_last[i] = u[i];
+    }
+    c->info.clipped = clipped;
+    if (status == ROLLMPC_OPTIMAL && clipped > 0) {
+        status = ROLLMPC_MEASUREMENT_CLIPPED; /* a solver status wins over the report */
+        c->info.status = status;
     }
     return status;
 }
@@ -211,6 +238,7 @@ int rollmpc_observe(rollmpc_ctrl *c, const rollmpc_real *y,
     const rollmpc_real *sched, const rollmpc_real *u_applied)
 {
     int j, use_y;
+    int clipped = 0;
     if (c == 0 || y == 0 || u_applied == 0 || (ROLLMPC_N_SCHEDULE != 0 && sched == 0)) {
         return ROLLMPC_BAD_ARGUMENT;
     }
@@ -222,9 +250,12 @@ int rollmpc_observe(rollmpc_ctrl *c, const rollmpc_real *y,
         follow_schedule(c, sched);
     }
     for (j = 0; j < ROLLMPC_N_MODES; ++j) {
-        observe(&c->work, &rollmpc_modes[j], c->xhat[j], y, u_applied, use_y);
+        clipped += observe(&c->work, &rollmpc_modes[j], c->xhat[j], y, u_applied, use_y);
     }
-    return use_y ? ROLLMPC_OPTIMAL : ROLLMPC_NONFINITE_INPUT;
+    if (!use_y) {
+        return ROLLMPC_NONFINITE_INPUT;
+    }
+    return (clipped > 0) ? ROLLMPC_MEASUREMENT_CLIPPED : ROLLMPC_OPTIMAL;
 }
 
 int rollmpc_solve_qp(rollmpc_ctrl *c, int mode, const rollmpc_real *x,
@@ -269,6 +300,7 @@ const char *rollmpc_status_message(int status)
     case ROLLMPC_NUMERICAL: return "non-finite intermediate result; safe fallback";
     case ROLLMPC_BAD_ARGUMENT: return "bad argument";
     case ROLLMPC_TIME_LIMIT: return "work budget reached; best command so far";
+    case ROLLMPC_MEASUREMENT_CLIPPED: return "optimal; an implausible measurement was clipped";
     default: return "unknown status";
     }
 }

@@ -79,7 +79,8 @@ def check_representable(precision: str, sample_time: float, modes: tuple[ModeCon
         checked += [("literal", f"{k}.bounds.{name}", getattr(m, name)) for name in BOUND_KEYS
                     if name != "soft"]
         checked += [("literal", f"{k}.bounds.soft", m.soft_l1),
-                    ("literal", f"{k}.bounds.soft", m.soft_l2)]
+                    ("literal", f"{k}.bounds.soft", m.soft_l2),
+                    ("literal", f"{k}.observer.innovation_limit", m.innovation_limit)]
     if scheduler is not None:  # the C stores every threshold -/+ its epsilon
         checked += [("literal", "scheduler", scheduler.below),
                     ("literal", "scheduler", scheduler.above)]

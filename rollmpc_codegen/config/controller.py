@@ -42,10 +42,14 @@ def parse(data: Any) -> ControllerConfig:
     raw_modes = r.raw("modes")
     if not isinstance(raw_modes, list) or not raw_modes:
         raise ConfigError("modes", "must be a non-empty list of modes")
+    # before the modes: an output without bounds takes its default innovation limit from
+    # the scenario's reference levels
+    simulation = parse_simulation(r.sub("simulation", SIMULATION_KEYS, {}), len(outputs),
+                                  sample_time)
     default_blocks = blocks_of(r.raw("control_horizon", None), r.raw("move_blocking", None),
                                horizon, "")
     modes = tuple(parse_mode(Reader(m, f"modes[{i}]", MODE_KEYS), outputs, actuators, horizon,
-                             default_blocks)
+                             default_blocks, simulation.levels(len(outputs)))
                   for i, m in enumerate(raw_modes))
     check_horizon(horizon, modes)
     check_unique_names(modes)
@@ -58,8 +62,6 @@ def parse(data: Any) -> ControllerConfig:
     solver = parse_solver(r.sub("solver", SOLVER_KEYS, {}))
     runtime_bounds = r.boolean("runtime_bounds", ControllerConfig.runtime_bounds)
     check_rate_bounds(runtime_bounds, modes)
-    simulation = parse_simulation(r.sub("simulation", SIMULATION_KEYS, {}), len(outputs),
-                                  sample_time)
     units = (parse_units(r.sub("units", UNITS_KEYS), outputs, actuators)
              if r.has("units") else UnitsConfig())
     target = parse_target(r.sub("target", TARGET_KEYS, {}))

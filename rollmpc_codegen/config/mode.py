@@ -1,21 +1,22 @@
 """``modes[]``: one mode's actuators, plant, weights, bounds (hard, soft and Δu),
-observer and move blocking."""
+observer (:mod:`.observer`) and move blocking."""
 from __future__ import annotations
 
 import numpy as np
 
 from ..features.move_blocking import blocks_of, is_blocked
 from .errors import ConfigError
+from .observer import parse_innovation_limit, parse_observer
 from .plant import parse_plant
-from .reader import (IDENTIFIER, Reader, check_length, check_psd, read_matrix, read_number,
-                     read_vector)
-from .schema import (BOUND_KEYS, DISTURBANCE_MODELS, OBSERVER_KEYS, OBSERVER_KINDS, PENALTY_KEYS,
-                     PLANT_KEYS, SOFT_KEYS, UNBOUNDED, WEIGHT_KEYS, ModeConfig)
+from .reader import IDENTIFIER, Reader, check_psd, read_matrix, read_vector
+from .schema import (BOUND_KEYS, OBSERVER_KEYS, PENALTY_KEYS, PLANT_KEYS, SOFT_KEYS, UNBOUNDED,
+                     WEIGHT_KEYS, ModeConfig)
 
 
 def parse_mode(r: Reader, outputs: tuple[str, ...], actuators: tuple[str, ...], horizon: int,
-               default_blocks: tuple[int, ...] | None) -> ModeConfig:
-    """``modes[i]``; ``default_blocks`` is the top level's move blocking (None: none)."""
+               default_blocks: tuple[int, ...] | None, levels: np.ndarray) -> ModeConfig:
+    """``modes[i]``; ``default_blocks`` is the top level's move blocking (None: none),
+    ``levels`` the scenario's reference levels (levels x outputs)."""
     name = r.string("name")
     if not IDENTIFIER.fullmatch(name):
         raise ConfigError(r.key("name"), f"must be an identifier-like name, got {name!r}")
@@ -47,7 +48,10 @@ def parse_mode(r: Reader, outputs: tuple[str, ...], actuators: tuple[str, ...], 
                               f"must have {ny} rows (one per output)")
     weights = _weights(r.sub("weights", WEIGHT_KEYS), nu, ny)
     bounds = _bounds(r.sub("bounds", BOUND_KEYS), nu, ny)
-    observer = _observer(r.sub("observer", OBSERVER_KEYS), nu, ny) if r.has("observer") else {}
+    o = r.sub("observer", OBSERVER_KEYS) if r.has("observer") else None
+    observer = parse_observer(o, nu, ny) if o is not None else {}
+    observer["innovation_limit"] = parse_innovation_limit(
+        o, r.key("observer.innovation_limit"), outputs, bounds["y_min"], bounds["y_max"], levels)
     blocks = blocks_of(r.raw("control_horizon", None), r.raw("move_blocking", None), horizon,
                        r.path)
     blocks = default_blocks if blocks is None else blocks
@@ -140,48 +144,3 @@ def _soft_bounds(s: Reader, y_min: np.ndarray, y_max: np.ndarray) -> dict:
     if not np.any(l2 > 0.0):
         raise ConfigError(s.path, "softens no bound (give y_min or y_max with l2 > 0)")
     return {"soft_l1": l1, "soft_l2": l2}
-
-
-def _poles(o: Reader) -> tuple[complex, ...]:
-    raw = o.raw("poles")
-    if not isinstance(raw, list) or not raw:
-        raise ConfigError(o.key("poles"), "must be a non-empty list")
-    check_length(raw, o.key("poles"))
-    parsed = []
-    for i, p in enumerate(raw):
-        k = f"{o.key('poles')}[{i}]"
-        if isinstance(p, list) and len(p) == 2:
-            parsed.append(complex(read_number(p[0], k), read_number(p[1], k)))
-        else:
-            parsed.append(complex(read_number(p, k), 0.0))
-        if abs(parsed[-1]) >= 1.0:
-            raise ConfigError(k, f"observer pole {p!r} is not inside the unit circle")
-    return tuple(parsed)
-
-
-def _observer(o: Reader, nu: int, ny: int) -> dict:
-    """``modes[].observer``: pole placement (default) or a steady-state Kalman filter, and
-    the optional disturbance model of offset-free tracking (docs/features.md)."""
-    kind = o.string("kind", ModeConfig.observer_kind, choices=OBSERVER_KINDS)
-    disturbance = o.string("disturbance", ModeConfig.disturbance, choices=DISTURBANCE_MODELS)
-    out: dict = {"observer_kind": kind, "disturbance": disturbance}
-    kalman_keys = [k for k in ("Qn", "Rn", "Qd") if o.has(k)]
-    if kind == "poles":
-        if kalman_keys:
-            raise ConfigError(o.key(kalman_keys[0]), "only with kind: kalman")
-        if o.has("poles"):
-            out["poles"] = _poles(o)
-    else:
-        if o.has("poles"):
-            raise ConfigError(o.key("poles"), "only with kind: poles (the Kalman filter "
-                              "places its own poles)")
-        out["observer_Qn"] = o.psd("Qn", (nu, nu), strict=False)
-        out["observer_Rn"] = o.psd("Rn", (ny, ny), strict=True)
-        if disturbance != "none":
-            nd = nu if disturbance == "input" else ny
-            out["observer_Qd"] = o.psd("Qd", (nd, nd), strict=True)
-        elif o.has("Qd"):
-            raise ConfigError(o.key("Qd"), "only with a disturbance model (disturbance: "
-                              "input or output)")
-    return out
-

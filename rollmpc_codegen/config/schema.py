@@ -74,6 +74,13 @@ WORK_BUDGET_AUTO = "auto"  # solver.work_budget: derived from the sample time an
 DEFAULT_EPSILON = 0.5  # scheduler.epsilon: the hysteresis margin of every threshold
 UNBOUNDED = math.inf  # an absent output or Δu bound: -UNBOUNDED .. UNBOUNDED, no QP rows
 NO_UNIT = ""  # units: a signal without a unit (none is shown)
+# simulation.reference: the closed-loop scenario of the paper's section 4.1, these levels
+# on every output, each held PAPER_SEGMENT_S seconds
+PAPER_LEVELS_DEG = (0.0, -20.0, 20.0, -40.0, 40.0, 0.0)
+PAPER_SEGMENT_S = 10.0
+# modes[].observer.innovation_limit: the default is this many spans of the output's
+# expected range (default_innovation_limit)
+INNOVATION_LIMIT_SPANS = 10.0
 
 
 def storage_range(precision: str) -> tuple[float, float]:
@@ -85,6 +92,23 @@ def storage_range(precision: str) -> tuple[float, float]:
 def default_feasibility_tol(precision: str) -> float:
     """Relative primal feasibility tolerance: tol * max(1, |gamma_r|)."""
     return 1e-9 if precision == "double" else 1e-4
+
+
+def default_innovation_limit(y_min: np.ndarray, y_max: np.ndarray,
+                             levels: np.ndarray) -> np.ndarray:
+    """Per output, the largest plausible innovation |y - C x̂| (docs/features.md,
+    "Measurement plausibility"): INNOVATION_LIMIT_SPANS times the span of the output's
+    expected range, the hull of 0 (the estimate after P_init), its finite bounds and, when
+    a side is unbounded, the scenario's reference ``levels`` (levels x outputs).  While the
+    measurement and the prediction both lie in that range, no innovation exceeds its span.
+    0 where nothing gives a range (the parser then asks for the key)."""
+    out = np.empty(len(y_min))
+    for a, bounds in enumerate(zip(y_min, y_max)):
+        values = [0.0, *(b for b in bounds if math.isfinite(b))]
+        if len(values) < 3:  # a side without a bound: the reference spans it
+            values += list(levels[:, a])
+        out[a] = INNOVATION_LIMIT_SPANS * (max(values) - min(values))
+    return out
 
 
 def default_dependence_tol(precision: str) -> float:
@@ -145,6 +169,9 @@ class ModeConfig:
     # to J; l2 = 0 keeps that bound hard. None: every bound is hard
     soft_l1: np.ndarray | None = None  # (ny, 2)
     soft_l2: np.ndarray | None = None  # (ny, 2)
+    # observer.innovation_limit: per output, |y - C x̂| beyond it is clipped to it (+inf:
+    # never); the parser fills in default_innovation_limit
+    innovation_limit: np.ndarray | None = None  # (ny,)
 
     @property
     def has_rate_bounds(self) -> bool:
@@ -217,6 +244,17 @@ class SimulationConfig:
     # paper's scenario (scenario.paper_reference, applied to every output)
     reference_levels: tuple[tuple[float, ...], ...] | None = None
     reference_segment_s: float | None = None
+
+    def levels(self, n_outputs: int) -> np.ndarray:
+        """The scenario's reference levels, one row of ``n_outputs`` values per level."""
+        if self.reference_levels is None:
+            return np.repeat(np.asarray(PAPER_LEVELS_DEG)[:, None], n_outputs, axis=1)
+        return np.asarray(self.reference_levels, dtype=float)
+
+    @property
+    def segment_s(self) -> float:
+        """How long each level is held (s)."""
+        return PAPER_SEGMENT_S if self.reference_segment_s is None else self.reference_segment_s
 
 
 @dataclass(frozen=True)
@@ -324,7 +362,7 @@ WEIGHT_KEYS = ("Q", "R", "P", "R_delta")
 BOUND_KEYS = ("u_min", "u_max", "y_min", "y_max", "du_min", "du_max", "soft")
 SOFT_KEYS = ("y_min", "y_max")  # bounds.soft
 PENALTY_KEYS = ("l1", "l2")  # bounds.soft.y_min / y_max
-OBSERVER_KEYS = ("kind", "poles", "Qn", "Rn", "Qd", "disturbance")
+OBSERVER_KEYS = ("kind", "poles", "Qn", "Rn", "Qd", "disturbance", "innovation_limit")
 SHORTHAND_KEYS = ("lower", "upper", "inside", "outside")  # scheduler: the two-mode form
 SCHEDULER_KEYS = ("signal", "bands", "epsilon", "initial") + SHORTHAND_KEYS
 BAND_KEYS = ("mode", "below", "epsilon")

@@ -158,7 +158,8 @@ class HostController:
         p = self._fn["last_info"](self.ctrl)
         out = {"status": p.status, "mode": p.mode, "iterations": p.iterations,
                "polish_iterations": p.polish_iterations, "active": p.active,
-               "mode_switches": p.mode_switches, "solve_ticks": p.solve_ticks, "work": p.work}
+               "mode_switches": p.mode_switches, "clipped": p.clipped,
+               "solve_ticks": p.solve_ticks, "work": p.work}
         if self.ctx.get("has_soft_rows"):  # soft output bounds: the plan's slack
             out.update(slack_max=float(p.slack_max), slack_rows=p.slack_rows)
         return out

@@ -101,6 +101,8 @@ STORED_ARRAYS = (
     StoredArray("B", REAL, ("nx", "nu"), "discrete input matrix.", blame="plant"),
     StoredArray("C", REAL, ("ny", "nx"), "output matrix.", blame="plant"),
     StoredArray("L", REAL, ("nx", "ny"), "observer gain.", blame="observer"),
+    StoredArray("innovation_limit", REAL, ("ny",), "observer innovation y - C xhat clipped to "
+                "+-this (the largest finite number: clip off).", blame="observer"),
     StoredArray("Kx", REAL, ("n", "nx"), "unconstrained state gain."),
     StoredArray("EinvGt", REAL, ("n", "nyq"), "E^-1 Gamma'."),
     StoredArray("Sinv_p", REAL, ("n",), "S^-1.", packed=True),

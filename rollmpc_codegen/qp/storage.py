@@ -100,6 +100,7 @@ class ModeData:
     B: np.ndarray
     C: np.ndarray
     L: np.ndarray
+    innovation_limit: np.ndarray
     Kx: np.ndarray
     EinvGt: np.ndarray
     Sinv_p: np.ndarray
@@ -162,9 +163,11 @@ class ModeData:
 
 
 def mode_data(name: str, actuator_index, plant: DiscretePlant, obs_gain: np.ndarray,
-              qp: CondensedQP, u_min, u_max, precision: str, soft_l1=None,
-              soft_l2=None) -> ModeData:
-    """The mode's stored arrays; soft_l1/soft_l2: the config's (ny, 2) soft penalties."""
+              innovation_limit: np.ndarray, qp: CondensedQP, u_min, u_max, precision: str,
+              soft_l1=None, soft_l2=None) -> ModeData:
+    """The mode's stored arrays; soft_l1/soft_l2: the config's (ny, 2) soft penalties.
+    An innovation limit of +inf (never clip) is stored as the largest finite number, so
+    the data stays finite and only an innovation that overflowed is clipped."""
     dt = dtype_of(precision)
     N, ny, nu = qp.N, qp.ny, qp.nu
     EinvGt = solve_refined(qp.E, qp.Gamma.T)  # full double accuracy (see solve_refined)
@@ -200,6 +203,7 @@ def mode_data(name: str, actuator_index, plant: DiscretePlant, obs_gain: np.ndar
         name=name, nx=qp.nx, nu=nu, ny=ny, N=N, n=qp.n, m=qp.m, n_yq=N * ny,
         actuator_index=np.asarray(actuator_index, dtype=np.int32),
         A=cast(plant.A), B=cast(plant.B), C=cast(plant.C), L=cast(obs_gain),
+        innovation_limit=cast(np.minimum(innovation_limit, np.finfo(dt).max)),
         Kx=cast(qp.Kx), EinvGt=cast(EinvGt), Sinv_p=cast(packed_lower(Sinv)), Ew=cast(Ew),
         Uv=cast(Uv), T=cast(T), S_p=cast(packed_lower(S)), V=cast(V), P2inv=cast(P2inv),
         GEinvGt_p=cast(packed_lower(GEinvGt)), Omega2=cast(Omega2), Phi=cast(qp.Phi),

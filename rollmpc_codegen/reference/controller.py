@@ -2,8 +2,8 @@
 
 Mirrors ``templates/controller.c.j2``: the band scheduler with hysteresis (eq. 3
 generalised, :mod:`.band_scheduler`), the predictor
-observers of every mode, the QP of the active mode (:class:`SolverRef`), first-move
-extraction and the inactive actuators at 0.
+observers of every mode with their innovations clipped (``observe()``), the QP of the
+active mode (:class:`SolverRef`), first-move extraction and the inactive actuators at 0.
 """
 from __future__ import annotations
 
@@ -11,7 +11,7 @@ import numpy as np
 
 from ..features import runtime_bounds
 from .scheduler import scheduled_mode
-from ..status import BAD_ARGUMENT, NONFINITE_INPUT, OPTIMAL
+from ..status import BAD_ARGUMENT, MEASUREMENT_CLIPPED, NONFINITE_INPUT, OPTIMAL
 from .linalg import seqsum
 from .solver import SolverRef
 
@@ -38,7 +38,7 @@ class ControllerRef:
         self.u_last = np.zeros(self.ctx["n_actuators"], self.md[0].Kx.dtype)
         self.mode_switches = 0
         self.last = {"status": 0, "iterations": 0, "polish_iterations": 0, "active": 0,
-                     "work": 0}
+                     "clipped": 0, "work": 0}
         if self.ctx.get("runtime_bounds"):
             self.config_bounds = [runtime_bounds.config_bounds(m, md.Kx.dtype)
                                   for m, md in zip(self.ctx["modes"], self.md)]
@@ -98,23 +98,36 @@ class ControllerRef:
         use_y = bool(np.all(np.isfinite(y)) and np.all(np.isfinite(sched)))
         if use_y:
             self._follow_schedule(sched)
-        for j, md in enumerate(self.md):
-            self._observe(md, self.xhat[j], y, u, use_y)
-        return OPTIMAL if use_y else NONFINITE_INPUT
+        clipped = sum(self._observe(md, self.xhat[j], y, u, use_y)
+                      for j, md in enumerate(self.md))
+        if not use_y:
+            return NONFINITE_INPUT
+        return MEASUREMENT_CLIPPED if clipped else OPTIMAL
 
-    def _observe(self, md, x, y, u_phys, use_y):
-        innov = np.empty(md.ny, md.Kx.dtype)
-        for a in range(md.ny):
-            yh = seqsum(md.C[a] * x)
-            innov[a] = y[a] - yh if use_y else 0
-        xn = np.empty(md.nx, md.Kx.dtype)
-        u_mode = u_phys[md.actuator_index]
-        for i in range(md.nx):
-            prods = [md.A[i] * x, md.B[i] * u_mode]
-            if use_y:
-                prods.append(md.L[i] * innov)
-            xn[i] = seqsum(np.concatenate(prods))
+    def _observe(self, md, x, y, u_phys, use_y) -> int:
+        """``observe()``: one update, each innovation clipped to +-innovation_limit;
+        returns how many were clipped (y - C x may overflow to +-inf, as in the C)."""
+        innov = np.zeros(md.ny, md.Kx.dtype)
+        clipped = 0
+        with np.errstate(over="ignore", invalid="ignore"):
+            for a in range(md.ny):
+                yh = seqsum(md.C[a] * x)
+                if use_y:
+                    limit = md.innovation_limit[a]
+                    innov[a] = y[a] - yh
+                    if innov[a] > limit:
+                        innov[a], clipped = limit, clipped + 1
+                    if innov[a] < -limit:
+                        innov[a], clipped = -limit, clipped + 1
+            xn = np.empty(md.nx, md.Kx.dtype)
+            u_mode = u_phys[md.actuator_index]
+            for i in range(md.nx):
+                prods = [md.A[i] * x, md.B[i] * u_mode]
+                if use_y:
+                    prods.append(md.L[i] * innov)
+                xn[i] = seqsum(np.concatenate(prods))
         x[:] = xn
+        return clipped
 
     def step(self, y, sched, r):
         """Returns (status, u) exactly as ``P_step``."""
@@ -129,7 +142,7 @@ class ControllerRef:
                 self._observe(md, self.xhat[j], y, u, False)
             self.last = {"status": NONFINITE_INPUT, "iterations": 0,
                          "polish_iterations": self.last["polish_iterations"],
-                         "active": self.last["active"], "work": 0}
+                         "active": self.last["active"], "clipped": 0, "work": 0}
             return NONFINITE_INPUT, u
         self._follow_schedule(sched)
         md = self.md[self.mode]
@@ -142,7 +155,10 @@ class ControllerRef:
             self.last.update(slack_max=float(solver.slack_max), slack_rows=solver.slack_rows)
         u = np.zeros(self.ctx["n_actuators"], dt)
         u[md.actuator_index] = U[:md.nu]
-        for j, mdj in enumerate(self.md):
-            self._observe(mdj, self.xhat[j], y, u, True)
+        clipped = sum(self._observe(mdj, self.xhat[j], y, u, True)
+                      for j, mdj in enumerate(self.md))
         self.u_last = u.copy()
+        self.last["clipped"] = clipped
+        if status == OPTIMAL and clipped:  # a solver status wins over the report
+            status = self.last["status"] = MEASUREMENT_CLIPPED
         return status, u

@@ -24,11 +24,10 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..config import ControllerConfig
+from ..config.schema import PAPER_LEVELS_DEG, PAPER_SEGMENT_S
 from ..model.plant import discretise
 from .mismatch import PlantMismatch
 
-PAPER_LEVELS_DEG = (0.0, -20.0, 20.0, -40.0, 40.0, 0.0)
-PAPER_SEGMENT_S = 10.0
 # the independent random streams of one seed; "noise" is numpy's default_rng(seed) itself
 # (the measurement noise of `rollmpc simulate --seed` since the beginning)
 RANDOM_STREAMS = ("noise", "mismatch", "reference")
@@ -62,11 +61,7 @@ def scenario_reference(cfg: ControllerConfig) -> np.ndarray:
     else the paper's scenario applied to every output.
     """
     sim = cfg.simulation
-    if sim.reference_levels is None:
-        ref = paper_reference(cfg.sample_time)
-        return np.repeat(ref[:, None], cfg.n_outputs, axis=1)
-    return paper_reference(cfg.sample_time, np.asarray(sim.reference_levels, dtype=float),
-                           sim.reference_segment_s)
+    return paper_reference(cfg.sample_time, sim.levels(cfg.n_outputs), sim.segment_s)
 
 
 def reference_range(cfg: ControllerConfig) -> tuple[np.ndarray, np.ndarray]:
@@ -92,7 +87,7 @@ def random_reference(cfg: ControllerConfig, rng: np.random.Generator,
     """(levels, reference) of a random flight of at least ``samples`` samples: the
     scenario's segment length and at least its number of levels, each level drawn
     uniformly in :func:`reference_range` (one value per output)."""
-    segment = cfg.simulation.reference_segment_s or PAPER_SEGMENT_S
+    segment = cfg.simulation.segment_s
     per = int(round(segment / cfg.sample_time))
     count = -(-max(samples, len(scenario_reference(cfg))) // per)
     low, high = reference_range(cfg)

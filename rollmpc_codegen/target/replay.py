@@ -30,7 +30,7 @@ from .emulate import CortexM4
 
 # the diagnostics compared per step, in the order of the harness' {prefix}_target_info
 INFO_FIELDS = ("status", "mode", "iterations", "polish_iterations", "active", "mode_switches",
-               "work")
+               "clipped", "work")
 
 
 @dataclass

@@ -6,7 +6,7 @@ Each :class:`Mutant` is one plausible bug: an exact text of one file of the repo
 notice it (a few fast test files, and the byte comparison of the generated files that
 the changed code renders).  The first six are the bugs of issue 15's table; the others
 cover the rest of the pipeline: observer, scheduler, clamp, soft rows, Δu rows, move
-blocking, status, NaN checks, run-time bounds, disturbance model.
+blocking, status, NaN checks, run-time bounds, disturbance model, innovation limit.
 
 Every mutant here changes behaviour (commands, statuses or accepted arguments), so the
 run requires each to be caught by a test other than ``tests/test_generated.py``.
@@ -35,7 +35,8 @@ class Mutant:
 
 MUTANTS = (
     # issue 15's table
-    Mutant("P_set_bounds refuses u_min = 0 (accepts u_min < 0 only)", "templates/controller.c.j2",
+    Mutant("P_set_bounds refuses u_min = 0 (accepts u_min < 0 only)",
+           "templates/controller/runtime_bounds.c.j2",
            "&& u_min[i] <= R_(0.0) && u_max[i] >= R_(0.0)))",
            "&& u_min[i] < R_(0.0) && u_max[i] >= R_(0.0)))",
            (FORMULATION, "tests/test_runtime_bounds.py", *regenerated("chain_runtime_bounds"))),
@@ -60,8 +61,7 @@ MUTANTS = (
            (FORMULATION, "tests/test_api.py", "tests/test_maths.py", *regenerated("uav_roll"))),
     # the rest of the pipeline
     Mutant("observer innovation sign (C x - y)", "templates/controller.c.j2",
-           "ws->innov[a] = use_y ? y[a] - acc : R_(0.0);",
-           "ws->innov[a] = use_y ? acc - y[a] : R_(0.0);",
+           "ws->innov[a] = y[a] - acc;", "ws->innov[a] = acc - y[a];",
            (FORMULATION, "tests/test_api.py", *regenerated("uav_roll"))),
     Mutant("observer gain halved by the generator", "rollmpc_codegen/model/observer.py",
            "L = np.asarray(K).T", "L = 0.5 * np.asarray(K).T",
@@ -105,10 +105,23 @@ MUTANTS = (
            "rollmpc_codegen/features/disturbance_model.py",
            "Mu = sol[nx:]  # (nu, nd)", "Mu = -sol[nx:]  # (nu, nd)",
            (FORMULATION, "tests/test_features_plant_observer.py", *regenerated("quadruple_tank"))),
-    Mutant("P_set_bounds accepts u_min = u_max", "templates/controller.c.j2",
+    Mutant("P_set_bounds accepts u_min = u_max", "templates/controller/runtime_bounds.c.j2",
            "&& u_min[i] < u_max[i]\n", "&& u_min[i] <= u_max[i]\n",
            (FORMULATION, "tests/test_runtime_bounds.py", *regenerated("chain_runtime_bounds"))),
     Mutant("run-time lower input bound row: +u_min instead of -u_min", "templates/solver/bounds.c.j2",
            ": -b->u_min[q % md->nu];", ": b->u_min[q % md->nu];",
            (FORMULATION, "tests/test_runtime_bounds.py", *regenerated("chain_runtime_bounds"))),
+    # the observers' innovation limit (issue 15's huge but finite measurement)
+    Mutant("innovation clipped at -2 limit on the lower side", "templates/controller.c.j2",
+           "if (ws->innov[a] < -limit) {", "if (ws->innov[a] < -limit - limit) {",
+           ("tests/test_observer_bound.py", *regenerated("uav_roll"))),
+    Mutant("a clip reported only beyond two clipped innovations", "templates/controller.c.j2",
+           "if (status == {{ PREFIX }}_OPTIMAL && clipped > 0) {",
+           "if (status == {{ PREFIX }}_OPTIMAL && clipped > 2) {",
+           ("tests/test_observer_bound.py", *regenerated("uav_roll"))),
+    Mutant("default innovation limit from the largest value, not the span",
+           "rollmpc_codegen/config/schema.py",
+           "out[a] = INNOVATION_LIMIT_SPANS * (max(values) - min(values))",
+           "out[a] = INNOVATION_LIMIT_SPANS * max(values)",
+           ("tests/test_observer_bound.py", *regenerated("uav_roll"))),
 )

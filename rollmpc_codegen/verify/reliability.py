@@ -12,7 +12,9 @@
   under ASan+UBSan, and the test-vector program under valgrind, both precisions;
 * ``stack``: worst stack path per entry point (GCC -fstack-usage), host and Cortex-M4F;
 * ``misra``: cppcheck + MISRA addon findings per rule on generated/, and how many are
-  not covered by tests/data/misra_deviations.txt.
+  not covered by tests/data/misra_deviations.txt;
+* ``spikes``: one huge but finite measurement in the closed loop of three examples, and the
+  samples to recovery (:mod:`rollmpc_codegen.verify.spike_recovery`).
 
 Each section writes ``<out>/<section>.json`` (with the commit and template hashes it
 measured); failing records go to ``<out>/<section>_failures.json`` with x and r, and
@@ -31,13 +33,14 @@ import time
 from pathlib import Path
 
 from . import qp_campaign as qc
+from .spike_recovery import measure_spikes
 from ..host.programs import (SANITIZE, SOAK_SUMMARY, VALGRIND_BUILD, VECTORS_SUMMARY,
                             compile_program, run_program, write_soak_program)
 from ..sim.simulate import progress_printer
 
 ROOT = Path(__file__).resolve().parents[2]
 UAV = ROOT / "examples" / "uav_roll.yaml"
-SECTIONS = ("qp", "infeasible", "memory", "stack", "misra")
+SECTIONS = ("qp", "infeasible", "memory", "stack", "misra", "spikes")
 ARM_M4F = ("-mcpu=cortex-m4", "-mthumb", "-mfpu=fpv4-sp-d16", "-mfloat-abi=hard",
            "-ffreestanding", "-fno-math-errno")
 
@@ -209,7 +212,8 @@ def main(argv: list[str] | None = None) -> int:
             qc.write_json(out / f"{section}_failures.json", {"failures": failures})
         else:
             summary = {"memory": measure_memory, "stack": measure_stack,
-                       "misra": measure_misra}[section](sub)
+                       "misra": measure_misra,
+                       "spikes": lambda _: measure_spikes(ROOT / "examples")}[section](sub)
         summary["seconds"] = round(time.time() - t0, 1)
         summary["provenance"] = provenance()
         qc.write_json(out / f"{section}.json", summary)
