@@ -118,7 +118,8 @@ def test_floor_build_is_the_stored_data_floor(tmp_path):
     float_floor.stored_data_floor's reference does, bit for bit, on a constrained QP."""
     cfg = tmp_path / "twin.yaml"
     # a cold solve from far outside the bound needs more than the default work budget
-    cfg.write_text(TWIN + f"solver: {{work_budget: {UNBOUNDED_WORK}}}\n")
+    cfg.write_text(TWIN.replace("    weights:", "    observer: {innovation_limit: [.inf, .inf]}\n    weights:")
+                   + f"solver: {{work_budget: {UNBOUNDED_WORK}}}\n")
     model, _ = load_model(cfg, "float")
     double_model, double_ctx = load_model_from_config(double_twin(model.config))
     floor_c = build_host_controller(floor_context(double_model, model), tmp_path / "b")

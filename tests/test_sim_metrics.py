@@ -37,6 +37,9 @@ def _config(tmp_path, name="roll45", precision="double", soft=False, **top):
     data.update(precision=precision, **top)
     if soft:
         data["modes"][0]["bounds"]["soft"] = SOFT
+        # the metric, not the real-time cap: with the default work budget this design has
+        # 705 TIME_LIMIT samples whose commands pass the soft bound by 15 deg (issue 19)
+        data["solver"] = dict(data.get("solver") or {}, work_budget=2**31 - 1)
     path = tmp_path / f"{name}.yaml"
     path.write_text(yaml.safe_dump(data, sort_keys=False))
     return path
