@@ -105,7 +105,7 @@ def _assert_same_estimates(c, ref, ctx):
 
 def _spikes(limit: float, precision: str) -> dict[int, float]:
     huge = 3.4e38 if precision == "float" else 1e308
-    # far beyond, both signs; just beyond the limit; just inside it (the scenario's y is ~0)
+    # far beyond, both signs; half a limit beyond it; half a limit inside (y is ~0 there)
     return {30: 1e30, 60: -huge, 90: huge, 120: 1.5 * limit, 150: -0.5 * limit}
 
 
