@@ -23,7 +23,7 @@ import numpy as np
 import pytest
 import yaml
 
-from conftest import ROOT, Built
+from conftest import ROOT, Built, edited_config
 from independent_qp import IndependentQP, ModeSpec, ObserverBank, next_mode, preview, reference_signal
 from rollmpc_codegen.qp.work import UNBOUNDED_WORK
 from rollmpc_codegen.sim.simulate import run_closed_loop
@@ -82,13 +82,13 @@ def load_example(name: str, build_root) -> Example:
     the smallest u_max, so that their disturbance estimate (and the input target) is not 0."""
     if name in _loaded:
         return _loaded[name]
-    doc = yaml.safe_load((ROOT / "examples" / f"{name}.yaml").read_text())
+    base = ROOT / "examples" / f"{name}.yaml"
+    doc = yaml.safe_load(base.read_text())
     # the formulation, not the real-time cap: every solve may run to its optimum (the work
     # budget and TIME_LIMIT are tested in test_work_budget.py)
-    unbounded = dict(doc, solver=dict(doc.get("solver") or {}, work_budget=UNBOUNDED_WORK))
-    path = build_root / "unbounded" / f"{name}.yaml"
-    path.parent.mkdir(parents=True, exist_ok=True)
-    path.write_text(yaml.safe_dump(unbounded, sort_keys=False))
+    (build_root / "unbounded").mkdir(exist_ok=True)
+    path = edited_config(build_root / "unbounded", base, name,
+                         lambda d: d.setdefault("solver", {}).update(work_budget=UNBOUNDED_WORK))
     built = Built(path, "double", build_root)
     N, ctx = built.ctx["horizon"], built.ctx
     qps = [IndependentQP(ModeSpec.from_yaml(doc, j), m, N) for j, m in enumerate(ctx["modes"])]

@@ -11,6 +11,7 @@ import pytest
 import yaml
 
 from rollmpc_codegen.config import load
+from rollmpc_codegen.qp.work import UNBOUNDED_WORK
 from rollmpc_codegen.sim.metrics import (constraint_violations, shortest_preview_free_segment,
                                          soft_bound_excursions, summarize)
 from rollmpc_codegen.sim.simulate import ClosedLoopLog
@@ -39,7 +40,7 @@ def _config(tmp_path, name="roll45", precision="double", soft=False, **top):
         data["modes"][0]["bounds"]["soft"] = SOFT
         # the metric, not the real-time cap: with the default work budget this design has
         # 705 TIME_LIMIT samples whose commands pass the soft bound by 15 deg (issue 19)
-        data["solver"] = dict(data.get("solver") or {}, work_budget=2**31 - 1)
+        data["solver"] = dict(data.get("solver") or {}, work_budget=UNBOUNDED_WORK)
     path = tmp_path / f"{name}.yaml"
     path.write_text(yaml.safe_dump(data, sort_keys=False))
     return path
