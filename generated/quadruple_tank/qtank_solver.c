@@ -60,15 +60,25 @@ static uint32_t scan_work(const qtank_mode_data *md)
 }
 
 /*
- * correct() over `count` rows: n-long columns for at most min(2 count, n) input and
- * min(count, nyq) output quantities, and the Woodbury term.
+ * correct() over `count` rows whose multipliers reach nin input and nout output
+ * quantities: an n-long column each, and the Woodbury term.
+ */
+static uint32_t correct_cost(const qtank_mode_data *md, int count, uint32_t nin, uint32_t nout)
+{
+    const uint32_t n = (uint32_t)md->n, nt = (uint32_t)md->nt;
+    return (uint32_t)count + 2u * n + (uint32_t)md->nyq + n * (nin + nout + nt) + nt * nin;
+}
+
+/*
+ * The most correct() can cost over `count` rows (what afford() asks for): at most
+ * min(2 count, n) input and min(count, nyq) output quantities.
  */
 static uint32_t correct_work(const qtank_mode_data *md, int count)
 {
-    const uint32_t n = (uint32_t)md->n, nt = (uint32_t)md->nt, c = (uint32_t)count;
+    const uint32_t n = (uint32_t)md->n, c = (uint32_t)count;
     const uint32_t nin = (2u * c < n) ? 2u * c : n;
     const uint32_t nout = (c < (uint32_t)md->nyq) ? c : (uint32_t)md->nyq;
-    return c + 2u * n + (uint32_t)md->nyq + n * (nin + nout + nt) + nt * nin;
+    return correct_cost(md, count, nin, nout);
 }
 
 /* One Gauss-Seidel sweep over `count` rows. */
@@ -96,18 +106,33 @@ static int afford(const qtank_work *ws, const qtank_mode_data *md, uint32_t need
     return used <= ws->work_limit && need <= ws->work_limit - used;
 }
 
-/* Cholesky factorisation of order n (n^3/6 multiply-adds, a division per entry). */
-static uint32_t chol_work(int n)
+/*
+ * The dense kernels of linalg.c run faster per operation than a unit: a Cholesky is
+ * charged 2/5 of a unit per operation, a triangular solve 1/2
+ * (CHOL_UNITS_PER_OP, TRI_UNITS_PER_OP in rollmpc_codegen/qp/work.py, measured there).
+ */
+static uint32_t chol_ops(int n)
 {
     const uint32_t u = (uint32_t)n;
     return u * u * u / 6u + 2u * u * u + 4u * u;
 }
 
-/* One triangular solve of order n. */
-static uint32_t tri_work(int n)
+static uint32_t tri_ops(int n)
 {
     const uint32_t u = (uint32_t)n;
     return u * u / 2u + 4u * u;
+}
+
+/* Cholesky factorisation of order n (n^3/6 multiply-adds, a division per entry). */
+static uint32_t chol_work(int n)
+{
+    return chol_ops(n) * 2u / 5u;
+}
+
+/* One triangular solve of order n. */
+static uint32_t tri_work(int n)
+{
+    return tri_ops(n) * 1u / 2u;
 }
 
 /* chol_rank_one() on a trailing block of order n: a rotation per column. */
@@ -139,19 +164,18 @@ static uint32_t append_work(const qtank_mode_data *md, int nw)
 
 /*
  * primal_solve() on nw bound inputs with a factor of order k whose rows from `start` are
- * factored again (0: a new factor), and free_multipliers()
- * after it: the Cholesky at 3/4 of a unit per operation; its solves for the nt + 1
- * right-hand sides, the terminal Schur complement and the n x nb (or n x nf) products at
- * 1/3: these dense loops run that much faster per operation than H reads (qp/work.py).
+ * factored again (0: a new factor), and free_multipliers() after it: its Cholesky, its
+ * solves for the nt + 1 right-hand sides, the terminal Schur complement and the n x nb
+ * (or n x nf) products, every operation at the Cholesky's fraction of a unit.
  */
 static uint32_t primal_work(const qtank_mode_data *md, int nw, int k, int start)
 {
     const int n = md->n, nt = md->nt;
     const uint32_t u = (uint32_t)k, s = (uint32_t)start, un = (uint32_t)n, ut = (uint32_t)nt;
-    const uint32_t loops = (u * u - s * s) / 2u
-        + 2u * (ut * (tri_work(k) - tri_work(start)) + tri_work(k)) + ut * ut * u / 2u
-        + 2u * tri_work(nt) + 3u * ut * un + 2u * un * (u + ut) + (uint32_t)nw * (un + ut);
-    return (9u * (chol_work(k) - chol_work(start) + chol_work(nt)) + 4u * loops) / 12u;
+    const uint32_t ops = chol_ops(k) - chol_ops(start) + chol_ops(nt) + (u * u - s * s) / 2u
+        + 2u * (ut * (tri_ops(k) - tri_ops(start)) + tri_ops(k)) + ut * ut * u / 2u
+        + 2u * tri_ops(nt) + 3u * ut * un + 2u * un * (u + ut) + (uint32_t)nw * (un + ut);
+    return ops * 2u / 5u;
 }
 
 /* One step of add_to_set() on nw rows: two triangular solves, then a row leaves, switches
@@ -750,7 +774,7 @@ static void correct(qtank_work *ws, const qtank_mode_data *md, const int16_t *li
 {
     const int n = md->n, nyq = md->nyq, nt = md->nt;
     int i, j, o;
-    ws->work += correct_work(md, count);
+    uint32_t nin = 0u, nout = 0u; /* the quantities met: the work charged */
     for (i = 0; i < n; ++i) {
         ws->dv[i] = R_(0.0);
         ws->th[i] = R_(0.0);
@@ -776,6 +800,7 @@ static void correct(qtank_work *ws, const qtank_mode_data *md, const int16_t *li
     for (j = 0; j < n; ++j) {
         const qtank_real v = ws->dv[j];
         if (v < R_(0.0) || v > R_(0.0)) {
+            ++nin;
             for (i = 0; i < j; ++i) { /* S^-1 is packed lower: row j, then column j */
                 ws->th[i] += md->Sinv_p[QTANK_TRI(j, i)] * v;
             }
@@ -797,6 +822,7 @@ static void correct(qtank_work *ws, const qtank_mode_data *md, const int16_t *li
     for (j = 0; j < nyq; ++j) {
         const qtank_real v = ws->yv[j];
         if (v < R_(0.0) || v > R_(0.0)) {
+            ++nout;
             for (i = 0; i < n; ++i) {
                 ws->th[i] += md->EinvGt[i * nyq + j] * v;
             }
@@ -805,6 +831,7 @@ static void correct(qtank_work *ws, const qtank_mode_data *md, const int16_t *li
     for (i = 0; i < n; ++i) {
         ws->th[i] = ws->th0[i] - ws->th[i];
     }
+    ws->work += correct_cost(md, count, nin, nout);
 }
 
 /* Rebuild the sorted row list of the sweep set from the membership flags. */

@@ -45,9 +45,17 @@ def scan_work(m) -> int:
     return 3 * m.m + m.n + predict_work(m)
 
 
-def correct_work(m, count: int) -> int:
-    nin, nout = min(2 * count, m.n), min(count, m.n_yq)
+def correct_cost(m, count: int, nin: int, nout: int) -> int:
+    """correct() over ``count`` rows whose multipliers reach ``nin`` input and ``nout``
+    output quantities: an n-long column each, and the Woodbury term."""
     return count + 2 * m.n + m.n_yq + m.n * (nin + nout + m.nt) + m.nt * nin
+
+
+def correct_work(m, count: int) -> int:
+    """The most correct() can cost over ``count`` rows (what afford() asks for): at most
+    min(2 count, n) input and min(count, nyq) output quantities; it charges correct_cost()
+    of the quantities it met."""
+    return correct_cost(m, count, min(2 * count, m.n), min(count, m.n_yq))
 
 
 def sweep_work(m, count: int, factor: int) -> int:
@@ -58,12 +66,31 @@ def finish_work(m) -> int:
     return 2 * m.n + 2 * m.m
 
 
-def chol_work(n: int) -> int:
+# The dense kernels of linalg.c run faster per operation than a unit (H reads, row scans:
+# ~14 cycles): on the emulated M4F (float, -O2, orders 10-80) a Cholesky takes 5.3-6.2
+# cycles per chol_ops() operation (7.4 at order 5), a forward solve 6.9-7.1 and a back
+# solve 9.5-10.6 per tri_ops() one. Their charges are these fractions of a unit per
+# operation (7.6 and 9.5 cycles at CYCLES_PER_WORK_UNIT); measured with rollmpc report.
+CHOL_UNITS_PER_OP = (2, 5)
+TRI_UNITS_PER_OP = (1, 2)
+
+
+def chol_ops(n: int) -> int:
+    """The operations of a Cholesky factorisation of order n."""
     return n * n * n // 6 + 2 * n * n + 4 * n
 
 
-def tri_work(n: int) -> int:
+def tri_ops(n: int) -> int:
+    """The operations of one triangular solve of order n."""
     return n * n // 2 + 4 * n
+
+
+def chol_work(n: int) -> int:
+    return chol_ops(n) * CHOL_UNITS_PER_OP[0] // CHOL_UNITS_PER_OP[1]
+
+
+def tri_work(n: int) -> int:
+    return tri_ops(n) * TRI_UNITS_PER_OP[0] // TRI_UNITS_PER_OP[1]
 
 
 def rank_one_work(n: int) -> int:
@@ -84,16 +111,14 @@ def append_work(m, nw: int, factor: int) -> int:
 
 def primal_work(m, nw: int, k: int, start: int = 0) -> int:
     """primal_solve() with a factor of order k whose rows (and Y's) from ``start`` are
-    factored again (0: a new factor), and free_multipliers(): the Cholesky at
-    3/4 of a unit per operation, the solves and products at 1/3. Fitted on the counted
-    steps of uav_roll, quad_attitude and fw_lateral: 12.2 and 4-7 cycles per operation,
-    where the rest of the solver runs at 13.8 per unit (rollmpc report's cycles against the
-    reference's work by kind)."""
+    factored again (0: a new factor), and free_multipliers(): its Cholesky, its solves for
+    the nt + 1 right-hand sides, the terminal Schur complement and the n x nb (or n x nf)
+    products, every operation at the Cholesky's fraction of a unit (dense loops)."""
     nt = m.nt
-    loops = ((k * k - start * start) // 2
-             + 2 * (nt * (tri_work(k) - tri_work(start)) + tri_work(k)) + nt * nt * k // 2
-             + 2 * tri_work(nt) + 3 * nt * m.n + 2 * m.n * (k + nt) + nw * (m.n + nt))
-    return (9 * (chol_work(k) - chol_work(start) + chol_work(nt)) + 4 * loops) // 12
+    ops = (chol_ops(k) - chol_ops(start) + chol_ops(nt) + (k * k - start * start) // 2
+           + 2 * (nt * (tri_ops(k) - tri_ops(start)) + tri_ops(k)) + nt * nt * k // 2
+           + 2 * tri_ops(nt) + 3 * nt * m.n + 2 * m.n * (k + nt) + nw * (m.n + nt))
+    return ops * CHOL_UNITS_PER_OP[0] // CHOL_UNITS_PER_OP[1]
 
 
 def add_step_work(nw: int) -> int:
@@ -119,7 +144,8 @@ def largest_unit(m, wcap: int, factor: int) -> int:
     cube of the working-set capacity, a factorisation, a sweep over every row."""
     return max(wcap ** 3, factor_work(m, wcap, factor) + append_work(m, wcap, factor),
                sweep_work(m, m.m, factor) + correct_work(m, m.m) + 2 * scan_work(m),
-               12 * primal_work(m, m.n, m.n), add_step_work(wcap))
+               CHOL_UNITS_PER_OP[0] * chol_ops(wcap),
+               CHOL_UNITS_PER_OP[1] * (primal_work(m, m.n, m.n) + 1), add_step_work(wcap))
 
 
 def auto_work_budget(sample_time: float, share: float, cpu_mhz: float = DEFAULT_CPU_MHZ) -> int:

@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..qp.work import correct_work, sweep_work
+from ..qp.work import correct_cost, sweep_work
 from .linalg import seqsum
 
 
@@ -19,7 +19,7 @@ class SweepsMixin:
         over the nonzero entries: S^-1 v_in, minus Ew' (Ew v_in), plus E^-1 G' v_out."""
         md = self.md
         n, nyq, dt = md.n, md.n_yq, md.Kx.dtype
-        self.work += correct_work(md, rows.size)
+        count = rows.size
         sel = mult > 0
         rows, mult = rows[sel], mult[sel]
         v = np.where(md.row_sign[rows] > 0, mult, -mult)
@@ -44,6 +44,8 @@ class SweepsMixin:
             th = th - md.Ew[o] * ew_v[o]
         for k in np.flatnonzero(qv[n:] != 0):
             th = th + md.EinvGt[:, k] * qv[n + k]
+        self.work += correct_cost(md, count, int(np.count_nonzero(qv[:n])),
+                                  int(np.count_nonzero(qv[n:])))
         return th0 - th
 
     def sweep(self, S, K, lam):
