@@ -40,7 +40,7 @@ def uav_args(inner: dict | None = None, outer: dict | None = None, **top) -> dic
                    "inside": "inner", "outside": "outer"},
         solver={"method": "hildreth_plus_prime", "omega": 1.2, "sigma": 0.2, "delta": 1e-13,
                 "max_iterations": 1000, "warm_start": True, "polish": True,
-                "budget_share": 1.0},
+                "work_budget": 100000},
         simulation={"schedule_source": "output_rate"},
         target={"cpu_mhz": 168, "flash_kib": 256, "ram_kib": 32})
     for key, value in top.items():

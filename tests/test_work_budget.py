@@ -25,10 +25,10 @@ from conftest import ROOT, Built, config_error
 from rollmpc_codegen.status import OPTIMAL, TIME_LIMIT
 
 FW = ROOT / "examples" / "fw_lateral.yaml"
-SMALL_BUDGET = 45000  # work units: about half the default (88,421)
+SMALL_BUDGET = 45000  # work units: about half the default (84,000)
 # measured on the randomized run below (3000 samples, seed 3) with the default budget: the
-# longest run of TIME_LIMIT samples is 7 (float, 38 of 3000 samples) and 17 (double, 110)
-RECOVERY_SAMPLES = 17
+# longest run of TIME_LIMIT samples is 3 (float, 8 of 3000 samples) and 11 (double, 61)
+RECOVERY_SAMPLES = 11
 
 
 def _built(precision: str, build_root, budget) -> Built:
@@ -240,15 +240,15 @@ def _assert_safe(log, works, budget, md):
 def test_randomized_loop_stays_within_a_small_budget(fw_small):
     log, works, budget = _randomized_loop(fw_small)
     _assert_safe(log, works, budget, fw_small.model.modes[0].data)
-    assert np.count_nonzero(log.status == TIME_LIMIT) >= 300  # the budget binds: 352, 361
+    assert np.count_nonzero(log.status == TIME_LIMIT) >= 200  # the budget binds: 289, 257
 
 
 def test_randomized_loop_recovers_within_the_default_budget(fw_default):
     log, works, budget = _randomized_loop(fw_default)
     _assert_safe(log, works, budget, fw_default.model.modes[0].data)
-    assert budget == 88421  # auto: half of Ts = 20 ms at 168 MHz, 19 cycles per unit
+    assert budget == 84000  # auto: half of Ts = 20 ms at 168 MHz, 20 cycles per unit
     status = log.status
-    assert 20 <= np.count_nonzero(status == TIME_LIMIT) <= 120  # measured 38 (float), 110
+    assert 4 <= np.count_nonzero(status == TIME_LIMIT) <= 120  # measured 8 (float), 61
     longest, run = 0, 0
     for st in status:
         run = run + 1 if st == TIME_LIMIT else 0

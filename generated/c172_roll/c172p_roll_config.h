@@ -73,7 +73,7 @@ typedef char c172p_roll_double_tree_built_with_single_precision_constants[
  * budget"): before each unit of work the solver checks that it fits, else it returns
  * C172P_ROLL_TIME_LIMIT with its best command so far. c172p_roll_last_info()->work is what a solve spent.
  */
-#define C172P_ROLL_SOLVER_WORK_BUDGET 44210u
+#define C172P_ROLL_SOLVER_WORK_BUDGET 42000u
 
 /**
  * Optional time stamp around the QP solve, e.g. a cycle counter on the target.

@@ -64,7 +64,7 @@ typedef float c172p_roll_real;
  * budget"): before each unit of work the solver checks that it fits, else it returns
  * C172P_ROLL_TIME_LIMIT with its best command so far. c172p_roll_last_info()->work is what a solve spent.
  */
-#define C172P_ROLL_SOLVER_WORK_BUDGET 44210u
+#define C172P_ROLL_SOLVER_WORK_BUDGET 42000u
 
 /**
  * Optional time stamp around the QP solve, e.g. a cycle counter on the target.

@@ -108,7 +108,7 @@ static int afford(const chain_work *ws, const chain_mode_data *md, uint32_t need
 
 /*
  * The dense kernels of linalg.c run faster per operation than a unit: a Cholesky is
- * charged 2/5 of a unit per operation, a triangular solve 1/2
+ * charged 2/5 of a unit per operation, a triangular solve 3/5
  * (CHOL_UNITS_PER_OP, TRI_UNITS_PER_OP in rollmpc_codegen/qp/work.py, measured there).
  */
 static uint32_t chol_ops(int n)
@@ -132,7 +132,7 @@ static uint32_t chol_work(int n)
 /* One triangular solve of order n. */
 static uint32_t tri_work(int n)
 {
-    return tri_ops(n) * 1u / 2u;
+    return tri_ops(n) * 3u / 5u;
 }
 
 /* chol_rank_one() on a trailing block of order n: a rotation per column. */
@@ -164,18 +164,19 @@ static uint32_t append_work(const chain_mode_data *md, int nw)
 
 /*
  * primal_solve() on nw bound inputs with a factor of order k whose rows from `start` are
- * factored again (0: a new factor), and free_multipliers() after it: its Cholesky, its
- * solves for the nt + 1 right-hand sides, the terminal Schur complement and the n x nb
- * (or n x nf) products, every operation at the Cholesky's fraction of a unit.
+ * factored again (0: a new factor), and free_multipliers() after it: its Cholesky at
+ * 2/6 of a unit per operation, its solves for the nt + 1 right-hand sides, the terminal
+ * Schur complement and the n x nb (or n x nf) products at 3/6 (PRIMAL_SIXTHS_PER_OP).
  */
 static uint32_t primal_work(const chain_mode_data *md, int nw, int k, int start)
 {
     const int n = md->n, nt = md->nt;
     const uint32_t u = (uint32_t)k, s = (uint32_t)start, un = (uint32_t)n, ut = (uint32_t)nt;
-    const uint32_t ops = chol_ops(k) - chol_ops(start) + chol_ops(nt) + (u * u - s * s) / 2u
+    const uint32_t factor = chol_ops(k) - chol_ops(start) + chol_ops(nt);
+    const uint32_t loops = (u * u - s * s) / 2u
         + 2u * (ut * (tri_ops(k) - tri_ops(start)) + tri_ops(k)) + ut * ut * u / 2u
         + 2u * tri_ops(nt) + 3u * ut * un + 2u * un * (u + ut) + (uint32_t)nw * (un + ut);
-    return ops * 2u / 5u;
+    return (2u * factor + 3u * loops) / 6u;
 }
 
 /* One step of add_to_set() on nw rows: two triangular solves, then a row leaves, switches

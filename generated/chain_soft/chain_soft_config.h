@@ -73,7 +73,7 @@ typedef char chain_soft_double_tree_built_with_single_precision_constants[
  * budget"): before each unit of work the solver checks that it fits, else it returns
  * CHAIN_SOFT_TIME_LIMIT with its best command so far. chain_soft_last_info()->work is what a solve spent.
  */
-#define CHAIN_SOFT_SOLVER_WORK_BUDGET 2210526u
+#define CHAIN_SOFT_SOLVER_WORK_BUDGET 2100000u
 
 /**
  * Optional time stamp around the QP solve, e.g. a cycle counter on the target.

@@ -73,7 +73,7 @@ typedef char fwlat_double_tree_built_with_single_precision_constants[
  * budget"): before each unit of work the solver checks that it fits, else it returns
  * FWLAT_TIME_LIMIT with its best command so far. fwlat_last_info()->work is what a solve spent.
  */
-#define FWLAT_SOLVER_WORK_BUDGET 88421u
+#define FWLAT_SOLVER_WORK_BUDGET 84000u
 
 /**
  * Optional time stamp around the QP solve, e.g. a cycle counter on the target.

@@ -71,7 +71,7 @@ typedef char quadatt_double_tree_built_with_single_precision_constants[
  * budget"): before each unit of work the solver checks that it fits, else it returns
  * QUADATT_TIME_LIMIT with its best command so far. quadatt_last_info()->work is what a solve spent.
  */
-#define QUADATT_SOLVER_WORK_BUDGET 44210u
+#define QUADATT_SOLVER_WORK_BUDGET 42000u
 
 /**
  * Optional time stamp around the QP solve, e.g. a cycle counter on the target.

@@ -71,7 +71,7 @@ typedef char qtank_double_tree_built_with_single_precision_constants[
  * budget"): before each unit of work the solver checks that it fits, else it returns
  * QTANK_TIME_LIMIT with its best command so far. qtank_last_info()->work is what a solve spent.
  */
-#define QTANK_SOLVER_WORK_BUDGET 22105263u
+#define QTANK_SOLVER_WORK_BUDGET 21000000u
 
 /**
  * Optional time stamp around the QP solve, e.g. a cycle counter on the target.

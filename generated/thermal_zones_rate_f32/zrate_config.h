@@ -62,7 +62,7 @@ typedef float zrate_real;
  * budget"): before each unit of work the solver checks that it fits, else it returns
  * ZRATE_TIME_LIMIT with its best command so far. zrate_last_info()->work is what a solve spent.
  */
-#define ZRATE_SOLVER_WORK_BUDGET 22105263u
+#define ZRATE_SOLVER_WORK_BUDGET 21000000u
 
 /**
  * Optional time stamp around the QP solve, e.g. a cycle counter on the target.

@@ -73,7 +73,7 @@ typedef char rollmpc_double_tree_built_with_single_precision_constants[
  * budget"): before each unit of work the solver checks that it fits, else it returns
  * ROLLMPC_TIME_LIMIT with its best command so far. rollmpc_last_info()->work is what a solve spent.
  */
-#define ROLLMPC_SOLVER_WORK_BUDGET 44210u
+#define ROLLMPC_SOLVER_WORK_BUDGET 42000u
 
 /**
  * Optional time stamp around the QP solve, e.g. a cycle counter on the target.

@@ -15,7 +15,8 @@ from ..config.schema import default_dependence_tol
 from ..features.runtime_bounds import context_bounds
 from ..model.controller import ControllerModel
 from ..qp.arrays import REAL, declared_for
-from ..qp.work import ADD_BATCH, CHOL_UNITS_PER_OP, TRI_UNITS_PER_OP, check_work_budget
+from ..qp.work import (ADD_BATCH, CHOL_UNITS_PER_OP, PRIMAL_SIXTHS_PER_OP, TRI_UNITS_PER_OP,
+                       check_work_budget)
 from ..status import UNKNOWN_MESSAGE, context_statuses
 
 
@@ -107,7 +108,8 @@ def build_context(model: ControllerModel) -> dict:
             # work units a solve may spend (qp/work.py), and the unit cost of an H read
             "work_budget": check_work_budget(cfg, [mm.data for mm in model.modes], hq_work_factor),
             "hq_work_factor": hq_work_factor, "add_batch": ADD_BATCH,
-            "work_units": {"chol": CHOL_UNITS_PER_OP, "tri": TRI_UNITS_PER_OP},
+            "work_units": {"chol": CHOL_UNITS_PER_OP, "tri": TRI_UNITS_PER_OP,
+                           "primal": PRIMAL_SIXTHS_PER_OP},
         },
         "sizes": {
             "nx_max": max(m["nx"] for m in modes), "nu_max": max(m["nu"] for m in modes),

@@ -18,11 +18,12 @@ from ..config.errors import ConfigError
 from ..config.schema import DEFAULT_CPU_MHZ, WORK_BUDGET_AUTO
 
 # Estimated Cortex-M4F cycles per work unit, declared once: `rollmpc report --precision
-# float` (which prints the ratio) measured at most 17.72 cycles per unit on the counted
-# steps that spend over 30 % of their budget (quad_attitude; uav_roll 16.86, thermal_zones_
-# rate 15.75, fw_lateral 15.16), with 7 % of margin. Cheaper steps reach 24 (fw_lateral's
-# first step: fixed costs per call), far below any budget.
-CYCLES_PER_WORK_UNIT = 19.0
+# float` (which prints the ratio) measured at most 19.23 cycles per unit on the counted
+# steps that spend over 30 % of their budget (fw_lateral step 576; quad_attitude 17.98,
+# c172_roll 14.45, uav_roll 12.42; every example's largest steps 8.3-18.8), with 4 % of
+# margin (docs/solver.md, "Work budget"). Small steps reach 24 (fixed costs per call:
+# thermal_zones 21.9 at 181 k cycles), far below any budget.
+CYCLES_PER_WORK_UNIT = 20.0
 WORK_LIMIT = 2**31  # every count and bound stays below it (uint32 in the C)
 UNBOUNDED_WORK = WORK_LIMIT - 1  # the largest budget: in effect none
 # rows the dual active set adds per scan of every row (it pays the scan and the corrected
@@ -69,10 +70,17 @@ def finish_work(m) -> int:
 # The dense kernels of linalg.c run faster per operation than a unit (H reads, row scans:
 # ~14 cycles): on the emulated M4F (float, -O2, orders 10-80) a Cholesky takes 5.3-6.2
 # cycles per chol_ops() operation (7.4 at order 5), a forward solve 6.9-7.1 and a back
-# solve 9.5-10.6 per tri_ops() one. Their charges are these fractions of a unit per
-# operation (7.6 and 9.5 cycles at CYCLES_PER_WORK_UNIT); measured with rollmpc report.
+# solve 9.5-11.5 per tri_ops() one (`python -m rollmpc_codegen.target.kernel_cycles`:
+# the kernels called alone on the emulator). Their charges are these fractions of a unit per operation
+# (7.6 and 11.4 cycles at CYCLES_PER_WORK_UNIT); checked on whole steps with rollmpc report.
 CHOL_UNITS_PER_OP = (2, 5)
-TRI_UNITS_PER_OP = (1, 2)
+TRI_UNITS_PER_OP = (3, 5)
+# primal_solve(): its Cholesky (with the gathers of its rows: small orders, called per
+# run of inputs) at 1/2 of a unit per operation, its solves, Schur complement and
+# products at 1/3 (8.9 and 5.4 cycles per operation on quad_attitude's first 500 steps:
+# its functions' cycles in a -fno-inline build against the reference's operations), in
+# sixths of a unit: one division, so the C's intermediates stay integers
+PRIMAL_SIXTHS_PER_OP = (2, 3)  # (factor, loops)
 
 
 def chol_ops(n: int) -> int:
@@ -113,12 +121,13 @@ def primal_work(m, nw: int, k: int, start: int = 0) -> int:
     """primal_solve() with a factor of order k whose rows (and Y's) from ``start`` are
     factored again (0: a new factor), and free_multipliers(): its Cholesky, its solves for
     the nt + 1 right-hand sides, the terminal Schur complement and the n x nb (or n x nf)
-    products, every operation at the Cholesky's fraction of a unit (dense loops)."""
+    products, at PRIMAL_SIXTHS_PER_OP."""
     nt = m.nt
-    ops = (chol_ops(k) - chol_ops(start) + chol_ops(nt) + (k * k - start * start) // 2
-           + 2 * (nt * (tri_ops(k) - tri_ops(start)) + tri_ops(k)) + nt * nt * k // 2
-           + 2 * tri_ops(nt) + 3 * nt * m.n + 2 * m.n * (k + nt) + nw * (m.n + nt))
-    return ops * CHOL_UNITS_PER_OP[0] // CHOL_UNITS_PER_OP[1]
+    factor = chol_ops(k) - chol_ops(start) + chol_ops(nt)
+    loops = ((k * k - start * start) // 2
+             + 2 * (nt * (tri_ops(k) - tri_ops(start)) + tri_ops(k)) + nt * nt * k // 2
+             + 2 * tri_ops(nt) + 3 * nt * m.n + 2 * m.n * (k + nt) + nw * (m.n + nt))
+    return (PRIMAL_SIXTHS_PER_OP[0] * factor + PRIMAL_SIXTHS_PER_OP[1] * loops) // 6
 
 
 def add_step_work(nw: int) -> int:
@@ -145,7 +154,7 @@ def largest_unit(m, wcap: int, factor: int) -> int:
     return max(wcap ** 3, factor_work(m, wcap, factor) + append_work(m, wcap, factor),
                sweep_work(m, m.m, factor) + correct_work(m, m.m) + 2 * scan_work(m),
                CHOL_UNITS_PER_OP[0] * chol_ops(wcap),
-               CHOL_UNITS_PER_OP[1] * (primal_work(m, m.n, m.n) + 1), add_step_work(wcap))
+               6 * (primal_work(m, m.n, m.n) + 1), add_step_work(wcap))
 
 
 def auto_work_budget(sample_time: float, share: float, cpu_mhz: float = DEFAULT_CPU_MHZ) -> int:
