@@ -2057,11 +2057,12 @@ static int finish(c172p_roll_work *ws, const c172p_roll_mode_data *md, c172p_rol
             src = ws->th;
         }
     }
-    for (i = 0, b = 0; i < md->n; ++i) { /* b = i % nu */
+    for (b = 0; b < md->nu; ++b) { /* input b of every stage (or block) */
         const c172p_roll_real lo = md->u_min[b], hi = md->u_max[b];
-        const c172p_roll_real v = src[i];
-        U[i] = (v < lo) ? lo : ((v > hi) ? hi : v);
-        b = (b + 1 < md->nu) ? b + 1 : 0;
+        for (i = b; i < md->n; i += md->nu) {
+            const c172p_roll_real v = src[i];
+            U[i] = (v < lo) ? lo : ((v > hi) ? hi : v);
+        }
     }
     if (status != C172P_ROLL_OPTIMAL && status != C172P_ROLL_TIME_LIMIT) {
         for (i = 0; i < md->m; ++i) {

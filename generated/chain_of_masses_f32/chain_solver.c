@@ -2057,11 +2057,12 @@ static int finish(chain_work *ws, const chain_mode_data *md, chain_real *lam,
             src = ws->th;
         }
     }
-    for (i = 0, b = 0; i < md->n; ++i) { /* b = i % nu */
+    for (b = 0; b < md->nu; ++b) { /* input b of every stage (or block) */
         const chain_real lo = md->u_min[b], hi = md->u_max[b];
-        const chain_real v = src[i];
-        U[i] = (v < lo) ? lo : ((v > hi) ? hi : v);
-        b = (b + 1 < md->nu) ? b + 1 : 0;
+        for (i = b; i < md->n; i += md->nu) {
+            const chain_real v = src[i];
+            U[i] = (v < lo) ? lo : ((v > hi) ? hi : v);
+        }
     }
     if (status != CHAIN_OPTIMAL && status != CHAIN_TIME_LIMIT) {
         for (i = 0; i < md->m; ++i) {

@@ -2072,11 +2072,12 @@ static int finish(chain_rb_work *ws, const chain_rb_mode_data *md, chain_rb_real
             src = ws->th;
         }
     }
-    for (i = 0, b = 0; i < md->n; ++i) { /* b = i % nu */
+    for (b = 0; b < md->nu; ++b) { /* input b of every stage (or block) */
         const chain_rb_real lo = ws->bounds.u_min[b], hi = ws->bounds.u_max[b];
-        const chain_rb_real v = src[i];
-        U[i] = (v < lo) ? lo : ((v > hi) ? hi : v);
-        b = (b + 1 < md->nu) ? b + 1 : 0;
+        for (i = b; i < md->n; i += md->nu) {
+            const chain_rb_real v = src[i];
+            U[i] = (v < lo) ? lo : ((v > hi) ? hi : v);
+        }
     }
     if (status != CHAIN_RB_OPTIMAL && status != CHAIN_RB_TIME_LIMIT) {
         for (i = 0; i < md->m; ++i) {

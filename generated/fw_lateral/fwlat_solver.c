@@ -2306,11 +2306,12 @@ static int finish(fwlat_work *ws, const fwlat_mode_data *md, fwlat_real *lam,
             src = ws->th;
         }
     }
-    for (i = 0, b = 0; i < md->n; ++i) { /* b = i % nu */
+    for (b = 0; b < md->nu; ++b) { /* input b of every stage (or block) */
         const fwlat_real lo = md->u_min[b], hi = md->u_max[b];
-        const fwlat_real v = src[i];
-        U[i] = (v < lo) ? lo : ((v > hi) ? hi : v);
-        b = (b + 1 < md->nu) ? b + 1 : 0;
+        for (i = b; i < md->n; i += md->nu) {
+            const fwlat_real v = src[i];
+            U[i] = (v < lo) ? lo : ((v > hi) ? hi : v);
+        }
     }
     if (status != FWLAT_OPTIMAL && status != FWLAT_TIME_LIMIT) {
         for (i = 0; i < md->m; ++i) {

@@ -2057,11 +2057,12 @@ static int finish(rollmpc_work *ws, const rollmpc_mode_data *md, rollmpc_real *l
             src = ws->th;
         }
     }
-    for (i = 0, b = 0; i < md->n; ++i) { /* b = i % nu */
+    for (b = 0; b < md->nu; ++b) { /* input b of every stage (or block) */
         const rollmpc_real lo = md->u_min[b], hi = md->u_max[b];
-        const rollmpc_real v = src[i];
-        U[i] = (v < lo) ? lo : ((v > hi) ? hi : v);
-        b = (b + 1 < md->nu) ? b + 1 : 0;
+        for (i = b; i < md->n; i += md->nu) {
+            const rollmpc_real v = src[i];
+            U[i] = (v < lo) ? lo : ((v > hi) ? hi : v);
+        }
     }
     if (status != ROLLMPC_OPTIMAL && status != ROLLMPC_TIME_LIMIT) {
         for (i = 0; i < md->m; ++i) {
