@@ -2045,7 +2045,7 @@ static int finish(c172p_roll_work *ws, const c172p_roll_mode_data *md, c172p_rol
     int status, c172p_roll_real *U)
 {
     const c172p_roll_real *src = ws->th;
-    int i, b;
+    int i;
     ws->work += finish_work(md);
     if (!c172p_roll_all_finite(ws->th, md->n)) {
         status = C172P_ROLL_NUMERICAL;
@@ -2057,12 +2057,10 @@ static int finish(c172p_roll_work *ws, const c172p_roll_mode_data *md, c172p_rol
             src = ws->th;
         }
     }
-    for (b = 0; b < md->nu; ++b) { /* input b of every stage (or block) */
-        const c172p_roll_real lo = md->u_min[b], hi = md->u_max[b];
-        for (i = b; i < md->n; i += md->nu) {
-            const c172p_roll_real v = src[i];
-            U[i] = (v < lo) ? lo : ((v > hi) ? hi : v);
-        }
+    for (i = 0; i < md->n; ++i) {
+        const c172p_roll_real lo = md->u_min[i % md->nu], hi = md->u_max[i % md->nu];
+        const c172p_roll_real v = src[i];
+        U[i] = (v < lo) ? lo : ((v > hi) ? hi : v);
     }
     if (status != C172P_ROLL_OPTIMAL && status != C172P_ROLL_TIME_LIMIT) {
         for (i = 0; i < md->m; ++i) {

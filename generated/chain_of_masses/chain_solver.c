@@ -2045,7 +2045,7 @@ static int finish(chain_work *ws, const chain_mode_data *md, chain_real *lam,
     int status, chain_real *U)
 {
     const chain_real *src = ws->th;
-    int i, b;
+    int i;
     ws->work += finish_work(md);
     if (!chain_all_finite(ws->th, md->n)) {
         status = CHAIN_NUMERICAL;
@@ -2057,12 +2057,10 @@ static int finish(chain_work *ws, const chain_mode_data *md, chain_real *lam,
             src = ws->th;
         }
     }
-    for (b = 0; b < md->nu; ++b) { /* input b of every stage (or block) */
-        const chain_real lo = md->u_min[b], hi = md->u_max[b];
-        for (i = b; i < md->n; i += md->nu) {
-            const chain_real v = src[i];
-            U[i] = (v < lo) ? lo : ((v > hi) ? hi : v);
-        }
+    for (i = 0; i < md->n; ++i) {
+        const chain_real lo = md->u_min[i % md->nu], hi = md->u_max[i % md->nu];
+        const chain_real v = src[i];
+        U[i] = (v < lo) ? lo : ((v > hi) ? hi : v);
     }
     if (status != CHAIN_OPTIMAL && status != CHAIN_TIME_LIMIT) {
         for (i = 0; i < md->m; ++i) {

@@ -2060,7 +2060,7 @@ static int finish(chain_rb_work *ws, const chain_rb_mode_data *md, chain_rb_real
     int status, chain_rb_real *U)
 {
     const chain_rb_real *src = ws->th;
-    int i, b;
+    int i;
     ws->work += finish_work(md);
     if (!chain_rb_all_finite(ws->th, md->n)) {
         status = CHAIN_RB_NUMERICAL;
@@ -2072,12 +2072,10 @@ static int finish(chain_rb_work *ws, const chain_rb_mode_data *md, chain_rb_real
             src = ws->th;
         }
     }
-    for (b = 0; b < md->nu; ++b) { /* input b of every stage (or block) */
-        const chain_rb_real lo = ws->bounds.u_min[b], hi = ws->bounds.u_max[b];
-        for (i = b; i < md->n; i += md->nu) {
-            const chain_rb_real v = src[i];
-            U[i] = (v < lo) ? lo : ((v > hi) ? hi : v);
-        }
+    for (i = 0; i < md->n; ++i) {
+        const chain_rb_real lo = ws->bounds.u_min[i % md->nu], hi = ws->bounds.u_max[i % md->nu];
+        const chain_rb_real v = src[i];
+        U[i] = (v < lo) ? lo : ((v > hi) ? hi : v);
     }
     if (status != CHAIN_RB_OPTIMAL && status != CHAIN_RB_TIME_LIMIT) {
         for (i = 0; i < md->m; ++i) {

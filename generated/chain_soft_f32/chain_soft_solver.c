@@ -2250,7 +2250,7 @@ static int finish(chain_soft_work *ws, const chain_soft_mode_data *md, chain_sof
     int status, chain_soft_real *U)
 {
     const chain_soft_real *src = ws->th;
-    int i, b;
+    int i;
     ws->work += finish_work(md);
     if (!chain_soft_all_finite(ws->th, md->n)) {
         status = CHAIN_SOFT_NUMERICAL;
@@ -2262,12 +2262,10 @@ static int finish(chain_soft_work *ws, const chain_soft_mode_data *md, chain_sof
             src = ws->th;
         }
     }
-    for (b = 0; b < md->nu; ++b) { /* input b of every stage (or block) */
-        const chain_soft_real lo = md->u_min[b], hi = md->u_max[b];
-        for (i = b; i < md->n; i += md->nu) {
-            const chain_soft_real v = src[i];
-            U[i] = (v < lo) ? lo : ((v > hi) ? hi : v);
-        }
+    for (i = 0; i < md->n; ++i) {
+        const chain_soft_real lo = md->u_min[i % md->nu], hi = md->u_max[i % md->nu];
+        const chain_soft_real v = src[i];
+        U[i] = (v < lo) ? lo : ((v > hi) ? hi : v);
     }
     if (status != CHAIN_SOFT_OPTIMAL && status != CHAIN_SOFT_TIME_LIMIT) {
         for (i = 0; i < md->m; ++i) {

@@ -2294,7 +2294,7 @@ static int finish(fwlat_work *ws, const fwlat_mode_data *md, fwlat_real *lam,
     int status, fwlat_real *U)
 {
     const fwlat_real *src = ws->th;
-    int i, b;
+    int i;
     ws->work += finish_work(md);
     if (!fwlat_all_finite(ws->th, md->n)) {
         status = FWLAT_NUMERICAL;
@@ -2306,12 +2306,10 @@ static int finish(fwlat_work *ws, const fwlat_mode_data *md, fwlat_real *lam,
             src = ws->th;
         }
     }
-    for (b = 0; b < md->nu; ++b) { /* input b of every stage (or block) */
-        const fwlat_real lo = md->u_min[b], hi = md->u_max[b];
-        for (i = b; i < md->n; i += md->nu) {
-            const fwlat_real v = src[i];
-            U[i] = (v < lo) ? lo : ((v > hi) ? hi : v);
-        }
+    for (i = 0; i < md->n; ++i) {
+        const fwlat_real lo = md->u_min[i % md->nu], hi = md->u_max[i % md->nu];
+        const fwlat_real v = src[i];
+        U[i] = (v < lo) ? lo : ((v > hi) ? hi : v);
     }
     if (status != FWLAT_OPTIMAL && status != FWLAT_TIME_LIMIT) {
         for (i = 0; i < md->m; ++i) {

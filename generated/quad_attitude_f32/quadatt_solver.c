@@ -2045,7 +2045,7 @@ static int finish(quadatt_work *ws, const quadatt_mode_data *md, quadatt_real *l
     int status, quadatt_real *U)
 {
     const quadatt_real *src = ws->th;
-    int i, b;
+    int i;
     ws->work += finish_work(md);
     if (!quadatt_all_finite(ws->th, md->n)) {
         status = QUADATT_NUMERICAL;
@@ -2057,12 +2057,10 @@ static int finish(quadatt_work *ws, const quadatt_mode_data *md, quadatt_real *l
             src = ws->th;
         }
     }
-    for (b = 0; b < md->nu; ++b) { /* input b of every stage (or block) */
-        const quadatt_real lo = md->u_min[b], hi = md->u_max[b];
-        for (i = b; i < md->n; i += md->nu) {
-            const quadatt_real v = src[i];
-            U[i] = (v < lo) ? lo : ((v > hi) ? hi : v);
-        }
+    for (i = 0; i < md->n; ++i) {
+        const quadatt_real lo = md->u_min[i % md->nu], hi = md->u_max[i % md->nu];
+        const quadatt_real v = src[i];
+        U[i] = (v < lo) ? lo : ((v > hi) ? hi : v);
     }
     if (status != QUADATT_OPTIMAL && status != QUADATT_TIME_LIMIT) {
         for (i = 0; i < md->m; ++i) {

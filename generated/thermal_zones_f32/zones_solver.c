@@ -2045,7 +2045,7 @@ static int finish(zones_work *ws, const zones_mode_data *md, zones_real *lam,
     int status, zones_real *U)
 {
     const zones_real *src = ws->th;
-    int i, b;
+    int i;
     ws->work += finish_work(md);
     if (!zones_all_finite(ws->th, md->n)) {
         status = ZONES_NUMERICAL;
@@ -2057,12 +2057,10 @@ static int finish(zones_work *ws, const zones_mode_data *md, zones_real *lam,
             src = ws->th;
         }
     }
-    for (b = 0; b < md->nu; ++b) { /* input b of every stage (or block) */
-        const zones_real lo = md->u_min[b], hi = md->u_max[b];
-        for (i = b; i < md->n; i += md->nu) {
-            const zones_real v = src[i];
-            U[i] = (v < lo) ? lo : ((v > hi) ? hi : v);
-        }
+    for (i = 0; i < md->n; ++i) {
+        const zones_real lo = md->u_min[i % md->nu], hi = md->u_max[i % md->nu];
+        const zones_real v = src[i];
+        U[i] = (v < lo) ? lo : ((v > hi) ? hi : v);
     }
     if (status != ZONES_OPTIMAL && status != ZONES_TIME_LIMIT) {
         for (i = 0; i < md->m; ++i) {

@@ -2089,7 +2089,7 @@ static int finish(zrate_work *ws, const zrate_mode_data *md, zrate_real *lam,
     int status, zrate_real *U)
 {
     const zrate_real *src = ws->th;
-    int i, b;
+    int i;
     ws->work += finish_work(md);
     if (!zrate_all_finite(ws->th, md->n)) {
         status = ZRATE_NUMERICAL;
@@ -2101,12 +2101,10 @@ static int finish(zrate_work *ws, const zrate_mode_data *md, zrate_real *lam,
             src = ws->th;
         }
     }
-    for (b = 0; b < md->nu; ++b) { /* input b of every stage (or block) */
-        const zrate_real lo = md->u_min[b], hi = md->u_max[b];
-        for (i = b; i < md->n; i += md->nu) {
-            const zrate_real v = src[i];
-            U[i] = (v < lo) ? lo : ((v > hi) ? hi : v);
-        }
+    for (i = 0; i < md->n; ++i) {
+        const zrate_real lo = md->u_min[i % md->nu], hi = md->u_max[i % md->nu];
+        const zrate_real v = src[i];
+        U[i] = (v < lo) ? lo : ((v > hi) ? hi : v);
     }
     if (status != ZRATE_OPTIMAL && status != ZRATE_TIME_LIMIT) {
         for (i = 0; i < md->m; ++i) {

@@ -2045,7 +2045,7 @@ static int finish(drives_work *ws, const drives_mode_data *md, drives_real *lam,
     int status, drives_real *U)
 {
     const drives_real *src = ws->th;
-    int i, b;
+    int i;
     ws->work += finish_work(md);
     if (!drives_all_finite(ws->th, md->n)) {
         status = DRIVES_NUMERICAL;
@@ -2057,12 +2057,10 @@ static int finish(drives_work *ws, const drives_mode_data *md, drives_real *lam,
             src = ws->th;
         }
     }
-    for (b = 0; b < md->nu; ++b) { /* input b of every stage (or block) */
-        const drives_real lo = md->u_min[b], hi = md->u_max[b];
-        for (i = b; i < md->n; i += md->nu) {
-            const drives_real v = src[i];
-            U[i] = (v < lo) ? lo : ((v > hi) ? hi : v);
-        }
+    for (i = 0; i < md->n; ++i) {
+        const drives_real lo = md->u_min[i % md->nu], hi = md->u_max[i % md->nu];
+        const drives_real v = src[i];
+        U[i] = (v < lo) ? lo : ((v > hi) ? hi : v);
     }
     if (status != DRIVES_OPTIMAL && status != DRIVES_TIME_LIMIT) {
         for (i = 0; i < md->m; ++i) {

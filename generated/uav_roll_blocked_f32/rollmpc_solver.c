@@ -2045,7 +2045,7 @@ static int finish(rollmpc_work *ws, const rollmpc_mode_data *md, rollmpc_real *l
     int status, rollmpc_real *U)
 {
     const rollmpc_real *src = ws->th;
-    int i, b;
+    int i;
     ws->work += finish_work(md);
     if (!rollmpc_all_finite(ws->th, md->n)) {
         status = ROLLMPC_NUMERICAL;
@@ -2057,12 +2057,10 @@ static int finish(rollmpc_work *ws, const rollmpc_mode_data *md, rollmpc_real *l
             src = ws->th;
         }
     }
-    for (b = 0; b < md->nu; ++b) { /* input b of every stage (or block) */
-        const rollmpc_real lo = md->u_min[b], hi = md->u_max[b];
-        for (i = b; i < md->n; i += md->nu) {
-            const rollmpc_real v = src[i];
-            U[i] = (v < lo) ? lo : ((v > hi) ? hi : v);
-        }
+    for (i = 0; i < md->n; ++i) {
+        const rollmpc_real lo = md->u_min[i % md->nu], hi = md->u_max[i % md->nu];
+        const rollmpc_real v = src[i];
+        U[i] = (v < lo) ? lo : ((v > hi) ? hi : v);
     }
     if (status != ROLLMPC_OPTIMAL && status != ROLLMPC_TIME_LIMIT) {
         for (i = 0; i < md->m; ++i) {
