@@ -72,7 +72,7 @@ typedef struct {
 /** Work arrays of the QP solver (kept out of the stack). */
 typedef struct {
     c172p_roll_real th0[C172P_ROLL_N_MAX];    /**< Unconstrained solution. */
-    c172p_roll_real th[C172P_ROLL_N_MAX];     /**< Current solution estimate. */
+    c172p_roll_real th[C172P_ROLL_N_MAX];     /**< Current solution estimate; scratch while th0 is formed. */
     c172p_roll_real px[C172P_ROLL_NYQ_MAX];   /**< Phi x. */
     c172p_roll_real yv[C172P_ROLL_NYQ_MAX];   /**< Gamma th; 2 Omega R while th0 is formed; scratch of correct(). */
     c172p_roll_real gam[C172P_ROLL_M_MAX];    /**< Right-hand side c + W x. */

@@ -5,6 +5,7 @@
 #ifndef C172P_ROLL_INTERNAL_H
 #define C172P_ROLL_INTERNAL_H
 
+#include <math.h>
 #include "c172p_roll.h"
 
 /**
@@ -49,6 +50,25 @@ typedef struct {
 } c172p_roll_mode_data;
 
 extern const c172p_roll_mode_data c172p_roll_modes[C172P_ROLL_N_MODES];
+
+/*
+ * 1 if v[0..n) are all finite. v - v is +0 for a finite v and NaN for an infinite or NaN
+ * one; a sum of zeros stays 0 and a NaN stays NaN. No compare per element: each costs the
+ * M4F a transfer of the FPU flags.
+ */
+static inline int c172p_roll_all_finite(const c172p_roll_real *v, int n)
+{
+    c172p_roll_real z0 = C172P_ROLL_R(0.0), z1 = C172P_ROLL_R(0.0);
+    int i;
+    for (i = 0; i + 1 < n; i += 2) {
+        z0 += v[i] - v[i];
+        z1 += v[i + 1] - v[i + 1];
+    }
+    if (i < n) {
+        z0 += v[i] - v[i];
+    }
+    return !isnan(z0 + z1);
+}
 
 /** Packed lower-triangle index of (i, j), j <= i. */
 #define C172P_ROLL_TRI(i, j) ((i) * ((i) + 1) / 2 + (j))

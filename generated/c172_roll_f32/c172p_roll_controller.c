@@ -54,17 +54,6 @@ static int schedule(int current, c172p_roll_real s)
     return next;
 }
 
-static int all_finite(const c172p_roll_real *v, int n)
-{
-    int i;
-    for (i = 0; i < n; ++i) {
-        if (!isfinite(v[i])) {
-            return 0;
-        }
-    }
-    return 1;
-}
-
 /*
  * One observer update; use_y = 0 propagates open loop (no valid measurement). Each
  * innovation y - C xhat is clipped to +-innovation_limit, so that a spike moves the
@@ -197,8 +186,8 @@ int c172p_roll_step(c172p_roll_ctrl *c, const c172p_roll_real *y, const c172p_ro
         c->info.status = C172P_ROLL_BAD_ARGUMENT;
         return C172P_ROLL_BAD_ARGUMENT;
     }
-    if (!all_finite(y, C172P_ROLL_N_OUTPUTS) || !all_finite(sched, C172P_ROLL_N_SCHEDULE)
-        || !all_finite(r, C172P_ROLL_HORIZON * C172P_ROLL_N_OUTPUTS)) {
+    if (!c172p_roll_all_finite(y, C172P_ROLL_N_OUTPUTS) || !c172p_roll_all_finite(sched, C172P_ROLL_N_SCHEDULE)
+        || !c172p_roll_all_finite(r, C172P_ROLL_HORIZON * C172P_ROLL_N_OUTPUTS)) {
         for (i = 0; i < C172P_ROLL_N_ACTUATORS; ++i) {
             u[i] = c->u_last[i];
         }
@@ -242,10 +231,10 @@ int c172p_roll_observe(c172p_roll_ctrl *c, const c172p_roll_real *y,
     if (c == 0 || y == 0 || u_applied == 0 || (C172P_ROLL_N_SCHEDULE != 0 && sched == 0)) {
         return C172P_ROLL_BAD_ARGUMENT;
     }
-    if (!all_finite(u_applied, C172P_ROLL_N_ACTUATORS)) {
+    if (!c172p_roll_all_finite(u_applied, C172P_ROLL_N_ACTUATORS)) {
         return C172P_ROLL_NONFINITE_INPUT; /* no input to propagate with: nothing changes */
     }
-    use_y = all_finite(y, C172P_ROLL_N_OUTPUTS) && all_finite(sched, C172P_ROLL_N_SCHEDULE);
+    use_y = c172p_roll_all_finite(y, C172P_ROLL_N_OUTPUTS) && c172p_roll_all_finite(sched, C172P_ROLL_N_SCHEDULE);
     if (use_y) {
         follow_schedule(c, sched);
     }
@@ -265,8 +254,8 @@ int c172p_roll_solve_qp(c172p_roll_ctrl *c, int mode, const c172p_roll_real *x,
     if (c == 0 || U == 0 || mode < 0 || mode >= C172P_ROLL_N_MODES) {
         return C172P_ROLL_BAD_ARGUMENT;
     }
-    if (x == 0 || r == 0 || !all_finite(x, c172p_roll_modes[mode].nx)
-        || !all_finite(r, C172P_ROLL_HORIZON * C172P_ROLL_N_OUTPUTS)) {
+    if (x == 0 || r == 0 || !c172p_roll_all_finite(x, c172p_roll_modes[mode].nx)
+        || !c172p_roll_all_finite(r, C172P_ROLL_HORIZON * C172P_ROLL_N_OUTPUTS)) {
         status = (x == 0 || r == 0) ? C172P_ROLL_BAD_ARGUMENT : C172P_ROLL_NONFINITE_INPUT;
         for (i = 0; i < c172p_roll_modes[mode].n; ++i) {
             U[i] = R_(0.0);

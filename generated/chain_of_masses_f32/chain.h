@@ -72,7 +72,7 @@ typedef struct {
 /** Work arrays of the QP solver (kept out of the stack). */
 typedef struct {
     chain_real th0[CHAIN_N_MAX];    /**< Unconstrained solution. */
-    chain_real th[CHAIN_N_MAX];     /**< Current solution estimate. */
+    chain_real th[CHAIN_N_MAX];     /**< Current solution estimate; scratch while th0 is formed. */
     chain_real px[CHAIN_NYQ_MAX];   /**< Phi x. */
     chain_real yv[CHAIN_NYQ_MAX];   /**< Gamma th; 2 Omega R while th0 is formed; scratch of correct(). */
     chain_real gam[CHAIN_M_MAX];    /**< Right-hand side c + W x. */

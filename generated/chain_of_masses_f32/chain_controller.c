@@ -14,17 +14,6 @@
 #define R_ CHAIN_R
 
 
-static int all_finite(const chain_real *v, int n)
-{
-    int i;
-    for (i = 0; i < n; ++i) {
-        if (!isfinite(v[i])) {
-            return 0;
-        }
-    }
-    return 1;
-}
-
 /*
  * One observer update; use_y = 0 propagates open loop (no valid measurement). Each
  * innovation y - C xhat is clipped to +-innovation_limit, so that a spike moves the
@@ -150,8 +139,8 @@ int chain_step(chain_ctrl *c, const chain_real *y, const chain_real *sched,
         c->info.status = CHAIN_BAD_ARGUMENT;
         return CHAIN_BAD_ARGUMENT;
     }
-    if (!all_finite(y, CHAIN_N_OUTPUTS) || !all_finite(sched, CHAIN_N_SCHEDULE)
-        || !all_finite(r, CHAIN_HORIZON * CHAIN_N_OUTPUTS)) {
+    if (!chain_all_finite(y, CHAIN_N_OUTPUTS) || !chain_all_finite(sched, CHAIN_N_SCHEDULE)
+        || !chain_all_finite(r, CHAIN_HORIZON * CHAIN_N_OUTPUTS)) {
         for (i = 0; i < CHAIN_N_ACTUATORS; ++i) {
             u[i] = c->u_last[i];
         }
@@ -195,10 +184,10 @@ int chain_observe(chain_ctrl *c, const chain_real *y,
     if (c == 0 || y == 0 || u_applied == 0 || (CHAIN_N_SCHEDULE != 0 && sched == 0)) {
         return CHAIN_BAD_ARGUMENT;
     }
-    if (!all_finite(u_applied, CHAIN_N_ACTUATORS)) {
+    if (!chain_all_finite(u_applied, CHAIN_N_ACTUATORS)) {
         return CHAIN_NONFINITE_INPUT; /* no input to propagate with: nothing changes */
     }
-    use_y = all_finite(y, CHAIN_N_OUTPUTS) && all_finite(sched, CHAIN_N_SCHEDULE);
+    use_y = chain_all_finite(y, CHAIN_N_OUTPUTS) && chain_all_finite(sched, CHAIN_N_SCHEDULE);
     if (use_y) {
         follow_schedule(c, sched);
     }
@@ -218,8 +207,8 @@ int chain_solve_qp(chain_ctrl *c, int mode, const chain_real *x,
     if (c == 0 || U == 0 || mode < 0 || mode >= CHAIN_N_MODES) {
         return CHAIN_BAD_ARGUMENT;
     }
-    if (x == 0 || r == 0 || !all_finite(x, chain_modes[mode].nx)
-        || !all_finite(r, CHAIN_HORIZON * CHAIN_N_OUTPUTS)) {
+    if (x == 0 || r == 0 || !chain_all_finite(x, chain_modes[mode].nx)
+        || !chain_all_finite(r, CHAIN_HORIZON * CHAIN_N_OUTPUTS)) {
         status = (x == 0 || r == 0) ? CHAIN_BAD_ARGUMENT : CHAIN_NONFINITE_INPUT;
         for (i = 0; i < chain_modes[mode].n; ++i) {
             U[i] = R_(0.0);

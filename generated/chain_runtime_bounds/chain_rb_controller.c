@@ -21,17 +21,6 @@ static const chain_rb_bounds config_bounds[CHAIN_RB_N_MODES] = {
       { 0.6, 0.6, 0.6, 0.6, 0.6, HUGE_VAL } }
 };
 
-static int all_finite(const chain_rb_real *v, int n)
-{
-    int i;
-    for (i = 0; i < n; ++i) {
-        if (!isfinite(v[i])) {
-            return 0;
-        }
-    }
-    return 1;
-}
-
 /*
  * One observer update; use_y = 0 propagates open loop (no valid measurement). Each
  * innovation y - C xhat is clipped to +-innovation_limit, so that a spike moves the
@@ -161,8 +150,8 @@ int chain_rb_step(chain_rb_ctrl *c, const chain_rb_real *y, const chain_rb_real 
         c->info.status = CHAIN_RB_BAD_ARGUMENT;
         return CHAIN_RB_BAD_ARGUMENT;
     }
-    if (!all_finite(y, CHAIN_RB_N_OUTPUTS) || !all_finite(sched, CHAIN_RB_N_SCHEDULE)
-        || !all_finite(r, CHAIN_RB_HORIZON * CHAIN_RB_N_OUTPUTS)) {
+    if (!chain_rb_all_finite(y, CHAIN_RB_N_OUTPUTS) || !chain_rb_all_finite(sched, CHAIN_RB_N_SCHEDULE)
+        || !chain_rb_all_finite(r, CHAIN_RB_HORIZON * CHAIN_RB_N_OUTPUTS)) {
         for (i = 0; i < CHAIN_RB_N_ACTUATORS; ++i) {
             u[i] = c->u_last[i];
         }
@@ -207,10 +196,10 @@ int chain_rb_observe(chain_rb_ctrl *c, const chain_rb_real *y,
     if (c == 0 || y == 0 || u_applied == 0 || (CHAIN_RB_N_SCHEDULE != 0 && sched == 0)) {
         return CHAIN_RB_BAD_ARGUMENT;
     }
-    if (!all_finite(u_applied, CHAIN_RB_N_ACTUATORS)) {
+    if (!chain_rb_all_finite(u_applied, CHAIN_RB_N_ACTUATORS)) {
         return CHAIN_RB_NONFINITE_INPUT; /* no input to propagate with: nothing changes */
     }
-    use_y = all_finite(y, CHAIN_RB_N_OUTPUTS) && all_finite(sched, CHAIN_RB_N_SCHEDULE);
+    use_y = chain_rb_all_finite(y, CHAIN_RB_N_OUTPUTS) && chain_rb_all_finite(sched, CHAIN_RB_N_SCHEDULE);
     if (use_y) {
         follow_schedule(c, sched);
     }
@@ -230,8 +219,8 @@ int chain_rb_solve_qp(chain_rb_ctrl *c, int mode, const chain_rb_real *x,
     if (c == 0 || U == 0 || mode < 0 || mode >= CHAIN_RB_N_MODES) {
         return CHAIN_RB_BAD_ARGUMENT;
     }
-    if (x == 0 || r == 0 || !all_finite(x, chain_rb_modes[mode].nx)
-        || !all_finite(r, CHAIN_RB_HORIZON * CHAIN_RB_N_OUTPUTS)) {
+    if (x == 0 || r == 0 || !chain_rb_all_finite(x, chain_rb_modes[mode].nx)
+        || !chain_rb_all_finite(r, CHAIN_RB_HORIZON * CHAIN_RB_N_OUTPUTS)) {
         status = (x == 0 || r == 0) ? CHAIN_RB_BAD_ARGUMENT : CHAIN_RB_NONFINITE_INPUT;
         for (i = 0; i < chain_rb_modes[mode].n; ++i) {
             U[i] = R_(0.0);

@@ -86,7 +86,7 @@ typedef struct {
 /** Work arrays of the QP solver (kept out of the stack). */
 typedef struct {
     chain_rb_real th0[CHAIN_RB_N_MAX];    /**< Unconstrained solution. */
-    chain_rb_real th[CHAIN_RB_N_MAX];     /**< Current solution estimate. */
+    chain_rb_real th[CHAIN_RB_N_MAX];     /**< Current solution estimate; scratch while th0 is formed. */
     chain_rb_real px[CHAIN_RB_NYQ_MAX];   /**< Phi x. */
     chain_rb_real yv[CHAIN_RB_NYQ_MAX];   /**< Gamma th; 2 Omega R while th0 is formed; scratch of correct(). */
     chain_rb_real gam[CHAIN_RB_M_MAX];    /**< Right-hand side c + W x. */

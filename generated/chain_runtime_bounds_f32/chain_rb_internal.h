@@ -5,6 +5,7 @@
 #ifndef CHAIN_RB_INTERNAL_H
 #define CHAIN_RB_INTERNAL_H
 
+#include <math.h>
 #include "chain_rb.h"
 
 /**
@@ -49,6 +50,25 @@ typedef struct {
 } chain_rb_mode_data;
 
 extern const chain_rb_mode_data chain_rb_modes[CHAIN_RB_N_MODES];
+
+/*
+ * 1 if v[0..n) are all finite. v - v is +0 for a finite v and NaN for an infinite or NaN
+ * one; a sum of zeros stays 0 and a NaN stays NaN. No compare per element: each costs the
+ * M4F a transfer of the FPU flags.
+ */
+static inline int chain_rb_all_finite(const chain_rb_real *v, int n)
+{
+    chain_rb_real z0 = CHAIN_RB_R(0.0), z1 = CHAIN_RB_R(0.0);
+    int i;
+    for (i = 0; i + 1 < n; i += 2) {
+        z0 += v[i] - v[i];
+        z1 += v[i + 1] - v[i + 1];
+    }
+    if (i < n) {
+        z0 += v[i] - v[i];
+    }
+    return !isnan(z0 + z1);
+}
 
 /** Packed lower-triangle index of (i, j), j <= i. */
 #define CHAIN_RB_TRI(i, j) ((i) * ((i) + 1) / 2 + (j))

@@ -14,17 +14,6 @@
 #define R_ CHAIN_SOFT_R
 
 
-static int all_finite(const chain_soft_real *v, int n)
-{
-    int i;
-    for (i = 0; i < n; ++i) {
-        if (!isfinite(v[i])) {
-            return 0;
-        }
-    }
-    return 1;
-}
-
 /*
  * One observer update; use_y = 0 propagates open loop (no valid measurement). Each
  * innovation y - C xhat is clipped to +-innovation_limit, so that a spike moves the
@@ -154,8 +143,8 @@ int chain_soft_step(chain_soft_ctrl *c, const chain_soft_real *y, const chain_so
         c->info.status = CHAIN_SOFT_BAD_ARGUMENT;
         return CHAIN_SOFT_BAD_ARGUMENT;
     }
-    if (!all_finite(y, CHAIN_SOFT_N_OUTPUTS) || !all_finite(sched, CHAIN_SOFT_N_SCHEDULE)
-        || !all_finite(r, CHAIN_SOFT_HORIZON * CHAIN_SOFT_N_OUTPUTS)) {
+    if (!chain_soft_all_finite(y, CHAIN_SOFT_N_OUTPUTS) || !chain_soft_all_finite(sched, CHAIN_SOFT_N_SCHEDULE)
+        || !chain_soft_all_finite(r, CHAIN_SOFT_HORIZON * CHAIN_SOFT_N_OUTPUTS)) {
         for (i = 0; i < CHAIN_SOFT_N_ACTUATORS; ++i) {
             u[i] = c->u_last[i];
         }
@@ -199,10 +188,10 @@ int chain_soft_observe(chain_soft_ctrl *c, const chain_soft_real *y,
     if (c == 0 || y == 0 || u_applied == 0 || (CHAIN_SOFT_N_SCHEDULE != 0 && sched == 0)) {
         return CHAIN_SOFT_BAD_ARGUMENT;
     }
-    if (!all_finite(u_applied, CHAIN_SOFT_N_ACTUATORS)) {
+    if (!chain_soft_all_finite(u_applied, CHAIN_SOFT_N_ACTUATORS)) {
         return CHAIN_SOFT_NONFINITE_INPUT; /* no input to propagate with: nothing changes */
     }
-    use_y = all_finite(y, CHAIN_SOFT_N_OUTPUTS) && all_finite(sched, CHAIN_SOFT_N_SCHEDULE);
+    use_y = chain_soft_all_finite(y, CHAIN_SOFT_N_OUTPUTS) && chain_soft_all_finite(sched, CHAIN_SOFT_N_SCHEDULE);
     if (use_y) {
         follow_schedule(c, sched);
     }
@@ -222,8 +211,8 @@ int chain_soft_solve_qp(chain_soft_ctrl *c, int mode, const chain_soft_real *x,
     if (c == 0 || U == 0 || mode < 0 || mode >= CHAIN_SOFT_N_MODES) {
         return CHAIN_SOFT_BAD_ARGUMENT;
     }
-    if (x == 0 || r == 0 || !all_finite(x, chain_soft_modes[mode].nx)
-        || !all_finite(r, CHAIN_SOFT_HORIZON * CHAIN_SOFT_N_OUTPUTS)) {
+    if (x == 0 || r == 0 || !chain_soft_all_finite(x, chain_soft_modes[mode].nx)
+        || !chain_soft_all_finite(r, CHAIN_SOFT_HORIZON * CHAIN_SOFT_N_OUTPUTS)) {
         status = (x == 0 || r == 0) ? CHAIN_SOFT_BAD_ARGUMENT : CHAIN_SOFT_NONFINITE_INPUT;
         for (i = 0; i < chain_soft_modes[mode].n; ++i) {
             U[i] = R_(0.0);

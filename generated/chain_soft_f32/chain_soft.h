@@ -76,7 +76,7 @@ typedef struct {
 /** Work arrays of the QP solver (kept out of the stack). */
 typedef struct {
     chain_soft_real th0[CHAIN_SOFT_N_MAX];    /**< Unconstrained solution. */
-    chain_soft_real th[CHAIN_SOFT_N_MAX];     /**< Current solution estimate. */
+    chain_soft_real th[CHAIN_SOFT_N_MAX];     /**< Current solution estimate; scratch while th0 is formed. */
     chain_soft_real px[CHAIN_SOFT_NYQ_MAX];   /**< Phi x. */
     chain_soft_real yv[CHAIN_SOFT_NYQ_MAX];   /**< Gamma th; 2 Omega R while th0 is formed; scratch of correct(). */
     chain_soft_real gam[CHAIN_SOFT_M_MAX];    /**< Right-hand side c + W x. */

@@ -455,21 +455,57 @@ static void sym_product(const chain_soft_real *mp, int n, const chain_soft_real 
 }
 
 /*
+ * out[i] = sum_l M[i nc + l] v[l] for i < rows (M row-major), each a sequential sum from
+ * 0 as the reference's seqsum_rows(); four rows per trip share each load of v.
+ */
+static void matvec_rows(const chain_soft_real *M, int rows, int nc, const chain_soft_real *v,
+    chain_soft_real *out)
+{
+    int i, l;
+    for (i = 0; i + 3 < rows; i += 4) {
+        const chain_soft_real *m0 = &M[i * nc], *m1 = m0 + nc, *m2 = m1 + nc, *m3 = m2 + nc;
+        chain_soft_real s0 = R_(0.0), s1 = R_(0.0), s2 = R_(0.0), s3 = R_(0.0);
+        for (l = 0; l < nc; ++l) {
+            const chain_soft_real vl = v[l];
+            s0 += m0[l] * vl;
+            s1 += m1[l] * vl;
+            s2 += m2[l] * vl;
+            s3 += m3[l] * vl;
+        }
+        out[i] = s0;
+        out[i + 1] = s1;
+        out[i + 2] = s2;
+        out[i + 3] = s3;
+    }
+    for (; i < rows; ++i) {
+        const chain_soft_real *m0 = &M[i * nc];
+        chain_soft_real s0 = R_(0.0);
+        for (l = 0; l < nc; ++l) {
+            s0 += m0[l] * v[l];
+        }
+        out[i] = s0;
+    }
+}
+
+/*
  * Runs of equal w over the stages 0..N-2: ws->run[0..count) are their first stages and
  * ws->run[count] = N-1. Returns count; *longest is the first longest run (-1 if none).
  */
 static int reference_runs(chain_soft_work *ws, const chain_soft_mode_data *md, int *longest)
 {
     const int ny = md->ny, last = md->nyq / md->ny - 1;
-    int stage, a, j, count = 0, best = -1, best_len = 0;
-    for (stage = 0; stage < last; ++stage) {
-        int differs = (stage == 0);
-        for (a = 0; a < ny && !differs; ++a) {
-            const chain_soft_real p = ws->yv[(stage - 1) * ny + a], q = ws->yv[stage * ny + a];
-            differs = (p < q) || (p > q);
-        }
-        if (differs) {
+    const chain_soft_real *w = ws->yv;
+    int k = 0, j, count = 0, best = -1, best_len = 0;
+    if (last > 0) {
+        ws->run[count++] = 0;
+    }
+    while (k < (last - 1) * ny) { /* w_k of stage k / ny against the same output a stage later */
+        if (w[k] < w[k + ny] || w[k] > w[k + ny]) {
+            const int stage = k / ny + 1;
             ws->run[count++] = (int16_t)stage;
+            k = stage * ny; /* on to the next pair of stages */
+        } else {
+            ++k;
         }
     }
     ws->run[count] = (int16_t)last;
@@ -485,64 +521,83 @@ static int reference_runs(chain_soft_work *ws, const chain_soft_mode_data *md, i
 }
 
 /*
+ * For output a, the runs other than the longest (nruns > 1): th0_i += w_j s_ij in run
+ * order, s_ij the sum of row i's columns (stage, a) of E^-1 G' over run j, and
+ * coef_i = colsum_(a,i) - sum_j s_ij, the longest run's column sum.
+ */
+static void other_runs(chain_soft_work *ws, const chain_soft_mode_data *md, int a, int nruns,
+    int longest, chain_soft_real *coef)
+{
+    const int n = md->n, ny = md->ny, nyq = md->nyq;
+    const chain_soft_real *g = &md->EinvGt[a], *w = &ws->yv[a]; /* g[i nyq + stage ny] */
+    int i, j, stage;
+    for (i = 0; i < n; ++i, g += nyq) {
+        chain_soft_real acc = ws->th0[i], other = R_(0.0);
+        for (j = 0; j < nruns; ++j) {
+            if (j != longest) {
+                chain_soft_real sum = R_(0.0);
+                for (stage = ws->run[j]; stage < ws->run[j + 1]; ++stage) {
+                    sum += g[stage * ny];
+                }
+                acc += w[ws->run[j] * ny] * sum;
+                other += sum;
+            }
+        }
+        ws->th0[i] = acc;
+        coef[i] = md->colsum[a * n + i] - other;
+    }
+}
+
+/*
  * th0 = Kx x + E^-1 G' w with w = 2 Omega r (kept in ws->yv, free until the outputs are
  * predicted); px = Phi x (output rows only).
  * The columns of E^-1 G' are summed per run of equal w; the longest run's sum comes from
  * colsum minus the others, so a held reference costs n (nx + 2 ny) instead of n (nx + N ny).
+ * Each th0_i takes its terms in the reference's order: Kx x, then per output a the other
+ * runs, the longest and the last stage, with the loop over i innermost. ws->th, which the
+ * caller then sets to th0, holds the longest run's sums when there are other runs.
  * A new QP starts: the primal polish has no factor of this QP to update yet.
  */
 static void unconstrained(chain_soft_work *ws, const chain_soft_mode_data *md,
     const chain_soft_real *x, const chain_soft_real *r)
 {
     const int n = md->n, ny = md->ny, nyq = md->nyq, last = md->nyq / md->ny - 1;
-    int i, j, k, l, a, stage, nruns, longest, summed;
+    int i, k, l, a, b, nruns, longest, summed;
     ws->primal_form = 0;
-    for (k = 0; k < nyq; ++k) {
-        const int st = k / ny, b = k % ny;
+    for (k = 0, b = 0; k < nyq; ++k) { /* b = k % ny: row b of stage k / ny's block 2 Omega */
+        const chain_soft_real *om = &md->Omega2[k * ny], *rs = &r[k - b];
         chain_soft_real acc = R_(0.0);
         for (l = 0; l < ny; ++l) {
-            acc += md->Omega2[(st * ny + b) * ny + l] * r[st * ny + l];
+            acc += om[l] * rs[l];
         }
         ws->yv[k] = acc;
+        b = (b + 1 < ny) ? b + 1 : 0;
     }
     nruns = reference_runs(ws, md, &longest);
     summed = last - ((longest >= 0) ? ws->run[longest + 1] - ws->run[longest] : 0);
-    for (i = 0; i < n; ++i) {
-        const chain_soft_real *row = &md->EinvGt[i * nyq];
-        chain_soft_real acc = R_(0.0);
-        for (l = 0; l < md->nx; ++l) {
-            acc += md->Kx[i * md->nx + l] * x[l];
+    matvec_rows(md->Kx, n, md->nx, x, ws->th0);
+    for (a = 0; a < ny; ++a) {
+        const chain_soft_real w_last = ws->yv[last * ny + a];
+        const chain_soft_real w_long = (longest >= 0) ? ws->yv[ws->run[longest] * ny + a] : R_(0.0);
+        const chain_soft_real *g = &md->EinvGt[last * ny + a]; /* g[i nyq]: the last stage */
+        const chain_soft_real *coef = &md->colsum[a * n]; /* one run: colsum - 0 = colsum */
+        if (nruns > 1) {
+            other_runs(ws, md, a, nruns, longest, ws->th);
+            coef = ws->th;
         }
-        for (a = 0; a < ny; ++a) {
-            chain_soft_real other = R_(0.0);
-            for (j = 0; j < nruns; ++j) {
-                if (j != longest) {
-                    chain_soft_real sum = R_(0.0);
-                    for (stage = ws->run[j]; stage < ws->run[j + 1]; ++stage) {
-                        sum += row[stage * ny + a];
-                    }
-                    acc += ws->yv[ws->run[j] * ny + a] * sum;
-                    other += sum;
-                }
-            }
+        for (i = 0; i < n; ++i, g += nyq) {
+            chain_soft_real acc = ws->th0[i];
             if (longest >= 0) {
-                acc += ws->yv[ws->run[longest] * ny + a] * (md->colsum[a * n + i] - other);
+                acc += w_long * coef[i];
             }
-            acc += row[last * ny + a] * ws->yv[last * ny + a];
+            ws->th0[i] = acc + *g * w_last;
         }
-        ws->th0[i] = acc;
     }
     ws->work += (uint32_t)nyq * (uint32_t)ny + (uint32_t)n * (uint32_t)md->nx
         + (uint32_t)n * (uint32_t)ny * ((uint32_t)summed + (uint32_t)nruns + 2u);
     if (md->GEinvGt_p != 0) {
         ws->work += (uint32_t)nyq * (uint32_t)md->nx;
-        for (k = 0; k < nyq; ++k) {
-            chain_soft_real acc = R_(0.0);
-            for (l = 0; l < md->nx; ++l) {
-                acc += md->Phi[k * md->nx + l] * x[l];
-            }
-            ws->px[k] = acc;
-        }
+        matvec_rows(md->Phi, nyq, md->nx, x, ws->px);
     }
 }
 
@@ -2223,19 +2278,21 @@ static int finish(chain_soft_work *ws, const chain_soft_mode_data *md, chain_sof
     int status, chain_soft_real *U)
 {
     const chain_soft_real *src = ws->th;
-    int i, th_ok = 1, th0_ok = 1;
+    int i;
     ws->work += finish_work(md);
-    for (i = 0; i < md->n; ++i) {
-        th_ok = th_ok && isfinite(ws->th[i]);
-        th0_ok = th0_ok && isfinite(ws->th0[i]);
-    }
-    if (!th_ok) {
+    if (!chain_soft_all_finite(ws->th, md->n)) {
         status = CHAIN_SOFT_NUMERICAL;
-        src = th0_ok ? ws->th0 : 0;
+        src = ws->th0;
+        if (!chain_soft_all_finite(ws->th0, md->n)) {
+            for (i = 0; i < md->n; ++i) {
+                ws->th[i] = R_(0.0); /* neither is finite: clamp 0 */
+            }
+            src = ws->th;
+        }
     }
     for (i = 0; i < md->n; ++i) {
         const chain_soft_real lo = md->u_min[i % md->nu], hi = md->u_max[i % md->nu];
-        const chain_soft_real v = src ? src[i] : R_(0.0);
+        const chain_soft_real v = src[i];
         U[i] = (v < lo) ? lo : ((v > hi) ? hi : v);
     }
     if (status != CHAIN_SOFT_OPTIMAL && status != CHAIN_SOFT_TIME_LIMIT) {

@@ -76,7 +76,7 @@ typedef struct {
 /** Work arrays of the QP solver (kept out of the stack). */
 typedef struct {
     fwlat_real th0[FWLAT_N_MAX];    /**< Unconstrained solution. */
-    fwlat_real th[FWLAT_N_MAX];     /**< Current solution estimate. */
+    fwlat_real th[FWLAT_N_MAX];     /**< Current solution estimate; scratch while th0 is formed. */
     fwlat_real px[FWLAT_NYQ_MAX];   /**< Phi x. */
     fwlat_real yv[FWLAT_NYQ_MAX];   /**< Gamma th; 2 Omega R while th0 is formed; scratch of correct(). */
     fwlat_real gam[FWLAT_M_MAX];    /**< Right-hand side c + W x. */

@@ -14,17 +14,6 @@
 #define R_ FWLAT_R
 
 
-static int all_finite(const fwlat_real *v, int n)
-{
-    int i;
-    for (i = 0; i < n; ++i) {
-        if (!isfinite(v[i])) {
-            return 0;
-        }
-    }
-    return 1;
-}
-
 /*
  * One observer update; use_y = 0 propagates open loop (no valid measurement). Each
  * innovation y - C xhat is clipped to +-innovation_limit, so that a spike moves the
@@ -154,8 +143,8 @@ int fwlat_step(fwlat_ctrl *c, const fwlat_real *y, const fwlat_real *sched,
         c->info.status = FWLAT_BAD_ARGUMENT;
         return FWLAT_BAD_ARGUMENT;
     }
-    if (!all_finite(y, FWLAT_N_OUTPUTS) || !all_finite(sched, FWLAT_N_SCHEDULE)
-        || !all_finite(r, FWLAT_HORIZON * FWLAT_N_OUTPUTS)) {
+    if (!fwlat_all_finite(y, FWLAT_N_OUTPUTS) || !fwlat_all_finite(sched, FWLAT_N_SCHEDULE)
+        || !fwlat_all_finite(r, FWLAT_HORIZON * FWLAT_N_OUTPUTS)) {
         for (i = 0; i < FWLAT_N_ACTUATORS; ++i) {
             u[i] = c->u_last[i];
         }
@@ -199,10 +188,10 @@ int fwlat_observe(fwlat_ctrl *c, const fwlat_real *y,
     if (c == 0 || y == 0 || u_applied == 0 || (FWLAT_N_SCHEDULE != 0 && sched == 0)) {
         return FWLAT_BAD_ARGUMENT;
     }
-    if (!all_finite(u_applied, FWLAT_N_ACTUATORS)) {
+    if (!fwlat_all_finite(u_applied, FWLAT_N_ACTUATORS)) {
         return FWLAT_NONFINITE_INPUT; /* no input to propagate with: nothing changes */
     }
-    use_y = all_finite(y, FWLAT_N_OUTPUTS) && all_finite(sched, FWLAT_N_SCHEDULE);
+    use_y = fwlat_all_finite(y, FWLAT_N_OUTPUTS) && fwlat_all_finite(sched, FWLAT_N_SCHEDULE);
     if (use_y) {
         follow_schedule(c, sched);
     }
@@ -222,8 +211,8 @@ int fwlat_solve_qp(fwlat_ctrl *c, int mode, const fwlat_real *x,
     if (c == 0 || U == 0 || mode < 0 || mode >= FWLAT_N_MODES) {
         return FWLAT_BAD_ARGUMENT;
     }
-    if (x == 0 || r == 0 || !all_finite(x, fwlat_modes[mode].nx)
-        || !all_finite(r, FWLAT_HORIZON * FWLAT_N_OUTPUTS)) {
+    if (x == 0 || r == 0 || !fwlat_all_finite(x, fwlat_modes[mode].nx)
+        || !fwlat_all_finite(r, FWLAT_HORIZON * FWLAT_N_OUTPUTS)) {
         status = (x == 0 || r == 0) ? FWLAT_BAD_ARGUMENT : FWLAT_NONFINITE_INPUT;
         for (i = 0; i < fwlat_modes[mode].n; ++i) {
             U[i] = R_(0.0);

@@ -72,7 +72,7 @@ typedef struct {
 /** Work arrays of the QP solver (kept out of the stack). */
 typedef struct {
     quadatt_real th0[QUADATT_N_MAX];    /**< Unconstrained solution. */
-    quadatt_real th[QUADATT_N_MAX];     /**< Current solution estimate. */
+    quadatt_real th[QUADATT_N_MAX];     /**< Current solution estimate; scratch while th0 is formed. */
     quadatt_real px[QUADATT_NYQ_MAX];   /**< Phi x. */
     quadatt_real yv[QUADATT_NYQ_MAX];   /**< Gamma th; 2 Omega R while th0 is formed; scratch of correct(). */
     quadatt_real gam[QUADATT_M_MAX];    /**< Right-hand side c + W x. */

@@ -14,17 +14,6 @@
 #define R_ QUADATT_R
 
 
-static int all_finite(const quadatt_real *v, int n)
-{
-    int i;
-    for (i = 0; i < n; ++i) {
-        if (!isfinite(v[i])) {
-            return 0;
-        }
-    }
-    return 1;
-}
-
 /*
  * One observer update; use_y = 0 propagates open loop (no valid measurement). Each
  * innovation y - C xhat is clipped to +-innovation_limit, so that a spike moves the
@@ -150,8 +139,8 @@ int quadatt_step(quadatt_ctrl *c, const quadatt_real *y, const quadatt_real *sch
         c->info.status = QUADATT_BAD_ARGUMENT;
         return QUADATT_BAD_ARGUMENT;
     }
-    if (!all_finite(y, QUADATT_N_OUTPUTS) || !all_finite(sched, QUADATT_N_SCHEDULE)
-        || !all_finite(r, QUADATT_HORIZON * QUADATT_N_OUTPUTS)) {
+    if (!quadatt_all_finite(y, QUADATT_N_OUTPUTS) || !quadatt_all_finite(sched, QUADATT_N_SCHEDULE)
+        || !quadatt_all_finite(r, QUADATT_HORIZON * QUADATT_N_OUTPUTS)) {
         for (i = 0; i < QUADATT_N_ACTUATORS; ++i) {
             u[i] = c->u_last[i];
         }
@@ -195,10 +184,10 @@ int quadatt_observe(quadatt_ctrl *c, const quadatt_real *y,
     if (c == 0 || y == 0 || u_applied == 0 || (QUADATT_N_SCHEDULE != 0 && sched == 0)) {
         return QUADATT_BAD_ARGUMENT;
     }
-    if (!all_finite(u_applied, QUADATT_N_ACTUATORS)) {
+    if (!quadatt_all_finite(u_applied, QUADATT_N_ACTUATORS)) {
         return QUADATT_NONFINITE_INPUT; /* no input to propagate with: nothing changes */
     }
-    use_y = all_finite(y, QUADATT_N_OUTPUTS) && all_finite(sched, QUADATT_N_SCHEDULE);
+    use_y = quadatt_all_finite(y, QUADATT_N_OUTPUTS) && quadatt_all_finite(sched, QUADATT_N_SCHEDULE);
     if (use_y) {
         follow_schedule(c, sched);
     }
@@ -218,8 +207,8 @@ int quadatt_solve_qp(quadatt_ctrl *c, int mode, const quadatt_real *x,
     if (c == 0 || U == 0 || mode < 0 || mode >= QUADATT_N_MODES) {
         return QUADATT_BAD_ARGUMENT;
     }
-    if (x == 0 || r == 0 || !all_finite(x, quadatt_modes[mode].nx)
-        || !all_finite(r, QUADATT_HORIZON * QUADATT_N_OUTPUTS)) {
+    if (x == 0 || r == 0 || !quadatt_all_finite(x, quadatt_modes[mode].nx)
+        || !quadatt_all_finite(r, QUADATT_HORIZON * QUADATT_N_OUTPUTS)) {
         status = (x == 0 || r == 0) ? QUADATT_BAD_ARGUMENT : QUADATT_NONFINITE_INPUT;
         for (i = 0; i < quadatt_modes[mode].n; ++i) {
             U[i] = R_(0.0);

@@ -72,7 +72,7 @@ typedef struct {
 /** Work arrays of the QP solver (kept out of the stack). */
 typedef struct {
     qtank_real th0[QTANK_N_MAX];    /**< Unconstrained solution. */
-    qtank_real th[QTANK_N_MAX];     /**< Current solution estimate. */
+    qtank_real th[QTANK_N_MAX];     /**< Current solution estimate; scratch while th0 is formed. */
     qtank_real px[QTANK_NYQ_MAX];   /**< Phi x. */
     qtank_real yv[QTANK_NYQ_MAX];   /**< Gamma th; 2 Omega R while th0 is formed; scratch of correct(). */
     qtank_real gam[QTANK_M_MAX];    /**< Right-hand side c + W x. */

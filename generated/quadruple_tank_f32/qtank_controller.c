@@ -14,17 +14,6 @@
 #define R_ QTANK_R
 
 
-static int all_finite(const qtank_real *v, int n)
-{
-    int i;
-    for (i = 0; i < n; ++i) {
-        if (!isfinite(v[i])) {
-            return 0;
-        }
-    }
-    return 1;
-}
-
 /*
  * One observer update; use_y = 0 propagates open loop (no valid measurement). Each
  * innovation y - C xhat is clipped to +-innovation_limit, so that a spike moves the
@@ -150,8 +139,8 @@ int qtank_step(qtank_ctrl *c, const qtank_real *y, const qtank_real *sched,
         c->info.status = QTANK_BAD_ARGUMENT;
         return QTANK_BAD_ARGUMENT;
     }
-    if (!all_finite(y, QTANK_N_OUTPUTS) || !all_finite(sched, QTANK_N_SCHEDULE)
-        || !all_finite(r, QTANK_HORIZON * QTANK_N_OUTPUTS)) {
+    if (!qtank_all_finite(y, QTANK_N_OUTPUTS) || !qtank_all_finite(sched, QTANK_N_SCHEDULE)
+        || !qtank_all_finite(r, QTANK_HORIZON * QTANK_N_OUTPUTS)) {
         for (i = 0; i < QTANK_N_ACTUATORS; ++i) {
             u[i] = c->u_last[i];
         }
@@ -195,10 +184,10 @@ int qtank_observe(qtank_ctrl *c, const qtank_real *y,
     if (c == 0 || y == 0 || u_applied == 0 || (QTANK_N_SCHEDULE != 0 && sched == 0)) {
         return QTANK_BAD_ARGUMENT;
     }
-    if (!all_finite(u_applied, QTANK_N_ACTUATORS)) {
+    if (!qtank_all_finite(u_applied, QTANK_N_ACTUATORS)) {
         return QTANK_NONFINITE_INPUT; /* no input to propagate with: nothing changes */
     }
-    use_y = all_finite(y, QTANK_N_OUTPUTS) && all_finite(sched, QTANK_N_SCHEDULE);
+    use_y = qtank_all_finite(y, QTANK_N_OUTPUTS) && qtank_all_finite(sched, QTANK_N_SCHEDULE);
     if (use_y) {
         follow_schedule(c, sched);
     }
@@ -218,8 +207,8 @@ int qtank_solve_qp(qtank_ctrl *c, int mode, const qtank_real *x,
     if (c == 0 || U == 0 || mode < 0 || mode >= QTANK_N_MODES) {
         return QTANK_BAD_ARGUMENT;
     }
-    if (x == 0 || r == 0 || !all_finite(x, qtank_modes[mode].nx)
-        || !all_finite(r, QTANK_HORIZON * QTANK_N_OUTPUTS)) {
+    if (x == 0 || r == 0 || !qtank_all_finite(x, qtank_modes[mode].nx)
+        || !qtank_all_finite(r, QTANK_HORIZON * QTANK_N_OUTPUTS)) {
         status = (x == 0 || r == 0) ? QTANK_BAD_ARGUMENT : QTANK_NONFINITE_INPUT;
         for (i = 0; i < qtank_modes[mode].n; ++i) {
             U[i] = R_(0.0);

@@ -72,7 +72,7 @@ typedef struct {
 /** Work arrays of the QP solver (kept out of the stack). */
 typedef struct {
     zones_real th0[ZONES_N_MAX];    /**< Unconstrained solution. */
-    zones_real th[ZONES_N_MAX];     /**< Current solution estimate. */
+    zones_real th[ZONES_N_MAX];     /**< Current solution estimate; scratch while th0 is formed. */
     zones_real px[ZONES_NYQ_MAX];   /**< Phi x. */
     zones_real yv[ZONES_NYQ_MAX];   /**< Gamma th; 2 Omega R while th0 is formed; scratch of correct(). */
     zones_real gam[ZONES_M_MAX];    /**< Right-hand side c + W x. */

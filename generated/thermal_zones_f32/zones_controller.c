@@ -14,17 +14,6 @@
 #define R_ ZONES_R
 
 
-static int all_finite(const zones_real *v, int n)
-{
-    int i;
-    for (i = 0; i < n; ++i) {
-        if (!isfinite(v[i])) {
-            return 0;
-        }
-    }
-    return 1;
-}
-
 /*
  * One observer update; use_y = 0 propagates open loop (no valid measurement). Each
  * innovation y - C xhat is clipped to +-innovation_limit, so that a spike moves the
@@ -150,8 +139,8 @@ int zones_step(zones_ctrl *c, const zones_real *y, const zones_real *sched,
         c->info.status = ZONES_BAD_ARGUMENT;
         return ZONES_BAD_ARGUMENT;
     }
-    if (!all_finite(y, ZONES_N_OUTPUTS) || !all_finite(sched, ZONES_N_SCHEDULE)
-        || !all_finite(r, ZONES_HORIZON * ZONES_N_OUTPUTS)) {
+    if (!zones_all_finite(y, ZONES_N_OUTPUTS) || !zones_all_finite(sched, ZONES_N_SCHEDULE)
+        || !zones_all_finite(r, ZONES_HORIZON * ZONES_N_OUTPUTS)) {
         for (i = 0; i < ZONES_N_ACTUATORS; ++i) {
             u[i] = c->u_last[i];
         }
@@ -195,10 +184,10 @@ int zones_observe(zones_ctrl *c, const zones_real *y,
     if (c == 0 || y == 0 || u_applied == 0 || (ZONES_N_SCHEDULE != 0 && sched == 0)) {
         return ZONES_BAD_ARGUMENT;
     }
-    if (!all_finite(u_applied, ZONES_N_ACTUATORS)) {
+    if (!zones_all_finite(u_applied, ZONES_N_ACTUATORS)) {
         return ZONES_NONFINITE_INPUT; /* no input to propagate with: nothing changes */
     }
-    use_y = all_finite(y, ZONES_N_OUTPUTS) && all_finite(sched, ZONES_N_SCHEDULE);
+    use_y = zones_all_finite(y, ZONES_N_OUTPUTS) && zones_all_finite(sched, ZONES_N_SCHEDULE);
     if (use_y) {
         follow_schedule(c, sched);
     }
@@ -218,8 +207,8 @@ int zones_solve_qp(zones_ctrl *c, int mode, const zones_real *x,
     if (c == 0 || U == 0 || mode < 0 || mode >= ZONES_N_MODES) {
         return ZONES_BAD_ARGUMENT;
     }
-    if (x == 0 || r == 0 || !all_finite(x, zones_modes[mode].nx)
-        || !all_finite(r, ZONES_HORIZON * ZONES_N_OUTPUTS)) {
+    if (x == 0 || r == 0 || !zones_all_finite(x, zones_modes[mode].nx)
+        || !zones_all_finite(r, ZONES_HORIZON * ZONES_N_OUTPUTS)) {
         status = (x == 0 || r == 0) ? ZONES_BAD_ARGUMENT : ZONES_NONFINITE_INPUT;
         for (i = 0; i < zones_modes[mode].n; ++i) {
             U[i] = R_(0.0);

@@ -72,7 +72,7 @@ typedef struct {
 /** Work arrays of the QP solver (kept out of the stack). */
 typedef struct {
     zrate_real th0[ZRATE_N_MAX];    /**< Unconstrained solution. */
-    zrate_real th[ZRATE_N_MAX];     /**< Current solution estimate. */
+    zrate_real th[ZRATE_N_MAX];     /**< Current solution estimate; scratch while th0 is formed. */
     zrate_real px[ZRATE_NYQ_MAX];   /**< Phi x. */
     zrate_real yv[ZRATE_NYQ_MAX];   /**< Gamma th; 2 Omega R while th0 is formed; scratch of correct(). */
     zrate_real gam[ZRATE_M_MAX];    /**< Right-hand side c + W x. */

@@ -14,17 +14,6 @@
 #define R_ ZRATE_R
 
 
-static int all_finite(const zrate_real *v, int n)
-{
-    int i;
-    for (i = 0; i < n; ++i) {
-        if (!isfinite(v[i])) {
-            return 0;
-        }
-    }
-    return 1;
-}
-
 /*
  * One observer update; use_y = 0 propagates open loop (no valid measurement). Each
  * innovation y - C xhat is clipped to +-innovation_limit, so that a spike moves the
@@ -150,8 +139,8 @@ int zrate_step(zrate_ctrl *c, const zrate_real *y, const zrate_real *sched,
         c->info.status = ZRATE_BAD_ARGUMENT;
         return ZRATE_BAD_ARGUMENT;
     }
-    if (!all_finite(y, ZRATE_N_OUTPUTS) || !all_finite(sched, ZRATE_N_SCHEDULE)
-        || !all_finite(r, ZRATE_HORIZON * ZRATE_N_OUTPUTS)) {
+    if (!zrate_all_finite(y, ZRATE_N_OUTPUTS) || !zrate_all_finite(sched, ZRATE_N_SCHEDULE)
+        || !zrate_all_finite(r, ZRATE_HORIZON * ZRATE_N_OUTPUTS)) {
         for (i = 0; i < ZRATE_N_ACTUATORS; ++i) {
             u[i] = c->u_last[i];
         }
@@ -195,10 +184,10 @@ int zrate_observe(zrate_ctrl *c, const zrate_real *y,
     if (c == 0 || y == 0 || u_applied == 0 || (ZRATE_N_SCHEDULE != 0 && sched == 0)) {
         return ZRATE_BAD_ARGUMENT;
     }
-    if (!all_finite(u_applied, ZRATE_N_ACTUATORS)) {
+    if (!zrate_all_finite(u_applied, ZRATE_N_ACTUATORS)) {
         return ZRATE_NONFINITE_INPUT; /* no input to propagate with: nothing changes */
     }
-    use_y = all_finite(y, ZRATE_N_OUTPUTS) && all_finite(sched, ZRATE_N_SCHEDULE);
+    use_y = zrate_all_finite(y, ZRATE_N_OUTPUTS) && zrate_all_finite(sched, ZRATE_N_SCHEDULE);
     if (use_y) {
         follow_schedule(c, sched);
     }
@@ -218,8 +207,8 @@ int zrate_solve_qp(zrate_ctrl *c, int mode, const zrate_real *x,
     if (c == 0 || U == 0 || mode < 0 || mode >= ZRATE_N_MODES) {
         return ZRATE_BAD_ARGUMENT;
     }
-    if (x == 0 || r == 0 || !all_finite(x, zrate_modes[mode].nx)
-        || !all_finite(r, ZRATE_HORIZON * ZRATE_N_OUTPUTS)) {
+    if (x == 0 || r == 0 || !zrate_all_finite(x, zrate_modes[mode].nx)
+        || !zrate_all_finite(r, ZRATE_HORIZON * ZRATE_N_OUTPUTS)) {
         status = (x == 0 || r == 0) ? ZRATE_BAD_ARGUMENT : ZRATE_NONFINITE_INPUT;
         for (i = 0; i < zrate_modes[mode].n; ++i) {
             U[i] = R_(0.0);

@@ -54,17 +54,6 @@ static int schedule(int current, drives_real s)
     return next;
 }
 
-static int all_finite(const drives_real *v, int n)
-{
-    int i;
-    for (i = 0; i < n; ++i) {
-        if (!isfinite(v[i])) {
-            return 0;
-        }
-    }
-    return 1;
-}
-
 /*
  * One observer update; use_y = 0 propagates open loop (no valid measurement). Each
  * innovation y - C xhat is clipped to +-innovation_limit, so that a spike moves the
@@ -197,8 +186,8 @@ int drives_step(drives_ctrl *c, const drives_real *y, const drives_real *sched,
         c->info.status = DRIVES_BAD_ARGUMENT;
         return DRIVES_BAD_ARGUMENT;
     }
-    if (!all_finite(y, DRIVES_N_OUTPUTS) || !all_finite(sched, DRIVES_N_SCHEDULE)
-        || !all_finite(r, DRIVES_HORIZON * DRIVES_N_OUTPUTS)) {
+    if (!drives_all_finite(y, DRIVES_N_OUTPUTS) || !drives_all_finite(sched, DRIVES_N_SCHEDULE)
+        || !drives_all_finite(r, DRIVES_HORIZON * DRIVES_N_OUTPUTS)) {
         for (i = 0; i < DRIVES_N_ACTUATORS; ++i) {
             u[i] = c->u_last[i];
         }
@@ -242,10 +231,10 @@ int drives_observe(drives_ctrl *c, const drives_real *y,
     if (c == 0 || y == 0 || u_applied == 0 || (DRIVES_N_SCHEDULE != 0 && sched == 0)) {
         return DRIVES_BAD_ARGUMENT;
     }
-    if (!all_finite(u_applied, DRIVES_N_ACTUATORS)) {
+    if (!drives_all_finite(u_applied, DRIVES_N_ACTUATORS)) {
         return DRIVES_NONFINITE_INPUT; /* no input to propagate with: nothing changes */
     }
-    use_y = all_finite(y, DRIVES_N_OUTPUTS) && all_finite(sched, DRIVES_N_SCHEDULE);
+    use_y = drives_all_finite(y, DRIVES_N_OUTPUTS) && drives_all_finite(sched, DRIVES_N_SCHEDULE);
     if (use_y) {
         follow_schedule(c, sched);
     }
@@ -265,8 +254,8 @@ int drives_solve_qp(drives_ctrl *c, int mode, const drives_real *x,
     if (c == 0 || U == 0 || mode < 0 || mode >= DRIVES_N_MODES) {
         return DRIVES_BAD_ARGUMENT;
     }
-    if (x == 0 || r == 0 || !all_finite(x, drives_modes[mode].nx)
-        || !all_finite(r, DRIVES_HORIZON * DRIVES_N_OUTPUTS)) {
+    if (x == 0 || r == 0 || !drives_all_finite(x, drives_modes[mode].nx)
+        || !drives_all_finite(r, DRIVES_HORIZON * DRIVES_N_OUTPUTS)) {
         status = (x == 0 || r == 0) ? DRIVES_BAD_ARGUMENT : DRIVES_NONFINITE_INPUT;
         for (i = 0; i < drives_modes[mode].n; ++i) {
             U[i] = R_(0.0);

@@ -72,7 +72,7 @@ typedef struct {
 /** Work arrays of the QP solver (kept out of the stack). */
 typedef struct {
     drives_real th0[DRIVES_N_MAX];    /**< Unconstrained solution. */
-    drives_real th[DRIVES_N_MAX];     /**< Current solution estimate. */
+    drives_real th[DRIVES_N_MAX];     /**< Current solution estimate; scratch while th0 is formed. */
     drives_real px[DRIVES_NYQ_MAX];   /**< Phi x. */
     drives_real yv[DRIVES_NYQ_MAX];   /**< Gamma th; 2 Omega R while th0 is formed; scratch of correct(). */
     drives_real gam[DRIVES_M_MAX];    /**< Right-hand side c + W x. */

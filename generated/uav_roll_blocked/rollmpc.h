@@ -72,7 +72,7 @@ typedef struct {
 /** Work arrays of the QP solver (kept out of the stack). */
 typedef struct {
     rollmpc_real th0[ROLLMPC_N_MAX];    /**< Unconstrained solution. */
-    rollmpc_real th[ROLLMPC_N_MAX];     /**< Current solution estimate. */
+    rollmpc_real th[ROLLMPC_N_MAX];     /**< Current solution estimate; scratch while th0 is formed. */
     rollmpc_real px[ROLLMPC_NYQ_MAX];   /**< Phi x. */
     rollmpc_real yv[ROLLMPC_NYQ_MAX];   /**< Gamma th; 2 Omega R while th0 is formed; scratch of correct(). */
     rollmpc_real gam[ROLLMPC_M_MAX];    /**< Right-hand side c + W x. */

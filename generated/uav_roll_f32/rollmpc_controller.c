@@ -54,17 +54,6 @@ static int schedule(int current, rollmpc_real s)
     return next;
 }
 
-static int all_finite(const rollmpc_real *v, int n)
-{
-    int i;
-    for (i = 0; i < n; ++i) {
-        if (!isfinite(v[i])) {
-            return 0;
-        }
-    }
-    return 1;
-}
-
 /*
  * One observer update; use_y = 0 propagates open loop (no valid measurement). Each
  * innovation y - C xhat is clipped to +-innovation_limit, so that a spike moves the
@@ -197,8 +186,8 @@ int rollmpc_step(rollmpc_ctrl *c, const rollmpc_real *y, const rollmpc_real *sch
         c->info.status = ROLLMPC_BAD_ARGUMENT;
         return ROLLMPC_BAD_ARGUMENT;
     }
-    if (!all_finite(y, ROLLMPC_N_OUTPUTS) || !all_finite(sched, ROLLMPC_N_SCHEDULE)
-        || !all_finite(r, ROLLMPC_HORIZON * ROLLMPC_N_OUTPUTS)) {
+    if (!rollmpc_all_finite(y, ROLLMPC_N_OUTPUTS) || !rollmpc_all_finite(sched, ROLLMPC_N_SCHEDULE)
+        || !rollmpc_all_finite(r, ROLLMPC_HORIZON * ROLLMPC_N_OUTPUTS)) {
         for (i = 0; i < ROLLMPC_N_ACTUATORS; ++i) {
             u[i] = c->u_last[i];
         }
@@ -242,10 +231,10 @@ int rollmpc_observe(rollmpc_ctrl *c, const rollmpc_real *y,
     if (c == 0 || y == 0 || u_applied == 0 || (ROLLMPC_N_SCHEDULE != 0 && sched == 0)) {
         return ROLLMPC_BAD_ARGUMENT;
     }
-    if (!all_finite(u_applied, ROLLMPC_N_ACTUATORS)) {
+    if (!rollmpc_all_finite(u_applied, ROLLMPC_N_ACTUATORS)) {
         return ROLLMPC_NONFINITE_INPUT; /* no input to propagate with: nothing changes */
     }
-    use_y = all_finite(y, ROLLMPC_N_OUTPUTS) && all_finite(sched, ROLLMPC_N_SCHEDULE);
+    use_y = rollmpc_all_finite(y, ROLLMPC_N_OUTPUTS) && rollmpc_all_finite(sched, ROLLMPC_N_SCHEDULE);
     if (use_y) {
         follow_schedule(c, sched);
     }
@@ -265,8 +254,8 @@ int rollmpc_solve_qp(rollmpc_ctrl *c, int mode, const rollmpc_real *x,
     if (c == 0 || U == 0 || mode < 0 || mode >= ROLLMPC_N_MODES) {
         return ROLLMPC_BAD_ARGUMENT;
     }
-    if (x == 0 || r == 0 || !all_finite(x, rollmpc_modes[mode].nx)
-        || !all_finite(r, ROLLMPC_HORIZON * ROLLMPC_N_OUTPUTS)) {
+    if (x == 0 || r == 0 || !rollmpc_all_finite(x, rollmpc_modes[mode].nx)
+        || !rollmpc_all_finite(r, ROLLMPC_HORIZON * ROLLMPC_N_OUTPUTS)) {
         status = (x == 0 || r == 0) ? ROLLMPC_BAD_ARGUMENT : ROLLMPC_NONFINITE_INPUT;
         for (i = 0; i < rollmpc_modes[mode].n; ++i) {
             U[i] = R_(0.0);

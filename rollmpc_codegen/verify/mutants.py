@@ -79,10 +79,10 @@ MUTANTS = (
            "(i == 0) ? {{ PREFIX }}_OPTIMAL : {{ PREFIX }}_MAX_ITER, U);",
            (FORMULATION, "tests/test_active_set.py", *regenerated("uav_roll"))),
     Mutant("NaN check of the preview covers r_1 only", "templates/controller.c.j2",
-           "|| !all_finite(sched, {{ PREFIX }}_N_SCHEDULE)\n"
-           "        || !all_finite(r, {{ PREFIX }}_HORIZON * {{ PREFIX }}_N_OUTPUTS)) {",
-           "|| !all_finite(sched, {{ PREFIX }}_N_SCHEDULE)\n"
-           "        || !all_finite(r, {{ PREFIX }}_N_OUTPUTS)) {",
+           "|| !{{ prefix }}_all_finite(sched, {{ PREFIX }}_N_SCHEDULE)\n"
+           "        || !{{ prefix }}_all_finite(r, {{ PREFIX }}_HORIZON * {{ PREFIX }}_N_OUTPUTS)) {",
+           "|| !{{ prefix }}_all_finite(sched, {{ PREFIX }}_N_SCHEDULE)\n"
+           "        || !{{ prefix }}_all_finite(r, {{ PREFIX }}_N_OUTPUTS)) {",
            ("tests/test_api.py", "tests/test_reliability_inputs.py", *regenerated("uav_roll"))),
     Mutant("soft slack sign in the polish ((l1 - z) w)", "templates/solver/soft_rows.c.j2",
            "return ws->slack_on[r] ? (z - l1) * w : R_(0.0);",
