@@ -105,9 +105,14 @@ def config_error(path_or_data, loader=None):
 
 
 def variant_config(tmp_path: Path, name: str = "variant", **solver) -> Path:
-    """examples/uav_roll.yaml with solver settings overridden, written to tmp_path."""
+    """examples/uav_roll.yaml with solver settings overridden, written to tmp_path. Without
+    the polish the example's work_budget (sized from the polish's cycles per unit) is
+    dropped unless given: the paper's sweeps have no budget, max_iterations caps them."""
     def edit(data):
-        data["solver"] = {**data.get("solver", {}), **solver}
+        base = dict(data.get("solver", {}))
+        if solver.get("polish") is False and "work_budget" not in solver:
+            base.pop("work_budget", None)
+        data["solver"] = {**base, **solver}
     return edited_config(tmp_path, UAV, name, edit)
 
 

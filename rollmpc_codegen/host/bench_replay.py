@@ -23,6 +23,7 @@ from .bench_record import QpSequence
 from .build import HostController
 from ..codegen.context import build_context
 from ..config import ControllerConfig
+from ..config.schema import WORK_BUDGET_AUTO
 from ..model.controller import ControllerModel
 from ..pipeline import build_model
 from ..status import STATUS_NAMES
@@ -40,8 +41,10 @@ class Replay:
 
 
 def variant_context(cfg: ControllerConfig, method: str) -> dict:
-    """The context of ``cfg`` with the paper's ``method`` and no polish."""
-    solver = dataclasses.replace(cfg.solver, method=method, polish=False)
+    """The context of ``cfg`` with the paper's ``method`` and no polish, and no work budget
+    (a budget the config sizes is for its polish; the paper's sweeps stop at max_iterations)."""
+    solver = dataclasses.replace(cfg.solver, method=method, polish=False,
+                                 work_budget=WORK_BUDGET_AUTO)
     return build_context(build_model(dataclasses.replace(cfg, solver=solver)))
 
 
