@@ -75,11 +75,12 @@ def finish_work(m) -> int:
 # (7.6 and 11.4 cycles at CYCLES_PER_WORK_UNIT); checked on whole steps with rollmpc report.
 CHOL_UNITS_PER_OP = (2, 5)
 TRI_UNITS_PER_OP = (3, 5)
-# primal_solve(): its Cholesky (with the gathers of its rows: small orders, called per
-# run of inputs) at 1/2 of a unit per operation, its solves, Schur complement and
-# products at 1/3 (8.9 and 5.4 cycles per operation on quad_attitude's first 500 steps:
-# its functions' cycles in a -fno-inline build against the reference's operations), in
-# sixths of a unit: one division, so the C's intermediates stay integers
+# primal_solve(), in sixths of a unit per operation (one division, so the C's
+# intermediates stay integers): its Cholesky at 2/6 (6.3 cycles; the kernel takes 5.3-6.2
+# from order 10), its solves for nt + 1 right-hand sides, Schur complement, gathers and
+# products at 3/6 (9.5). Fitted on whole steps with rollmpc report: the heavy steps of
+# quad_attitude run at <= 17.93 cycles per unit and uav_roll's at <= 13.11; (3/6, 2/6)
+# let quad_attitude's step 420 reach 22.31, all at 2/5 21.05.
 PRIMAL_SIXTHS_PER_OP = (2, 3)  # (factor, loops)
 
 
