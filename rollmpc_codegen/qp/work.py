@@ -19,10 +19,10 @@ from ..config.schema import DEFAULT_CPU_MHZ, WORK_BUDGET_AUTO
 
 # Estimated Cortex-M4F cycles per work unit, declared once: `rollmpc report --precision
 # float` (which prints the ratio) measured at most 19.23 cycles per unit on the counted
-# steps that spend over 30 % of their budget (fw_lateral step 576; quad_attitude 17.98,
-# c172_roll 14.45, uav_roll 12.42; every example's largest steps 8.3-18.8), with 4 % of
-# margin (docs/solver.md, "Work budget"). Small steps reach 24 (fixed costs per call:
-# thermal_zones 21.9 at 181 k cycles), far below any budget.
+# steps that spend over 30 % of their budget (commit a0d58fb: fw_lateral step 576;
+# quad_attitude 17.93, c172_roll 15.54, uav_roll 13.11), with 4 % of margin (docs/solver.md,
+# "Work budget"). Small steps reach 21-24 (fixed costs per call: thermal_zones' largest,
+# <= 11.7 k units, run at 20.1-21.2), far below their own budgets; not yet charged in full.
 CYCLES_PER_WORK_UNIT = 20.0
 WORK_LIMIT = 2**31  # every count and bound stays below it (uint32 in the C)
 UNBOUNDED_WORK = WORK_LIMIT - 1  # the largest budget: in effect none

@@ -27,16 +27,17 @@ def kernel_cycles(config: str | Path, orders=ORDERS) -> list[dict]:
     """Per order: the cycles of cholesky_from, chol_lsolve_from and chol_ltsolve, and
     their cycles per chol_ops() / tri_ops() operation."""
     _model, ctx = load_model(config, "float")
-    cpu = CortexM4(build_target(ctx, Path(tempfile.mkdtemp(prefix="rollmpc-kernels-"))).elf)
+    with tempfile.TemporaryDirectory(prefix="rollmpc-kernels-") as tmp:  # loaded: not kept
+        cpu = CortexM4(build_target(ctx, Path(tmp)).elf)
     p, rng, rows = ctx["prefix"], np.random.default_rng(0), []
     base, room = cpu.objects[f"{p}_target_ctrl"]
     for k in orders:
         a = rng.standard_normal((k, k))
         packed = np.concatenate([row[:i + 1] for i, row in enumerate(a @ a.T + k * np.eye(k))])
         packed = packed.astype(np.float32)
-        rhs = base + packed.nbytes + 64
         if packed.nbytes + 64 + 4 * k > room:
             break  # the instance's RAM holds no larger factor
+        rhs = base + packed.nbytes + 64
         cpu.write(f"{p}_target_ctrl", packed)
         cpu.uc.mem_write(rhs, np.ones(k, np.float32).tobytes())
         chol = cpu.call(f"{p}_cholesky_from", (base, 0, k), count=True)[1].cycles
