@@ -57,6 +57,9 @@ def test_report_json_keys_and_bit_exact(target_tools, tmp_path, build_root, caps
     assert shares == sorted(shares, reverse=True) and 0.99 <= sum(shares) <= 1.0001
     text = capsys.readouterr().out
     assert "168 MHz" in text and "bit-exact vs host: yes" in text
+    # every replayed step's status (uav_roll's own budget: no TIME_LIMIT), and no warning
+    assert rep["statuses"] == {"optimal": 960}
+    assert "solver statuses over optimal 960 of 960 steps" in text and "warning" not in text
 
 
 def test_emulated_cycles_are_deterministic(target_tools, float_model, build_root):

@@ -66,8 +66,11 @@ def test_hard_violations_beyond_the_feasibility_tolerance(tmp_path, precision, i
     y = [0.0, inside, -inside, outside, -outside, 44.0]
     u = [15.0, 15 + 1e-14 * (precision == "double"), -15.0, 0.0,
          15.0 * (1 + 2 * cfg.feasibility_tol), 0.0]
-    assert constraint_violations(cfg, _log(y, u)) == {"u": 1, "inactive_actuator_nonzero": 0,
-                                                      "y": 2, "total": 3}
+    cv = constraint_violations(cfg, _log(y, u))
+    assert {k: cv[k] for k in ("u", "inactive_actuator_nonzero", "y", "total")} == {
+        "u": 1, "inactive_actuator_nonzero": 0, "y": 2, "total": 3}
+    assert cv["y_max_beyond"] == {"roll": pytest.approx(outside - 45, rel=1e-6)}
+    assert constraint_violations(cfg, _log([0.0, inside]))["y_max_beyond"] == {}
 
 
 def test_configured_tolerance_is_the_one_used(tmp_path):
@@ -101,6 +104,26 @@ def test_simulate_reports_soft_excursions_apart(tmp_path):
     assert "constraint violations: 0 (u 0, inactive 0, y 0; hard bounds, beyond 1e-09 " in out
     line = next(ln for ln in out.splitlines() if "soft output bounds" in ln)
     assert f"the output is beyond one in {sb['samples_beyond']} samples" in line
+
+
+def test_simulate_warns_of_time_limited_samples(tmp_path):
+    """The soft 45 deg design with the default work budget: samples stop at TIME_LIMIT,
+    and simulate says how many and what it means (issue 19); with no budget it is quiet."""
+    path = _config(tmp_path, soft=True)
+    data = yaml.safe_load(path.read_text())
+    del data["solver"]  # the default budget: half of Ts at 168 MHz
+    limited = tmp_path / "limited.yaml"
+    limited.write_text(yaml.safe_dump(data, sort_keys=False))
+    for config, expect in ((limited, True), (path, False)):
+        code, out, err = cli(["simulate", str(config), "--quiet", "--json",
+                              str(tmp_path / "s.json"), "--build-dir", str(tmp_path / "b")])
+        assert code == 0, err
+        n = json.loads((tmp_path / "s.json").read_text())["status_counts"].get("time_limit", 0)
+        assert (n > 0) == expect
+        warned = [ln for ln in out.splitlines() if "stopped at the work budget (TIME_LIMIT)" in ln]
+        assert len(warned) == int(expect)
+        if expect:
+            assert warned[0].strip().startswith(f"warning: {n} of ")
 
 
 def test_short_segments_flag_the_settled_error(tmp_path):

@@ -60,6 +60,8 @@ def parse_horizons(text: str) -> list[int]:
 
 def summary_text(rep: dict) -> str:
     """Short human summary with the verdict at the config's clock and sample time."""
+    from ..sim.metrics import time_limit_warning
+
     b = rep["budget"]
     verdict = "fits" if b["worst_fits"] else "DOES NOT fit"
     top = ", ".join(f"{r['function']} {100 * r['share']:.0f}%"
@@ -96,6 +98,12 @@ def summary_text(rep: dict) -> str:
         lines.append(f"  cycles per work unit on {cpw['steps']} counted steps: max {cpw['max']} "
                      f"({flight}step {cpw['step_of_max']}), median {cpw['median']}; work budget "
                      f"{rep['work_budget']:,} units")
+    counts = rep.get("statuses", {})
+    lines.append("  solver statuses over " + ", ".join(f"{n} {c}" for n, c in counts.items())
+                 + f" of {sum(counts.values())} steps")
+    warning = time_limit_warning(counts, sum(counts.values()))
+    if warning:
+        lines.append(f"  warning: {warning}")
     if rep["goals"]:
         goals = ", ".join(f"{k}: {'met' if v else 'MISSED'}" for k, v in rep["goals"].items())
         lines.append(f"  memory goals (the config's target: section): {goals}")

@@ -76,6 +76,8 @@ def solver_text(ctx: dict) -> str:
 
 
 def print_summary(cfg, ctx: dict, s: dict) -> None:
+    from ..sim.metrics import time_limit_warning
+
     names = [m.name for m in cfg.modes]
     y_unit, u_unit = cfg.units.label("outputs"), cfg.units.label("actuators")
     print(f"rollmpc simulate: {s['samples']} samples ({s['duration_s']:g} s), "
@@ -94,8 +96,10 @@ def print_summary(cfg, ctx: dict, s: dict) -> None:
     print(f"  switches: {s['switches']} (samples per mode: {modes})")
     umax = ", ".join(f"{a} {v:g}" for a, v in s["max_abs_u"].items())
     cv = s["constraint_violations"]
+    far = ", ".join(f"{name} {v:.3g}" for name, v in cv["y_max_beyond"].items())
     print(f"  max |u|{u_unit}: {umax}; constraint violations: {cv['total']} "
-          f"(u {cv['u']}, inactive {cv['inactive_actuator_nonzero']}, y {cv['y']}; hard "
+          f"(u {cv['u']}, inactive {cv['inactive_actuator_nonzero']}, y {cv['y']}"
+          f"{f' by up to {far}{y_unit}' if far else ''}; hard "
           f"bounds, beyond {s['violation_tolerance']:g} max(1, |bound|))")
     if s.get("soft_bounds"):
         sb = s["soft_bounds"]
@@ -107,6 +111,9 @@ def print_summary(cfg, ctx: dict, s: dict) -> None:
     if st["median"] is not None:
         print(f"  non-optimal: {s['non_optimal']}; max iterations: {s['max_iterations']}; "
               f"solve time median {st['median']:.1f} us, max {st['max']:.1f} us")
+    warning = time_limit_warning(s["status_counts"], s["samples"])
+    if warning:
+        print(f"  warning: {warning}")
     base = s.get("baseline")
     if base is not None:
         errs = ", ".join(f"{x['settled_error']:.3g}" for x in base["segments"])

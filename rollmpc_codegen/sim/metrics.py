@@ -148,6 +148,7 @@ def constraint_violations(cfg: ControllerConfig, log: ClosedLoopLog) -> dict:
     """Counts of samples breaking a hard input or output constraint of the active mode by
     more than the solver's tolerance (module docstring)."""
     u_bad = inactive = y_bad = 0
+    y_excess = np.zeros(cfg.n_outputs)  # the farthest each output passes a hard bound
     tol = cfg.feasibility_tol
     for j, mode in enumerate(cfg.modes):
         rows = log.mode == j
@@ -159,10 +160,12 @@ def constraint_violations(cfg: ControllerConfig, log: ClosedLoopLog) -> dict:
         others = [a for a in range(len(cfg.actuators)) if a not in acts]
         if others:
             inactive += int(np.any(log.u[rows][:, others] != 0, axis=1).sum())
-        y_bad += int(np.any(beyond(log.y[rows], *_output_bounds(mode, False), tol) > 0,
-                            axis=1).sum())
+        out = beyond(log.y[rows], *_output_bounds(mode, False), tol)
+        y_bad += int(np.any(out > 0, axis=1).sum())
+        y_excess = np.maximum(y_excess, out.max(axis=0))
     return {"u": u_bad, "inactive_actuator_nonzero": inactive, "y": y_bad,
-            "total": u_bad + inactive + y_bad}
+            "total": u_bad + inactive + y_bad,
+            "y_max_beyond": {name: float(v) for name, v in zip(cfg.outputs, y_excess) if v > 0}}
 
 
 def soft_bound_excursions(cfg: ControllerConfig, log: ClosedLoopLog) -> dict:
@@ -184,6 +187,24 @@ def _stats(values: np.ndarray) -> dict:
     return {"median": float(np.median(values)), "max": float(values.max())}
 
 
+def status_counts(statuses) -> dict:
+    """How many solves ended with each status, by its name (``optimal``, ``time_limit``...)."""
+    return {STATUS_NAMES.get(int(s), str(int(s))): int(n)
+            for s, n in zip(*np.unique(np.asarray(statuses, int), return_counts=True))}
+
+
+def time_limit_warning(counts: dict, samples: int) -> str | None:
+    """What ``simulate`` and ``report`` say when solves stopped at the work budget."""
+    limited = counts.get("time_limit", 0)
+    if not limited:
+        return None
+    return (f"{limited} of {samples} samples ({100 * limited / samples:.1f} %) stopped at the "
+            f"work budget (TIME_LIMIT): their commands are the best point found in time, inside "
+            f"the input bounds but not necessarily the output bounds. Give the solver more of "
+            f"Ts (solver.budget_share, target.cpu_mhz) or a smaller QP (docs/solver.md, "
+            f"\"Work budget\")")
+
+
 def summarize(cfg: ControllerConfig, log: ClosedLoopLog) -> dict:
     """Every metric of the JSON summary (one controller's log)."""
     ts, N = cfg.sample_time, cfg.horizon
@@ -194,8 +215,7 @@ def summarize(cfg: ControllerConfig, log: ClosedLoopLog) -> dict:
         s["index"] = i
     switch_k = np.flatnonzero(np.diff(log.mode) != 0) + 1
     names = [m.name for m in cfg.modes]
-    statuses = {STATUS_NAMES.get(int(s), str(int(s))): int(n)
-                for s, n in zip(*np.unique(log.status, return_counts=True))}
+    statuses = status_counts(log.status)
     by_mode = {}
     for j, name in enumerate(names):
         rows = log.mode == j

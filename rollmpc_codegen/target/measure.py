@@ -12,6 +12,7 @@ from pathlib import Path
 import numpy as np
 
 from .. import __version__
+from ..sim.metrics import status_counts
 from .build import (CORTEX_M4F, CROSS_CC, TARGET_CFLAGS, build_target, image_sizes,
                     largest_symbols, worst_stack)
 from .flights import FlightPlan, FlightRun, fly
@@ -156,6 +157,7 @@ def measure(model, ctx: dict, build_root: Path, *, plan: FlightPlan = FlightPlan
         "worst_step_host": {k: int(info_w[k]) for k in (*INFO_FIELDS, "solve_ticks")},
         "work_budget": int(ctx["solver"]["work_budget"]),
         "cycles_per_work_unit": cycles_per_work(runs),
+        "statuses": status_counts([info["status"] for f in runs for info in f.record.info]),
         "worst_step_instructions": int(worst.instructions),
         "worst_step_cycles": int(worst.cycles),
         "median_step_cycles": int(np.median(sweep_cycles)),
