@@ -112,6 +112,22 @@ def test_horizon_table_and_fits(target_tools, tmp_path, build_root, capsys):
     assert "| 20 |" in capsys.readouterr().out
 
 
+def test_horizon_the_generator_refuses_is_listed(target_tools, tmp_path, build_root, capsys):
+    """uav_roll's explicit work budget (100,000 units) is below the unconstrained step of
+    N = 300: that row is refused with the generator's reason, N = 10 still measured."""
+    from rollmpc_codegen.cli.main import main
+
+    out = tmp_path / "h.json"
+    assert main(["report", str(UAV), "--precision", "float", "--horizons", "10,300",
+                 "--steps", "30", "--sample-every", "30", "--hardest", "1", "--quiet",
+                 "--json", str(out), "--build-dir", str(build_root)]) == 0
+    table = json.loads(out.read_text())["horizons"]
+    assert [r["horizon"] for r in table["rows"]] == [10]
+    assert [r["horizon"] for r in table["refused"]] == [300]
+    assert "work_budget" in table["refused"][0]["error"]
+    assert "N = 300: not generated: solver.work_budget" in capsys.readouterr().out
+
+
 @pytest.mark.parametrize("args", [["--horizons", "10,x"], ["--steps", "0"]])
 def test_bad_report_arguments_give_one_line(args, capsys):
     from rollmpc_codegen.cli.main import main

@@ -147,6 +147,8 @@ def horizons_markdown(table: dict) -> str:
 
 def print_horizons(table: dict) -> None:
     print(horizons_markdown(table))
+    for r in table["refused"]:
+        print(f"N = {r['horizon']}: not generated: {r['error']}")
     b = table["budget"]
     print(f"\nlargest measured horizon within Ts = {1000 * b['sample_time']:g} ms at "
           f"{b['cpu_mhz']:g} MHz: {table['largest_measured_horizon_within_budget']}; "

@@ -14,6 +14,7 @@ import numpy as np
 import yaml
 
 from ..codegen.render import render_sources
+from ..config.errors import ConfigError
 from ..pipeline import load_model
 from ..sim.simulate import start_phase
 from .measure import measure
@@ -68,13 +69,21 @@ def horizon_limit(ns: list[int], cycles: list[int], budget: float) -> int | None
 def horizon_table(config: Path, horizons: list[int], precision: str | None, build_root: Path,
                   progress=None, **measure_options) -> dict:
     """Per horizon: generation time, flash, RAM, worst/median cycles; growth fits; parts.
-    ``measure_options`` are the keywords of :func:`rollmpc_codegen.target.measure.measure`."""
-    rows = []
+    A horizon the generator refuses (say, the config's explicit work budget is below that
+    horizon's unconstrained step) goes to ``refused`` with the error, and the others are
+    still measured. ``measure_options`` are the keywords of
+    :func:`rollmpc_codegen.target.measure.measure`."""
+    rows, refused = [], []
+    budget = None
     for h in horizons:
         start_phase(progress, 0, f"report: horizon {h}")
         path = config_with_horizon(config, h, Path(build_root) / "horizons")
         t0 = time.perf_counter()
-        model, ctx = load_model(path, precision)
+        try:
+            model, ctx = load_model(path, precision)
+        except ConfigError as exc:  # e.g. a work budget below this horizon's unconstrained step
+            refused.append({"horizon": h, "error": str(exc)})
+            continue
         render_sources(ctx)
         gen_s = time.perf_counter() - t0
         rep = measure(model, ctx, build_root, progress=progress, **measure_options)
@@ -87,6 +96,9 @@ def horizon_table(config: Path, horizons: list[int], precision: str | None, buil
                      "fits_budget": rep["budget"]["worst_fits"]})
         # the same for every horizon: the config's Ts and target.cpu_mhz
         budget = {k: rep["budget"][k] for k in ("cpu_mhz", "sample_time", "cycles_per_sample")}
+    if not rows:
+        raise ConfigError("--horizons", "the generator refuses every horizon: "
+                          + "; ".join(f"N = {r['horizon']}: {r['error']}" for r in refused))
     ns = [r["horizon"] for r in rows]
     keys = ("generation_s", "flash_bytes", "ram_bytes", "worst_step_cycles",
             "median_step_cycles")
@@ -101,6 +113,6 @@ def horizon_table(config: Path, horizons: list[int], precision: str | None, buil
               and r["ram_bytes"] <= part["ram_kib"] * 1024]
         parts.append({**part, "horizons_that_fit_memory": ok})
     fitting = [r["horizon"] for r in rows if r["fits_budget"]]
-    return {"rows": rows, "fits": fits, "parts": parts, "budget": budget,
+    return {"rows": rows, "refused": refused, "fits": fits, "parts": parts, "budget": budget,
             "largest_measured_horizon_within_budget": max(fitting) if fitting else None,
             "fitted_horizon_limit": n_max}
