@@ -43,21 +43,21 @@ def build_root(tmp_path_factory) -> Path:
 
 
 class Built:
-    """Model, context and compiled C of one configuration."""
+    """Model, context and compiled C of one configuration (``extra``: more C flags)."""
 
-    def __init__(self, config: Path, precision: str, build_root: Path):
-        from rollmpc_codegen.host.build import build_host_controller
+    def __init__(self, config: Path, precision: str, build_root: Path,
+                 extra: tuple[str, ...] = ()):
         from rollmpc_codegen.pipeline import load_model
 
         self.model, self.ctx = load_model(config, precision)
-        self.build_root = build_root
-        self.c = build_host_controller(self.ctx, build_root)
+        self.build_root, self.extra = build_root, extra
+        self.c = self.fresh_c()
 
     def fresh_c(self):
         """A second, independent controller instance from the same library."""
         from rollmpc_codegen.host.build import build_host_controller
 
-        return build_host_controller(self.ctx, self.build_root)
+        return build_host_controller(self.ctx, self.build_root, extra=self.extra)
 
     def reference(self):
         from rollmpc_codegen.reference.controller import ControllerRef

@@ -41,7 +41,11 @@ typedef char c172p_roll_double_tree_built_with_single_precision_constants[
 #define C172P_ROLL_M_MAX 200
 #define C172P_ROLL_NYQ_MAX 100
 #define C172P_ROLL_NT_MAX 1
+/* The working set's packed factor and row lists: w (w + 1) / 2 and w entries, with a
+ * floor for short horizons (qp/sizes.py, working_set_lengths()). */
 #define C172P_ROLL_CHOL_MAX 5050
+#define C172P_ROLL_WSET_MAX 100
+#define C172P_ROLL_TMP_MAX 100
 #define C172P_ROLL_YCOL_MAX 100
 
 /*

@@ -30,7 +30,11 @@ typedef float chain_rb_real;
 #define CHAIN_RB_M_MAX 170
 #define CHAIN_RB_NYQ_MAX 60
 #define CHAIN_RB_NT_MAX 6
+/* The working set's packed factor and row lists: w (w + 1) / 2 and w entries, with a
+ * floor for short horizons (qp/sizes.py, working_set_lengths()). */
 #define CHAIN_RB_CHOL_MAX 820
+#define CHAIN_RB_WSET_MAX 40
+#define CHAIN_RB_TMP_MAX 40
 #define CHAIN_RB_YCOL_MAX 240
 
 /*

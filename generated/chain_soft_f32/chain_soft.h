@@ -93,8 +93,8 @@ typedef struct {
     chain_soft_real innov[CHAIN_SOFT_N_OUTPUTS]; /**< Observer: innovation. */
     int16_t run[CHAIN_SOFT_HORIZON + 1];       /**< First stages of the runs of equal reference. */
     int16_t set[CHAIN_SOFT_M_MAX];              /**< Rows of the sweep set. */
-    int16_t wset[CHAIN_SOFT_W_MAX];             /**< Rows of the polish working set. */
-    int16_t tmp[CHAIN_SOFT_W_MAX];              /**< Scratch index list. */
+    int16_t wset[CHAIN_SOFT_WSET_MAX];          /**< Rows of the polish working set. */
+    int16_t tmp[CHAIN_SOFT_TMP_MAX];            /**< Scratch index list: rows joining the working set, the primal polish's inputs. */
     uint8_t in_set[CHAIN_SOFT_M_MAX];           /**< Membership flags of the sweep set, or of the working
                                                        set in polish() and the dual active set. */
     uint8_t input_role[CHAIN_SOFT_N_MAX];       /**< Primal polish: input bound now, row of the factor. */

@@ -32,7 +32,11 @@ typedef float chain_soft_real;
 #define CHAIN_SOFT_NT_MAX 6
 /** Working-set capacity: n plus the soft (output, stage) pairs (slack rows need no U freedom). */
 #define CHAIN_SOFT_W_MAX 100
+/* The working set's packed factor and row lists: w (w + 1) / 2 and w entries, with a
+ * floor for short horizons (qp/sizes.py, working_set_lengths()). */
 #define CHAIN_SOFT_CHOL_MAX 5050
+#define CHAIN_SOFT_WSET_MAX 100
+#define CHAIN_SOFT_TMP_MAX 100
 #define CHAIN_SOFT_YCOL_MAX 240
 
 /*

@@ -93,8 +93,8 @@ typedef struct {
     fwlat_real innov[FWLAT_N_OUTPUTS]; /**< Observer: innovation. */
     int16_t run[FWLAT_HORIZON + 1];       /**< First stages of the runs of equal reference. */
     int16_t set[FWLAT_M_MAX];              /**< Rows of the sweep set. */
-    int16_t wset[FWLAT_W_MAX];             /**< Rows of the polish working set. */
-    int16_t tmp[FWLAT_W_MAX];              /**< Scratch index list. */
+    int16_t wset[FWLAT_WSET_MAX];          /**< Rows of the polish working set. */
+    int16_t tmp[FWLAT_TMP_MAX];            /**< Scratch index list: rows joining the working set, the primal polish's inputs. */
     uint8_t in_set[FWLAT_M_MAX];           /**< Membership flags of the sweep set, or of the working
                                                        set in polish() and the dual active set. */
     uint8_t input_role[FWLAT_N_MAX];       /**< Primal polish: input bound now, row of the factor. */

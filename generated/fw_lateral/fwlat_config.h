@@ -41,7 +41,11 @@ typedef char fwlat_double_tree_built_with_single_precision_constants[
 #define FWLAT_NT_MAX 2
 /** Working-set capacity: n plus the soft (output, stage) pairs (slack rows need no U freedom). */
 #define FWLAT_W_MAX 120
+/* The working set's packed factor and row lists: w (w + 1) / 2 and w entries, with a
+ * floor for short horizons (qp/sizes.py, working_set_lengths()). */
 #define FWLAT_CHOL_MAX 7260
+#define FWLAT_WSET_MAX 120
+#define FWLAT_TMP_MAX 120
 #define FWLAT_YCOL_MAX 160
 
 /*

@@ -39,7 +39,11 @@ typedef char quadatt_double_tree_built_with_single_precision_constants[
 #define QUADATT_M_MAX 360
 #define QUADATT_NYQ_MAX 120
 #define QUADATT_NT_MAX 4
+/* The working set's packed factor and row lists: w (w + 1) / 2 and w entries, with a
+ * floor for short horizons (qp/sizes.py, working_set_lengths()). */
 #define QUADATT_CHOL_MAX 7260
+#define QUADATT_WSET_MAX 120
+#define QUADATT_TMP_MAX 120
 #define QUADATT_YCOL_MAX 480
 
 /*

@@ -39,7 +39,11 @@ typedef char qtank_double_tree_built_with_single_precision_constants[
 #define QTANK_M_MAX 160
 #define QTANK_NYQ_MAX 40
 #define QTANK_NT_MAX 2
+/* The working set's packed factor and row lists: w (w + 1) / 2 and w entries, with a
+ * floor for short horizons (qp/sizes.py, working_set_lengths()). */
 #define QTANK_CHOL_MAX 820
+#define QTANK_WSET_MAX 40
+#define QTANK_TMP_MAX 40
 #define QTANK_YCOL_MAX 80
 
 /*

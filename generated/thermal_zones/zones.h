@@ -89,8 +89,8 @@ typedef struct {
     zones_real innov[ZONES_N_OUTPUTS]; /**< Observer: innovation. */
     int16_t run[ZONES_HORIZON + 1];       /**< First stages of the runs of equal reference. */
     int16_t set[ZONES_M_MAX];              /**< Rows of the sweep set. */
-    int16_t wset[ZONES_N_MAX];             /**< Rows of the polish working set. */
-    int16_t tmp[ZONES_N_MAX];              /**< Scratch index list. */
+    int16_t wset[ZONES_WSET_MAX];          /**< Rows of the polish working set. */
+    int16_t tmp[ZONES_TMP_MAX];            /**< Scratch index list: rows joining the working set, the primal polish's inputs. */
     uint8_t in_set[ZONES_M_MAX];           /**< Membership flags of the sweep set, or of the working
                                                        set in polish() and the dual active set. */
     uint8_t input_role[ZONES_N_MAX];       /**< Primal polish: input bound now, row of the factor. */

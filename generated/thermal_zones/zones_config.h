@@ -39,7 +39,11 @@ typedef char zones_double_tree_built_with_single_precision_constants[
 #define ZONES_M_MAX 160
 #define ZONES_NYQ_MAX 40
 #define ZONES_NT_MAX 2
+/* The working set's packed factor and row lists: w (w + 1) / 2 and w entries, with a
+ * floor for short horizons (qp/sizes.py, working_set_lengths()). */
 #define ZONES_CHOL_MAX 820
+#define ZONES_WSET_MAX 40
+#define ZONES_TMP_MAX 40
 #define ZONES_YCOL_MAX 80
 
 /*

@@ -30,7 +30,11 @@ typedef float zrate_real;
 #define ZRATE_M_MAX 240
 #define ZRATE_NYQ_MAX 40
 #define ZRATE_NT_MAX 2
+/* The working set's packed factor and row lists: w (w + 1) / 2 and w entries, with a
+ * floor for short horizons (qp/sizes.py, working_set_lengths()). */
 #define ZRATE_CHOL_MAX 820
+#define ZRATE_WSET_MAX 40
+#define ZRATE_TMP_MAX 40
 #define ZRATE_YCOL_MAX 80
 
 /*

@@ -41,7 +41,11 @@ typedef char drives_double_tree_built_with_single_precision_constants[
 #define DRIVES_M_MAX 100
 #define DRIVES_NYQ_MAX 25
 #define DRIVES_NT_MAX 1
+/* The working set's packed factor and row lists: w (w + 1) / 2 and w entries, with a
+ * floor for short horizons (qp/sizes.py, working_set_lengths()). */
 #define DRIVES_CHOL_MAX 325
+#define DRIVES_WSET_MAX 25
+#define DRIVES_TMP_MAX 25
 #define DRIVES_YCOL_MAX 25
 
 /*

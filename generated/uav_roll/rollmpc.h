@@ -89,8 +89,8 @@ typedef struct {
     rollmpc_real innov[ROLLMPC_N_OUTPUTS]; /**< Observer: innovation. */
     int16_t run[ROLLMPC_HORIZON + 1];       /**< First stages of the runs of equal reference. */
     int16_t set[ROLLMPC_M_MAX];              /**< Rows of the sweep set. */
-    int16_t wset[ROLLMPC_N_MAX];             /**< Rows of the polish working set. */
-    int16_t tmp[ROLLMPC_N_MAX];              /**< Scratch index list. */
+    int16_t wset[ROLLMPC_WSET_MAX];          /**< Rows of the polish working set. */
+    int16_t tmp[ROLLMPC_TMP_MAX];            /**< Scratch index list: rows joining the working set, the primal polish's inputs. */
     uint8_t in_set[ROLLMPC_M_MAX];           /**< Membership flags of the sweep set, or of the working
                                                        set in polish() and the dual active set. */
     uint8_t input_role[ROLLMPC_N_MAX];       /**< Primal polish: input bound now, row of the factor. */

@@ -32,7 +32,11 @@ typedef float rollmpc_real;
 #define ROLLMPC_M_MAX 400
 #define ROLLMPC_NYQ_MAX 100
 #define ROLLMPC_NT_MAX 1
+/* The working set's packed factor and row lists: w (w + 1) / 2 and w entries, with a
+ * floor for short horizons (qp/sizes.py, working_set_lengths()). */
 #define ROLLMPC_CHOL_MAX 5050
+#define ROLLMPC_WSET_MAX 100
+#define ROLLMPC_TMP_MAX 100
 #define ROLLMPC_YCOL_MAX 100
 
 /*

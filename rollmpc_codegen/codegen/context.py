@@ -15,6 +15,7 @@ from ..config.schema import default_dependence_tol
 from ..features.runtime_bounds import context_bounds
 from ..model.controller import ControllerModel
 from ..qp.arrays import REAL, declared_for
+from ..qp.sizes import working_set_lengths
 from ..qp.work import (ADD_BATCH, CHOL_UNITS_PER_OP, PRIMAL_SIXTHS_PER_OP, TRI_UNITS_PER_OP,
                        check_work_budget)
 from ..status import UNKNOWN_MESSAGE, context_statuses
@@ -73,6 +74,7 @@ def build_context(model: ControllerModel) -> dict:
     hq_work_factor = 2 if has_rate_rows else 1  # a Δu read is a difference of reads
     n_max = max(m["n"] for m in modes)
     w_max = max(m["w_cap"] for m in modes) if features["has_soft_rows"] else n_max
+    lengths = working_set_lengths(w_max)
     return {
         "generator": {"name": "rollmpc-codegen", "version": __version__},
         "config_hash": cfg.config_hash,
@@ -116,7 +118,8 @@ def build_context(model: ControllerModel) -> dict:
             "n_max": n_max, "m_max": max(m["m"] for m in modes),
             "nyq_max": max(m["nyq"] for m in modes),
             "nt_max": max(m["nt"] for m in modes),
-            "w_max": w_max, "chol_max": w_max * (w_max + 1) // 2,
+            "w_max": w_max, "chol_max": lengths["chol"],
+            "wset_max": lengths["wset"], "tmp_max": lengths["tmp"],
             # ws->ycol: the primal polish's Y (nt columns of n), or the dual's H_Wp (w)
             "ycol_max": max(max(max(m["nt"] for m in modes), 1) * n_max, w_max),
         },

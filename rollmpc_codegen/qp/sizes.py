@@ -30,6 +30,7 @@ from ..config.checks import qp_rows
 from ..config.schema import (MAX_CONDENSING_BYTES, MAX_ROWS, MAX_STATES, MAX_STORED_BYTES,
                               MAX_STRUCT_BYTES)
 from .arrays import REAL, declared_for
+from .work import ADD_BATCH
 
 C_TYPE_BYTES = {"int16_t": 2, "int8_t": 1}  # the integer element types of stored arrays
 
@@ -86,6 +87,21 @@ def features_of(cfg: ControllerConfig) -> dict:
             "has_soft_rows": any(m.soft_l2 is not None for m in cfg.modes)}
 
 
+def working_set_lengths(w: int) -> dict[str, int]:
+    """Lengths of P_work's working-set arrays (api.h.j2) for a capacity of ``w`` rows,
+    declared once for the C (codegen/context.py) and the RAM figure (:func:`struct_bytes`).
+
+    * ``tmp``: at least ADD_BATCH, the rows most_violated() ranks in it (a shorter list
+      overflowed at run time: fw_lateral at horizon 1, w = 3, crashed the float check).
+    * ``wset`` at least 2 rows and ``chol`` (the packed factor of w rows) at least 2
+      entries: gcc cannot see that the working set stays within md->w_cap (data), so at
+      w = 1 it takes free_multipliers()' read of wset[a + 1] and factor_append()'s loop
+      over row nw (both dead code there) for accesses past a 1-element array and refuses
+      them (-Warray-bounds at -O2). A second element keeps them inside the array.
+    """
+    return {"wset": max(w, 2), "tmp": max(w, ADD_BATCH), "chol": max(w * (w + 1) // 2, 2)}
+
+
 def real_bytes(precision: str) -> int:
     return 4 if precision == "float" else 8
 
@@ -110,13 +126,14 @@ def struct_bytes(cfg: ControllerConfig, sizes: tuple[ModeSizes, ...],
     nx, n, m, nyq, w = top["nx"], top["n"], top["m"], top["n_yq"], top["w_cap"]
     nt = max(1, max(s.nt for s in sizes))
     k, ny = len(cfg.modes), cfg.n_outputs
-    reals = (2 * n + 2 * nyq + 2 * m + 3 * w + w * (w + 1) // 2 + max(nt * n, w)
+    lengths = working_set_lengths(w)
+    reals = (2 * n + 2 * nyq + 2 * m + 3 * w + lengths["chol"] + max(nt * n, w)
              + nt * (nt + 1) // 2
              + nt + nx + ny  # the work arrays
              + k * (nx + m) + len(cfg.actuators) + n)  # xhat, lam, u_last, U
     if cfg.runtime_bounds:  # the live bounds of every mode, and the solver's copy
         reals += (k + 1) * 2 * (top["nu"] + ny)
-    int16s = cfg.horizon + 1 + m + 2 * w
+    int16s = cfg.horizon + 1 + m + lengths["wset"] + lengths["tmp"]
     bytes_ = m + n + (m if features_of(cfg)["has_soft_rows"] else 0)
     return reals * real + int16s * 2 + bytes_
 
