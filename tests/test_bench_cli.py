@@ -81,6 +81,21 @@ def test_json_schema(bench_run):
     assert set(data["reduced_set_check"]) >= {"sigma", "constrained_qps", "violating_qps"}
 
 
+def test_infeasible_qps_do_not_stop_the_bench(tmp_path):
+    """quad_attitude's scenario (default budget) leaves the tilt bound and meets QPs that
+    are infeasible: the reduced-set check used to stop the whole bench on quadprog's
+    ValueError; it now counts them apart."""
+    pytest.importorskip("quadprog", reason="install with: pip install 'rollmpc-codegen[peers]'")
+    out = tmp_path / "q.json"
+    code, text, err = cli(["bench", str(UAV.parent / "quad_attitude.yaml"), "--variants",
+                           "default", "--repeat", "1", "--quiet", "--json", str(out),
+                           "--build-dir", str(tmp_path / "b")])
+    assert code == 0, err
+    rs = json.loads(out.read_text())["reduced_set_check"]
+    assert rs["infeasible_qps"] > 0
+    assert f"{rs['infeasible_qps']} infeasible QPs left out" in text
+
+
 def test_plot_is_a_png(bench_run):
     _, _, _, paths = bench_run
     assert paths["png"].read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"

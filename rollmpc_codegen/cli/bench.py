@@ -115,7 +115,9 @@ def reduced_set_text(rs: dict) -> str:
             f"outside the set (max violation {rs['max_row_violation']:.3g}; max |u0| "
             f"{rs['max_abs_u0']:.3g}; planned inputs up to {rs['max_U_beyond_limit']:.3g} "
             f"beyond their limits; first move within {rs['max_abs_err_u0_vs_quadprog']:.2g} "
-            f"of quadprog).")
+            f"of quadprog)"
+            + (f"; {rs['infeasible_qps']} infeasible QPs left out (their reduced rows are "
+               f"inconsistent)" if rs.get("infeasible_qps") else "") + ".")
 
 
 def note_missing_peers() -> None:

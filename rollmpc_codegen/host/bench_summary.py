@@ -16,6 +16,8 @@ from .bench_record import QpSequence
 from .bench_replay import Replay, first_move_sizes
 from ..model.controller import ControllerModel
 from ..qp.peers import qp_vectors
+
+
 def _stats(v: np.ndarray) -> tuple[float | None, float | None, float | None]:
     if v.size == 0:
         return None, None, None
@@ -25,7 +27,8 @@ def _stats(v: np.ndarray) -> tuple[float | None, float | None, float | None]:
 def row_summary(key: str, label: str, timer: str, rep: Replay, ref: Replay,
                 seq: QpSequence, idx: np.ndarray, model: ControllerModel) -> dict:
     ts = model.config.sample_time
-    err = np.nanmax(np.abs(rep.u0 - ref.u0), axis=1) if len(idx) else np.zeros(0)
+    # the largest error per QP ignoring NaN (a QP quadprog found infeasible: all NaN, no warning)
+    err = np.fmax.reduce(np.abs(rep.u0 - ref.u0), axis=1) if len(idx) else np.zeros(0)
     compared = np.isfinite(err)
     avg_s, med_s, max_s = _stats(rep.solver_s)
     call_avg, call_med, call_max = _stats(rep.call_s)
@@ -75,7 +78,7 @@ def reduced_set_check(model: ControllerModel, seq: QpSequence, idx: np.ndarray,
 
     sigma = model.config.solver.sigma
     nus, _ = first_move_sizes(model)
-    constrained = violating = 0
+    constrained = violating = infeasible = 0
     worst_row = worst_u = worst_beyond = worst_U_beyond = worst_err = 0.0
     for q, i in enumerate(idx):
         mode = int(seq.mode[i])
@@ -89,7 +92,11 @@ def reduced_set_check(model: ControllerModel, seq: QpSequence, idx: np.ndarray,
         constrained += 1
         rows = np.flatnonzero(K < sigma)
         f, _ = qp_vectors(qp, x, r)
-        theta = quadprog.solve_qp(qp.E, -f, -qp.L[rows].T, -gamma[rows], 0)[0]
+        try:
+            theta = quadprog.solve_qp(qp.E, -f, -qp.L[rows].T, -gamma[rows], 0)[0]
+        except ValueError:  # "constraints are inconsistent": the QP itself is infeasible
+            infeasible += 1
+            continue
         viol = float((qp.L @ theta - gamma).max())
         scale = max(1.0, float(np.abs(gamma).max()))
         if viol > 1e-9 * scale:
@@ -104,8 +111,11 @@ def reduced_set_check(model: ControllerModel, seq: QpSequence, idx: np.ndarray,
         worst_row = max(worst_row, viol)
         worst_u = max(worst_u, float(np.abs(u0).max()))
         worst_beyond = max(worst_beyond, beyond)
-        worst_err = max(worst_err, float(np.nanmax(np.abs(u0 - reference.u0[q, :nus[mode]]))))
+        ref_u0 = reference.u0[q, :nus[mode]]
+        if np.isfinite(ref_u0).any():  # quadprog solved the full QP
+            worst_err = max(worst_err, float(np.nanmax(np.abs(u0 - ref_u0))))
     return {"sigma": sigma, "constrained_qps": constrained, "violating_qps": violating,
+            "infeasible_qps": infeasible,
             "max_row_violation": worst_row, "max_abs_u0": worst_u,
             "max_u0_beyond_limit": worst_beyond, "max_U_beyond_limit": worst_U_beyond,
             "max_abs_err_u0_vs_quadprog": worst_err}
