@@ -1459,8 +1459,7 @@ static int primal_solve(chain_soft_work *ws, const chain_soft_mode_data *md, int
             return -1; /* both bounds of one input: not a valid working set */
         }
         ws->input_role[q] = (uint8_t)(ws->input_role[q] | ROLE_BOUND);
-        ws->th[q] = (md->row_sign[r] > 0) ? md->row_c[r] : -md->row_c[r];
-        ws->dv[q] = ws->th[q] - ws->th0[q];
+        ws->dv[q] = ((md->row_sign[r] > 0) ? md->row_c[r] : -md->row_c[r]) - ws->th0[q];
     }
     k = (form == FORM_BOUND) ? nw : n - nw;
     head = k;
@@ -1486,6 +1485,12 @@ static int primal_solve(chain_soft_work *ws, const chain_soft_mode_data *md, int
             return OUT_OF_WORK;
         }
         ws->work += cost;
+    }
+    /* the bound inputs at their bounds only now: out of work, ws->th is still the caller's
+     * last point, which TIME_LIMIT returns (the reference's th on entry) */
+    for (i = 0; i < nw; ++i) {
+        const int r = ws->wset[i];
+        ws->th[md->row_q[r]] = (md->row_sign[r] > 0) ? md->row_c[r] : -md->row_c[r];
     }
     primal_order(ws, n, form, update, k, head);
     if (primal_factor(ws, md, k, from) != 0) {
