@@ -35,17 +35,18 @@ class SweepsMixin:
             val = np.concatenate((val, -v[prev]))[order]
         qv = np.zeros(n + nyq, dt)
         np.add.at(qv, at, val)  # sequential, in the rows' order
+        met = (qv < 0) | (qv > 0)  # the C's test: a NaN sum (inf - inf) is skipped, as there
         th = np.zeros(n, dt)
         ew_v = np.zeros(md.nt, dt)
-        for j in np.flatnonzero(qv[:n] != 0):
+        for j in np.flatnonzero(met[:n]):
             th = th + self.Sinv[:, j] * qv[j]
             ew_v = ew_v + md.Ew[:, j] * qv[j]
         for o in range(md.nt):
             th = th - md.Ew[o] * ew_v[o]
-        for k in np.flatnonzero(qv[n:] != 0):
+        for k in np.flatnonzero(met[n:]):
             th = th + md.EinvGt[:, k] * qv[n + k]
-        self.work += correct_cost(md, count, int(np.count_nonzero(qv[:n])),
-                                  int(np.count_nonzero(qv[n:])))
+        self.work += correct_cost(md, count, int(np.count_nonzero(met[:n])),
+                                  int(np.count_nonzero(met[n:])))
         return th0 - th
 
     def sweep(self, S, K, lam):
