@@ -54,6 +54,11 @@ def test_flights_are_seeded_distinct_and_name_the_overall_worst(target_tools, sl
         gains = np.array(f["plant_mismatch"]["gain"] + f["plant_mismatch"]["poles"])
         assert np.all(np.abs(gains - 1) <= 0.2) and np.any(gains != 1)
     assert rep["bit_exact_vs_host"] is True and rep["steps_emulated"] == 200
+    # each flight's statuses, and the report's over both flights
+    assert all(sum(f["statuses"].values()) == 100 for f in flights)
+    assert sum(rep["statuses"].values()) == 200
+    assert all(rep["statuses"].get(k, 0) == sum(f["statuses"].get(k, 0) for f in flights)
+               for k in rep["statuses"])
     # the overall worst is the largest of the flights' worsts, and names where it was
     assert rep["worst_step_cycles"] == max(f["worst_step_cycles"] for f in flights)
     worst = flights[rep["worst_flight"]]

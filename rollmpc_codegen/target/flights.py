@@ -19,6 +19,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..sim.metrics import status_counts
 from ..sim.mismatch import PlantMismatch
 from ..sim.scenario import plant_mismatch, random_reference, random_stream, scenario_reference
 from ..sim.simulate import start_phase
@@ -115,6 +116,7 @@ class FlightRun:
                 "worst_step": int(k), "worst_step_mode": int(self.record.info[k]["mode"]),
                 "worst_step_cycles": self.worst_cycles,
                 "median_step_cycles": int(np.median(self.sweep_counts("cycles"))),
+                "statuses": status_counts([info["status"] for info in self.record.info]),
                 "bit_exact_vs_host": self.bit_exact, "mismatches": len(self.run.mismatches),
                 "first_mismatches": [list(m) for m in self.run.mismatches[:5]]}
 
