@@ -1747,6 +1747,16 @@ static int seed_from_violated(fwlat_work *ws, const fwlat_mode_data *md)
     return nw;
 }
 
+/* The working-set rows whose multiplier z is not negative. */
+static int kept_rows(const fwlat_work *ws, int nw)
+{
+    int i, keep = 0;
+    for (i = 0; i < nw; ++i) {
+        keep += (ws->z[i] >= R_(0.0));
+    }
+    return keep;
+}
+
 /*
  * Drop the working-set rows with negative multipliers (remove_row(), from the last
  * position down). Returns 0 if none was dropped, 1 if some were (solve again), -1 if the
@@ -1755,10 +1765,8 @@ static int seed_from_violated(fwlat_work *ws, const fwlat_mode_data *md)
  */
 static int drop_negative(fwlat_work *ws, const fwlat_mode_data *md, int *nw, int guess)
 {
-    int i, keep = 0;
-    for (i = 0; i < *nw; ++i) {
-        keep += (ws->z[i] >= R_(0.0));
-    }
+    int i;
+    const int keep = kept_rows(ws, *nw);
     if (keep == *nw) {
         return 0;
     }
@@ -1940,6 +1948,19 @@ static int polish(fwlat_work *ws, const fwlat_mode_data *md, fwlat_real *lam,
             }
             known = (code == 1) ? nw : 0;
             nadd = violated_outside(ws, md, ws->th, ws->in_set, ws->tmp, md->w_cap - nw);
+            if (nadd > 0 && guess && it == 0) {
+                /* a guess whose first point already has most of its multipliers negative
+                 * (a reference step reversed the saturation) is given up before it grows,
+                 * by drop_negative()'s rule; primal_work() paid for these multipliers */
+                int keep;
+                if (code == 0) {
+                    free_multipliers(ws, md, nw);
+                }
+                keep = kept_rows(ws, nw);
+                if (keep == 0 || 2 * keep < nw) {
+                    return -1;
+                }
+            }
             if (nadd == 0) {
                 if (code == 0) {
                     free_multipliers(ws, md, nw);

@@ -153,6 +153,11 @@ class PolishMixin:
                     z = zp
                 known = W.size if zp is not None else 0
                 add = self.violated_outside(th, gam, W)
+                if add.size and guess and its == 1:  # the C's early test of a guess
+                    zc = zp if zp is not None else self.free_multipliers(W)
+                    kept = int(np.count_nonzero(zc >= 0))
+                    if kept == 0 or 2 * kept < W.size:
+                        return -1, None, 0, its
                 if add.size == 0:
                     if zp is None:
                         z = self.free_multipliers(W)
