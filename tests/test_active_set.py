@@ -102,3 +102,28 @@ def test_infeasible_sample_leaves_no_warm_start(warm_reader):
         assert [warm_info[k] for k in keys] == [cold.info()[k] for k in keys]
         pairs += 1
     assert pairs >= 6, pairs
+
+
+def test_a_reversed_guess_is_given_up_at_its_first_point():
+    """uav_roll's step 3071 (float, reference): a reference step reverses the saturation,
+    so the shifted guess (92 bound inputs) has all but a few multipliers negative. It is
+    given up at its first point (1 correction) and the violated rows' polish takes 6: 7 in
+    all, where growing the guess to 100 rows before testing it took 4 (10 in all)."""
+    from pathlib import Path
+
+    from rollmpc_codegen.pipeline import load_model
+    from rollmpc_codegen.reference.controller import ControllerRef
+    from rollmpc_codegen.sim.simulate import run_closed_loop
+
+    model, ctx = load_model(Path(__file__).parents[1] / "examples" / "uav_roll.yaml", "float")
+    ref = ControllerRef(ctx, [m.data for m in model.modes])
+    seen = []
+
+    class Record:
+        def step(self, *args):
+            out = ref.step(*args)
+            seen.append(dict(ref.last))
+            return out
+
+    run_closed_loop(model.config, Record(), steps=3072)
+    assert seen[3071]["status"] == OPTIMAL and seen[3071]["polish_iterations"] == 7
