@@ -1346,7 +1346,6 @@ static int primal_solve(chain_rb_work *ws, const chain_rb_mode_data *md, int nw,
             return -1; /* both bounds of one input: not a valid working set */
         }
         ws->input_role[q] = (uint8_t)(ws->input_role[q] | ROLE_BOUND);
-        ws->dv[q] = ((md->row_sign[r] > 0) ? row_const(ws, md, r) : -row_const(ws, md, r)) - ws->th0[q];
     }
     k = (form == FORM_BOUND) ? nw : n - nw;
     head = k;
@@ -1376,8 +1375,9 @@ static int primal_solve(chain_rb_work *ws, const chain_rb_mode_data *md, int nw,
     /* the bound inputs at their bounds only now: out of work, ws->th is still the caller's
      * last point, which TIME_LIMIT returns (the reference's th on entry) */
     for (i = 0; i < nw; ++i) {
-        const int r = ws->wset[i];
-        ws->th[md->row_q[r]] = (md->row_sign[r] > 0) ? row_const(ws, md, r) : -row_const(ws, md, r);
+        const int r = ws->wset[i], q = md->row_q[r];
+        ws->th[q] = (md->row_sign[r] > 0) ? row_const(ws, md, r) : -row_const(ws, md, r);
+        ws->dv[q] = ws->th[q] - ws->th0[q];
     }
     primal_order(ws, n, form, update, k, head);
     if (primal_factor(ws, md, k, from) != 0) {
@@ -1586,6 +1586,13 @@ static int kept_rows(const chain_rb_work *ws, int nw)
     return keep;
 }
 
+/* Is a working set of nw rows, keep of them with z >= 0, to be given up? Emptied, or a
+ * guess that would lose more than half of its rows. */
+static int given_up(int keep, int nw, int guess)
+{
+    return keep == 0 || (guess && 2 * keep < nw);
+}
+
 /*
  * Drop the working-set rows with negative multipliers (remove_row(), from the last
  * position down). Returns 0 if none was dropped, 1 if some were (solve again), -1 if the
@@ -1599,7 +1606,7 @@ static int drop_negative(chain_rb_work *ws, const chain_rb_mode_data *md, int *n
     if (keep == *nw) {
         return 0;
     }
-    if (keep == 0 || (guess && 2 * keep < *nw)) {
+    if (given_up(keep, *nw, guess)) {
         return -1;
     }
     if (ws->chol_holds == CHAIN_RB_CHOL_DUAL
@@ -1776,12 +1783,10 @@ static int polish(chain_rb_work *ws, const chain_rb_mode_data *md, chain_rb_real
                 /* a guess whose first point already has most of its multipliers negative
                  * (a reference step reversed the saturation) is given up before it grows,
                  * by drop_negative()'s rule; primal_work() paid for these multipliers */
-                int keep;
                 if (code == 0) {
                     free_multipliers(ws, md, nw);
                 }
-                keep = kept_rows(ws, nw);
-                if (keep == 0 || 2 * keep < nw) {
+                if (given_up(kept_rows(ws, nw), nw, 1)) {
                     return -1;
                 }
             }

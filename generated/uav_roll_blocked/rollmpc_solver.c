@@ -1331,7 +1331,6 @@ static int primal_solve(rollmpc_work *ws, const rollmpc_mode_data *md, int nw,
             return -1; /* both bounds of one input: not a valid working set */
         }
         ws->input_role[q] = (uint8_t)(ws->input_role[q] | ROLE_BOUND);
-        ws->dv[q] = ((md->row_sign[r] > 0) ? md->row_c[r] : -md->row_c[r]) - ws->th0[q];
     }
     k = (form == FORM_BOUND) ? nw : n - nw;
     head = k;
@@ -1361,8 +1360,9 @@ static int primal_solve(rollmpc_work *ws, const rollmpc_mode_data *md, int nw,
     /* the bound inputs at their bounds only now: out of work, ws->th is still the caller's
      * last point, which TIME_LIMIT returns (the reference's th on entry) */
     for (i = 0; i < nw; ++i) {
-        const int r = ws->wset[i];
-        ws->th[md->row_q[r]] = (md->row_sign[r] > 0) ? md->row_c[r] : -md->row_c[r];
+        const int r = ws->wset[i], q = md->row_q[r];
+        ws->th[q] = (md->row_sign[r] > 0) ? md->row_c[r] : -md->row_c[r];
+        ws->dv[q] = ws->th[q] - ws->th0[q];
     }
     primal_order(ws, n, form, update, k, head);
     if (primal_factor(ws, md, k, from) != 0) {
@@ -1571,6 +1571,13 @@ static int kept_rows(const rollmpc_work *ws, int nw)
     return keep;
 }
 
+/* Is a working set of nw rows, keep of them with z >= 0, to be given up? Emptied, or a
+ * guess that would lose more than half of its rows. */
+static int given_up(int keep, int nw, int guess)
+{
+    return keep == 0 || (guess && 2 * keep < nw);
+}
+
 /*
  * Drop the working-set rows with negative multipliers (remove_row(), from the last
  * position down). Returns 0 if none was dropped, 1 if some were (solve again), -1 if the
@@ -1584,7 +1591,7 @@ static int drop_negative(rollmpc_work *ws, const rollmpc_mode_data *md, int *nw,
     if (keep == *nw) {
         return 0;
     }
-    if (keep == 0 || (guess && 2 * keep < *nw)) {
+    if (given_up(keep, *nw, guess)) {
         return -1;
     }
     if (ws->chol_holds == ROLLMPC_CHOL_DUAL
@@ -1761,12 +1768,10 @@ static int polish(rollmpc_work *ws, const rollmpc_mode_data *md, rollmpc_real *l
                 /* a guess whose first point already has most of its multipliers negative
                  * (a reference step reversed the saturation) is given up before it grows,
                  * by drop_negative()'s rule; primal_work() paid for these multipliers */
-                int keep;
                 if (code == 0) {
                     free_multipliers(ws, md, nw);
                 }
-                keep = kept_rows(ws, nw);
-                if (keep == 0 || 2 * keep < nw) {
+                if (given_up(kept_rows(ws, nw), nw, 1)) {
                     return -1;
                 }
             }

@@ -49,6 +49,11 @@ class PolishMixin:
         self.slack_on[W] = False
         return W
 
+    @staticmethod
+    def given_up(kept, size, guess):
+        """Mirror of given_up(): emptied, or a guess losing more than half of its rows."""
+        return kept == 0 or (guess and 2 * kept < size)
+
     def drop_negative(self, W, z, guess):
         """Mirror of drop_negative(): (W, z, 0 none dropped / 1 dropped / -1 give up /
         OUT_OF_WORK), the negative rows removed from the last position down (remove_row())."""
@@ -56,7 +61,7 @@ class PolishMixin:
         kept = int(np.count_nonzero(keep))
         if kept == W.size:
             return W, z, 0
-        if kept == 0 or (guess and 2 * kept < W.size):
+        if self.given_up(kept, W.size, guess):
             return W, z, -1
         if self.chol_holds == CHOL_DUAL and not self.afford((W.size - kept)
                                                             * delete_work(0, W.size)):
@@ -155,8 +160,7 @@ class PolishMixin:
                 add = self.violated_outside(th, gam, W)
                 if add.size and guess and its == 1:  # the C's early test of a guess
                     zc = zp if zp is not None else self.free_multipliers(W)
-                    kept = int(np.count_nonzero(zc >= 0))
-                    if kept == 0 or 2 * kept < W.size:
+                    if self.given_up(int(np.count_nonzero(zc >= 0)), W.size, True):
                         return -1, None, 0, its
                 if add.size == 0:
                     if zp is None:

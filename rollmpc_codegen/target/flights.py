@@ -105,6 +105,11 @@ class FlightRun:
         """``cycles`` or ``instructions`` of the sampled steps."""
         return np.array([getattr(self.run.counts[k], what) for k in self.sweep], dtype=np.int64)
 
+    @property
+    def statuses(self) -> dict:
+        """The flight's solver statuses by name, over every recorded step."""
+        return status_counts([info["status"] for info in self.record.info])
+
     def summary(self) -> dict:
         """The flight's entry of the report's ``flights`` list."""
         k = self.worst_step
@@ -116,7 +121,7 @@ class FlightRun:
                 "worst_step": int(k), "worst_step_mode": int(self.record.info[k]["mode"]),
                 "worst_step_cycles": self.worst_cycles,
                 "median_step_cycles": int(np.median(self.sweep_counts("cycles"))),
-                "statuses": status_counts([info["status"] for info in self.record.info]),
+                "statuses": self.statuses,
                 "bit_exact_vs_host": self.bit_exact, "mismatches": len(self.run.mismatches),
                 "first_mismatches": [list(m) for m in self.run.mismatches[:5]]}
 

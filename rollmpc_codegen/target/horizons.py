@@ -74,7 +74,6 @@ def horizon_table(config: Path, horizons: list[int], precision: str | None, buil
     still measured. ``measure_options`` are the keywords of
     :func:`rollmpc_codegen.target.measure.measure`."""
     rows, refused = [], []
-    budget = None
     for h in horizons:
         start_phase(progress, 0, f"report: horizon {h}")
         path = config_with_horizon(config, h, Path(build_root) / "horizons")
