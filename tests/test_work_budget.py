@@ -27,8 +27,9 @@ from rollmpc_codegen.status import OPTIMAL, TIME_LIMIT
 FW = ROOT / "examples" / "fw_lateral.yaml"
 SMALL_BUDGET = 45000  # work units: about half the default (84,000)
 # measured on the randomized run below (3000 samples, seed 3) with the default budget: the
-# longest run of TIME_LIMIT samples is 3 (float, 8 of 3000 samples) and 11 (double, 61)
-RECOVERY_SAMPLES = 11
+# longest run of TIME_LIMIT samples is 3 (float, 3 of 3000 samples) and 6 (double, 38);
+# 3 and 11 (8 and 61 samples) before the output prediction skipped the unbounded sideslip
+RECOVERY_SAMPLES = 6
 
 
 def _built(precision: str, build_root, budget) -> Built:
@@ -273,7 +274,7 @@ def _assert_safe(log, works, budget, md):
 def test_randomized_loop_stays_within_a_small_budget(fw_small):
     log, works, budget = _randomized_loop(fw_small)
     _assert_safe(log, works, budget, fw_small.model.modes[0].data)
-    assert np.count_nonzero(log.status == TIME_LIMIT) >= 200  # the budget binds: 289, 257
+    assert np.count_nonzero(log.status == TIME_LIMIT) >= 100  # the budget binds: 150, 200
 
 
 def test_randomized_loop_recovers_within_the_default_budget(fw_default):
@@ -281,7 +282,7 @@ def test_randomized_loop_recovers_within_the_default_budget(fw_default):
     _assert_safe(log, works, budget, fw_default.model.modes[0].data)
     assert budget == 84000  # auto: half of Ts = 20 ms at 168 MHz, 20 cycles per unit
     status = log.status
-    assert 4 <= np.count_nonzero(status == TIME_LIMIT) <= 120  # measured 8 (float), 61
+    assert 1 <= np.count_nonzero(status == TIME_LIMIT) <= 120  # measured 3 (float), 38
     longest, run = 0, 0
     for st in status:
         run = run + 1 if st == TIME_LIMIT else 0

@@ -3733,6 +3733,9 @@ static const c172p_roll_real c172p_roll_mode0_markov[100] = {
     0.027018200943751104, 0.02694419130420838, 0.02686923318591584, 0.02679339630687619, 0.02671674804350353, 0.02663935352146956,
     0.02656127570235339, 0.026482575466292027, 0.026403311690819213, 0.026323541326072206
 };
+static const int16_t c172p_roll_mode0_pred_out[1] = {
+    0
+};
 static const int16_t c172p_roll_mode0_row_q[200] = {
     0, 0, 1, 1, 2, 2, 3, 3, 4, 4, 5, 5, 6, 6, 7, 7,
     8, 8, 9, 9, 10, 10, 11, 11, 12, 12, 13, 13, 14, 14, 15, 15,
@@ -7584,6 +7587,9 @@ static const c172p_roll_real c172p_roll_mode1_markov[100] = {
     0.03573790399859275, 0.035630080234309636, 0.03552143826614287, 0.035412069895682304, 0.0353020633907934, 0.03519150365013814,
     0.03508047235791424, 0.03496904812940905, 0.034857306647929194, 0.0347453207936335, 0.03463316076476526, 0.03452089419175016,
     0.03440858624459863, 0.034296299734024704, 0.03418409520666933, 0.034072031034792345
+};
+static const int16_t c172p_roll_mode1_pred_out[1] = {
+    0
 };
 static const int16_t c172p_roll_mode1_row_q[200] = {
     0, 0, 1, 1, 2, 2, 3, 3, 4, 4, 5, 5, 6, 6, 7, 7,
@@ -11437,6 +11443,9 @@ static const c172p_roll_real c172p_roll_mode2_markov[100] = {
     0.042888252642840796, 0.042751334218967374, 0.042614953356182476, 0.04247917926909767, 0.04234407826678065, 0.04220971386605091,
     0.04207614689747868, 0.04194343560464601, 0.04181163573718685, 0.04168080063808511
 };
+static const int16_t c172p_roll_mode2_pred_out[1] = {
+    0
+};
 static const int16_t c172p_roll_mode2_row_q[200] = {
     0, 0, 1, 1, 2, 2, 3, 3, 4, 4, 5, 5, 6, 6, 7, 7,
     8, 8, 9, 9, 10, 10, 11, 11, 12, 12, 13, 13, 14, 14, 15, 15,
@@ -11572,6 +11581,7 @@ const c172p_roll_mode_data c172p_roll_modes[C172P_ROLL_N_MODES] = {
         .m = 200,
         .nyq = 100,
         .nt = 1,
+        .ny_pred = 0,
         .actuator_index = c172p_roll_mode0_actuator_index,
         .A = c172p_roll_mode0_A,
         .B = c172p_roll_mode0_B,
@@ -11591,6 +11601,7 @@ const c172p_roll_mode_data c172p_roll_modes[C172P_ROLL_N_MODES] = {
         .Omega2 = c172p_roll_mode0_Omega2,
         .Phi = c172p_roll_mode0_Phi,
         .markov = c172p_roll_mode0_markov,
+        .pred_out = c172p_roll_mode0_pred_out,
         .row_q = c172p_roll_mode0_row_q,
         .row_sign = c172p_roll_mode0_row_sign,
         .row_c = c172p_roll_mode0_row_c,
@@ -11608,6 +11619,7 @@ const c172p_roll_mode_data c172p_roll_modes[C172P_ROLL_N_MODES] = {
         .m = 200,
         .nyq = 100,
         .nt = 1,
+        .ny_pred = 0,
         .actuator_index = c172p_roll_mode1_actuator_index,
         .A = c172p_roll_mode1_A,
         .B = c172p_roll_mode1_B,
@@ -11627,6 +11639,7 @@ const c172p_roll_mode_data c172p_roll_modes[C172P_ROLL_N_MODES] = {
         .Omega2 = c172p_roll_mode1_Omega2,
         .Phi = c172p_roll_mode1_Phi,
         .markov = c172p_roll_mode1_markov,
+        .pred_out = c172p_roll_mode1_pred_out,
         .row_q = c172p_roll_mode1_row_q,
         .row_sign = c172p_roll_mode1_row_sign,
         .row_c = c172p_roll_mode1_row_c,
@@ -11644,6 +11657,7 @@ const c172p_roll_mode_data c172p_roll_modes[C172P_ROLL_N_MODES] = {
         .m = 200,
         .nyq = 100,
         .nt = 1,
+        .ny_pred = 0,
         .actuator_index = c172p_roll_mode2_actuator_index,
         .A = c172p_roll_mode2_A,
         .B = c172p_roll_mode2_B,
@@ -11663,6 +11677,7 @@ const c172p_roll_mode_data c172p_roll_modes[C172P_ROLL_N_MODES] = {
         .Omega2 = c172p_roll_mode2_Omega2,
         .Phi = c172p_roll_mode2_Phi,
         .markov = c172p_roll_mode2_markov,
+        .pred_out = c172p_roll_mode2_pred_out,
         .row_q = c172p_roll_mode2_row_q,
         .row_sign = c172p_roll_mode2_row_sign,
         .row_c = c172p_roll_mode2_row_c,

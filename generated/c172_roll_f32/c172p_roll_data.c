@@ -3733,6 +3733,9 @@ static const c172p_roll_real c172p_roll_mode0_markov[100] = {
     0.0270182006f, 0.0269441921f, 0.0268692337f, 0.0267933961f, 0.0267167483f, 0.0266393535f,
     0.0265612751f, 0.0264825746f, 0.0264033116f, 0.026323542f
 };
+static const int16_t c172p_roll_mode0_pred_out[1] = {
+    0
+};
 static const int16_t c172p_roll_mode0_row_q[200] = {
     0, 0, 1, 1, 2, 2, 3, 3, 4, 4, 5, 5, 6, 6, 7, 7,
     8, 8, 9, 9, 10, 10, 11, 11, 12, 12, 13, 13, 14, 14, 15, 15,
@@ -7584,6 +7587,9 @@ static const c172p_roll_real c172p_roll_mode1_markov[100] = {
     0.0357379057f, 0.0356300808f, 0.0355214365f, 0.0354120694f, 0.0353020616f, 0.0351915024f,
     0.0350804739f, 0.0349690467f, 0.0348573066f, 0.0347453207f, 0.0346331596f, 0.0345208943f,
     0.034408588f, 0.0342963003f, 0.0341840945f, 0.0340720303f
+};
+static const int16_t c172p_roll_mode1_pred_out[1] = {
+    0
 };
 static const int16_t c172p_roll_mode1_row_q[200] = {
     0, 0, 1, 1, 2, 2, 3, 3, 4, 4, 5, 5, 6, 6, 7, 7,
@@ -11437,6 +11443,9 @@ static const c172p_roll_real c172p_roll_mode2_markov[100] = {
     0.0428882539f, 0.0427513346f, 0.0426149517f, 0.0424791798f, 0.0423440784f, 0.0422097147f,
     0.0420761481f, 0.0419434346f, 0.0418116376f, 0.0416808017f
 };
+static const int16_t c172p_roll_mode2_pred_out[1] = {
+    0
+};
 static const int16_t c172p_roll_mode2_row_q[200] = {
     0, 0, 1, 1, 2, 2, 3, 3, 4, 4, 5, 5, 6, 6, 7, 7,
     8, 8, 9, 9, 10, 10, 11, 11, 12, 12, 13, 13, 14, 14, 15, 15,
@@ -11572,6 +11581,7 @@ const c172p_roll_mode_data c172p_roll_modes[C172P_ROLL_N_MODES] = {
         .m = 200,
         .nyq = 100,
         .nt = 1,
+        .ny_pred = 0,
         .actuator_index = c172p_roll_mode0_actuator_index,
         .A = c172p_roll_mode0_A,
         .B = c172p_roll_mode0_B,
@@ -11591,6 +11601,7 @@ const c172p_roll_mode_data c172p_roll_modes[C172P_ROLL_N_MODES] = {
         .Omega2 = c172p_roll_mode0_Omega2,
         .Phi = c172p_roll_mode0_Phi,
         .markov = c172p_roll_mode0_markov,
+        .pred_out = c172p_roll_mode0_pred_out,
         .row_q = c172p_roll_mode0_row_q,
         .row_sign = c172p_roll_mode0_row_sign,
         .row_c = c172p_roll_mode0_row_c,
@@ -11608,6 +11619,7 @@ const c172p_roll_mode_data c172p_roll_modes[C172P_ROLL_N_MODES] = {
         .m = 200,
         .nyq = 100,
         .nt = 1,
+        .ny_pred = 0,
         .actuator_index = c172p_roll_mode1_actuator_index,
         .A = c172p_roll_mode1_A,
         .B = c172p_roll_mode1_B,
@@ -11627,6 +11639,7 @@ const c172p_roll_mode_data c172p_roll_modes[C172P_ROLL_N_MODES] = {
         .Omega2 = c172p_roll_mode1_Omega2,
         .Phi = c172p_roll_mode1_Phi,
         .markov = c172p_roll_mode1_markov,
+        .pred_out = c172p_roll_mode1_pred_out,
         .row_q = c172p_roll_mode1_row_q,
         .row_sign = c172p_roll_mode1_row_sign,
         .row_c = c172p_roll_mode1_row_c,
@@ -11644,6 +11657,7 @@ const c172p_roll_mode_data c172p_roll_modes[C172P_ROLL_N_MODES] = {
         .m = 200,
         .nyq = 100,
         .nt = 1,
+        .ny_pred = 0,
         .actuator_index = c172p_roll_mode2_actuator_index,
         .A = c172p_roll_mode2_A,
         .B = c172p_roll_mode2_B,
@@ -11663,6 +11677,7 @@ const c172p_roll_mode_data c172p_roll_modes[C172P_ROLL_N_MODES] = {
         .Omega2 = c172p_roll_mode2_Omega2,
         .Phi = c172p_roll_mode2_Phi,
         .markov = c172p_roll_mode2_markov,
+        .pred_out = c172p_roll_mode2_pred_out,
         .row_q = c172p_roll_mode2_row_q,
         .row_sign = c172p_roll_mode2_row_sign,
         .row_c = c172p_roll_mode2_row_c,

@@ -1515,6 +1515,9 @@ static const chain_soft_real chain_soft_mode0_markov[240] = {
     0.21204509536338345, 0.22471837403124795, 0.24866681344962988, 0.07189138644368363, 0.1627757094048647, 0.23466709584854828,
     0.16004412117178596, -0.052000974191597375, 0.06467425285946186, 0.2120450953633833, 0.07189138644368365, 0.013999717601081478
 };
+static const int16_t chain_soft_mode0_pred_out[6] = {
+    0, 1, 2, 3, 4, 5
+};
 static const int16_t chain_soft_mode0_row_q[200] = {
     0, 1, 2, 3, 0, 1, 2, 3, 4, 5, 6, 7, 4, 5, 6, 7,
     40, 41, 42, 43, 44, 45, 40, 41, 42, 43, 44, 45, 8, 9, 10, 11,
@@ -1674,6 +1677,7 @@ const chain_soft_mode_data chain_soft_modes[CHAIN_SOFT_N_MODES] = {
         .m = 200,
         .nyq = 60,
         .nt = 6,
+        .ny_pred = 6,
         .w_cap = 100,
         .actuator_index = chain_soft_mode0_actuator_index,
         .A = chain_soft_mode0_A,
@@ -1694,6 +1698,7 @@ const chain_soft_mode_data chain_soft_modes[CHAIN_SOFT_N_MODES] = {
         .Omega2 = chain_soft_mode0_Omega2,
         .Phi = chain_soft_mode0_Phi,
         .markov = chain_soft_mode0_markov,
+        .pred_out = chain_soft_mode0_pred_out,
         .row_q = chain_soft_mode0_row_q,
         .row_sign = chain_soft_mode0_row_sign,
         .row_c = chain_soft_mode0_row_c,

@@ -3044,6 +3044,9 @@ static const fwlat_real fwlat_mode0_markov[160] = {
     0.00301903766f, 0.0039077145f, 0.144009218f, 0.120903358f, 0.00278864917f, 0.00412637042f,
     0.144162878f, 0.120832309f, 0.00264794985f, 0.0042956206f
 };
+static const int16_t fwlat_mode0_pred_out[2] = {
+    0, 1
+};
 static const int16_t fwlat_mode0_row_q[400] = {
     0, 1, 0, 1, 160, 161, 160, 161, 2, 3, 2, 3, 162, 163, 162, 163,
     80, 80, 4, 5, 4, 5, 164, 165, 164, 165, 82, 82, 6, 7, 6, 7,
@@ -3261,6 +3264,7 @@ const fwlat_mode_data fwlat_modes[FWLAT_N_MODES] = {
         .m = 400,
         .nyq = 80,
         .nt = 2,
+        .ny_pred = 1,
         .w_cap = 120,
         .actuator_index = fwlat_mode0_actuator_index,
         .A = fwlat_mode0_A,
@@ -3281,6 +3285,7 @@ const fwlat_mode_data fwlat_modes[FWLAT_N_MODES] = {
         .Omega2 = fwlat_mode0_Omega2,
         .Phi = fwlat_mode0_Phi,
         .markov = fwlat_mode0_markov,
+        .pred_out = fwlat_mode0_pred_out,
         .row_q = fwlat_mode0_row_q,
         .row_sign = fwlat_mode0_row_sign,
         .row_c = fwlat_mode0_row_c,

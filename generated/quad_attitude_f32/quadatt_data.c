@@ -6969,6 +6969,9 @@ static const quadatt_real quadatt_mode0_markov[480] = {
     1.66600013f, -1.66600013f, 1.66600013f, -1.66600013f, 0.0684280172f, 0.0684280172f,
     -0.0684280172f, -0.0684280172f, 0.00666669989f, 0.00666669989f, 0.00666669989f, 0.00666669989f
 };
+static const int16_t quadatt_mode0_pred_out[4] = {
+    0, 1, 2, 3
+};
 static const int16_t quadatt_mode0_row_q[360] = {
     0, 1, 2, 3, 0, 1, 2, 3, 4, 5, 6, 7, 4, 5, 6, 7,
     120, 121, 120, 121, 8, 9, 10, 11, 8, 9, 10, 11, 124, 125, 124, 125,
@@ -7226,6 +7229,7 @@ const quadatt_mode_data quadatt_modes[QUADATT_N_MODES] = {
         .m = 360,
         .nyq = 120,
         .nt = 4,
+        .ny_pred = 2,
         .actuator_index = quadatt_mode0_actuator_index,
         .A = quadatt_mode0_A,
         .B = quadatt_mode0_B,
@@ -7245,6 +7249,7 @@ const quadatt_mode_data quadatt_modes[QUADATT_N_MODES] = {
         .Omega2 = quadatt_mode0_Omega2,
         .Phi = quadatt_mode0_Phi,
         .markov = quadatt_mode0_markov,
+        .pred_out = quadatt_mode0_pred_out,
         .row_q = quadatt_mode0_row_q,
         .row_sign = quadatt_mode0_row_sign,
         .row_c = quadatt_mode0_row_c,

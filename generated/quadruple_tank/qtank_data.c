@@ -890,6 +890,9 @@ static const qtank_real qtank_mode0_markov[80] = {
     0.047176964722706514, 0.03981552907430206, 0.03639858339528158, 0.05566512106172379, 0.04352173970714721, 0.03713782359868147,
     0.0349638161537175, 0.052656948356179054
 };
+static const int16_t qtank_mode0_pred_out[2] = {
+    0, 1
+};
 static const int16_t qtank_mode0_row_q[160] = {
     0, 1, 0, 1, 2, 3, 2, 3, 40, 41, 40, 41, 4, 5, 4, 5,
     42, 43, 42, 43, 6, 7, 6, 7, 44, 45, 44, 45, 8, 9, 8, 9,
@@ -996,6 +999,7 @@ const qtank_mode_data qtank_modes[QTANK_N_MODES] = {
         .m = 160,
         .nyq = 40,
         .nt = 2,
+        .ny_pred = 2,
         .actuator_index = qtank_mode0_actuator_index,
         .A = qtank_mode0_A,
         .B = qtank_mode0_B,
@@ -1015,6 +1019,7 @@ const qtank_mode_data qtank_modes[QTANK_N_MODES] = {
         .Omega2 = qtank_mode0_Omega2,
         .Phi = qtank_mode0_Phi,
         .markov = qtank_mode0_markov,
+        .pred_out = qtank_mode0_pred_out,
         .row_q = qtank_mode0_row_q,
         .row_sign = qtank_mode0_row_sign,
         .row_c = qtank_mode0_row_c,

@@ -42,11 +42,11 @@ static uint32_t hq_work(const qtank_mode_data *md)
     return ((uint32_t)md->nt + 4u) * 1u;
 }
 
-/* predict_outputs(): the Markov sum of every output over the stages before it. */
+/* predict_outputs(): the Markov sum of each output with rows over the stages before it. */
 static uint32_t predict_work(const qtank_mode_data *md)
 {
     const uint32_t stages = (uint32_t)md->nyq / (uint32_t)md->ny;
-    return (uint32_t)md->ny * (uint32_t)md->nu * stages * (stages + 1u) / 2u
+    return (uint32_t)md->ny_pred * (uint32_t)md->nu * stages * (stages + 1u) / 2u
         + (uint32_t)md->nyq;
 }
 
@@ -605,13 +605,14 @@ static void unconstrained(qtank_work *ws, const qtank_mode_data *md,
  * yv = Gamma th (block Toeplitz in the Markov parameters).
  * Input (t, b) is spread over every later output in one strided pass, so each output
  * still sums its terms in (t, b) order, as the reference does, with the longest loop
- * innermost.
+ * innermost. Only the outputs with constraint rows (md->pred_out[0..ny_pred)) are
+ * predicted: no row reads the others, which stay 0.
  */
 static void predict_outputs(qtank_work *ws, const qtank_mode_data *md,
     const qtank_real *th)
 {
-    const int ny = md->ny, nu = md->nu, nyq = md->nyq;
-    int k, t, b, j;
+    const int ny = md->ny, nu = md->nu, nyq = md->nyq, npred = md->ny_pred;
+    int k, t, b, j, i;
     ws->work += predict_work(md);
     for (k = 0; k < nyq; ++k) {
         ws->yv[k] = R_(0.0);
@@ -622,8 +623,17 @@ static void predict_outputs(qtank_work *ws, const qtank_mode_data *md,
         for (b = 0; b < nu; ++b) {
             const qtank_real u = th[t * nu + b];
             const qtank_real *mk = &md->markov[b]; /* (stage - t, a) with stride nu */
-            for (j = 0; j < len; ++j) {
-                y[j] += mk[j * nu] * u;
+            if (npred == ny) {
+                for (j = 0; j < len; ++j) {
+                    y[j] += mk[j * nu] * u;
+                }
+            } else {
+                for (j = 0; j < len; j += ny) { /* stage t + j / ny */
+                    for (i = 0; i < npred; ++i) {
+                        const int a = j + md->pred_out[i];
+                        y[a] += mk[a * nu] * u;
+                    }
+                }
             }
         }
     }

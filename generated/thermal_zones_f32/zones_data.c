@@ -926,6 +926,9 @@ static const zones_real zones_mode0_markov[80] = {
     0.0321129039f, 0.0135229481f, 0.0107542332f, 0.0295045488f, 0.0295452978f, 0.0126209278f,
     0.0102731381f, 0.027716957f
 };
+static const int16_t zones_mode0_pred_out[2] = {
+    0, 1
+};
 static const int16_t zones_mode0_row_q[160] = {
     0, 1, 0, 1, 2, 3, 2, 3, 40, 41, 40, 41, 4, 5, 4, 5,
     42, 43, 42, 43, 6, 7, 6, 7, 44, 45, 44, 45, 8, 9, 8, 9,
@@ -1032,6 +1035,7 @@ const zones_mode_data zones_modes[ZONES_N_MODES] = {
         .m = 160,
         .nyq = 40,
         .nt = 2,
+        .ny_pred = 2,
         .actuator_index = zones_mode0_actuator_index,
         .A = zones_mode0_A,
         .B = zones_mode0_B,
@@ -1051,6 +1055,7 @@ const zones_mode_data zones_modes[ZONES_N_MODES] = {
         .Omega2 = zones_mode0_Omega2,
         .Phi = zones_mode0_Phi,
         .markov = zones_mode0_markov,
+        .pred_out = zones_mode0_pred_out,
         .row_q = zones_mode0_row_q,
         .row_sign = zones_mode0_row_sign,
         .row_c = zones_mode0_row_c,

@@ -926,6 +926,9 @@ static const zrate_real zrate_mode0_markov[80] = {
     0.03211290462333702, 0.013522948419043723, 0.010754233168204877, 0.02950454797093566, 0.029545298536225405, 0.012620928005072314,
     0.010273137945670528, 0.027716957776303796
 };
+static const int16_t zrate_mode0_pred_out[2] = {
+    0, 1
+};
 static const int16_t zrate_mode0_row_q[240] = {
     0, 1, 0, 1, 80, 81, 80, 81, 2, 3, 2, 3, 82, 83, 82, 83,
     40, 41, 40, 41, 4, 5, 4, 5, 84, 85, 84, 85, 42, 43, 42, 43,
@@ -1060,6 +1063,7 @@ const zrate_mode_data zrate_modes[ZRATE_N_MODES] = {
         .m = 240,
         .nyq = 40,
         .nt = 2,
+        .ny_pred = 2,
         .actuator_index = zrate_mode0_actuator_index,
         .A = zrate_mode0_A,
         .B = zrate_mode0_B,
@@ -1079,6 +1083,7 @@ const zrate_mode_data zrate_modes[ZRATE_N_MODES] = {
         .Omega2 = zrate_mode0_Omega2,
         .Phi = zrate_mode0_Phi,
         .markov = zrate_mode0_markov,
+        .pred_out = zrate_mode0_pred_out,
         .row_q = zrate_mode0_row_q,
         .row_sign = zrate_mode0_row_sign,
         .row_c = zrate_mode0_row_c,

@@ -367,6 +367,9 @@ static const drives_real drives_mode0_markov[25] = {
     0.059963079843759565, 0.059975251679169256, 0.05998341070444143, 0.05998887986263747, 0.05999254594901122, 0.05999500340019804,
     0.05999665067899072
 };
+static const int16_t drives_mode0_pred_out[1] = {
+    0
+};
 static const int16_t drives_mode0_row_q[100] = {
     0, 0, 1, 1, 25, 25, 2, 2, 26, 26, 3, 3, 27, 27, 4, 4,
     28, 28, 5, 5, 29, 29, 6, 6, 30, 30, 7, 7, 31, 31, 8, 8,
@@ -793,6 +796,9 @@ static const drives_real drives_mode1_markov[25] = {
     0.14684449993993712, 0.14922918752870726, 0.15118160459411678, 0.15278010848840182, 0.1540888527855679, 0.1551603619895732,
     0.15603763952709843, 0.15675589362605488, 0.15734395034539483, 0.1578254104660726, 0.1582195966732521, 0.15854232904350915,
     0.15880655996005233
+};
+static const int16_t drives_mode1_pred_out[1] = {
+    0
 };
 static const int16_t drives_mode1_row_q[100] = {
     0, 0, 1, 1, 25, 25, 2, 2, 26, 26, 3, 3, 27, 27, 4, 4,
@@ -1221,6 +1227,9 @@ static const drives_real drives_mode2_markov[25] = {
     0.30892064135046504, 0.31592315521220327, 0.3223872902237728, 0.3283544389182029, 0.33386281141935087, 0.33894768011714727,
     0.34364160553131284
 };
+static const int16_t drives_mode2_pred_out[1] = {
+    0
+};
 static const int16_t drives_mode2_row_q[100] = {
     0, 0, 1, 1, 25, 25, 2, 2, 26, 26, 3, 3, 27, 27, 4, 4,
     28, 28, 5, 5, 29, 29, 6, 6, 30, 30, 7, 7, 31, 31, 8, 8,
@@ -1297,6 +1306,7 @@ const drives_mode_data drives_modes[DRIVES_N_MODES] = {
         .m = 100,
         .nyq = 25,
         .nt = 1,
+        .ny_pred = 1,
         .actuator_index = drives_mode0_actuator_index,
         .A = drives_mode0_A,
         .B = drives_mode0_B,
@@ -1316,6 +1326,7 @@ const drives_mode_data drives_modes[DRIVES_N_MODES] = {
         .Omega2 = drives_mode0_Omega2,
         .Phi = drives_mode0_Phi,
         .markov = drives_mode0_markov,
+        .pred_out = drives_mode0_pred_out,
         .row_q = drives_mode0_row_q,
         .row_sign = drives_mode0_row_sign,
         .row_c = drives_mode0_row_c,
@@ -1333,6 +1344,7 @@ const drives_mode_data drives_modes[DRIVES_N_MODES] = {
         .m = 100,
         .nyq = 25,
         .nt = 1,
+        .ny_pred = 1,
         .actuator_index = drives_mode1_actuator_index,
         .A = drives_mode1_A,
         .B = drives_mode1_B,
@@ -1352,6 +1364,7 @@ const drives_mode_data drives_modes[DRIVES_N_MODES] = {
         .Omega2 = drives_mode1_Omega2,
         .Phi = drives_mode1_Phi,
         .markov = drives_mode1_markov,
+        .pred_out = drives_mode1_pred_out,
         .row_q = drives_mode1_row_q,
         .row_sign = drives_mode1_row_sign,
         .row_c = drives_mode1_row_c,
@@ -1369,6 +1382,7 @@ const drives_mode_data drives_modes[DRIVES_N_MODES] = {
         .m = 100,
         .nyq = 25,
         .nt = 1,
+        .ny_pred = 1,
         .actuator_index = drives_mode2_actuator_index,
         .A = drives_mode2_A,
         .B = drives_mode2_B,
@@ -1388,6 +1402,7 @@ const drives_mode_data drives_modes[DRIVES_N_MODES] = {
         .Omega2 = drives_mode2_Omega2,
         .Phi = drives_mode2_Phi,
         .markov = drives_mode2_markov,
+        .pred_out = drives_mode2_pred_out,
         .row_q = drives_mode2_row_q,
         .row_sign = drives_mode2_row_sign,
         .row_c = drives_mode2_row_c,

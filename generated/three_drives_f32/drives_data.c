@@ -367,6 +367,9 @@ static const drives_real drives_mode0_markov[25] = {
     0.059963081f, 0.0599752516f, 0.0599834099f, 0.0599888787f, 0.0599925444f, 0.059995003f,
     0.0599966496f
 };
+static const int16_t drives_mode0_pred_out[1] = {
+    0
+};
 static const int16_t drives_mode0_row_q[100] = {
     0, 0, 1, 1, 25, 25, 2, 2, 26, 26, 3, 3, 27, 27, 4, 4,
     28, 28, 5, 5, 29, 29, 6, 6, 30, 30, 7, 7, 31, 31, 8, 8,
@@ -793,6 +796,9 @@ static const drives_real drives_mode1_markov[25] = {
     0.146844506f, 0.149229184f, 0.151181608f, 0.152780116f, 0.154088855f, 0.155160367f,
     0.156037644f, 0.156755894f, 0.157343954f, 0.15782541f, 0.158219591f, 0.158542335f,
     0.158806562f
+};
+static const int16_t drives_mode1_pred_out[1] = {
+    0
 };
 static const int16_t drives_mode1_row_q[100] = {
     0, 0, 1, 1, 25, 25, 2, 2, 26, 26, 3, 3, 27, 27, 4, 4,
@@ -1221,6 +1227,9 @@ static const drives_real drives_mode2_markov[25] = {
     0.308920652f, 0.315923154f, 0.322387278f, 0.328354448f, 0.333862811f, 0.338947684f,
     0.343641609f
 };
+static const int16_t drives_mode2_pred_out[1] = {
+    0
+};
 static const int16_t drives_mode2_row_q[100] = {
     0, 0, 1, 1, 25, 25, 2, 2, 26, 26, 3, 3, 27, 27, 4, 4,
     28, 28, 5, 5, 29, 29, 6, 6, 30, 30, 7, 7, 31, 31, 8, 8,
@@ -1297,6 +1306,7 @@ const drives_mode_data drives_modes[DRIVES_N_MODES] = {
         .m = 100,
         .nyq = 25,
         .nt = 1,
+        .ny_pred = 1,
         .actuator_index = drives_mode0_actuator_index,
         .A = drives_mode0_A,
         .B = drives_mode0_B,
@@ -1316,6 +1326,7 @@ const drives_mode_data drives_modes[DRIVES_N_MODES] = {
         .Omega2 = drives_mode0_Omega2,
         .Phi = drives_mode0_Phi,
         .markov = drives_mode0_markov,
+        .pred_out = drives_mode0_pred_out,
         .row_q = drives_mode0_row_q,
         .row_sign = drives_mode0_row_sign,
         .row_c = drives_mode0_row_c,
@@ -1333,6 +1344,7 @@ const drives_mode_data drives_modes[DRIVES_N_MODES] = {
         .m = 100,
         .nyq = 25,
         .nt = 1,
+        .ny_pred = 1,
         .actuator_index = drives_mode1_actuator_index,
         .A = drives_mode1_A,
         .B = drives_mode1_B,
@@ -1352,6 +1364,7 @@ const drives_mode_data drives_modes[DRIVES_N_MODES] = {
         .Omega2 = drives_mode1_Omega2,
         .Phi = drives_mode1_Phi,
         .markov = drives_mode1_markov,
+        .pred_out = drives_mode1_pred_out,
         .row_q = drives_mode1_row_q,
         .row_sign = drives_mode1_row_sign,
         .row_c = drives_mode1_row_c,
@@ -1369,6 +1382,7 @@ const drives_mode_data drives_modes[DRIVES_N_MODES] = {
         .m = 100,
         .nyq = 25,
         .nt = 1,
+        .ny_pred = 1,
         .actuator_index = drives_mode2_actuator_index,
         .A = drives_mode2_A,
         .B = drives_mode2_B,
@@ -1388,6 +1402,7 @@ const drives_mode_data drives_modes[DRIVES_N_MODES] = {
         .Omega2 = drives_mode2_Omega2,
         .Phi = drives_mode2_Phi,
         .markov = drives_mode2_markov,
+        .pred_out = drives_mode2_pred_out,
         .row_q = drives_mode2_row_q,
         .row_sign = drives_mode2_row_sign,
         .row_c = drives_mode2_row_c,

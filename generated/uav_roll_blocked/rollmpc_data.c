@@ -1429,6 +1429,9 @@ static const rollmpc_real rollmpc_mode0_markov[100] = {
     0.01115146658419533, 0.011154691649186227, 0.0111577210974074, 0.011160566794018195, 0.011163239884496391, 0.011165750838290269,
     0.011168109489822949, 0.011170325077009689, 0.011172406277438963, 0.011174361242359022
 };
+static const int16_t rollmpc_mode0_pred_out[1] = {
+    0
+};
 static const int16_t rollmpc_mode0_row_q[240] = {
     0, 0, 1, 1, 20, 20, 2, 2, 21, 21, 3, 3, 22, 22, 4, 4,
     23, 23, 24, 24, 5, 5, 25, 25, 26, 26, 6, 6, 27, 27, 28, 28,
@@ -3007,6 +3010,9 @@ static const rollmpc_real rollmpc_mode1_markov[100] = {
     0.01708221773349191, 0.017073819955678415, 0.01706622307636467, 0.017059382284628187, 0.017053253556101485, 0.017047793799013,
     0.01704296098000912, 0.017038714231231534, 0.017035013940066266, 0.017031821822921765
 };
+static const int16_t rollmpc_mode1_pred_out[1] = {
+    0
+};
 static const int16_t rollmpc_mode1_row_q[240] = {
     0, 0, 1, 1, 20, 20, 2, 2, 21, 21, 3, 3, 22, 22, 4, 4,
     23, 23, 24, 24, 5, 5, 25, 25, 26, 26, 6, 6, 27, 27, 28, 28,
@@ -3150,6 +3156,7 @@ const rollmpc_mode_data rollmpc_modes[ROLLMPC_N_MODES] = {
         .m = 240,
         .nyq = 100,
         .nt = 1,
+        .ny_pred = 1,
         .actuator_index = rollmpc_mode0_actuator_index,
         .A = rollmpc_mode0_A,
         .B = rollmpc_mode0_B,
@@ -3169,6 +3176,7 @@ const rollmpc_mode_data rollmpc_modes[ROLLMPC_N_MODES] = {
         .Omega2 = rollmpc_mode0_Omega2,
         .Phi = rollmpc_mode0_Phi,
         .markov = rollmpc_mode0_markov,
+        .pred_out = rollmpc_mode0_pred_out,
         .row_q = rollmpc_mode0_row_q,
         .row_sign = rollmpc_mode0_row_sign,
         .row_c = rollmpc_mode0_row_c,
@@ -3187,6 +3195,7 @@ const rollmpc_mode_data rollmpc_modes[ROLLMPC_N_MODES] = {
         .m = 240,
         .nyq = 100,
         .nt = 1,
+        .ny_pred = 1,
         .actuator_index = rollmpc_mode1_actuator_index,
         .A = rollmpc_mode1_A,
         .B = rollmpc_mode1_B,
@@ -3206,6 +3215,7 @@ const rollmpc_mode_data rollmpc_modes[ROLLMPC_N_MODES] = {
         .Omega2 = rollmpc_mode1_Omega2,
         .Phi = rollmpc_mode1_Phi,
         .markov = rollmpc_mode1_markov,
+        .pred_out = rollmpc_mode1_pred_out,
         .row_q = rollmpc_mode1_row_q,
         .row_sign = rollmpc_mode1_row_sign,
         .row_c = rollmpc_mode1_row_c,

@@ -1429,6 +1429,9 @@ static const rollmpc_real rollmpc_mode0_markov[100] = {
     0.0111514665f, 0.0111546917f, 0.0111577213f, 0.0111605665f, 0.0111632403f, 0.0111657511f,
     0.0111681093f, 0.0111703249f, 0.0111724064f, 0.0111743612f
 };
+static const int16_t rollmpc_mode0_pred_out[1] = {
+    0
+};
 static const int16_t rollmpc_mode0_row_q[240] = {
     0, 0, 1, 1, 20, 20, 2, 2, 21, 21, 3, 3, 22, 22, 4, 4,
     23, 23, 24, 24, 5, 5, 25, 25, 26, 26, 6, 6, 27, 27, 28, 28,
@@ -3007,6 +3010,9 @@ static const rollmpc_real rollmpc_mode1_markov[100] = {
     0.0170822181f, 0.0170738194f, 0.0170662235f, 0.0170593821f, 0.0170532539f, 0.0170477945f,
     0.017042961f, 0.0170387141f, 0.0170350131f, 0.0170318224f
 };
+static const int16_t rollmpc_mode1_pred_out[1] = {
+    0
+};
 static const int16_t rollmpc_mode1_row_q[240] = {
     0, 0, 1, 1, 20, 20, 2, 2, 21, 21, 3, 3, 22, 22, 4, 4,
     23, 23, 24, 24, 5, 5, 25, 25, 26, 26, 6, 6, 27, 27, 28, 28,
@@ -3150,6 +3156,7 @@ const rollmpc_mode_data rollmpc_modes[ROLLMPC_N_MODES] = {
         .m = 240,
         .nyq = 100,
         .nt = 1,
+        .ny_pred = 1,
         .actuator_index = rollmpc_mode0_actuator_index,
         .A = rollmpc_mode0_A,
         .B = rollmpc_mode0_B,
@@ -3169,6 +3176,7 @@ const rollmpc_mode_data rollmpc_modes[ROLLMPC_N_MODES] = {
         .Omega2 = rollmpc_mode0_Omega2,
         .Phi = rollmpc_mode0_Phi,
         .markov = rollmpc_mode0_markov,
+        .pred_out = rollmpc_mode0_pred_out,
         .row_q = rollmpc_mode0_row_q,
         .row_sign = rollmpc_mode0_row_sign,
         .row_c = rollmpc_mode0_row_c,
@@ -3187,6 +3195,7 @@ const rollmpc_mode_data rollmpc_modes[ROLLMPC_N_MODES] = {
         .m = 240,
         .nyq = 100,
         .nt = 1,
+        .ny_pred = 1,
         .actuator_index = rollmpc_mode1_actuator_index,
         .A = rollmpc_mode1_A,
         .B = rollmpc_mode1_B,
@@ -3206,6 +3215,7 @@ const rollmpc_mode_data rollmpc_modes[ROLLMPC_N_MODES] = {
         .Omega2 = rollmpc_mode1_Omega2,
         .Phi = rollmpc_mode1_Phi,
         .markov = rollmpc_mode1_markov,
+        .pred_out = rollmpc_mode1_pred_out,
         .row_q = rollmpc_mode1_row_q,
         .row_sign = rollmpc_mode1_row_sign,
         .row_c = rollmpc_mode1_row_c,

@@ -4468,6 +4468,9 @@ static const rollmpc_real rollmpc_mode0_markov[100] = {
     0.0111514665f, 0.0111546917f, 0.0111577213f, 0.0111605665f, 0.0111632403f, 0.0111657511f,
     0.0111681093f, 0.0111703249f, 0.0111724064f, 0.0111743612f
 };
+static const int16_t rollmpc_mode0_pred_out[1] = {
+    0
+};
 static const int16_t rollmpc_mode0_row_q[400] = {
     0, 0, 1, 1, 100, 100, 2, 2, 101, 101, 3, 3, 102, 102, 4, 4,
     103, 103, 5, 5, 104, 104, 6, 6, 105, 105, 7, 7, 106, 106, 8, 8,
@@ -9160,6 +9163,9 @@ static const rollmpc_real rollmpc_mode1_markov[100] = {
     0.0170822181f, 0.0170738194f, 0.0170662235f, 0.0170593821f, 0.0170532539f, 0.0170477945f,
     0.017042961f, 0.0170387141f, 0.0170350131f, 0.0170318224f
 };
+static const int16_t rollmpc_mode1_pred_out[1] = {
+    0
+};
 static const int16_t rollmpc_mode1_row_q[400] = {
     0, 0, 1, 1, 100, 100, 2, 2, 101, 101, 3, 3, 102, 102, 4, 4,
     103, 103, 5, 5, 104, 104, 6, 6, 105, 105, 7, 7, 106, 106, 8, 8,
@@ -9364,6 +9370,7 @@ const rollmpc_mode_data rollmpc_modes[ROLLMPC_N_MODES] = {
         .m = 400,
         .nyq = 100,
         .nt = 1,
+        .ny_pred = 1,
         .actuator_index = rollmpc_mode0_actuator_index,
         .A = rollmpc_mode0_A,
         .B = rollmpc_mode0_B,
@@ -9383,6 +9390,7 @@ const rollmpc_mode_data rollmpc_modes[ROLLMPC_N_MODES] = {
         .Omega2 = rollmpc_mode0_Omega2,
         .Phi = rollmpc_mode0_Phi,
         .markov = rollmpc_mode0_markov,
+        .pred_out = rollmpc_mode0_pred_out,
         .row_q = rollmpc_mode0_row_q,
         .row_sign = rollmpc_mode0_row_sign,
         .row_c = rollmpc_mode0_row_c,
@@ -9400,6 +9408,7 @@ const rollmpc_mode_data rollmpc_modes[ROLLMPC_N_MODES] = {
         .m = 400,
         .nyq = 100,
         .nt = 1,
+        .ny_pred = 1,
         .actuator_index = rollmpc_mode1_actuator_index,
         .A = rollmpc_mode1_A,
         .B = rollmpc_mode1_B,
@@ -9419,6 +9428,7 @@ const rollmpc_mode_data rollmpc_modes[ROLLMPC_N_MODES] = {
         .Omega2 = rollmpc_mode1_Omega2,
         .Phi = rollmpc_mode1_Phi,
         .markov = rollmpc_mode1_markov,
+        .pred_out = rollmpc_mode1_pred_out,
         .row_q = rollmpc_mode1_row_q,
         .row_sign = rollmpc_mode1_row_sign,
         .row_c = rollmpc_mode1_row_c,

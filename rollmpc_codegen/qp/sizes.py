@@ -49,6 +49,7 @@ class ModeSizes:
     nt: int  # terminal rows of the E split: ny when P is positive definite
     w_cap: int  # working-set capacity: n + soft (output, stage) pairs
     has_output_rows: bool
+    ny_pred: int  # outputs with constraint rows (bounded): the ones predicted on line
 
     @property
     def n_yq(self) -> int:
@@ -78,7 +79,8 @@ def mode_sizes(cfg: ControllerConfig, mode: ModeConfig) -> ModeSizes:
             N * int(np.sum(np.any(mode.soft_l2 > 0.0, axis=1) & bounded)))
     return ModeSizes(N=N, nx=plant_order(mode, ny) + nd + n_prev, nu=nu, ny=ny, n=n,
                      m=qp_rows(N, mode), nt=ny if np.linalg.eigvalsh(mode.P).min() > 0 else 0,
-                     w_cap=n + soft, has_output_rows=bool(np.any(bounded)))
+                     w_cap=n + soft, has_output_rows=bool(np.any(bounded)),
+                     ny_pred=int(np.sum(bounded)))
 
 
 def features_of(cfg: ControllerConfig) -> dict:

@@ -114,6 +114,7 @@ class ModeData:
     Omega2: np.ndarray
     Phi: np.ndarray
     markov: np.ndarray
+    pred_out: np.ndarray  # outputs with rows (ny_pred of them), ascending, then the others
     row_q: np.ndarray
     row_sign: np.ndarray
     row_c: np.ndarray
@@ -126,6 +127,7 @@ class ModeData:
     soft_l1: np.ndarray | None = None  # None: without soft bounds
     soft_w: np.ndarray | None = None
     w_cap: int = 0  # working-set capacity: n, plus the soft (output, stage) pairs
+    ny_pred: int = 0  # outputs with constraint rows: the ones the output prediction computes
 
     def __post_init__(self):
         for array in STORED_ARRAYS:
@@ -194,6 +196,7 @@ def mode_data(name: str, actuator_index, plant: DiscretePlant, obs_gain: np.ndar
         return np.ascontiguousarray(np.asarray(a, dtype=np.float64).astype(dt))
 
     markov = cast(qp.markov)
+    pred_out, ny_pred = predicted_outputs(row_q, qp.n, ny, N * ny)
     soft = {"w_cap": qp.n}
     if soft_l2 is not None:
         l1, w = soft_constraints.storage(soft_l1, soft_l2)
@@ -207,11 +210,21 @@ def mode_data(name: str, actuator_index, plant: DiscretePlant, obs_gain: np.ndar
         Kx=cast(qp.Kx), EinvGt=cast(EinvGt), Sinv_p=cast(packed_lower(Sinv)), Ew=cast(Ew),
         Uv=cast(Uv), T=cast(T), S_p=cast(packed_lower(S)), V=cast(V), P2inv=cast(P2inv),
         GEinvGt_p=cast(packed_lower(GEinvGt)), Omega2=cast(Omega2), Phi=cast(qp.Phi),
-        markov=markov, row_q=row_q, row_sign=qp.row_sign.astype(np.int32), row_c=cast(qp.c),
+        markov=markov, pred_out=pred_out, ny_pred=ny_pred, row_q=row_q, row_sign=qp.row_sign.astype(np.int32), row_c=cast(qp.c),
         row_next=next_stage_rows(row_q, qp.row_sign, qp.n, nu, ny, N * ny, qp.blocks),
         colsum=cast(colsum), out_bound=cast(output_bound(markov, dt)),
         u_min=cast(u_min), u_max=cast(u_max),
         stage_block=None if qp.blocks is None else move_blocking.stage_block(qp.blocks))
+
+
+def predicted_outputs(row_q: np.ndarray, n: int, ny: int, nyq: int) -> tuple[np.ndarray, int]:
+    """The outputs that have constraint rows, ascending, then the others; and their count.
+    Only they are predicted on line: an output that is tracked but never bounded (a yaw,
+    a climb rate) costs nothing in the output prediction."""
+    out = (row_q >= n) & (row_q < n + nyq)
+    rows = np.unique((row_q[out] - n) % ny)
+    rest = np.setdiff1d(np.arange(ny), rows)
+    return np.concatenate((rows, rest)).astype(np.int32), int(rows.size)
 
 
 def next_stage_rows(row_q: np.ndarray, row_sign: np.ndarray, n: int, nu: int,

@@ -39,7 +39,7 @@ def hq_work(m, factor: int) -> int:
 
 def predict_work(m) -> int:
     stages = m.n_yq // m.ny
-    return m.ny * m.nu * stages * (stages + 1) // 2 + m.n_yq
+    return m.ny_pred * m.nu * stages * (stages + 1) // 2 + m.n_yq
 
 
 def scan_work(m) -> int:

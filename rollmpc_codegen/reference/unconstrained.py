@@ -64,11 +64,13 @@ class UnconstrainedMixin:
         return acc, px
 
     def predict_outputs(self, th):
-        """Mirror of predict_outputs(): Gamma th (Gamma T th with move blocking)."""
+        """Mirror of predict_outputs(): Gamma th (Gamma T th with move blocking) for the
+        outputs with constraint rows (md.pred_out[:ny_pred]); the others 0."""
         md = self.md
-        out = np.empty(md.n_yq, md.Kx.dtype)
+        out = np.zeros(md.n_yq, md.Kx.dtype)
         th = th if self.expand is None else th[self.expand]
-        for k in range(md.n_yq):
+        predicted = np.isin(np.arange(md.n_yq) % md.ny, md.pred_out[:md.ny_pred])
+        for k in np.flatnonzero(predicted):
             width = (k // md.ny + 1) * md.nu
             out[k] = seqsum(self.Gam[k, :width] * th[:width])
         return out

@@ -1,0 +1,75 @@
+"""The output prediction computes only the outputs that have constraint rows.
+
+quad_attitude tracks yaw and climb rate but bounds only roll and pitch, fw_lateral bounds
+the bank angle but not the sideslip: predict_outputs() (C and reference) skips the
+unbounded outputs, which no row reads, and charges only the predicted ones
+(qp/work.py predict_work). Measured on quad_attitude's scenario (float, default budget):
+215 -> 150 TIME_LIMIT samples; fw_lateral 18 -> 9 (docs/solver.md, "Work budget").
+"""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from conftest import ROOT, Built
+from rollmpc_codegen.qp.work import predict_work
+from rollmpc_codegen.status import OPTIMAL, TIME_LIMIT
+
+QUAD = ROOT / "examples" / "quad_attitude.yaml"
+
+
+@pytest.fixture(scope="module")
+def quad_float(build_root) -> Built:
+    return Built(QUAD, "float", build_root)
+
+
+def test_only_bounded_outputs_are_predicted_and_charged():
+    from rollmpc_codegen.pipeline import load_model
+    from rollmpc_codegen.reference.solver import SolverRef
+
+    model, ctx = load_model(QUAD, "double")
+    md = model.modes[0].data
+    assert md.ny == 4 and md.ny_pred == 2 and list(md.pred_out) == [0, 1, 2, 3]
+    stages = md.n_yq // md.ny
+    assert predict_work(md) == 2 * md.nu * stages * (stages + 1) // 2 + md.n_yq
+    ref = SolverRef(md, ctx["solver"])
+    th = np.random.default_rng(0).normal(size=md.n)
+    y = ref.predict_outputs(th).reshape(stages, md.ny)
+    dense = (ref.Gam.astype(np.float64) @ th).reshape(stages, md.ny)
+    assert np.all(y[:, 2:] == 0.0)  # yaw and climb: no rows, not predicted
+    assert np.allclose(y[:, :2], dense[:, :2], rtol=1e-12, atol=1e-12)
+
+
+def test_every_output_bounded_predicts_them_all():
+    from rollmpc_codegen.pipeline import load_model
+
+    model, _ = load_model(ROOT / "examples" / "chain_of_masses.yaml", "double")
+    md = model.modes[0].data
+    assert md.ny_pred == md.ny and list(md.pred_out) == list(range(md.ny))
+
+
+def test_partial_prediction_is_bit_exact_with_the_reference(quad_float):
+    """The C's strided loop over the predicted outputs sums each of them in the reference's
+    order: the closed loop through the tilt-limited manoeuvre (TIME_LIMIT included) is the
+    reference's bit for bit: status, command, corrections, active rows and work."""
+    from rollmpc_codegen.sim.simulate import run_closed_loop
+
+    c, ref = quad_float.fresh_c(), quad_float.reference()
+    seen, bad = [], []
+
+    class Lockstep:
+        def step(self, y, s, r):
+            st_c, u_c = c.step(y, s, r)
+            st_r, u_r = ref.step(y, s, r)
+            info = c.info()
+            keys = ("iterations", "polish_iterations", "active", "work")
+            mine = (st_c, u_c.tobytes(), *(info[k] for k in keys))
+            theirs = (st_r, u_r.tobytes(), *(ref.last[k] for k in keys))
+            if mine != theirs:
+                bad.append((len(seen), mine, theirs))
+            seen.append(st_c)
+            return st_c, u_c
+
+    run_closed_loop(quad_float.model.config, Lockstep(), steps=500)
+    assert bad == []
+    assert seen.count(TIME_LIMIT) >= 20 and seen.count(OPTIMAL) >= 400
