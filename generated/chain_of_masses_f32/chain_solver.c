@@ -628,10 +628,9 @@ static void predict_outputs(chain_work *ws, const chain_mode_data *md,
                     y[j] += mk[j * nu] * u;
                 }
             } else {
-                for (j = 0; j < len; j += ny) { /* stage t + j / ny */
-                    for (i = 0; i < npred; ++i) {
-                        const int a = j + md->pred_out[i];
-                        y[a] += mk[a * nu] * u;
+                for (i = 0; i < npred; ++i) { /* each predicted output over the stages */
+                    for (j = md->pred_out[i]; j < len; j += ny) {
+                        y[j] += mk[j * nu] * u;
                     }
                 }
             }
