@@ -334,7 +334,7 @@ SIZES = [
 
 def test_stored_data_beyond_the_limit_is_refused(tmp_path, capsys):
     err = _generate(tmp_path, capsys, both(set_("horizon", 1000), _no_output_bounds))
-    assert err == ("rollmpc: error: horizon: too long: the stored data would take 32,324,628 "
+    assert err == ("rollmpc: error: horizon: too long: the stored data would take 32,324,632 "
                    "bytes (modes[0]: n = 1000 variables, m = 2000 rows); at most 16,777,216 "
                    "supported\n")
 
@@ -356,8 +356,8 @@ def test_the_predicted_sizes_are_those_of_the_maths(path):
     predicted = tuple(mode_sizes(cfg, m) for m in cfg.modes)
     for s, mm, mode in zip(predicted, model.modes, cfg.modes):
         d = mm.data
-        assert (s.N, s.nu, s.ny, s.n, s.m, s.nt, s.w_cap, s.has_output_rows) == (
-            d.N, d.nu, d.ny, d.n, d.m, d.nt, d.w_cap, d.has_output_rows)
+        assert (s.N, s.nu, s.ny, s.n, s.m, s.nt, s.w_cap, s.has_output_rows, s.ny_pred) == (
+            d.N, d.nu, d.ny, d.n, d.m, d.nt, d.w_cap, d.has_output_rows, d.ny_pred)
         assert s.nx == d.nx if mode.plant.tf_matrix is None else s.nx >= d.nx
     _, arrays = declared_for(features_of(cfg))
     actual = sum(np.asarray(entry[a.name]).size * (4 if a.ctype == REAL else

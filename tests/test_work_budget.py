@@ -208,7 +208,8 @@ def test_time_limit_is_bit_exact_with_the_reference(fw_small):
     run_closed_loop(fw_small.model.config, Lockstep(), steps=700)
     assert bad == []
     statuses = [s for s, _ in seen]
-    assert statuses.count(TIME_LIMIT) >= 100 and statuses.count(OPTIMAL) >= 400  # 183, 517
+    # measured 161 and 539 (double), 104 and 596 (float)
+    assert statuses.count(TIME_LIMIT) >= 80 and statuses.count(OPTIMAL) >= 400
     assert max(w for _, w in seen) <= budget
 
 
