@@ -127,6 +127,33 @@ def short_uav_config(tmp_path: Path, horizon: int = 20, name: str = "uav_short",
     return path
 
 
+def lockstep_closed_loop(built: Built, steps: int) -> tuple[list, list]:
+    """The scenario's closed loop driven by a fresh host C controller, the reference
+    stepped beside it on the same inputs: (mismatches as (step, C's, reference's), and
+    (status, work) of every step). A step matches when its status, command bytes,
+    sweeps, polish corrections, active rows and work are the same."""
+    from rollmpc_codegen.sim.simulate import run_closed_loop
+
+    c, ref = built.fresh_c(), built.reference()
+    keys = ("iterations", "polish_iterations", "active", "work")
+    seen, bad = [], []
+
+    class Lockstep:
+        def step(self, y, s, r):
+            st_c, u_c = c.step(y, s, r)
+            st_r, u_r = ref.step(y, s, r)
+            info = c.info()
+            mine = (st_c, u_c.tobytes(), *(info[k] for k in keys))
+            theirs = (st_r, u_r.tobytes(), *(ref.last[k] for k in keys))
+            if mine != theirs:
+                bad.append((len(seen), mine, theirs))
+            seen.append((st_c, info["work"]))
+            return st_c, u_c
+
+    run_closed_loop(built.model.config, Lockstep(), steps=steps)
+    return bad, seen
+
+
 def sampled_qps_against_independent_solvers(built: Built, states: list, reference, bound: float,
                                             perturb: float, seed: int, count: int = 12):
     """One-mode check on ``count`` states of a lockstep run (``Lockstep.states``), each with

@@ -11,7 +11,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from conftest import ROOT, Built
+from conftest import ROOT, Built, lockstep_closed_loop
 from rollmpc_codegen.qp.work import predict_work
 from rollmpc_codegen.status import OPTIMAL, TIME_LIMIT
 
@@ -52,24 +52,7 @@ def test_partial_prediction_is_bit_exact_with_the_reference(quad_float):
     """The C's strided loop over the predicted outputs sums each of them in the reference's
     order: the closed loop through the tilt-limited manoeuvre (TIME_LIMIT included) is the
     reference's bit for bit: status, command, corrections, active rows and work."""
-    from rollmpc_codegen.sim.simulate import run_closed_loop
-
-    c, ref = quad_float.fresh_c(), quad_float.reference()
-    seen, bad = [], []
-
-    class Lockstep:
-        def step(self, y, s, r):
-            st_c, u_c = c.step(y, s, r)
-            st_r, u_r = ref.step(y, s, r)
-            info = c.info()
-            keys = ("iterations", "polish_iterations", "active", "work")
-            mine = (st_c, u_c.tobytes(), *(info[k] for k in keys))
-            theirs = (st_r, u_r.tobytes(), *(ref.last[k] for k in keys))
-            if mine != theirs:
-                bad.append((len(seen), mine, theirs))
-            seen.append(st_c)
-            return st_c, u_c
-
-    run_closed_loop(quad_float.model.config, Lockstep(), steps=500)
+    bad, seen = lockstep_closed_loop(quad_float, 500)
     assert bad == []
-    assert seen.count(TIME_LIMIT) >= 20 and seen.count(OPTIMAL) >= 400
+    statuses = [s for s, _ in seen]
+    assert statuses.count(TIME_LIMIT) >= 20 and statuses.count(OPTIMAL) >= 400

@@ -21,7 +21,7 @@ import subprocess
 import numpy as np
 import pytest
 
-from conftest import ROOT, Built, config_error
+from conftest import ROOT, Built, config_error, lockstep_closed_loop
 from rollmpc_codegen.status import OPTIMAL, TIME_LIMIT
 
 FW = ROOT / "examples" / "fw_lateral.yaml"
@@ -184,28 +184,8 @@ def test_updated_factor_is_the_reference_and_a_fresh_factor(fw_small, tmp_path):
 
 # ------------------------------------------------------------------ TIME_LIMIT, bit for bit
 def test_time_limit_is_bit_exact_with_the_reference(fw_small):
-    from rollmpc_codegen.sim.simulate import run_closed_loop
-
-    c, ref = fw_small.fresh_c(), fw_small.reference()
     budget = fw_small.ctx["solver"]["work_budget"]
-    seen, bad = [], []
-
-    class Lockstep:
-        def step(self, y, s, r):
-            st_c, u_c = c.step(y, s, r)
-            st_r, u_r = ref.step(y, s, r)
-            info = c.info()
-            mine = (st_c, u_c.tobytes(), *(info[k] for k in ("iterations", "polish_iterations",
-                                                               "active", "work")))
-            theirs = (st_r, u_r.tobytes(), *(ref.last[k] for k in ("iterations",
-                                                                   "polish_iterations",
-                                                                   "active", "work")))
-            if mine != theirs:
-                bad.append((len(seen), mine, theirs))
-            seen.append((st_c, info["work"]))
-            return st_c, u_c
-
-    run_closed_loop(fw_small.model.config, Lockstep(), steps=700)
+    bad, seen = lockstep_closed_loop(fw_small, 700)
     assert bad == []
     statuses = [s for s, _ in seen]
     # measured 161 and 539 (double), 104 and 596 (float)
