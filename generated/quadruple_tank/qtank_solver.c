@@ -163,20 +163,32 @@ static uint32_t append_work(const qtank_mode_data *md, int nw)
 }
 
 /*
- * primal_solve() on nw bound inputs with a factor of order k whose rows from `start` are
- * factored again (0: a new factor), and free_multipliers() after it: its Cholesky at
- * 2/6 of a unit per operation, its solves for the nt + 1 right-hand sides, the terminal
- * Schur complement and the n x nb (or n x nf) products at 3/6 (PRIMAL_SIXTHS_PER_OP).
+ * free_multipliers() on nw rows, charged when it runs: a free-form polish computes them
+ * only at a feasible point, not after every correction.
  */
-static uint32_t primal_work(const qtank_mode_data *md, int nw, int k, int start)
+static uint32_t multipliers_work(const qtank_mode_data *md, int nw)
+{
+    return 3u * (uint32_t)nw * ((uint32_t)md->n + (uint32_t)md->nt) / 6u;
+}
+
+/*
+ * primal_solve() on nw bound inputs with a factor of order k whose rows from `start` are
+ * factored again (0: a new factor): its Cholesky at 2/6 of a unit per operation, its
+ * solves for the nt + 1 right-hand sides, the terminal Schur complement and the n x nb (or
+ * n x nf) products at 3/6 (PRIMAL_SIXTHS_PER_OP), and 200 units per call (the
+ * bookkeeping). The bound form also pays multipliers_work(): its product over the packed
+ * S^-1 makes a call per free row and run of bound inputs, which its operations undercount.
+ */
+static uint32_t primal_work(const qtank_mode_data *md, int nw, int k, int start, int bound_form)
 {
     const int n = md->n, nt = md->nt;
     const uint32_t u = (uint32_t)k, s = (uint32_t)start, un = (uint32_t)n, ut = (uint32_t)nt;
     const uint32_t factor = chol_ops(k) - chol_ops(start) + chol_ops(nt);
     const uint32_t loops = (u * u - s * s) / 2u
         + 2u * (ut * (tri_ops(k) - tri_ops(start)) + tri_ops(k)) + ut * ut * u / 2u
-        + 2u * tri_ops(nt) + 3u * ut * un + 2u * un * (u + ut) + (uint32_t)nw * (un + ut);
-    return (2u * factor + 3u * loops) / 6u;
+        + 2u * tri_ops(nt) + 3u * ut * un + 2u * un * (u + ut);
+    return (2u * factor + 3u * loops) / 6u + 200u
+        + (bound_form ? multipliers_work(md, nw) : 0u);
 }
 
 /* One step of add_to_set() on nw rows: two triangular solves, then a row leaves, switches
@@ -605,8 +617,9 @@ static void unconstrained(qtank_work *ws, const qtank_mode_data *md,
  * yv = Gamma th (block Toeplitz in the Markov parameters).
  * Input (t, b) is spread over every later output in one strided pass, so each output
  * still sums its terms in (t, b) order, as the reference does, with the longest loop
- * innermost. Only the outputs with constraint rows (md->pred_out[0..ny_pred)) are
- * predicted: no row reads the others, which stay 0.
+ * innermost. Only the outputs md->pred_out[0..ny_pred) are predicted, those with
+ * constraint rows (all of them when more than two thirds have rows: one loop is then
+ * faster): no row reads the others, which stay 0.
  */
 static void predict_outputs(qtank_work *ws, const qtank_mode_data *md,
     const qtank_real *th)
@@ -1248,6 +1261,7 @@ static void free_multipliers(qtank_work *ws, const qtank_mode_data *md, int nw)
 {
     const int n = md->n, all = 4 * nw > 3 * n;
     int a, o, paired = 0;
+    ws->work += multipliers_work(md, nw); /* granted by the primal_solve() before */
     if (all) {
         sym_product(md->S_p, n, ws->dv, ws->rhs);
     }
@@ -1360,8 +1374,10 @@ static int primal_solve(qtank_work *ws, const qtank_mode_data *md, int nw,
     }
     {
         const int start = (ws->chol_holds == QTANK_CHOL_PRIMAL) ? from : 0;
-        const uint32_t cost = primal_work(md, nw, k, start);
-        if (!afford(ws, md, cost + reserve)) {
+        const uint32_t cost = primal_work(md, nw, k, start, form == FORM_BOUND);
+        /* the free form's multipliers are charged by free_multipliers(), granted here */
+        const uint32_t later = (form == FORM_BOUND) ? 0u : multipliers_work(md, nw);
+        if (!afford(ws, md, cost + later + reserve)) {
             return OUT_OF_WORK;
         }
         ws->work += cost;
@@ -1776,7 +1792,7 @@ static int polish(qtank_work *ws, const qtank_mode_data *md, qtank_real *lam,
             if (nadd > 0 && guess && it == 0) {
                 /* a guess whose first point already has most of its multipliers negative
                  * (a reference step reversed the saturation) is given up before it grows,
-                 * by drop_negative()'s rule; primal_work() paid for these multipliers */
+                 * by drop_negative()'s rule; primal_solve() granted these multipliers */
                 if (code == 0) {
                     free_multipliers(ws, md, nw);
                 }

@@ -55,6 +55,7 @@ import numpy as np
 from ..features import move_blocking, soft_constraints
 from .arrays import STORED_ARRAYS
 from .condense import CondensedQP, solve_refined
+from .sizes import predicted_outputs_count
 from ..model.plant import DiscretePlant
 
 
@@ -218,13 +219,16 @@ def mode_data(name: str, actuator_index, plant: DiscretePlant, obs_gain: np.ndar
 
 
 def predicted_outputs(row_q: np.ndarray, n: int, ny: int, nyq: int) -> tuple[np.ndarray, int]:
-    """The outputs that have constraint rows, ascending, then the others; and their count.
-    Only they are predicted on line: an output that is tracked but never bounded (a yaw,
-    a climb rate) costs nothing in the output prediction."""
+    """The outputs predict_outputs() computes, ascending, then the others; and their count
+    (sizes.predicted_outputs_count()). Those with constraint rows: an output that is
+    tracked but never bounded (a yaw, a climb rate) costs nothing in the prediction."""
     out = (row_q >= n) & (row_q < n + nyq)
     rows = np.unique((row_q[out] - n) % ny)
+    count = predicted_outputs_count(int(rows.size), ny)
+    if count == ny:
+        return np.arange(ny, dtype=np.int32), ny
     rest = np.setdiff1d(np.arange(ny), rows)
-    return np.concatenate((rows, rest)).astype(np.int32), int(rows.size)
+    return np.concatenate((rows, rest)).astype(np.int32), count
 
 
 def next_stage_rows(row_q: np.ndarray, row_sign: np.ndarray, n: int, nu: int,

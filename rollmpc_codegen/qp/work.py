@@ -82,6 +82,11 @@ TRI_UNITS_PER_OP = (3, 5)
 # quad_attitude run at <= 17.93 cycles per unit and uav_roll's at <= 13.11; (3/6, 2/6)
 # let quad_attitude's step 420 reach 22.31, all at 2/5 21.05.
 PRIMAL_SIXTHS_PER_OP = (2, 3)  # (factor, loops)
+# each primal_solve() call, beside its operations: the O(n) bookkeeping of the inputs'
+# roles and the calls of the products per row and run of bound inputs. Without it the
+# heavy steps of the n = 40 examples ran at 21.7 (quadruple_tank) and 21.2 (thermal_zones)
+# cycles per unit (docs/solver.md, "Work budget").
+PRIMAL_CALL_UNITS = 200
 
 
 def chol_ops(n: int) -> int:
@@ -118,17 +123,27 @@ def append_work(m, nw: int, factor: int) -> int:
     return (nw + 1) * hq_work(m, factor) + tri_work(nw) + nw
 
 
-def primal_work(m, nw: int, k: int, start: int = 0) -> int:
+def primal_work(m, nw: int, k: int, start: int = 0, bound_form: bool = True) -> int:
     """primal_solve() with a factor of order k whose rows (and Y's) from ``start`` are
-    factored again (0: a new factor), and free_multipliers(): its Cholesky, its solves for
-    the nt + 1 right-hand sides, the terminal Schur complement and the n x nb (or n x nf)
-    products, at PRIMAL_SIXTHS_PER_OP."""
+    factored again (0: a new factor): its Cholesky, its solves for the nt + 1 right-hand
+    sides, the terminal Schur complement and the n x nb (or n x nf) products, at
+    PRIMAL_SIXTHS_PER_OP, and PRIMAL_CALL_UNITS. The bound form also pays nw (n + nt)
+    operations: its product over the packed S^-1 runs a call per free row and run of bound
+    inputs, which its operations alone undercount. The free form pays its multipliers
+    where they are computed (multipliers_work())."""
     nt = m.nt
     factor = chol_ops(k) - chol_ops(start) + chol_ops(nt)
     loops = ((k * k - start * start) // 2
              + 2 * (nt * (tri_ops(k) - tri_ops(start)) + tri_ops(k)) + nt * nt * k // 2
-             + 2 * tri_ops(nt) + 3 * nt * m.n + 2 * m.n * (k + nt) + nw * (m.n + nt))
-    return (PRIMAL_SIXTHS_PER_OP[0] * factor + PRIMAL_SIXTHS_PER_OP[1] * loops) // 6
+             + 2 * tri_ops(nt) + 3 * nt * m.n + 2 * m.n * (k + nt))
+    return ((PRIMAL_SIXTHS_PER_OP[0] * factor + PRIMAL_SIXTHS_PER_OP[1] * loops) // 6
+            + PRIMAL_CALL_UNITS + (multipliers_work(m, nw) if bound_form else 0))
+
+
+def multipliers_work(m, nw: int) -> int:
+    """free_multipliers() on nw rows, charged when it runs: a free-form polish computes
+    them only at a feasible point, not after every correction."""
+    return PRIMAL_SIXTHS_PER_OP[1] * nw * (m.n + m.nt) // 6
 
 
 def add_step_work(nw: int) -> int:
@@ -155,7 +170,7 @@ def largest_unit(m, wcap: int, factor: int) -> int:
     return max(wcap ** 3, factor_work(m, wcap, factor) + append_work(m, wcap, factor),
                sweep_work(m, m.m, factor) + correct_work(m, m.m) + 2 * scan_work(m),
                CHOL_UNITS_PER_OP[0] * chol_ops(wcap),
-               6 * (primal_work(m, m.n, m.n) + 1), add_step_work(wcap))
+               6 * (primal_work(m, m.n, m.n, 0, True) + 1), add_step_work(wcap))
 
 
 def auto_work_budget(sample_time: float, share: float, cpu_mhz: float = DEFAULT_CPU_MHZ) -> int:

@@ -18,7 +18,7 @@ import numpy as np
 from .dot import s_row_dots
 from .linalg import (chol_lsolve_packed, chol_ltsolve_packed, cholesky_packed,
                      factor_and_solve_packed, seqsum)
-from ..qp.work import primal_work
+from ..qp.work import multipliers_work, primal_work
 from .polish_dual import CHOL_NONE, CHOL_PRIMAL, OUT_OF_WORK
 
 FREE, BOUND = 1, 2  # FORM_FREE, FORM_BOUND
@@ -62,8 +62,9 @@ class PrimalPolishMixin:
         form = BOUND if nw < n - nw else FREE
         order, rows, first = self.primal_order(bound, form)
         start = first if self.chol_holds == CHOL_PRIMAL else 0
-        cost = primal_work(md, nw, len(order), start)
-        if not self.afford(cost + reserve):
+        cost = primal_work(md, nw, len(order), start, rows.form == BOUND)
+        later = 0 if rows.form == BOUND else multipliers_work(md, nw)  # free_multipliers()
+        if not self.afford(cost + later + reserve):
             return OUT_OF_WORK, None, None
         self.work += cost
         self.factor_rows = rows
@@ -162,6 +163,7 @@ class PrimalPolishMixin:
     def free_multipliers(self, W):
         """Mirror of free_multipliers() for the last free-form solve."""
         md = self.md
+        self.work += multipliers_work(md, W.size)
         dv, nu = self._free_state
         qW = md.row_q[W]
         g = s_row_dots(self.S, qW, dv)
