@@ -174,19 +174,24 @@ static uint32_t multipliers_work(const zones_mode_data *md, int nw)
 /*
  * primal_solve() on nw bound inputs with a factor of order k whose rows from `start` are
  * factored again (0: a new factor): its Cholesky at 2/6 of a unit per operation, its
- * solves for the nt + 1 right-hand sides, the terminal Schur complement and the n x nb (or
- * n x nf) products at 3/6 (PRIMAL_SIXTHS_PER_OP), and 200 units per call (the
- * bookkeeping). The bound form also pays multipliers_work(): its product over the packed
- * S^-1 makes a call per free row and run of bound inputs, which its operations undercount.
+ * solves for the nt + 1 right-hand sides, the terminal Schur complement and its products
+ * at 3/6 (PRIMAL_SIXTHS_PER_OP), and 200 units per call (the bookkeeping). The free form's
+ * product -S_FB d_B is what it does, with 4 operations per free row and run of bound
+ * inputs (`bound_runs`; a packed_range_dot() call each); its multipliers are charged by
+ * free_multipliers(). The bound form pays 2 n (k + nt) and multipliers_work() for its
+ * product over the packed S^-1, whose per-call costs its operations undercount.
  */
-static uint32_t primal_work(const zones_mode_data *md, int nw, int k, int start, int bound_form)
+static uint32_t primal_work(const zones_mode_data *md, int nw, int k, int start, int bound_form,
+    int bound_runs)
 {
     const int n = md->n, nt = md->nt;
     const uint32_t u = (uint32_t)k, s = (uint32_t)start, un = (uint32_t)n, ut = (uint32_t)nt;
     const uint32_t factor = chol_ops(k) - chol_ops(start) + chol_ops(nt);
+    const uint32_t products = bound_form ? 2u * un * (u + ut)
+        : (u + ut) * (un - u) + un + 4u * u * (uint32_t)bound_runs;
     const uint32_t loops = (u * u - s * s) / 2u
         + 2u * (ut * (tri_ops(k) - tri_ops(start)) + tri_ops(k)) + ut * ut * u / 2u
-        + 2u * tri_ops(nt) + 3u * ut * un + 2u * un * (u + ut);
+        + 2u * tri_ops(nt) + 3u * ut * un + products;
     return (2u * factor + 3u * loops) / 6u + 200u
         + (bound_form ? multipliers_work(md, nw) : 0u);
 }
@@ -1344,6 +1349,7 @@ static int primal_solve(zones_work *ws, const zones_mode_data *md, int nw,
 {
     const int n = md->n;
     int i, k, head, from = 0, form = (nw < n - nw) ? FORM_BOUND : FORM_FREE, update = 0;
+    int runs = 0; /* runs of consecutive bound inputs: the free form's product calls */
     for (i = 0; i < n; ++i) {
         ws->input_role[i] = (uint8_t)(ws->input_role[i] & ~ROLE_BOUND);
         ws->dv[i] = R_(0.0);
@@ -1354,6 +1360,9 @@ static int primal_solve(zones_work *ws, const zones_mode_data *md, int nw,
             return -1; /* both bounds of one input: not a valid working set */
         }
         ws->input_role[q] = (uint8_t)(ws->input_role[q] | ROLE_BOUND);
+    }
+    for (i = 0; i < n; ++i) {
+        runs += (ws->input_role[i] & ROLE_BOUND) && (i == 0 || !(ws->input_role[i - 1] & ROLE_BOUND));
     }
     k = (form == FORM_BOUND) ? nw : n - nw;
     head = k;
@@ -1374,7 +1383,7 @@ static int primal_solve(zones_work *ws, const zones_mode_data *md, int nw,
     }
     {
         const int start = (ws->chol_holds == ZONES_CHOL_PRIMAL) ? from : 0;
-        const uint32_t cost = primal_work(md, nw, k, start, form == FORM_BOUND);
+        const uint32_t cost = primal_work(md, nw, k, start, form == FORM_BOUND, runs);
         /* the free form's multipliers are charged by free_multipliers(), granted here */
         const uint32_t later = (form == FORM_BOUND) ? 0u : multipliers_work(md, nw);
         if (!afford(ws, md, cost + later + reserve)) {

@@ -87,6 +87,9 @@ PRIMAL_SIXTHS_PER_OP = (2, 3)  # (factor, loops)
 # heavy steps of the n = 40 examples ran at 21.7 (quadruple_tank) and 21.2 (thermal_zones)
 # cycles per unit (docs/solver.md, "Work budget").
 PRIMAL_CALL_UNITS = 200
+# a call of packed_range_dot() in the free form's product, in operations at 3/6 of a unit
+# (2 units, ~40 cycles: its setup and the tail of its unrolled loop)
+PRIMAL_CALL_OPS = 4
 
 
 def chol_ops(n: int) -> int:
@@ -123,19 +126,26 @@ def append_work(m, nw: int, factor: int) -> int:
     return (nw + 1) * hq_work(m, factor) + tri_work(nw) + nw
 
 
-def primal_work(m, nw: int, k: int, start: int = 0, bound_form: bool = True) -> int:
+def primal_work(m, nw: int, k: int, start: int = 0, bound_form: bool = True,
+                bound_runs: int = 0) -> int:
     """primal_solve() with a factor of order k whose rows (and Y's) from ``start`` are
     factored again (0: a new factor): its Cholesky, its solves for the nt + 1 right-hand
-    sides, the terminal Schur complement and the n x nb (or n x nf) products, at
-    PRIMAL_SIXTHS_PER_OP, and PRIMAL_CALL_UNITS. The bound form also pays nw (n + nt)
-    operations: its product over the packed S^-1 runs a call per free row and run of bound
-    inputs, which its operations alone undercount. The free form pays its multipliers
-    where they are computed (multipliers_work())."""
-    nt = m.nt
+    sides, the terminal Schur complement and its products, at PRIMAL_SIXTHS_PER_OP, and
+    PRIMAL_CALL_UNITS. The free form's product -S_FB d_B is what it does: k (n - k)
+    multiply-adds, nt (n - k) for V_B d_B, n for the point, and PRIMAL_CALL_OPS per free
+    row and run of bound inputs (``bound_runs``: sparse_rows_dot() calls
+    packed_range_dot() for each); its multipliers are charged where they are computed
+    (multipliers_work()). The bound form pays 2 n (k + nt) and nw (n + nt) for its
+    product over the packed S^-1, whose calls per free row and run of bound inputs its
+    operations alone undercount (quad_attitude's bound-form steps run at <= 18.6 cycles
+    per unit with it)."""
+    nt, n = m.nt, m.n
     factor = chol_ops(k) - chol_ops(start) + chol_ops(nt)
+    products = (2 * n * (k + nt) if bound_form else
+                (k + nt) * (n - k) + n + PRIMAL_CALL_OPS * k * bound_runs)
     loops = ((k * k - start * start) // 2
              + 2 * (nt * (tri_ops(k) - tri_ops(start)) + tri_ops(k)) + nt * nt * k // 2
-             + 2 * tri_ops(nt) + 3 * nt * m.n + 2 * m.n * (k + nt))
+             + 2 * tri_ops(nt) + 3 * nt * n + products)
     return ((PRIMAL_SIXTHS_PER_OP[0] * factor + PRIMAL_SIXTHS_PER_OP[1] * loops) // 6
             + PRIMAL_CALL_UNITS + (multipliers_work(m, nw) if bound_form else 0))
 

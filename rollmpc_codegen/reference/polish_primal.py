@@ -62,7 +62,8 @@ class PrimalPolishMixin:
         form = BOUND if nw < n - nw else FREE
         order, rows, first = self.primal_order(bound, form)
         start = first if self.chol_holds == CHOL_PRIMAL else 0
-        cost = primal_work(md, nw, len(order), start, rows.form == BOUND)
+        runs = int(np.count_nonzero(bound & ~np.concatenate(([False], bound[:-1]))))
+        cost = primal_work(md, nw, len(order), start, rows.form == BOUND, runs)
         later = 0 if rows.form == BOUND else multipliers_work(md, nw)  # free_multipliers()
         if not self.afford(cost + later + reserve):
             return OUT_OF_WORK, None, None
