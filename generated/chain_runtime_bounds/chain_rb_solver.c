@@ -1364,7 +1364,7 @@ static int primal_solve(chain_rb_work *ws, const chain_rb_mode_data *md, int nw,
 {
     const int n = md->n;
     int i, k, head, from = 0, form = (nw < n - nw) ? FORM_BOUND : FORM_FREE, update = 0;
-    int runs = 0; /* runs of consecutive bound inputs: the free form's product calls */
+    int adjacent = 0; /* bound inputs next to a bound one set before: nw - adjacent runs */
     for (i = 0; i < n; ++i) {
         ws->input_role[i] = (uint8_t)(ws->input_role[i] & ~ROLE_BOUND);
         ws->dv[i] = R_(0.0);
@@ -1374,10 +1374,9 @@ static int primal_solve(chain_rb_work *ws, const chain_rb_mode_data *md, int nw,
         if (ws->input_role[q] & ROLE_BOUND) {
             return -1; /* both bounds of one input: not a valid working set */
         }
+        adjacent += (q > 0 && (ws->input_role[q - 1] & ROLE_BOUND))
+            + (q + 1 < n && (ws->input_role[q + 1] & ROLE_BOUND));
         ws->input_role[q] = (uint8_t)(ws->input_role[q] | ROLE_BOUND);
-    }
-    for (i = 0; i < n; ++i) {
-        runs += (ws->input_role[i] & ROLE_BOUND) && (i == 0 || !(ws->input_role[i - 1] & ROLE_BOUND));
     }
     k = (form == FORM_BOUND) ? nw : n - nw;
     head = k;
@@ -1398,7 +1397,7 @@ static int primal_solve(chain_rb_work *ws, const chain_rb_mode_data *md, int nw,
     }
     {
         const int start = (ws->chol_holds == CHAIN_RB_CHOL_PRIMAL) ? from : 0;
-        const uint32_t cost = primal_work(md, nw, k, start, form == FORM_BOUND, runs);
+        const uint32_t cost = primal_work(md, nw, k, start, form == FORM_BOUND, nw - adjacent);
         /* the free form's multipliers are charged by free_multipliers(), granted here */
         const uint32_t later = (form == FORM_BOUND) ? 0u : multipliers_work(md, nw);
         if (!afford(ws, md, cost + later + reserve)) {
