@@ -22,7 +22,7 @@ from ..config.schema import DEFAULT_CPU_MHZ, WORK_BUDGET_AUTO
 # steps that spend over 30 % of their budget (commit a0d58fb: fw_lateral step 576;
 # quad_attitude 17.93, c172_roll 15.54, uav_roll 13.11), with 4 % of margin (docs/solver.md,
 # "Work budget"). Small steps ran at 21-24 (fixed costs per call: thermal_zones' largest,
-# <= 11.7 k units, at 20.1-21.2); PRIMAL_CALL_UNITS brings them to <= 19.8 (4bf2399).
+# <= 11.7 k units, at 20.1-21.2); PRIMAL_CALL_UNITS brings them to <= 19.8 (3313d1b).
 CYCLES_PER_WORK_UNIT = 20.0
 WORK_LIMIT = 2**31  # every count and bound stays below it (uint32 in the C)
 UNBOUNDED_WORK = WORK_LIMIT - 1  # the largest budget: in effect none
