@@ -20,7 +20,7 @@ typedef struct {
     int m;                              /**< Constraint rows. */
     int nyq;                            /**< Predicted outputs N ny. */
     int nt;                             /**< Terminal rows of the E split (0: P stays in S). */
-    int ny_pred;                        /**< Outputs with constraint rows: the first ny_pred of pred_out, the only ones predict_outputs() computes. */
+    int ny_pred;                        /**< Outputs predict_outputs() computes: the first ny_pred of pred_out (those with constraint rows, or all of them). */
     int w_cap;                          /**< Working-set capacity: n + soft (output, stage) pairs. */
     const int16_t *actuator_index;      /**< [nu] physical actuator of each mode input. */
     const chain_soft_real *A;           /**< [nx][nx] discrete state matrix. */
@@ -41,7 +41,7 @@ typedef struct {
     const chain_soft_real *Omega2;      /**< [N][ny][ny] 2Q per stage, 2P at the last. */
     const chain_soft_real *Phi;         /**< [nyq][nx] free response of the predicted outputs. */
     const chain_soft_real *markov;      /**< [N][ny][nu] Markov parameters C A^i B. */
-    const int16_t *pred_out;            /**< [ny] the outputs with constraint rows, ascending, then the others. */
+    const int16_t *pred_out;            /**< [ny] the predicted outputs, ascending, then the others. */
     const int16_t *row_q;               /**< [m] quantity of each row (U index, n + Y index, or n + nyq + Δu index). */
     const int8_t *row_sign;             /**< [m] -1 lower / +1 upper bound row. */
     const chain_soft_real *row_c;       /**< [m] constant right-hand side c. */

@@ -20,7 +20,7 @@ typedef struct {
     int m;                              /**< Constraint rows. */
     int nyq;                            /**< Predicted outputs N ny. */
     int nt;                             /**< Terminal rows of the E split (0: P stays in S). */
-    int ny_pred;                        /**< Outputs with constraint rows: the first ny_pred of pred_out, the only ones predict_outputs() computes. */
+    int ny_pred;                        /**< Outputs predict_outputs() computes: the first ny_pred of pred_out (those with constraint rows, or all of them). */
     const int16_t *actuator_index;      /**< [nu] physical actuator of each mode input. */
     const zrate_real *A;                /**< [nx][nx] discrete state matrix. */
     const zrate_real *B;                /**< [nx][nu] discrete input matrix. */
@@ -40,7 +40,7 @@ typedef struct {
     const zrate_real *Omega2;           /**< [N][ny][ny] 2Q per stage, 2P at the last. */
     const zrate_real *Phi;              /**< [nyq][nx] free response of the predicted outputs. */
     const zrate_real *markov;           /**< [N][ny][nu] Markov parameters C A^i B. */
-    const int16_t *pred_out;            /**< [ny] the outputs with constraint rows, ascending, then the others. */
+    const int16_t *pred_out;            /**< [ny] the predicted outputs, ascending, then the others. */
     const int16_t *row_q;               /**< [m] quantity of each row (U index, n + Y index, or n + nyq + Δu index). */
     const int8_t *row_sign;             /**< [m] -1 lower / +1 upper bound row. */
     const zrate_real *row_c;            /**< [m] constant right-hand side c. */

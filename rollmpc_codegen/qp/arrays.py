@@ -91,8 +91,8 @@ MODE_SIZES = (
     StoredSize("m", "Constraint rows."),
     StoredSize("nyq", "Predicted outputs N ny.", field="n_yq"),
     StoredSize("nt", "Terminal rows of the E split (0: P stays in S)."),
-    StoredSize("ny_pred", "Outputs with constraint rows: the first ny_pred of pred_out, the "
-               "only ones predict_outputs() computes."),
+    StoredSize("ny_pred", "Outputs predict_outputs() computes: the first ny_pred of "
+               "pred_out (those with constraint rows, or all of them)."),
     StoredSize("w_cap", "Working-set capacity: n + soft (output, stage) pairs.",
                feature="has_soft_rows"),
 )
@@ -121,8 +121,8 @@ STORED_ARRAYS = (
     StoredArray("Phi", REAL, ("nyq", "nx"), "free response of the predicted outputs.",
                 blame="plant"),
     StoredArray("markov", REAL, ("N", "ny", "nu"), "Markov parameters C A^i B.", blame="plant"),
-    StoredArray("pred_out", "int16_t", ("ny",), "the outputs with constraint rows, ascending, "
-                "then the others."),
+    StoredArray("pred_out", "int16_t", ("ny",), "the predicted outputs, ascending, then the "
+                "others."),
     StoredArray("row_q", "int16_t", ("m",), "quantity of each row (U index, n + Y index, "
                 "or n + nyq + Δu index)."),
     StoredArray("row_sign", "int8_t", ("m",), "-1 lower / +1 upper bound row."),

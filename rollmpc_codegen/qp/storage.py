@@ -115,7 +115,7 @@ class ModeData:
     Omega2: np.ndarray
     Phi: np.ndarray
     markov: np.ndarray
-    pred_out: np.ndarray  # outputs with rows (ny_pred of them), ascending, then the others
+    pred_out: np.ndarray  # the predicted outputs (ny_pred), ascending, then the others
     row_q: np.ndarray
     row_sign: np.ndarray
     row_c: np.ndarray
@@ -128,7 +128,7 @@ class ModeData:
     soft_l1: np.ndarray | None = None  # None: without soft bounds
     soft_w: np.ndarray | None = None
     w_cap: int = 0  # working-set capacity: n, plus the soft (output, stage) pairs
-    ny_pred: int = 0  # outputs with constraint rows: the ones the output prediction computes
+    ny_pred: int = 0  # outputs the output prediction computes (predicted_outputs())
 
     def __post_init__(self):
         for array in STORED_ARRAYS:
@@ -211,7 +211,8 @@ def mode_data(name: str, actuator_index, plant: DiscretePlant, obs_gain: np.ndar
         Kx=cast(qp.Kx), EinvGt=cast(EinvGt), Sinv_p=cast(packed_lower(Sinv)), Ew=cast(Ew),
         Uv=cast(Uv), T=cast(T), S_p=cast(packed_lower(S)), V=cast(V), P2inv=cast(P2inv),
         GEinvGt_p=cast(packed_lower(GEinvGt)), Omega2=cast(Omega2), Phi=cast(qp.Phi),
-        markov=markov, pred_out=pred_out, ny_pred=ny_pred, row_q=row_q, row_sign=qp.row_sign.astype(np.int32), row_c=cast(qp.c),
+        markov=markov, pred_out=pred_out, ny_pred=ny_pred, row_q=row_q,
+        row_sign=qp.row_sign.astype(np.int32), row_c=cast(qp.c),
         row_next=next_stage_rows(row_q, qp.row_sign, qp.n, nu, ny, N * ny, qp.blocks),
         colsum=cast(colsum), out_bound=cast(output_bound(markov, dt)),
         u_min=cast(u_min), u_max=cast(u_max),
