@@ -49,6 +49,7 @@ compiled with and the numbers the reference computes with are the same by constr
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import cached_property
 
 import numpy as np
 
@@ -115,7 +116,6 @@ class ModeData:
     Omega2: np.ndarray
     Phi: np.ndarray
     markov: np.ndarray
-    pred_out: np.ndarray  # the predicted outputs (ny_pred), ascending, then the others
     row_q: np.ndarray
     row_sign: np.ndarray
     row_c: np.ndarray
@@ -128,7 +128,6 @@ class ModeData:
     soft_l1: np.ndarray | None = None  # None: without soft bounds
     soft_w: np.ndarray | None = None
     w_cap: int = 0  # working-set capacity: n, plus the soft (output, stage) pairs
-    ny_pred: int = 0  # outputs the output prediction computes (predicted_outputs())
 
     def __post_init__(self):
         for array in STORED_ARRAYS:
@@ -142,14 +141,40 @@ class ModeData:
         return self.V.shape[0]
 
     @property
+    def output_rows(self) -> np.ndarray:
+        """Which rows bound an output quantity (n <= q < n + nyq)."""
+        return (self.row_q >= self.n) & (self.row_q < self.n + self.n_yq)
+
+    @property
     def has_output_rows(self) -> bool:
-        return bool(np.any((self.row_q >= self.n) & (self.row_q < self.n + self.n_yq)))
+        return bool(np.any(self.output_rows))
+
+    @cached_property
+    def _predicted(self) -> tuple[np.ndarray, int]:
+        """(pred_out, ny_pred): the outputs predict_outputs() computes, ascending, then the
+        others, and their count (sizes.predicted_outputs_count()). Those with constraint
+        rows: an output that is tracked but never bounded (a yaw, a climb rate) costs
+        nothing in the prediction."""
+        rows = np.unique((self.row_q[self.output_rows] - self.n) % self.ny)
+        count = predicted_outputs_count(int(rows.size), self.ny)
+        if count == self.ny:
+            return np.arange(self.ny, dtype=np.int32), count
+        rest = np.setdiff1d(np.arange(self.ny), rows)
+        return np.concatenate((rows, rest)).astype(np.int32), count
+
+    @property
+    def pred_out(self) -> np.ndarray:
+        return self._predicted[0]
+
+    @property
+    def ny_pred(self) -> int:
+        return self._predicted[1]
 
     def soft_rows(self) -> tuple[np.ndarray, np.ndarray]:
         """(l1, w) of every row, as the C's soft_of() reads them (0 for hard rows)."""
         l1, w = np.zeros(self.m, self.Kx.dtype), np.zeros(self.m, self.Kx.dtype)
         if self.soft_w is not None:
-            out = (self.row_q >= self.n) & (self.row_q < self.n + self.n_yq)
+            out = self.output_rows
             idx = 2 * ((self.row_q[out] - self.n) % self.ny) + (self.row_sign[out] > 0)
             l1[out], w[out] = self.soft_l1[idx], self.soft_w[idx]
         return l1, w
@@ -197,7 +222,6 @@ def mode_data(name: str, actuator_index, plant: DiscretePlant, obs_gain: np.ndar
         return np.ascontiguousarray(np.asarray(a, dtype=np.float64).astype(dt))
 
     markov = cast(qp.markov)
-    pred_out, ny_pred = predicted_outputs(row_q, qp.n, ny, N * ny)
     soft = {"w_cap": qp.n}
     if soft_l2 is not None:
         l1, w = soft_constraints.storage(soft_l1, soft_l2)
@@ -211,25 +235,11 @@ def mode_data(name: str, actuator_index, plant: DiscretePlant, obs_gain: np.ndar
         Kx=cast(qp.Kx), EinvGt=cast(EinvGt), Sinv_p=cast(packed_lower(Sinv)), Ew=cast(Ew),
         Uv=cast(Uv), T=cast(T), S_p=cast(packed_lower(S)), V=cast(V), P2inv=cast(P2inv),
         GEinvGt_p=cast(packed_lower(GEinvGt)), Omega2=cast(Omega2), Phi=cast(qp.Phi),
-        markov=markov, pred_out=pred_out, ny_pred=ny_pred, row_q=row_q,
-        row_sign=qp.row_sign.astype(np.int32), row_c=cast(qp.c),
+        markov=markov, row_q=row_q, row_sign=qp.row_sign.astype(np.int32), row_c=cast(qp.c),
         row_next=next_stage_rows(row_q, qp.row_sign, qp.n, nu, ny, N * ny, qp.blocks),
         colsum=cast(colsum), out_bound=cast(output_bound(markov, dt)),
         u_min=cast(u_min), u_max=cast(u_max),
         stage_block=None if qp.blocks is None else move_blocking.stage_block(qp.blocks))
-
-
-def predicted_outputs(row_q: np.ndarray, n: int, ny: int, nyq: int) -> tuple[np.ndarray, int]:
-    """The outputs predict_outputs() computes, ascending, then the others; and their count
-    (sizes.predicted_outputs_count()). Those with constraint rows: an output that is
-    tracked but never bounded (a yaw, a climb rate) costs nothing in the prediction."""
-    out = (row_q >= n) & (row_q < n + nyq)
-    rows = np.unique((row_q[out] - n) % ny)
-    count = predicted_outputs_count(int(rows.size), ny)
-    if count == ny:
-        return np.arange(ny, dtype=np.int32), ny
-    rest = np.setdiff1d(np.arange(ny), rows)
-    return np.concatenate((rows, rest)).astype(np.int32), count
 
 
 def next_stage_rows(row_q: np.ndarray, row_sign: np.ndarray, n: int, nu: int,
