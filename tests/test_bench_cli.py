@@ -121,7 +121,9 @@ def test_bad_arguments_one_line_exit_2(extra, word, capsys, monkeypatch, tmp_pat
 
 def test_variant_parsing_keeps_order_and_the_reference():
     assert parse_variants("daqp,default") == ["default", "quadprog", "daqp"]
-    assert len(parse_variants(None)) == 8
+    assert parse_variants("daqp_c_solve,daqp_c,default") == ["default", "quadprog", "daqp_c",
+                                                             "daqp_c_solve"]
+    assert len(parse_variants(None)) == 10
 
 
 @pytest.mark.parametrize("extra, rows", [

@@ -28,10 +28,10 @@ def float_model():
 
 
 def test_shifted_qp_is_the_peers_qp(float_model):
-    """cu + Wu x, cl + Wl x are TwoSidedForm's bounds; theta0 = Tx x + Tr r + t0 is the
+    """cu + W x, cl + W x are TwoSidedForm's bounds; theta0 = Tx x + Tr r + t0 is the
     unconstrained optimum -E^-1 f; the factored H is R with R'R = E, else E itself."""
     from rollmpc_codegen.qp.peers import DAQP_INF, TwoSidedForm
-    from rollmpc_codegen.target.peer_daqp import mode_arrays
+    from rollmpc_codegen.host.daqp_harness import mode_arrays
 
     model, _ = float_model
     rng = np.random.default_rng(3)
@@ -45,8 +45,9 @@ def test_shifted_qp_is_the_peers_qp(float_model):
         assert np.array_equal(mode_arrays(qp, factored=False)["H"], qp.E)
         x, r = rng.normal(size=qp.nx), rng.normal(size=qp.Kr.shape[1])
         f, lower, upper = TwoSidedForm(qp).data(x, r, DAQP_INF)
-        np.testing.assert_allclose(data["cu"] + data["Wu"] @ x, upper, rtol=1e-13)
-        np.testing.assert_allclose(data["cl"] + data["Wl"] @ x, lower, rtol=1e-13)
+        wx = data["W"] @ x  # one W x for both sides of a row
+        np.testing.assert_allclose(data["cu"] + wx, upper, rtol=1e-13)
+        np.testing.assert_allclose(data["cl"] + wx, lower, rtol=1e-13)
         theta0 = data["Tx"] @ x + data["Tr"] @ r + data["t0"]
         assert np.allclose(qp.E @ theta0, -f, atol=1e-9 * np.abs(f).max())
         assert data["A"].shape == (upper.size - n, n)
@@ -60,11 +61,13 @@ def daqp_on_target(float_model, build_root):
     pytest.importorskip("daqp", reason="pip install 'rollmpc-codegen[peers]'")
     from rollmpc_codegen.host.bench_record import QpSequence, record_qp_sequence
     from rollmpc_codegen.host.build import build_host_controller
+    from rollmpc_codegen.host.daqp_harness import (DaqpSourceUnavailable, daqp_sources,
+                                                   daqp_version)
     from rollmpc_codegen.target import peer_daqp
 
     try:  # cached outside build_root: downloaded once per machine, not per session
-        peer_daqp.daqp_sources(peer_daqp.daqp_version())
-    except peer_daqp.DaqpSourceUnavailable as exc:
+        daqp_sources(daqp_version())
+    except DaqpSourceUnavailable as exc:
         pytest.skip(f"DAQP's sdist is not available (needs pip and network to PyPI once): "
                     f"{exc}")
     model, ctx = float_model

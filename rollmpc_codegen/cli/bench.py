@@ -12,9 +12,10 @@ from .options import (add_build_dir, add_outputs, add_precision, add_quiet, chec
 # the rows of host.bench (ROWS, OURS_AND_PEERS, PAPER_VARIANTS); only the parser's help
 # text repeats them (building the parser must not import the library)
 VARIANTS_HELP = ("comma-separated rows to run, of hildreth, hildreth_plus, "
-                 "hildreth_plus_prime, default, quadprog, daqp, osqp, osqp_tight (default: "
-                 "default,quadprog,daqp,osqp, each peer where installed; quadprog, the "
-                 "reference, always runs)")
+                 "hildreth_plus_prime, default, quadprog, daqp, daqp_c, daqp_c_solve, osqp, "
+                 "osqp_tight (default: default,quadprog,daqp,osqp, each peer where "
+                 "installed; quadprog, the reference, always runs; daqp_c and daqp_c_solve "
+                 "build DAQP's C from its sdist and time it like ours)")
 PAPER_HELP = ("also run the paper's variants hildreth, hildreth_plus, hildreth_plus_prime "
               "(slow: up to 2 s per QP on the UAV)")
 

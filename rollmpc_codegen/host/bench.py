@@ -51,6 +51,10 @@ OSQP_TIGHT = {"eps_abs": 1e-9, "eps_rel": 1e-9, "polishing": True}
 PEERS = {
     "quadprog": "quadprog",
     "daqp": "DAQP (Model, warm)",
+    # DAQP's C built on the host and timed like ours (host.peer_daqp_c): opt-in, its
+    # sdist is downloaded once
+    "daqp_c": "DAQP C (sample: data + update + solve)",
+    "daqp_c_solve": "DAQP C (update + solve only)",
     "osqp": "OSQP (default)",
     "osqp_tight": "OSQP (eps 1e-9, polish)",
 }
@@ -105,6 +109,18 @@ def machine_info() -> dict:
     return {"cpu": cpu, "cores": os.cpu_count(), "load_average": list(os.getloadavg()),
             "platform": platform.platform(), "python": platform.python_version(),
             "c_compiler": cc, "c_flags": " ".join(("-O2", *EXACT_MATH)), **versions}
+
+
+def make_peer(key: str, model, build_root: Path | None):
+    """A fresh peer of the row ``key`` (every peer but quadprog, the reference)."""
+    qps = [mm.qp for mm in model.modes]
+    if key == "daqp":
+        return DaqpPeer(qps)
+    if key in ("daqp_c", "daqp_c_solve"):
+        from .peer_daqp_c import DaqpCPeer
+
+        return DaqpCPeer(model, "solve" if key == "daqp_c_solve" else "step", build_root)
+    return OsqpPeer(qps, **(OSQP_TIGHT if key == "osqp_tight" else {}))
 
 
 @dataclass
@@ -169,15 +185,14 @@ def run_bench(config: str | Path, *, precision: str | None = None,
         elif key == REFERENCE_ROW:
             label, rep, timer = PEERS[key], ref, "wall (Python call)"
         else:
-            settings = OSQP_TIGHT if key == "osqp_tight" else {}
-
-            def once(pr, key=key, settings=settings):
-                peer = DaqpPeer(qps) if key == "daqp" else OsqpPeer(qps, **settings)
+            def once(pr, key=key):
                 with c_stdout_silenced():
-                    return replay_peer(peer, model, seq, idx, pr)
+                    return replay_peer(make_peer(key, model, build_root), model, seq, idx, pr)
 
             rep = repeated(key, once)
-            label, timer = PEERS[key], f"C ({peer_module(key)} info)"
+            label = PEERS[key]
+            timer = (f"C ({peer_module(key)} info)" if key in ("daqp", "osqp", "osqp_tight")
+                     else "C (same clock as solve_ticks)")
         replays[key] = rep
         rows.append(row_summary(key, label, timer, rep, ref, seq, idx, model))
     summary = {

@@ -27,145 +27,29 @@ Cortex-M4F, replaying the same QP sequence as the generated controller.
 """
 from __future__ import annotations
 
-import hashlib
-import re
-import shutil
-import subprocess
-import sys
-import tarfile
-from importlib import metadata
 from pathlib import Path
 
 import numpy as np
 
 from ..codegen.context import build_context
 from ..codegen.render import render_template
-from ..host.build import STRICT_WARNINGS, BuildError, build_host_controller
+from ..host.build import STRICT_WARNINGS, build_host_controller
 from ..host.build_cache import private_root, publish, staging, verified
+from ..host.daqp_harness import (DAQP_WARNINGS, SETTINGS, SETUPS, build_key, compile_daqp,
+                                 compile_harness, daqp_sources, daqp_version, exit_flags,
+                                 harness_context, mode_arrays, warning_counts)
 from ..model.controller import ControllerModel
-from ..qp.condense import solve_refined
-from ..qp.peers import DAQP_INF, DaqpPeer, TwoSidedForm, c_stdout_silenced, peer_problems
+from ..qp.peers import DaqpPeer, c_stdout_silenced, peer_problems
 from .build import (CORTEX_M4F, EMU_FLASH_KIB, EMU_RAM_KIB, EMU_STACK_BYTES, TARGET_CFLAGS,
                     TARGET_LDFLAGS, _run, image_sizes, require_cross_compiler)
 from .emulate import CortexM4
 
 SINGLE_PRECISION = "-DDAQP_SINGLE_PRECISION"
-# DAQP's own files: our warnings, reported and counted but not errors
-DAQP_WARNINGS = tuple(w for w in STRICT_WARNINGS if w != "-Werror")
-# Settings changed from DAQP's defaults (name -> value), rendered into the harness.
-# zero_tol (1e-11; it bounds blocking along a singular direction of the working set):
-# 1e-14 gave the same statuses and errors on the UAV scenario and an inner-mode median of
-# 354 k instead of 430 k cycles (worst 18.79 M instead of 18.68 M; outer mode unchanged)
-SETTINGS = {"zero_tol": 1e-14}
-# how E reaches DAQP (the set-up is not counted either way)
-SETUPS = {
-    "offline": "Cholesky factor of E in double, rounded once to float (problem_type 2)",
-    "target": "E rounded to float, factored by DAQP's own float setup on the target",
-}
 # |u| beyond a limit by more than this fraction of the limit counts as a violation
 BOUND_TOL = 1e-5
 
 
-class DaqpSourceUnavailable(RuntimeError):
-    """DAQP's sdist could not be downloaded (no network, no pip, unknown version)."""
-
-
-def daqp_version() -> str:
-    """The installed Python daqp: the sdist of the same version is compiled for the M4F."""
-    try:
-        return metadata.version("daqp")
-    except metadata.PackageNotFoundError:
-        raise DaqpSourceUnavailable("daqp is not installed: pip install "
-                                    "'rollmpc-codegen[peers]'") from None
-
-
-def daqp_sources(version: str, cache_dir: Path | None = None) -> Path:
-    """``csrc/`` of DAQP's sdist: downloaded with pip and unpacked once into ``cache_dir``."""
-    cache = (Path(cache_dir) if cache_dir is not None else private_root() / "daqp-sdist")
-    top = f"daqp-{version}"
-    csrc = cache / top / "csrc"
-    if (csrc / "include" / "api.h").is_file():
-        return csrc
-    tarball = cache / f"{top}.tar.gz"
-    if not tarball.is_file():
-        cache.mkdir(parents=True, exist_ok=True)
-        cmd = [sys.executable, "-m", "pip", "download", "--no-binary", ":all:", "--no-deps",
-               "--disable-pip-version-check", f"daqp=={version}", "-d", str(cache)]
-        proc = subprocess.run(cmd, capture_output=True, text=True)
-        if proc.returncode != 0 or not tarball.is_file():
-            raise DaqpSourceUnavailable(f"{' '.join(cmd)} failed:\n{proc.stderr.strip()}")
-    tmp = cache / f"{top}.tmp"
-    shutil.rmtree(tmp, ignore_errors=True)
-    with tarfile.open(tarball) as tar:
-        members = [m for m in tar.getmembers() if m.name.startswith(f"{top}/csrc/")]
-        tar.extractall(tmp, members=members, filter="data")
-    shutil.rmtree(cache / top, ignore_errors=True)
-    (tmp / top).rename(cache / top)
-    shutil.rmtree(tmp, ignore_errors=True)
-    return csrc
-
-
-def exit_flags(csrc: Path) -> dict[int, str]:
-    """DAQP's exit flags (``DAQP_EXIT_*`` of its constants.h): value -> lower-case name."""
-    text = (csrc / "include" / "constants.h").read_text()
-    return {int(v): name.lower() for name, v in
-            re.findall(r"#define DAQP_EXIT_(\w+) \(?(-?\d+)\)?", text)}
-
-
-# ----------------------------------------------------------------------------- data
-def mode_arrays(qp, factored: bool = True) -> dict[str, np.ndarray]:
-    """The harness arrays of one mode, in double (rounded once when written to the target).
-
-    H: the packed upper Cholesky factor of E (by rows) if ``factored``, else E; A: the
-    general rows; theta0 = Tx x + Tr r + t0; per DAQP row the bounds cu + Wu x (upper) and
-    cl + Wl x (lower), +/- DAQP_INF where a side is absent.
-    """
-    form = TwoSidedForm(qp)
-    R = np.linalg.cholesky(qp.E).T
-    up = np.concatenate((form.bound_upper, form.general_upper))
-    lo = np.concatenate((form.bound_lower, form.general_lower))
-    has_up, has_lo = (up >= 0)[:, None], (lo >= 0)[:, None]
-    t0 = (np.zeros(qp.n) if qp.f_const is None
-          else solve_refined(qp.E, -qp.f_const[:, None])[:, 0])
-    return {
-        "H": np.concatenate([R[i, i:] for i in range(qp.n)]) if factored else qp.E,
-        "A": form.A,
-        "Tx": qp.Kx, "Tr": qp.Kr, "t0": t0,
-        "Wu": np.where(has_up, qp.W[np.maximum(up, 0)], 0.0),
-        "cu": np.where(up >= 0, qp.c[np.maximum(up, 0)], DAQP_INF),
-        "Wl": np.where(has_lo, -qp.W[np.maximum(lo, 0)], 0.0),
-        "cl": np.where(lo >= 0, -qp.c[np.maximum(lo, 0)], -DAQP_INF),
-    }
-
-
-def harness_context(model: ControllerModel, version: str, setup: str = "offline") -> dict:
-    """What ``daqp_harness.c.j2`` and ``link.ld.j2`` see."""
-    problems, _ = peer_problems([mm.qp for mm in model.modes])
-    modes = []
-    for mm, qp in zip(model.config.modes, problems):
-        general = TwoSidedForm(qp).A.shape[0]
-        modes.append({"name": mm.name, "n": qp.n, "nx": qp.nx, "nr": qp.Kr.shape[1],
-                      "ms": qp.n, "m": qp.n + general})
-    # DAQP's setup allocations: about 1.5 n^2 + n m floats a mode; twice that, plus slack
-    heap = sum(8 * (2 * (md["n"] + 2) ** 2 + md["n"] * md["m"] + 16 * md["m"]) + 4096
-               for md in modes)
-    return {"prefix": f"{model.config.prefix}_daqp", "config_prefix": model.config.prefix,
-            "precision": "float", "daqp_version": version, "modes": modes,
-            "heap_bytes": heap, "settings": SETTINGS, "factored": setup == "offline",
-            "setup": SETUPS[setup],
-            "n_max": max(md["n"] for md in modes), "nx_max": max(md["nx"] for md in modes),
-            "nr_max": max(md["nr"] for md in modes)}
-
-
 # ----------------------------------------------------------------------------- build
-def _compile_relaxed(cmd: list[str]) -> str:
-    """Compile one of DAQP's files; its warnings are returned, not errors."""
-    proc = subprocess.run(cmd, capture_output=True, text=True)
-    if proc.returncode != 0:
-        raise BuildError(f"{' '.join(cmd)}\n{proc.stderr}")
-    return proc.stderr
-
-
 def build_daqp_target(ctx: dict, csrc: Path, build_root: Path) -> tuple[Path, dict]:
     """Cross-compile DAQP and the harness, link the image; cached by content hash.
 
@@ -176,45 +60,24 @@ def build_daqp_target(ctx: dict, csrc: Path, build_root: Path) -> tuple[Path, di
     harness = render_template(ctx, "target/daqp_harness.c.j2")
     ld = render_template(ctx, "target/link.ld.j2", flash_kib=EMU_FLASH_KIB,
                          ram_kib=EMU_RAM_KIB, stack_bytes=EMU_STACK_BYTES)
-    daqp_c = sorted((csrc / "src").glob("*.c"))
     base = [*CORTEX_M4F, *TARGET_CFLAGS, SINGLE_PRECISION]
-    digest = hashlib.sha256("\n".join([cc, *base, *DAQP_WARNINGS, *STRICT_WARNINGS,
-                                       harness, ld]).encode())
-    for path in [*daqp_c, *sorted((csrc / "include").glob("*.h"))]:
-        digest.update(path.read_bytes())
-    key = digest.hexdigest()
+    key = build_key([cc, *base, *DAQP_WARNINGS, *STRICT_WARNINGS, harness, ld], csrc)
     root = private_root(build_root)
     out, elf_name = root / f"target-{p}-{key[:16]}", f"{p}_target.elf"
     elf = verified(out, elf_name, key)
     if elf is not None:
-        return elf, _warning_counts((out / "daqp_warnings.txt").read_text())
+        return elf, warning_counts((out / "daqp_warnings.txt").read_text())
     with staging(root, out.name) as tmp:
         (tmp / f"{p}_target_harness.c").write_text(harness)
         (tmp / f"{p}_target.ld").write_text(ld)
-        warnings = []
-        objs = []
-        for src in daqp_c:
-            objs.append(tmp / f"daqp_{src.stem}.o")
-            warnings.append(_compile_relaxed([cc, *base, *DAQP_WARNINGS,
-                                              f"-I{csrc / 'include'}", "-c", str(src),
-                                              "-o", str(objs[-1])]))
-        objs.append(tmp / f"{p}_target_harness.o")
-        # -isystem: DAQP's headers are not held to our warnings, the harness itself is
-        _run([cc, *base, *STRICT_WARNINGS, "-isystem", str(csrc / "include"), "-c",
-              str(tmp / f"{p}_target_harness.c"), "-o", str(objs[-1])])
+        objs, warnings = compile_daqp([cc, *base], csrc, tmp)
+        objs.append(compile_harness([cc, *base], csrc, tmp / f"{p}_target_harness.c"))
         _run([cc, *CORTEX_M4F, *TARGET_LDFLAGS, "-T", str(tmp / f"{p}_target.ld"),
               f"-Wl,-Map={tmp / (p + '_target.map')}", "-o", str(tmp / elf_name),
               *map(str, objs), "-lm", "-lgcc"])
-        (tmp / "daqp_warnings.txt").write_text("".join(warnings))
+        (tmp / "daqp_warnings.txt").write_text(warnings)
         elf = publish(tmp, out, elf_name, key)
-    return elf, _warning_counts("".join(warnings))
-
-
-def _warning_counts(text: str) -> dict[str, int]:
-    counts: dict[str, int] = {}
-    for flag in re.findall(r"warning: .*\[(-W[\w-]+)\]", text):
-        counts[flag] = counts.get(flag, 0) + 1
-    return dict(sorted(counts.items()))
+    return elf, warning_counts(warnings)
 
 
 # ----------------------------------------------------------------------------- target

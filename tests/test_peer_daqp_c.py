@@ -1,0 +1,69 @@
+"""DAQP's own C built on the host (``rollmpc bench``'s daqp_c rows): it solves the QPs the
+Python daqp solves, to rounding, each new peer starts from a fresh workspace, and its two
+timers nest (the update and solve inside the whole sample)."""
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from conftest import UAV
+
+CHAIN = Path(__file__).resolve().parents[1] / "examples" / "chain_of_masses.yaml"
+
+
+@pytest.fixture(scope="module")
+def sources():
+    pytest.importorskip("daqp", reason="pip install 'rollmpc-codegen[peers]'")
+    from rollmpc_codegen.host.daqp_harness import (DaqpSourceUnavailable, daqp_sources,
+                                                   daqp_version)
+
+    try:  # cached outside build_root: downloaded once per machine, not per session
+        return daqp_sources(daqp_version())
+    except DaqpSourceUnavailable as exc:
+        pytest.skip(f"DAQP's sdist is not available (needs pip and network to PyPI once): "
+                    f"{exc}")
+
+
+@pytest.mark.parametrize("config, samples", [(CHAIN, 120), (UAV, 120)])
+def test_daqp_c_matches_python_daqp(sources, build_root, config, samples):
+    from rollmpc_codegen.host.bench_record import record_qp_sequence
+    from rollmpc_codegen.host.build import build_host_controller
+    from rollmpc_codegen.host.peer_daqp_c import DaqpCPeer
+    from rollmpc_codegen.pipeline import load_model
+    from rollmpc_codegen.qp.peers import DaqpPeer
+
+    model, ctx = load_model(config, "double")
+    seq = record_qp_sequence(model, build_host_controller(ctx, build_root), samples)
+    python = DaqpPeer([mm.qp for mm in model.modes])
+    step, solve = DaqpCPeer(model, "step", build_root), DaqpCPeer(model, "solve", build_root)
+    plans, constrained = [], 0
+    for i in range(len(seq.mode)):
+        mode, x, r = int(seq.mode[i]), seq.x[i], seq.r[i]
+        ref, a, b = python.solve(mode, x, r), step.solve(mode, x, r), solve.solve(mode, x, r)
+        assert a.status == b.status == ref.status == "optimal"
+        scale = max(1.0, float(np.abs(ref.U).max()))
+        assert np.abs(a.U - ref.U).max() <= 1e-9 * scale, i
+        assert np.array_equal(a.U, b.U)  # the same C, the same warm start
+        assert a.solver_s > 0 and b.solver_s > 0
+        constrained += a.iterations > 0
+        plans.append(a.U)
+    assert constrained > 0  # the sequence reaches the bounds, so the warm start matters
+    again = DaqpCPeer(model, "step", build_root)  # a fresh workspace: the same plans
+    for i, U in enumerate(plans):
+        assert np.array_equal(again.solve(int(seq.mode[i]), seq.x[i], seq.r[i]).U, U), i
+
+
+def test_bench_prints_the_daqp_c_rows(sources, build_root, capsys):
+    from rollmpc_codegen.cli.main import main
+
+    assert main(["bench", str(CHAIN), "--variants", "default,daqp_c,daqp_c_solve",
+                 "--steps", "60", "--quiet", "--build-dir", str(build_root)]) == 0
+    out = capsys.readouterr().out
+    rows = {line.split("|")[1].strip(): line for line in out.splitlines()
+            if line.startswith("| DAQP C")}
+    assert set(rows) == {"DAQP C (sample: data + update + solve)",
+                         "DAQP C (update + solve only)"}
+    for line in rows.values():
+        assert "C (same clock as solve_ticks)" in line and "| 28 / 28 |" in line
