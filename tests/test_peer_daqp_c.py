@@ -67,3 +67,20 @@ def test_bench_prints_the_daqp_c_rows(sources, build_root, capsys):
                          "DAQP C (update + solve only)"}
     for line in rows.values():
         assert "C (same clock as solve_ticks)" in line and "| 28 / 28 |" in line
+
+
+def test_daqp_is_built_with_its_own_optimisation_flags(sources):
+    """HOST_FLAGS are those of DAQP's own Python build (its sdist's setup.py), without its
+    in-solve clock: a DAQP release that changes them fails here."""
+    import re
+    import tarfile
+
+    from rollmpc_codegen.host.daqp_harness import daqp_version
+    from rollmpc_codegen.host.peer_daqp_c import HOST_FLAGS
+
+    top = f"daqp-{daqp_version()}"
+    with tarfile.open(sources.parents[1] / f"{top}.tar.gz") as tar:
+        setup = tar.extractfile(f"{top}/setup.py").read().decode()
+    theirs = re.findall(r'"(-[^"]+)"', re.search(r"extra_compile_args=\[([^\]]*)\]", setup)[1])
+    assert sorted(f for f in theirs if f != "-DPROFILING") == sorted(
+        f for f in HOST_FLAGS if f != "-fPIC")
