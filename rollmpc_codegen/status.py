@@ -53,8 +53,9 @@ class Status(IntEnum):
     TIME_LIMIT = (9, "work budget reached; best command so far",
                   "the solve reached `solver.work_budget` (`P_last_info()->work`) before the "
                   "KKT conditions held; the next sample continues from the working set it "
-                  "reached", "the last point of the dual active set (or of the sweeps), else "
-                  "the unconstrained optimum, clamped")
+                  "reached", "the last point of the dual active set (or of the sweeps); "
+                  "before it has one, the mode's last plan shifted one stage (while younger "
+                  "than the horizon), else the unconstrained optimum; clamped")
     # the observer's plausibility check (docs/features.md, "Measurement plausibility")
     # reports only when the solve was OPTIMAL: any solver status above wins
     MEASUREMENT_CLIPPED = (10, "optimal; an implausible measurement was clipped",

@@ -94,8 +94,9 @@ void c172p_roll_chol_ltsolve(const c172p_roll_real *l, int n, c172p_roll_real *b
 void c172p_roll_chol_solve(const c172p_roll_real *l, int n, c172p_roll_real *b);
 
 /* QP solver (c172p_roll_solver.c). */
-int c172p_roll_qp_solve(c172p_roll_work *ws, c172p_roll_real *lam, const c172p_roll_mode_data *md,
-    const c172p_roll_real *x, const c172p_roll_real *r, c172p_roll_real *U, int *iterations,
-    int *polish_iterations, int *active);
+int c172p_roll_qp_solve(c172p_roll_work *ws, c172p_roll_real *lam, const c172p_roll_real *plan,
+    int plan_age, const c172p_roll_mode_data *md, const c172p_roll_real *x,
+    const c172p_roll_real *r, c172p_roll_real *U, int *iterations, int *polish_iterations,
+    int *active);
 
 #endif /* C172P_ROLL_INTERNAL_H */

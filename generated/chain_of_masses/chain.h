@@ -45,8 +45,9 @@ typedef enum {
     CHAIN_BAD_ARGUMENT = 6,
     /** The solve reached `solver.work_budget` (`chain_last_info()->work`) before the KKT
      *  conditions held; the next sample continues from the working set it reached. Command:
-     *  the last point of the dual active set (or of the sweeps), else the unconstrained
-     *  optimum, clamped. */
+     *  the last point of the dual active set (or of the sweeps); before it has one, the
+     *  mode's last plan shifted one stage (while younger than the horizon), else the
+     *  unconstrained optimum; clamped. */
     CHAIN_TIME_LIMIT = 9,
     /** The solve was optimal, and an innovation y − C x̂ of this sample was beyond
      *  ±`observer.innovation_limit` and was clipped to it (`chain_last_info()->clipped`
@@ -103,6 +104,7 @@ typedef struct {
     uint32_t work_limit;                          /**< What the running part may spend up to (afford()). */
     int stop_rows;                                /**< Rows of wset where polish() ran out of work, */
     int stop_known;                               /**< the first of them with multipliers in z. */
+    int from_plan;                                /**< This solve's TIME_LIMIT fell back to the mode's last plan. */
 } chain_work;
 
 /** Controller instance. Complete here so firmware can allocate it statically. */
@@ -111,7 +113,9 @@ typedef struct chain_ctrl {
     chain_real xhat[CHAIN_N_MODES][CHAIN_NX_MAX];  /**< Observer states. */
     chain_real lam[CHAIN_N_MODES][CHAIN_M_MAX];    /**< Warm-start multipliers. */
     chain_real u_last[CHAIN_N_ACTUATORS];     /**< Last applied command. */
-    chain_real U[CHAIN_N_MAX];                /**< Last planned input sequence. */
+    chain_real U[CHAIN_N_MAX];                /**< Last planned input sequence: mode plan_mode's plan. */
+    int16_t plan_mode;                                     /**< The mode U was planned for. */
+    int16_t plan_age;                                      /**< Samples since U was optimal (CHAIN_HORIZON: no plan). */
     chain_info info;                                /**< Diagnostics of the last call. */
     chain_work work;                                /**< Solver work arrays. */
 } chain_ctrl;

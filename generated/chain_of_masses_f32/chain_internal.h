@@ -94,8 +94,9 @@ void chain_chol_ltsolve(const chain_real *l, int n, chain_real *b);
 void chain_chol_solve(const chain_real *l, int n, chain_real *b);
 
 /* QP solver (chain_solver.c). */
-int chain_qp_solve(chain_work *ws, chain_real *lam, const chain_mode_data *md,
-    const chain_real *x, const chain_real *r, chain_real *U, int *iterations,
-    int *polish_iterations, int *active);
+int chain_qp_solve(chain_work *ws, chain_real *lam, const chain_real *plan,
+    int plan_age, const chain_mode_data *md, const chain_real *x,
+    const chain_real *r, chain_real *U, int *iterations, int *polish_iterations,
+    int *active);
 
 #endif /* CHAIN_INTERNAL_H */

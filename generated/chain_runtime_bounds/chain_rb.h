@@ -51,8 +51,9 @@ typedef enum {
     CHAIN_RB_BOUND_NOT_CONFIGURED = 8,
     /** The solve reached `solver.work_budget` (`chain_rb_last_info()->work`) before the KKT
      *  conditions held; the next sample continues from the working set it reached. Command:
-     *  the last point of the dual active set (or of the sweeps), else the unconstrained
-     *  optimum, clamped. */
+     *  the last point of the dual active set (or of the sweeps); before it has one, the
+     *  mode's last plan shifted one stage (while younger than the horizon), else the
+     *  unconstrained optimum; clamped. */
     CHAIN_RB_TIME_LIMIT = 9,
     /** The solve was optimal, and an innovation y − C x̂ of this sample was beyond
      *  ±`observer.innovation_limit` and was clipped to it (`chain_rb_last_info()->clipped`
@@ -117,6 +118,7 @@ typedef struct {
     uint32_t work_limit;                          /**< What the running part may spend up to (afford()). */
     int stop_rows;                                /**< Rows of wset where polish() ran out of work, */
     int stop_known;                               /**< the first of them with multipliers in z. */
+    int from_plan;                                /**< This solve's TIME_LIMIT fell back to the mode's last plan. */
     chain_rb_bounds bounds;                   /**< Copy of the live bounds of the mode being solved
                                                        (no pointer: the instance stays position-independent). */
 } chain_rb_work;
@@ -127,7 +129,9 @@ typedef struct chain_rb_ctrl {
     chain_rb_real xhat[CHAIN_RB_N_MODES][CHAIN_RB_NX_MAX];  /**< Observer states. */
     chain_rb_real lam[CHAIN_RB_N_MODES][CHAIN_RB_M_MAX];    /**< Warm-start multipliers. */
     chain_rb_real u_last[CHAIN_RB_N_ACTUATORS];     /**< Last applied command. */
-    chain_rb_real U[CHAIN_RB_N_MAX];                /**< Last planned input sequence. */
+    chain_rb_real U[CHAIN_RB_N_MAX];                /**< Last planned input sequence: mode plan_mode's plan. */
+    int16_t plan_mode;                                     /**< The mode U was planned for. */
+    int16_t plan_age;                                      /**< Samples since U was optimal (CHAIN_RB_HORIZON: no plan). */
     chain_rb_bounds bounds[CHAIN_RB_N_MODES];       /**< Live bounds of every mode. */
     chain_rb_info info;                                /**< Diagnostics of the last call. */
     chain_rb_work work;                                /**< Solver work arrays. */

@@ -94,8 +94,9 @@ void chain_rb_chol_ltsolve(const chain_rb_real *l, int n, chain_rb_real *b);
 void chain_rb_chol_solve(const chain_rb_real *l, int n, chain_rb_real *b);
 
 /* QP solver (chain_rb_solver.c). */
-int chain_rb_qp_solve(chain_rb_work *ws, chain_rb_real *lam, const chain_rb_mode_data *md,
-    const chain_rb_real *x, const chain_rb_real *r, chain_rb_real *U, int *iterations,
-    int *polish_iterations, int *active);
+int chain_rb_qp_solve(chain_rb_work *ws, chain_rb_real *lam, const chain_rb_real *plan,
+    int plan_age, const chain_rb_mode_data *md, const chain_rb_real *x,
+    const chain_rb_real *r, chain_rb_real *U, int *iterations, int *polish_iterations,
+    int *active);
 
 #endif /* CHAIN_RB_INTERNAL_H */

@@ -91,6 +91,8 @@ void chain_soft_init(chain_soft_ctrl *c)
     for (i = 0; i < CHAIN_SOFT_N_MAX; ++i) {
         c->U[i] = R_(0.0);
     }
+    c->plan_mode = (int16_t)c->mode;
+    c->plan_age = CHAIN_SOFT_HORIZON; /* no plan yet */
     c->info.status = CHAIN_SOFT_OPTIMAL;
     c->info.mode = c->mode;
     c->info.iterations = 0;
@@ -104,13 +106,34 @@ void chain_soft_init(chain_soft_ctrl *c)
     c->info.slack_rows = 0;
 }
 
+/*
+ * Keep the plan in c->U for a later TIME_LIMIT of the same mode (fallback_point()): an
+ * optimal plan, or the shifted one a TIME_LIMIT fell back to (a sample older); any other
+ * status leaves none. (P_step plans into c->U itself; P_solve_qp into the caller's U.)
+ */
+static void keep_plan(chain_soft_ctrl *c, int mode, int status, const chain_soft_real *U)
+{
+    int i;
+    if (status == CHAIN_SOFT_OPTIMAL || (status == CHAIN_SOFT_TIME_LIMIT && c->work.from_plan)) {
+        for (i = 0; U != c->U && i < chain_soft_modes[mode].n; ++i) {
+            c->U[i] = U[i];
+        }
+        c->plan_age = (int16_t)((status == CHAIN_SOFT_OPTIMAL) ? 0 : c->plan_age + 1);
+    } else {
+        c->plan_age = CHAIN_SOFT_HORIZON;
+    }
+    c->plan_mode = (int16_t)mode;
+}
+
 static int solve_mode(chain_soft_ctrl *c, int mode, const chain_soft_real *x,
     const chain_soft_real *r, chain_soft_real *U)
 {
     const uint32_t t0 = CHAIN_SOFT_TIMESTAMP();
-    const int status = chain_soft_qp_solve(&c->work, c->lam[mode], &chain_soft_modes[mode], x, r, U,
-        &c->info.iterations, &c->info.polish_iterations, &c->info.active);
+    const int status = chain_soft_qp_solve(&c->work, c->lam[mode], c->U,
+        (c->plan_mode == mode) ? c->plan_age : CHAIN_SOFT_HORIZON, &chain_soft_modes[mode], x, r,
+        U, &c->info.iterations, &c->info.polish_iterations, &c->info.active);
     c->info.solve_ticks = (uint32_t)(CHAIN_SOFT_TIMESTAMP() - t0);
+    keep_plan(c, mode, status, U);
     c->info.status = status;
     c->info.mode = mode;
     c->info.work = c->work.work;

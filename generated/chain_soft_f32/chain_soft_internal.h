@@ -97,8 +97,9 @@ void chain_soft_chol_ltsolve(const chain_soft_real *l, int n, chain_soft_real *b
 void chain_soft_chol_solve(const chain_soft_real *l, int n, chain_soft_real *b);
 
 /* QP solver (chain_soft_solver.c). */
-int chain_soft_qp_solve(chain_soft_work *ws, chain_soft_real *lam, const chain_soft_mode_data *md,
-    const chain_soft_real *x, const chain_soft_real *r, chain_soft_real *U, int *iterations,
-    int *polish_iterations, int *active);
+int chain_soft_qp_solve(chain_soft_work *ws, chain_soft_real *lam, const chain_soft_real *plan,
+    int plan_age, const chain_soft_mode_data *md, const chain_soft_real *x,
+    const chain_soft_real *r, chain_soft_real *U, int *iterations, int *polish_iterations,
+    int *active);
 
 #endif /* CHAIN_SOFT_INTERNAL_H */

@@ -45,8 +45,9 @@ typedef enum {
     FWLAT_BAD_ARGUMENT = 6,
     /** The solve reached `solver.work_budget` (`fwlat_last_info()->work`) before the KKT
      *  conditions held; the next sample continues from the working set it reached. Command:
-     *  the last point of the dual active set (or of the sweeps), else the unconstrained
-     *  optimum, clamped. */
+     *  the last point of the dual active set (or of the sweeps); before it has one, the
+     *  mode's last plan shifted one stage (while younger than the horizon), else the
+     *  unconstrained optimum; clamped. */
     FWLAT_TIME_LIMIT = 9,
     /** The solve was optimal, and an innovation y − C x̂ of this sample was beyond
      *  ±`observer.innovation_limit` and was clipped to it (`fwlat_last_info()->clipped`
@@ -107,6 +108,7 @@ typedef struct {
     uint32_t work_limit;                          /**< What the running part may spend up to (afford()). */
     int stop_rows;                                /**< Rows of wset where polish() ran out of work, */
     int stop_known;                               /**< the first of them with multipliers in z. */
+    int from_plan;                                /**< This solve's TIME_LIMIT fell back to the mode's last plan. */
     uint8_t slack_on[FWLAT_M_MAX];         /**< Soft row in the working set with a positive slack. */
     fwlat_real slack_max;                  /**< Largest slack of the last optimal plan. */
     int slack_rows;                               /**< Soft rows with a positive slack in it. */
@@ -118,7 +120,9 @@ typedef struct fwlat_ctrl {
     fwlat_real xhat[FWLAT_N_MODES][FWLAT_NX_MAX];  /**< Observer states. */
     fwlat_real lam[FWLAT_N_MODES][FWLAT_M_MAX];    /**< Warm-start multipliers. */
     fwlat_real u_last[FWLAT_N_ACTUATORS];     /**< Last applied command. */
-    fwlat_real U[FWLAT_N_MAX];                /**< Last planned input sequence. */
+    fwlat_real U[FWLAT_N_MAX];                /**< Last planned input sequence: mode plan_mode's plan. */
+    int16_t plan_mode;                                     /**< The mode U was planned for. */
+    int16_t plan_age;                                      /**< Samples since U was optimal (FWLAT_HORIZON: no plan). */
     fwlat_info info;                                /**< Diagnostics of the last call. */
     fwlat_work work;                                /**< Solver work arrays. */
 } fwlat_ctrl;

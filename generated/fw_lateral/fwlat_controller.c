@@ -91,6 +91,8 @@ void fwlat_init(fwlat_ctrl *c)
     for (i = 0; i < FWLAT_N_MAX; ++i) {
         c->U[i] = R_(0.0);
     }
+    c->plan_mode = (int16_t)c->mode;
+    c->plan_age = FWLAT_HORIZON; /* no plan yet */
     c->info.status = FWLAT_OPTIMAL;
     c->info.mode = c->mode;
     c->info.iterations = 0;
@@ -104,13 +106,34 @@ void fwlat_init(fwlat_ctrl *c)
     c->info.slack_rows = 0;
 }
 
+/*
+ * Keep the plan in c->U for a later TIME_LIMIT of the same mode (fallback_point()): an
+ * optimal plan, or the shifted one a TIME_LIMIT fell back to (a sample older); any other
+ * status leaves none. (P_step plans into c->U itself; P_solve_qp into the caller's U.)
+ */
+static void keep_plan(fwlat_ctrl *c, int mode, int status, const fwlat_real *U)
+{
+    int i;
+    if (status == FWLAT_OPTIMAL || (status == FWLAT_TIME_LIMIT && c->work.from_plan)) {
+        for (i = 0; U != c->U && i < fwlat_modes[mode].n; ++i) {
+            c->U[i] = U[i];
+        }
+        c->plan_age = (int16_t)((status == FWLAT_OPTIMAL) ? 0 : c->plan_age + 1);
+    } else {
+        c->plan_age = FWLAT_HORIZON;
+    }
+    c->plan_mode = (int16_t)mode;
+}
+
 static int solve_mode(fwlat_ctrl *c, int mode, const fwlat_real *x,
     const fwlat_real *r, fwlat_real *U)
 {
     const uint32_t t0 = FWLAT_TIMESTAMP();
-    const int status = fwlat_qp_solve(&c->work, c->lam[mode], &fwlat_modes[mode], x, r, U,
-        &c->info.iterations, &c->info.polish_iterations, &c->info.active);
+    const int status = fwlat_qp_solve(&c->work, c->lam[mode], c->U,
+        (c->plan_mode == mode) ? c->plan_age : FWLAT_HORIZON, &fwlat_modes[mode], x, r,
+        U, &c->info.iterations, &c->info.polish_iterations, &c->info.active);
     c->info.solve_ticks = (uint32_t)(FWLAT_TIMESTAMP() - t0);
+    keep_plan(c, mode, status, U);
     c->info.status = status;
     c->info.mode = mode;
     c->info.work = c->work.work;

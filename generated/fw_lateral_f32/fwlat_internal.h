@@ -97,8 +97,9 @@ void fwlat_chol_ltsolve(const fwlat_real *l, int n, fwlat_real *b);
 void fwlat_chol_solve(const fwlat_real *l, int n, fwlat_real *b);
 
 /* QP solver (fwlat_solver.c). */
-int fwlat_qp_solve(fwlat_work *ws, fwlat_real *lam, const fwlat_mode_data *md,
-    const fwlat_real *x, const fwlat_real *r, fwlat_real *U, int *iterations,
-    int *polish_iterations, int *active);
+int fwlat_qp_solve(fwlat_work *ws, fwlat_real *lam, const fwlat_real *plan,
+    int plan_age, const fwlat_mode_data *md, const fwlat_real *x,
+    const fwlat_real *r, fwlat_real *U, int *iterations, int *polish_iterations,
+    int *active);
 
 #endif /* FWLAT_INTERNAL_H */

@@ -94,8 +94,9 @@ void quadatt_chol_ltsolve(const quadatt_real *l, int n, quadatt_real *b);
 void quadatt_chol_solve(const quadatt_real *l, int n, quadatt_real *b);
 
 /* QP solver (quadatt_solver.c). */
-int quadatt_qp_solve(quadatt_work *ws, quadatt_real *lam, const quadatt_mode_data *md,
-    const quadatt_real *x, const quadatt_real *r, quadatt_real *U, int *iterations,
-    int *polish_iterations, int *active);
+int quadatt_qp_solve(quadatt_work *ws, quadatt_real *lam, const quadatt_real *plan,
+    int plan_age, const quadatt_mode_data *md, const quadatt_real *x,
+    const quadatt_real *r, quadatt_real *U, int *iterations, int *polish_iterations,
+    int *active);
 
 #endif /* QUADATT_INTERNAL_H */

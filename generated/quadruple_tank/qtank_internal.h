@@ -94,8 +94,9 @@ void qtank_chol_ltsolve(const qtank_real *l, int n, qtank_real *b);
 void qtank_chol_solve(const qtank_real *l, int n, qtank_real *b);
 
 /* QP solver (qtank_solver.c). */
-int qtank_qp_solve(qtank_work *ws, qtank_real *lam, const qtank_mode_data *md,
-    const qtank_real *x, const qtank_real *r, qtank_real *U, int *iterations,
-    int *polish_iterations, int *active);
+int qtank_qp_solve(qtank_work *ws, qtank_real *lam, const qtank_real *plan,
+    int plan_age, const qtank_mode_data *md, const qtank_real *x,
+    const qtank_real *r, qtank_real *U, int *iterations, int *polish_iterations,
+    int *active);
 
 #endif /* QTANK_INTERNAL_H */

@@ -91,6 +91,8 @@ void qtank_init(qtank_ctrl *c)
     for (i = 0; i < QTANK_N_MAX; ++i) {
         c->U[i] = R_(0.0);
     }
+    c->plan_mode = (int16_t)c->mode;
+    c->plan_age = QTANK_HORIZON; /* no plan yet */
     c->info.status = QTANK_OPTIMAL;
     c->info.mode = c->mode;
     c->info.iterations = 0;
@@ -102,13 +104,34 @@ void qtank_init(qtank_ctrl *c)
     c->info.work = 0u;
 }
 
+/*
+ * Keep the plan in c->U for a later TIME_LIMIT of the same mode (fallback_point()): an
+ * optimal plan, or the shifted one a TIME_LIMIT fell back to (a sample older); any other
+ * status leaves none. (P_step plans into c->U itself; P_solve_qp into the caller's U.)
+ */
+static void keep_plan(qtank_ctrl *c, int mode, int status, const qtank_real *U)
+{
+    int i;
+    if (status == QTANK_OPTIMAL || (status == QTANK_TIME_LIMIT && c->work.from_plan)) {
+        for (i = 0; U != c->U && i < qtank_modes[mode].n; ++i) {
+            c->U[i] = U[i];
+        }
+        c->plan_age = (int16_t)((status == QTANK_OPTIMAL) ? 0 : c->plan_age + 1);
+    } else {
+        c->plan_age = QTANK_HORIZON;
+    }
+    c->plan_mode = (int16_t)mode;
+}
+
 static int solve_mode(qtank_ctrl *c, int mode, const qtank_real *x,
     const qtank_real *r, qtank_real *U)
 {
     const uint32_t t0 = QTANK_TIMESTAMP();
-    const int status = qtank_qp_solve(&c->work, c->lam[mode], &qtank_modes[mode], x, r, U,
-        &c->info.iterations, &c->info.polish_iterations, &c->info.active);
+    const int status = qtank_qp_solve(&c->work, c->lam[mode], c->U,
+        (c->plan_mode == mode) ? c->plan_age : QTANK_HORIZON, &qtank_modes[mode], x, r,
+        U, &c->info.iterations, &c->info.polish_iterations, &c->info.active);
     c->info.solve_ticks = (uint32_t)(QTANK_TIMESTAMP() - t0);
+    keep_plan(c, mode, status, U);
     c->info.status = status;
     c->info.mode = mode;
     c->info.work = c->work.work;

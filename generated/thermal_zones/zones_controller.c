@@ -91,6 +91,8 @@ void zones_init(zones_ctrl *c)
     for (i = 0; i < ZONES_N_MAX; ++i) {
         c->U[i] = R_(0.0);
     }
+    c->plan_mode = (int16_t)c->mode;
+    c->plan_age = ZONES_HORIZON; /* no plan yet */
     c->info.status = ZONES_OPTIMAL;
     c->info.mode = c->mode;
     c->info.iterations = 0;
@@ -102,13 +104,34 @@ void zones_init(zones_ctrl *c)
     c->info.work = 0u;
 }
 
+/*
+ * Keep the plan in c->U for a later TIME_LIMIT of the same mode (fallback_point()): an
+ * optimal plan, or the shifted one a TIME_LIMIT fell back to (a sample older); any other
+ * status leaves none. (P_step plans into c->U itself; P_solve_qp into the caller's U.)
+ */
+static void keep_plan(zones_ctrl *c, int mode, int status, const zones_real *U)
+{
+    int i;
+    if (status == ZONES_OPTIMAL || (status == ZONES_TIME_LIMIT && c->work.from_plan)) {
+        for (i = 0; U != c->U && i < zones_modes[mode].n; ++i) {
+            c->U[i] = U[i];
+        }
+        c->plan_age = (int16_t)((status == ZONES_OPTIMAL) ? 0 : c->plan_age + 1);
+    } else {
+        c->plan_age = ZONES_HORIZON;
+    }
+    c->plan_mode = (int16_t)mode;
+}
+
 static int solve_mode(zones_ctrl *c, int mode, const zones_real *x,
     const zones_real *r, zones_real *U)
 {
     const uint32_t t0 = ZONES_TIMESTAMP();
-    const int status = zones_qp_solve(&c->work, c->lam[mode], &zones_modes[mode], x, r, U,
-        &c->info.iterations, &c->info.polish_iterations, &c->info.active);
+    const int status = zones_qp_solve(&c->work, c->lam[mode], c->U,
+        (c->plan_mode == mode) ? c->plan_age : ZONES_HORIZON, &zones_modes[mode], x, r,
+        U, &c->info.iterations, &c->info.polish_iterations, &c->info.active);
     c->info.solve_ticks = (uint32_t)(ZONES_TIMESTAMP() - t0);
+    keep_plan(c, mode, status, U);
     c->info.status = status;
     c->info.mode = mode;
     c->info.work = c->work.work;

@@ -94,8 +94,9 @@ void zones_chol_ltsolve(const zones_real *l, int n, zones_real *b);
 void zones_chol_solve(const zones_real *l, int n, zones_real *b);
 
 /* QP solver (zones_solver.c). */
-int zones_qp_solve(zones_work *ws, zones_real *lam, const zones_mode_data *md,
-    const zones_real *x, const zones_real *r, zones_real *U, int *iterations,
-    int *polish_iterations, int *active);
+int zones_qp_solve(zones_work *ws, zones_real *lam, const zones_real *plan,
+    int plan_age, const zones_mode_data *md, const zones_real *x,
+    const zones_real *r, zones_real *U, int *iterations, int *polish_iterations,
+    int *active);
 
 #endif /* ZONES_INTERNAL_H */

@@ -45,8 +45,9 @@ typedef enum {
     ZRATE_BAD_ARGUMENT = 6,
     /** The solve reached `solver.work_budget` (`zrate_last_info()->work`) before the KKT
      *  conditions held; the next sample continues from the working set it reached. Command:
-     *  the last point of the dual active set (or of the sweeps), else the unconstrained
-     *  optimum, clamped. */
+     *  the last point of the dual active set (or of the sweeps); before it has one, the
+     *  mode's last plan shifted one stage (while younger than the horizon), else the
+     *  unconstrained optimum; clamped. */
     ZRATE_TIME_LIMIT = 9,
     /** The solve was optimal, and an innovation y − C x̂ of this sample was beyond
      *  ±`observer.innovation_limit` and was clipped to it (`zrate_last_info()->clipped`
@@ -103,6 +104,7 @@ typedef struct {
     uint32_t work_limit;                          /**< What the running part may spend up to (afford()). */
     int stop_rows;                                /**< Rows of wset where polish() ran out of work, */
     int stop_known;                               /**< the first of them with multipliers in z. */
+    int from_plan;                                /**< This solve's TIME_LIMIT fell back to the mode's last plan. */
 } zrate_work;
 
 /** Controller instance. Complete here so firmware can allocate it statically. */
@@ -111,7 +113,9 @@ typedef struct zrate_ctrl {
     zrate_real xhat[ZRATE_N_MODES][ZRATE_NX_MAX];  /**< Observer states. */
     zrate_real lam[ZRATE_N_MODES][ZRATE_M_MAX];    /**< Warm-start multipliers. */
     zrate_real u_last[ZRATE_N_ACTUATORS];     /**< Last applied command. */
-    zrate_real U[ZRATE_N_MAX];                /**< Last planned input sequence. */
+    zrate_real U[ZRATE_N_MAX];                /**< Last planned input sequence: mode plan_mode's plan. */
+    int16_t plan_mode;                                     /**< The mode U was planned for. */
+    int16_t plan_age;                                      /**< Samples since U was optimal (ZRATE_HORIZON: no plan). */
     zrate_info info;                                /**< Diagnostics of the last call. */
     zrate_work work;                                /**< Solver work arrays. */
 } zrate_ctrl;

@@ -91,6 +91,8 @@ void zrate_init(zrate_ctrl *c)
     for (i = 0; i < ZRATE_N_MAX; ++i) {
         c->U[i] = R_(0.0);
     }
+    c->plan_mode = (int16_t)c->mode;
+    c->plan_age = ZRATE_HORIZON; /* no plan yet */
     c->info.status = ZRATE_OPTIMAL;
     c->info.mode = c->mode;
     c->info.iterations = 0;
@@ -102,13 +104,34 @@ void zrate_init(zrate_ctrl *c)
     c->info.work = 0u;
 }
 
+/*
+ * Keep the plan in c->U for a later TIME_LIMIT of the same mode (fallback_point()): an
+ * optimal plan, or the shifted one a TIME_LIMIT fell back to (a sample older); any other
+ * status leaves none. (P_step plans into c->U itself; P_solve_qp into the caller's U.)
+ */
+static void keep_plan(zrate_ctrl *c, int mode, int status, const zrate_real *U)
+{
+    int i;
+    if (status == ZRATE_OPTIMAL || (status == ZRATE_TIME_LIMIT && c->work.from_plan)) {
+        for (i = 0; U != c->U && i < zrate_modes[mode].n; ++i) {
+            c->U[i] = U[i];
+        }
+        c->plan_age = (int16_t)((status == ZRATE_OPTIMAL) ? 0 : c->plan_age + 1);
+    } else {
+        c->plan_age = ZRATE_HORIZON;
+    }
+    c->plan_mode = (int16_t)mode;
+}
+
 static int solve_mode(zrate_ctrl *c, int mode, const zrate_real *x,
     const zrate_real *r, zrate_real *U)
 {
     const uint32_t t0 = ZRATE_TIMESTAMP();
-    const int status = zrate_qp_solve(&c->work, c->lam[mode], &zrate_modes[mode], x, r, U,
-        &c->info.iterations, &c->info.polish_iterations, &c->info.active);
+    const int status = zrate_qp_solve(&c->work, c->lam[mode], c->U,
+        (c->plan_mode == mode) ? c->plan_age : ZRATE_HORIZON, &zrate_modes[mode], x, r,
+        U, &c->info.iterations, &c->info.polish_iterations, &c->info.active);
     c->info.solve_ticks = (uint32_t)(ZRATE_TIMESTAMP() - t0);
+    keep_plan(c, mode, status, U);
     c->info.status = status;
     c->info.mode = mode;
     c->info.work = c->work.work;

@@ -94,8 +94,9 @@ void zrate_chol_ltsolve(const zrate_real *l, int n, zrate_real *b);
 void zrate_chol_solve(const zrate_real *l, int n, zrate_real *b);
 
 /* QP solver (zrate_solver.c). */
-int zrate_qp_solve(zrate_work *ws, zrate_real *lam, const zrate_mode_data *md,
-    const zrate_real *x, const zrate_real *r, zrate_real *U, int *iterations,
-    int *polish_iterations, int *active);
+int zrate_qp_solve(zrate_work *ws, zrate_real *lam, const zrate_real *plan,
+    int plan_age, const zrate_mode_data *md, const zrate_real *x,
+    const zrate_real *r, zrate_real *U, int *iterations, int *polish_iterations,
+    int *active);
 
 #endif /* ZRATE_INTERNAL_H */

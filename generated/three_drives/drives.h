@@ -45,8 +45,9 @@ typedef enum {
     DRIVES_BAD_ARGUMENT = 6,
     /** The solve reached `solver.work_budget` (`drives_last_info()->work`) before the KKT
      *  conditions held; the next sample continues from the working set it reached. Command:
-     *  the last point of the dual active set (or of the sweeps), else the unconstrained
-     *  optimum, clamped. */
+     *  the last point of the dual active set (or of the sweeps); before it has one, the
+     *  mode's last plan shifted one stage (while younger than the horizon), else the
+     *  unconstrained optimum; clamped. */
     DRIVES_TIME_LIMIT = 9,
     /** The solve was optimal, and an innovation y − C x̂ of this sample was beyond
      *  ±`observer.innovation_limit` and was clipped to it (`drives_last_info()->clipped`
@@ -103,6 +104,7 @@ typedef struct {
     uint32_t work_limit;                          /**< What the running part may spend up to (afford()). */
     int stop_rows;                                /**< Rows of wset where polish() ran out of work, */
     int stop_known;                               /**< the first of them with multipliers in z. */
+    int from_plan;                                /**< This solve's TIME_LIMIT fell back to the mode's last plan. */
 } drives_work;
 
 /** Controller instance. Complete here so firmware can allocate it statically. */
@@ -111,7 +113,9 @@ typedef struct drives_ctrl {
     drives_real xhat[DRIVES_N_MODES][DRIVES_NX_MAX];  /**< Observer states. */
     drives_real lam[DRIVES_N_MODES][DRIVES_M_MAX];    /**< Warm-start multipliers. */
     drives_real u_last[DRIVES_N_ACTUATORS];     /**< Last applied command. */
-    drives_real U[DRIVES_N_MAX];                /**< Last planned input sequence. */
+    drives_real U[DRIVES_N_MAX];                /**< Last planned input sequence: mode plan_mode's plan. */
+    int16_t plan_mode;                                     /**< The mode U was planned for. */
+    int16_t plan_age;                                      /**< Samples since U was optimal (DRIVES_HORIZON: no plan). */
     drives_info info;                                /**< Diagnostics of the last call. */
     drives_work work;                                /**< Solver work arrays. */
 } drives_ctrl;

@@ -94,8 +94,9 @@ void drives_chol_ltsolve(const drives_real *l, int n, drives_real *b);
 void drives_chol_solve(const drives_real *l, int n, drives_real *b);
 
 /* QP solver (drives_solver.c). */
-int drives_qp_solve(drives_work *ws, drives_real *lam, const drives_mode_data *md,
-    const drives_real *x, const drives_real *r, drives_real *U, int *iterations,
-    int *polish_iterations, int *active);
+int drives_qp_solve(drives_work *ws, drives_real *lam, const drives_real *plan,
+    int plan_age, const drives_mode_data *md, const drives_real *x,
+    const drives_real *r, drives_real *U, int *iterations, int *polish_iterations,
+    int *active);
 
 #endif /* DRIVES_INTERNAL_H */

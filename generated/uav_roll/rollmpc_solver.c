@@ -35,6 +35,7 @@
  * same numbers at the same places (rollmpc_codegen/qp/work.py: these formulas).
  */
 #define OUT_OF_WORK (-2) /* a solver part stopped: the budget cannot afford its next unit */
+#define OUT_OF_WORK_AT_TH0 (-3) /* the dual active set stopped so before a point of its own */
 
 /* One read of H through hq(): the Woodbury sum of nt terms, twice for a Δu quantity. */
 static uint32_t hq_work(const rollmpc_mode_data *md)
@@ -2050,22 +2051,23 @@ static int resume_working_set(rollmpc_work *ws, const rollmpc_mode_data *md,
  * th = th0 - E^-1 M' z loses the digits the primal form keeps; with it goes the factor of
  * H_WW, which the polish keeps, and lam takes its multipliers (the next sample's warm
  * start if the budget runs out). Returns 0 (optimal, as polish()), 1 (infeasible: ws->th
- * is then th0), -1 (step cap, breakdown, or the polish rejects the set) or OUT_OF_WORK
- * (ws->th the last point reached, lam its working set).
+ * is then th0), -1 (step cap, breakdown, or the polish rejects the set), OUT_OF_WORK
+ * (ws->th the last point reached, lam its working set) or OUT_OF_WORK_AT_TH0 (the same,
+ * before it corrected th0: the caller falls back, fallback_point()).
  */
 static int dual_active_set(rollmpc_work *ws, const rollmpc_mode_data *md,
     rollmpc_real *lam, int from, int *iterations, int *active)
 {
-    int i, nw = 0, steps = 0, code = 0;
+    int i, nw = 0, steps = 0, code = 0, moved = 0; /* moved: ws->th is a corrected point */
     for (i = 0; i < md->n; ++i) {
-        ws->th[i] = ws->th0[i]; /* the command until the dual active set has a point */
+        ws->th[i] = ws->th0[i]; /* the point until the dual active set has one */
     }
     if (!afford(ws, md, (ws->out_slacks_ok ? 0u : (uint32_t)md->m + predict_work(md))
                         + 2u * (uint32_t)md->m)) {
         if (from >= 0) {
             keep_progress(ws, md, lam); /* where the shifted guess stopped */
         }
-        return OUT_OF_WORK;
+        return OUT_OF_WORK_AT_TH0;
     }
     output_slacks(ws, md);
     ws->work += (uint32_t)md->m;
@@ -2080,8 +2082,9 @@ static int dual_active_set(rollmpc_work *ws, const rollmpc_mode_data *md,
         if (nw == OUT_OF_WORK) { /* lam: the warm start as far as it got */
             keep_progress(ws, md, lam);
             *iterations += steps;
-            return OUT_OF_WORK;
+            return OUT_OF_WORK_AT_TH0;
         }
+        moved = (nw > 0); /* resumed: corrected at its working set */
     }
     for (;;) {
         int p, c;
@@ -2105,6 +2108,7 @@ static int dual_active_set(rollmpc_work *ws, const rollmpc_mode_data *md,
             break;
         }
         correct(ws, md, ws->wset, nw, ws->z, 0);
+        moved = 1;
     }
     *iterations += steps;
     if (nw == 0 && code != OUT_OF_WORK) { /* code 0: violations of th0 within the tolerance only */
@@ -2118,7 +2122,7 @@ static int dual_active_set(rollmpc_work *ws, const rollmpc_mode_data *md,
         *active = nw;
     }
     if (i == 0 || i == OUT_OF_WORK) {
-        return i;
+        return (code == OUT_OF_WORK && !moved) ? OUT_OF_WORK_AT_TH0 : i; /* no polish ran */
     }
     if (code == 1) {
         for (i = 0; i < md->n; ++i) {
@@ -2163,16 +2167,39 @@ static int finish(rollmpc_work *ws, const rollmpc_mode_data *md, rollmpc_real *l
 }
 
 /*
- * The budget ran out before the dual active set: the command is the clamped th0 and, if
- * a polish stopped (polished = 1), lam its working set (keep_progress()).
+ * The point of a TIME_LIMIT with nothing better than th0: the mode's last plan shifted
+ * one stage along the horizon (receding horizon; with move blocking a block of one stage
+ * takes the next block's value, a longer block keeps its own), while that plan is younger
+ * than the horizon (plan_age: samples since it was optimal); else th0. A plan met every
+ * row a sample ago, th0 only the dynamics: under a long run of TIME_LIMIT samples th0
+ * drives the outputs through their hard bounds (docs/solver.md, "Work budget").
+ */
+static void fallback_point(rollmpc_work *ws, const rollmpc_mode_data *md,
+    const rollmpc_real *plan, int plan_age)
+{
+    const int nu = md->nu, stages = md->nyq / md->ny;
+    int i;
+    if (plan_age >= stages - 1) {
+        for (i = 0; i < md->n; ++i) {
+            ws->th[i] = ws->th0[i];
+        }
+        return;
+    }
+    ws->from_plan = 1;
+    for (i = 0; i < md->n; ++i) {
+        ws->th[i] = plan[(i + nu < md->n) ? i + nu : i]; /* the last stage is held */
+    }
+}
+
+/*
+ * The budget ran out before the dual active set: the command is fallback_point() clamped
+ * and, if a polish stopped (polished = 1), lam its working set (keep_progress()).
  */
 static int time_limit_at_th0(rollmpc_work *ws, const rollmpc_mode_data *md,
-    rollmpc_real *lam, int polished, rollmpc_real *U)
+    rollmpc_real *lam, const rollmpc_real *plan, int plan_age, int polished,
+    rollmpc_real *U)
 {
-    int i;
-    for (i = 0; i < md->n; ++i) {
-        ws->th[i] = ws->th0[i];
-    }
+    fallback_point(ws, md, plan, plan_age);
     if (polished) {
         keep_progress(ws, md, lam);
     }
@@ -2183,6 +2210,9 @@ static int time_limit_at_th0(rollmpc_work *ws, const rollmpc_mode_data *md,
  * @brief Solve one mode's QP (internal; see rollmpc_solve_qp()).
  * @param ws Work arrays.
  * @param lam Warm-start multipliers of the mode [m], updated.
+ * @param plan The mode's last plan [n], for a TIME_LIMIT before the dual active set (read
+ *             before U is written: it may be U).
+ * @param plan_age Samples since that plan was optimal (ROLLMPC_HORIZON: none).
  * @param md Mode data.
  * @param x State estimate [nx].
  * @param r Reference [N ny].
@@ -2192,9 +2222,10 @@ static int time_limit_at_th0(rollmpc_work *ws, const rollmpc_mode_data *md,
  * @param active Out: rows in the final active set.
  * @return A rollmpc_status code.
  */
-int rollmpc_qp_solve(rollmpc_work *ws, rollmpc_real *lam, const rollmpc_mode_data *md,
-    const rollmpc_real *x, const rollmpc_real *r, rollmpc_real *U, int *iterations,
-    int *polish_iterations, int *active)
+int rollmpc_qp_solve(rollmpc_work *ws, rollmpc_real *lam, const rollmpc_real *plan,
+    int plan_age, const rollmpc_mode_data *md, const rollmpc_real *x,
+    const rollmpc_real *r, rollmpc_real *U, int *iterations, int *polish_iterations,
+    int *active)
 {
     int i, count, total = 0, status = ROLLMPC_MAX_ITER, resume = -1;
     *iterations = 0;
@@ -2202,6 +2233,7 @@ int rollmpc_qp_solve(rollmpc_work *ws, rollmpc_real *lam, const rollmpc_mode_dat
     *active = 0;
     ws->work = 0u;
     ws->work_limit = ROLLMPC_SOLVER_WORK_BUDGET;
+    ws->from_plan = 0;
     unconstrained(ws, md, x, r);
     for (i = 0; i < md->n; ++i) {
         ws->th[i] = ws->th0[i];
@@ -2221,7 +2253,7 @@ int rollmpc_qp_solve(rollmpc_work *ws, rollmpc_real *lam, const rollmpc_mode_dat
     count = 0; /* rows of the warm start */
     if (ROLLMPC_SOLVER_WARM_START) {
         if (!afford(ws, md, (uint32_t)md->m)) {
-            return time_limit_at_th0(ws, md, lam, 0, U);
+            return time_limit_at_th0(ws, md, lam, plan, plan_age, 0, U);
         }
         count = seed_shifted(ws, md, lam);
         if (ROLLMPC_SOLVER_ACTIVE_SET && !box_only(ws, md, count)) {
@@ -2234,14 +2266,14 @@ int rollmpc_qp_solve(rollmpc_work *ws, rollmpc_real *lam, const rollmpc_mode_dat
         }
         if (i == OUT_OF_WORK) {
             if (!ROLLMPC_SOLVER_ACTIVE_SET) {
-                return time_limit_at_th0(ws, md, lam, 1, U);
+                return time_limit_at_th0(ws, md, lam, plan, plan_age, 1, U);
             }
             resume = ws->stop_rows; /* the dual active set takes over from there */
         }
     }
     if (resume < 0) {
         if (!afford(ws, md, (uint32_t)md->m)) {
-            return time_limit_at_th0(ws, md, lam, 0, U);
+            return time_limit_at_th0(ws, md, lam, plan, plan_age, 0, U);
         }
         i = seed_from_violated(ws, md);
         if (count <= 0 || !ROLLMPC_SOLVER_ACTIVE_SET || box_only(ws, md, i)) {
@@ -2250,7 +2282,7 @@ int rollmpc_qp_solve(rollmpc_work *ws, rollmpc_real *lam, const rollmpc_mode_dat
                 return finish(ws, md, lam, ROLLMPC_OPTIMAL, U);
             }
             if (i == OUT_OF_WORK) {
-                return time_limit_at_th0(ws, md, lam, 1, U);
+                return time_limit_at_th0(ws, md, lam, plan, plan_age, 1, U);
             }
         }
     }
@@ -2262,9 +2294,12 @@ int rollmpc_qp_solve(rollmpc_work *ws, rollmpc_real *lam, const rollmpc_mode_dat
     if (i == OUT_OF_WORK) {
         return finish(ws, md, lam, ROLLMPC_TIME_LIMIT, U); /* at its last point */
     }
+    if (i == OUT_OF_WORK_AT_TH0) { /* no point of its own: lam as it left it */
+        return time_limit_at_th0(ws, md, lam, plan, plan_age, 0, U);
+    }
     if (!afford(ws, md, 3u * (uint32_t)md->m + (uint32_t)md->n
                         + (ws->out_slacks_ok ? 0u : predict_work(md)))) {
-        return time_limit_at_th0(ws, md, lam, 0, U);
+        return time_limit_at_th0(ws, md, lam, plan, plan_age, 0, U);
     }
     output_slacks(ws, md);
     for (i = 0; i < md->n; ++i) {
@@ -2316,9 +2351,7 @@ int rollmpc_qp_solve(rollmpc_work *ws, rollmpc_real *lam, const rollmpc_mode_dat
         }
         if (i == OUT_OF_WORK
             || !afford(ws, md, correct_work(md, count) + 2u * scan_work(md) + 2u * (uint32_t)md->m)) {
-            for (i = 0; i < md->n; ++i) { /* the polish overwrote the sweeps' point */
-                ws->th[i] = ws->th0[i];
-            }
+            fallback_point(ws, md, plan, plan_age); /* the polish overwrote the sweeps' point */
             status = ROLLMPC_TIME_LIMIT;
             break;
         }

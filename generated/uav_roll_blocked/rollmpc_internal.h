@@ -95,8 +95,9 @@ void rollmpc_chol_ltsolve(const rollmpc_real *l, int n, rollmpc_real *b);
 void rollmpc_chol_solve(const rollmpc_real *l, int n, rollmpc_real *b);
 
 /* QP solver (rollmpc_solver.c). */
-int rollmpc_qp_solve(rollmpc_work *ws, rollmpc_real *lam, const rollmpc_mode_data *md,
-    const rollmpc_real *x, const rollmpc_real *r, rollmpc_real *U, int *iterations,
-    int *polish_iterations, int *active);
+int rollmpc_qp_solve(rollmpc_work *ws, rollmpc_real *lam, const rollmpc_real *plan,
+    int plan_age, const rollmpc_mode_data *md, const rollmpc_real *x,
+    const rollmpc_real *r, rollmpc_real *U, int *iterations, int *polish_iterations,
+    int *active);
 
 #endif /* ROLLMPC_INTERNAL_H */

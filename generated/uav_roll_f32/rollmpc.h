@@ -45,8 +45,9 @@ typedef enum {
     ROLLMPC_BAD_ARGUMENT = 6,
     /** The solve reached `solver.work_budget` (`rollmpc_last_info()->work`) before the KKT
      *  conditions held; the next sample continues from the working set it reached. Command:
-     *  the last point of the dual active set (or of the sweeps), else the unconstrained
-     *  optimum, clamped. */
+     *  the last point of the dual active set (or of the sweeps); before it has one, the
+     *  mode's last plan shifted one stage (while younger than the horizon), else the
+     *  unconstrained optimum; clamped. */
     ROLLMPC_TIME_LIMIT = 9,
     /** The solve was optimal, and an innovation y − C x̂ of this sample was beyond
      *  ±`observer.innovation_limit` and was clipped to it (`rollmpc_last_info()->clipped`
@@ -103,6 +104,7 @@ typedef struct {
     uint32_t work_limit;                          /**< What the running part may spend up to (afford()). */
     int stop_rows;                                /**< Rows of wset where polish() ran out of work, */
     int stop_known;                               /**< the first of them with multipliers in z. */
+    int from_plan;                                /**< This solve's TIME_LIMIT fell back to the mode's last plan. */
 } rollmpc_work;
 
 /** Controller instance. Complete here so firmware can allocate it statically. */
@@ -111,7 +113,9 @@ typedef struct rollmpc_ctrl {
     rollmpc_real xhat[ROLLMPC_N_MODES][ROLLMPC_NX_MAX];  /**< Observer states. */
     rollmpc_real lam[ROLLMPC_N_MODES][ROLLMPC_M_MAX];    /**< Warm-start multipliers. */
     rollmpc_real u_last[ROLLMPC_N_ACTUATORS];     /**< Last applied command. */
-    rollmpc_real U[ROLLMPC_N_MAX];                /**< Last planned input sequence. */
+    rollmpc_real U[ROLLMPC_N_MAX];                /**< Last planned input sequence: mode plan_mode's plan. */
+    int16_t plan_mode;                                     /**< The mode U was planned for. */
+    int16_t plan_age;                                      /**< Samples since U was optimal (ROLLMPC_HORIZON: no plan). */
     rollmpc_info info;                                /**< Diagnostics of the last call. */
     rollmpc_work work;                                /**< Solver work arrays. */
 } rollmpc_ctrl;

@@ -131,6 +131,8 @@ void rollmpc_init(rollmpc_ctrl *c)
     for (i = 0; i < ROLLMPC_N_MAX; ++i) {
         c->U[i] = R_(0.0);
     }
+    c->plan_mode = (int16_t)c->mode;
+    c->plan_age = ROLLMPC_HORIZON; /* no plan yet */
     c->info.status = ROLLMPC_OPTIMAL;
     c->info.mode = c->mode;
     c->info.iterations = 0;
@@ -142,13 +144,34 @@ void rollmpc_init(rollmpc_ctrl *c)
     c->info.work = 0u;
 }
 
+/*
+ * Keep the plan in c->U for a later TIME_LIMIT of the same mode (fallback_point()): an
+ * optimal plan, or the shifted one a TIME_LIMIT fell back to (a sample older); any other
+ * status leaves none. (P_step plans into c->U itself; P_solve_qp into the caller's U.)
+ */
+static void keep_plan(rollmpc_ctrl *c, int mode, int status, const rollmpc_real *U)
+{
+    int i;
+    if (status == ROLLMPC_OPTIMAL || (status == ROLLMPC_TIME_LIMIT && c->work.from_plan)) {
+        for (i = 0; U != c->U && i < rollmpc_modes[mode].n; ++i) {
+            c->U[i] = U[i];
+        }
+        c->plan_age = (int16_t)((status == ROLLMPC_OPTIMAL) ? 0 : c->plan_age + 1);
+    } else {
+        c->plan_age = ROLLMPC_HORIZON;
+    }
+    c->plan_mode = (int16_t)mode;
+}
+
 static int solve_mode(rollmpc_ctrl *c, int mode, const rollmpc_real *x,
     const rollmpc_real *r, rollmpc_real *U)
 {
     const uint32_t t0 = ROLLMPC_TIMESTAMP();
-    const int status = rollmpc_qp_solve(&c->work, c->lam[mode], &rollmpc_modes[mode], x, r, U,
-        &c->info.iterations, &c->info.polish_iterations, &c->info.active);
+    const int status = rollmpc_qp_solve(&c->work, c->lam[mode], c->U,
+        (c->plan_mode == mode) ? c->plan_age : ROLLMPC_HORIZON, &rollmpc_modes[mode], x, r,
+        U, &c->info.iterations, &c->info.polish_iterations, &c->info.active);
     c->info.solve_ticks = (uint32_t)(ROLLMPC_TIMESTAMP() - t0);
+    keep_plan(c, mode, status, U);
     c->info.status = status;
     c->info.mode = mode;
     c->info.work = c->work.work;
@@ -164,6 +187,7 @@ static void follow_schedule(rollmpc_ctrl *c, const rollmpc_real *sched)
         for (i = 0; i < ROLLMPC_M_MAX; ++i) {
             c->lam[j][i] = R_(0.0); /* stale multipliers of the incoming mode: cold start */
         }
+        c->plan_age = ROLLMPC_HORIZON; /* and no plan of its own to fall back to */
         c->mode = j;
         ++c->info.mode_switches;
     }

@@ -143,7 +143,8 @@ def struct_bytes(cfg: ControllerConfig, sizes: tuple[ModeSizes, ...],
              + k * (nx + m) + len(cfg.actuators) + n)  # xhat, lam, u_last, U
     if cfg.runtime_bounds:  # the live bounds of every mode, and the solver's copy
         reals += (k + 1) * 2 * (top["nu"] + ny)
-    int16s = cfg.horizon + 1 + m + lengths["wset"] + lengths["tmp"]
+    # run, set, wset, tmp, and plan_mode and plan_age
+    int16s = cfg.horizon + 1 + m + lengths["wset"] + lengths["tmp"] + 2
     bytes_ = m + n + (m if features_of(cfg)["has_soft_rows"] else 0)
     return reals * real + int16s * 2 + bytes_
 

@@ -13,7 +13,7 @@ import numpy as np
 
 from ..qp.work import add_step_work, correct_work, factor_work, hq_work, predict_work, scan_work, tri_work
 from .linalg import chol_ltsolve_packed, seqsum
-from .polish_dual import CHOL_DUAL, OUT_OF_WORK
+from .polish_dual import CHOL_DUAL, OUT_OF_WORK, OUT_OF_WORK_AT_TH0
 
 
 class ActiveSetMixin:
@@ -166,11 +166,11 @@ class ActiveSetMixin:
         md = self.md
         st = {"W": np.zeros(0, np.int64), "z": np.zeros(0, md.Kx.dtype), "steps": 0, "K": K,
               "gam": gam, "in_set": np.zeros(md.m, bool)}
-        th = th0.copy()
+        th, moved = th0.copy(), False  # moved: th is a corrected point
         if not self.afford((0 if self.out_slacks_ok else md.m + predict_work(md)) + 2 * md.m):
             if resume is not None:
                 self.keep_progress(lam)  # where the shifted guess stopped
-            return OUT_OF_WORK, th, 0, 0
+            return OUT_OF_WORK_AT_TH0, th, 0, 0
         self.output_slacks()
         self.work += md.m
         if resume is None:
@@ -180,7 +180,8 @@ class ActiveSetMixin:
             nw, th = self.resume_working_set(lam, th0, K, st, resume)
             if nw == OUT_OF_WORK:  # lam: the warm start as far as it got
                 self.keep_progress(lam)
-                return OUT_OF_WORK, th, 0, st["steps"]
+                return OUT_OF_WORK_AT_TH0, th, 0, st["steps"]
+            moved = nw > 0  # resumed: corrected at its working set
         code = 0
         while True:
             if not self.afford(scan_work(md) + md.m):
@@ -200,6 +201,7 @@ class ActiveSetMixin:
                 code = OUT_OF_WORK
                 break
             th = self.correct(th0, st["W"], st["z"])
+            moved = True
         W = st["W"]
         if not W.size and code != OUT_OF_WORK:
             if code == 0:
@@ -207,7 +209,7 @@ class ActiveSetMixin:
             return code, th, 0, st["steps"]
         self.keep_working_set(lam, W, st["z"])  # the warm start, until the polish's
         if code == OUT_OF_WORK:
-            return OUT_OF_WORK, th, W.size, st["steps"]
+            return (OUT_OF_WORK if moved else OUT_OF_WORK_AT_TH0), th, W.size, st["steps"]
         code2, th_p, act, its = self.polish(W, lam, th0, K, gam, th=th)
         if code2 == 0:
             return 0, th_p, act, st["steps"] + its

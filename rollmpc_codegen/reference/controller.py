@@ -13,7 +13,7 @@ from ..features import runtime_bounds
 from .scheduler import scheduled_mode
 from ..status import BAD_ARGUMENT, MEASUREMENT_CLIPPED, NONFINITE_INPUT, OPTIMAL
 from .linalg import seqsum
-from .solver import SolverRef
+from .solver import LastPlan, SolverRef
 
 
 class ControllerRef:
@@ -22,7 +22,9 @@ class ControllerRef:
         self.md = mode_data
         self.dt = mode_data[0].Kx.dtype.type
         dt = self.dt
-        self.solvers = [SolverRef(md, ctx["solver"]) for md in mode_data]
+        self.last_plan = LastPlan(ctx["horizon"])  # P_ctrl's U, plan_mode, plan_age
+        self.solvers = [SolverRef(md, ctx["solver"], j, self.last_plan)
+                        for j, md in enumerate(mode_data)]
         sc = ctx["scheduler"]
         if sc is not None:
             # the C stores each threshold -/+ epsilon as one literal computed in double
@@ -35,6 +37,8 @@ class ControllerRef:
         self.xhat = [np.zeros(md.nx, md.Kx.dtype) for md in self.md]
         for s in self.solvers:
             s.lam[:] = 0
+        self.last_plan.forget()
+        self.last_plan.mode = self.mode
         self.u_last = np.zeros(self.ctx["n_actuators"], self.md[0].Kx.dtype)
         self.mode_switches = 0
         self.last = {"status": 0, "iterations": 0, "polish_iterations": 0, "active": 0,
@@ -84,6 +88,7 @@ class ControllerRef:
             j = self._schedule(sched[0])
             if j != self.mode:
                 self.solvers[j].lam[:] = 0
+                self.last_plan.forget()
                 self.mode = j
                 self.mode_switches += 1
 

@@ -18,6 +18,7 @@ from .linalg import cholesky_packed, chol_lsolve_packed, chol_solve_packed, seqs
 # what ws->chol holds (the C's P_CHOL_NONE / _DUAL / _PRIMAL of internal.h.j2)
 CHOL_NONE, CHOL_DUAL, CHOL_PRIMAL = 0, 1, 2
 OUT_OF_WORK = -2  # the C's: a solver part stopped, the budget cannot afford its next unit
+OUT_OF_WORK_AT_TH0 = -3  # the C's: the dual active set stopped so before a point of its own
 
 
 class DualPolishMixin:

@@ -27,7 +27,7 @@ from ..status import INACCURATE, INFEASIBLE, MAX_ITER, NUMERICAL, OPTIMAL, TIME_
 from .active_set import ActiveSetMixin
 from .hq import hessian_reads
 from .polish import PolishMixin
-from .polish_dual import CHOL_NONE, OUT_OF_WORK, DualPolishMixin
+from .polish_dual import CHOL_NONE, OUT_OF_WORK, OUT_OF_WORK_AT_TH0, DualPolishMixin
 from .polish_primal import PrimalPolishMixin
 from .rows import RowsMixin
 from .soft_rows import SoftRowsMixin
@@ -35,13 +35,28 @@ from .sweeps import SweepsMixin
 from .unconstrained import UnconstrainedMixin, output_prediction
 
 
+class LastPlan:
+    """P_ctrl's U, plan_mode and plan_age: the last plan, the mode it was planned for, and
+    the samples since it was optimal (the horizon: no plan, as the C's P_HORIZON)."""
+
+    def __init__(self, horizon: int):
+        self.U, self.mode, self.none = np.zeros(0), 0, horizon
+        self.age = horizon
+
+    def forget(self):
+        """P_init(), or a switch of mode: no plan to fall back to."""
+        self.age = self.none
+
+
 class SolverRef(UnconstrainedMixin, RowsMixin, SoftRowsMixin, SweepsMixin, PrimalPolishMixin,
                 DualPolishMixin, PolishMixin, ActiveSetMixin):
-    """Reference of ``P_qp_solve`` for one mode; holds that mode's warm-start multipliers.
+    """Reference of ``P_qp_solve`` for one mode; holds that mode's warm-start multipliers
+    and its last plan (``P_ctrl``'s lam, plan and plan_age of the mode).
 
     The mixins are its parts, one per partial; they share the state set up here."""
 
-    def __init__(self, md: ModeData, solver_ctx: dict):
+    def __init__(self, md: ModeData, solver_ctx: dict, mode: int = 0,
+                 last_plan: LastPlan | None = None):
         self.md = md
         self.dt = md.Kx.dtype.type
         dt = self.dt
@@ -60,6 +75,11 @@ class SolverRef(UnconstrainedMixin, RowsMixin, SoftRowsMixin, SweepsMixin, Prima
         self.Gam, self.expand = output_prediction(md)
         self.has_out, self.has_rate = md.has_output_rows, md.has_rate_rows
         self.lam = np.zeros(md.m, md.Kx.dtype)
+        # the controller's last plan (shared by its modes' solvers, as P_ctrl's U), for a
+        # TIME_LIMIT with nothing better than th0 (fallback_point())
+        self.stages = md.n_yq // md.ny
+        self.mode_index, self.from_plan = mode, False
+        self.last_plan = last_plan or LastPlan(self.stages)
         self.one, self.zero = dt(1.0), dt(0.0)
         # the bound data: baked (md), or live with runtime_bounds (ControllerRef.set_bounds)
         self.row_c, self.u_min, self.u_max = md.row_c, md.u_min, md.u_max
@@ -84,16 +104,51 @@ class SolverRef(UnconstrainedMixin, RowsMixin, SoftRowsMixin, SweepsMixin, Prima
         used = self.work + finish_work(self.md)
         return used <= self.work_limit and need <= self.work_limit - used
 
+    def fallback_point(self, th0):
+        """Mirror of fallback_point(): the last plan shifted one stage while it is younger
+        than the horizon (with move blocking, each block from the block of its first stage
+        + 1), else th0."""
+        plan = self.last_plan
+        if plan.mode != self.mode_index or plan.age >= self.stages - 1:
+            return th0
+        self.from_plan = True
+        nu, sb = self.md.nu, self.md.stage_block
+        if sb is None:  # unblocked: a block per stage
+            sb = np.arange(self.stages)
+        src = [sb[t + 1] if t + 1 < self.stages else sb[t]  # the block one stage later
+               for t in range(self.stages) if t == 0 or sb[t] != sb[t - 1]]
+        return plan.U[:self.md.n].reshape(-1, nu)[src].reshape(-1).copy()
+
     def time_limit_at_th0(self, th0, polished):
-        """Mirror of time_limit_at_th0(): TIME_LIMIT at th0, lam where a polish stopped."""
+        """Mirror of time_limit_at_th0(): TIME_LIMIT at fallback_point(), lam where a
+        polish stopped."""
+        th = self.fallback_point(th0)
         if polished:
             self.keep_progress(self.lam)
-        return self.finish(th0, th0, TIME_LIMIT)
+        return self.finish(th, th0, TIME_LIMIT)
+
+    def keep_plan(self, status, U):
+        """Mirror of keep_plan(): an optimal plan, or the shifted one a TIME_LIMIT fell
+        back to (a sample older); any other status leaves none."""
+        plan = self.last_plan
+        if status == OPTIMAL or (status == TIME_LIMIT and self.from_plan):
+            plan.U = U.copy()
+            plan.age = 0 if status == OPTIMAL else plan.age + 1
+        else:
+            plan.age = plan.none
+        plan.mode = self.mode_index
 
     def solve(self, x, r):
+        """Mirror of solve_mode(): qp_solve(), then keep_plan()."""
+        out = self.qp_solve(x, r)
+        self.keep_plan(out[0], out[1])
+        return out
+
+    def qp_solve(self, x, r):
         """Mirror of P_qp_solve(): returns (status, U, iterations, polish_iterations, active);
         its work is ``work``."""
         md = self.md
+        self.from_plan = False
         x = np.asarray(x, md.Kx.dtype)
         r = np.asarray(r, md.Kx.dtype)
         lam = self.lam
@@ -137,6 +192,8 @@ class SolverRef(UnconstrainedMixin, RowsMixin, SoftRowsMixin, SweepsMixin, Prima
                 return status, U, 0, polish_its, act
             if code == OUT_OF_WORK:  # at its last point
                 return self.finish(th_a, th0, TIME_LIMIT) + (0, polish_its, act)
+            if code == OUT_OF_WORK_AT_TH0:  # no point of its own: lam as it left it
+                return self.time_limit_at_th0(th0, False) + (0, polish_its, act)
         if not self.afford(3 * md.m + md.n + (0 if self.out_slacks_ok else predict_work(md))):
             return self.time_limit_at_th0(th0, False) + (0, polish_its, active)
         self.output_slacks()
@@ -182,7 +239,7 @@ class SolverRef(UnconstrainedMixin, RowsMixin, SoftRowsMixin, SweepsMixin, Prima
                     break
                 if code == OUT_OF_WORK or not self.afford(correct_work(md, S.size)
                                                           + 2 * scan_work(md) + 2 * md.m):
-                    th, status = th0, TIME_LIMIT
+                    th, status = self.fallback_point(th0), TIME_LIMIT
                     break
                 self.work += correct_work(md, S.size)  # the C corrects again: same th
             exc, scale = self.row_excess(th, gam)
