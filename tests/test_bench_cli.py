@@ -11,7 +11,7 @@ import json
 import numpy as np
 import pytest
 
-from conftest import UAV, cli
+from conftest import UAV, cli, edit_bounds, edited_config
 from rollmpc_codegen.cli.bench import parse_variants
 from rollmpc_codegen.host.bench_record import QpSequence, select_qps
 from rollmpc_codegen.cli.main import main
@@ -82,14 +82,16 @@ def test_json_schema(bench_run):
 
 
 def test_infeasible_qps_do_not_stop_the_bench(tmp_path):
-    """quad_attitude's scenario (default budget) leaves the tilt bound and meets QPs that
-    are infeasible: the reduced-set check used to stop the whole bench on quadprog's
-    ValueError; it now counts them apart."""
+    """A roll floor of 5 deg that the aircraft at rest cannot meet: every QP of the start is
+    infeasible. The reduced-set check used to stop the whole bench on quadprog's ValueError
+    (found on quad_attitude's scenario, whose TIME_LIMIT commands then left the tilt
+    bound); it now counts them apart."""
     pytest.importorskip("quadprog", reason="install with: pip install 'rollmpc-codegen[peers]'")
     out = tmp_path / "q.json"
-    code, text, err = cli(["bench", str(UAV.parent / "quad_attitude.yaml"), "--variants",
-                           "default", "--repeat", "1", "--quiet", "--json", str(out),
-                           "--build-dir", str(tmp_path / "b")])
+    floor = edited_config(tmp_path, UAV, "uav_floor", edit_bounds(y_min=5))
+    code, text, err = cli(["bench", str(floor), "--variants", "default", "--repeat", "1",
+                           "--quiet", "--json", str(out), "--steps", "60",
+                           "--include-transient", "--build-dir", str(tmp_path / "b")])
     assert code == 0, err
     rs = json.loads(out.read_text())["reduced_set_check"]
     assert rs["infeasible_qps"] > 0
