@@ -195,7 +195,8 @@ int chain_rb_observe(chain_rb_ctrl *c, const chain_rb_real *y,
 /**
  * @brief Solve one mode's QP for a given state estimate (no scheduling, no observer).
  *
- * Uses and updates the mode's warm-start multipliers in c.
+ * Uses and updates the mode's warm-start multipliers in c, and keeps U in c as the plan a
+ * later TIME_LIMIT of the same mode falls back to (shifted one stage).
  *
  * @param c     Controller instance.
  * @param mode  Mode index, 0-based in config order.

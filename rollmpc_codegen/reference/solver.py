@@ -51,7 +51,7 @@ class LastPlan:
 class SolverRef(UnconstrainedMixin, RowsMixin, SoftRowsMixin, SweepsMixin, PrimalPolishMixin,
                 DualPolishMixin, PolishMixin, ActiveSetMixin):
     """Reference of ``P_qp_solve`` for one mode; holds that mode's warm-start multipliers
-    and its last plan (``P_ctrl``'s lam, plan and plan_age of the mode).
+    and shares the controller's :class:`LastPlan` with the other modes' solvers.
 
     The mixins are its parts, one per partial; they share the state set up here."""
 
