@@ -15,20 +15,30 @@ QUAD = Path(__file__).resolve().parents[1] / "examples" / "quad_attitude.yaml"
 HORIZON = 20
 
 
-@pytest.fixture(scope="module")
-def tight(tmp_path_factory, build_root):
-    """The UAV at N = 20 with the smallest budget the generator accepts (the unconstrained
-    step and finish()) and no warm start: any QP with an active bound stops at TIME_LIMIT
-    before the dual active set has a point. (With a warm start the working set kept from
-    each TIME_LIMIT grows, and a later sample's dual active set returns its own point.)"""
+def tight_uav(tmp: Path, build_root: Path, name: str, **top) -> Built:
+    """The UAV at N = 20 (with the top-level keys ``top``) given the smallest budget the
+    generator accepts (the unconstrained step and finish()) and no warm start: any QP with
+    an active bound stops at TIME_LIMIT before the dual active set has a point. (With a
+    warm start the working set kept from each TIME_LIMIT grows, and a later sample's dual
+    active set returns its own point.)"""
+    import yaml
+
     from rollmpc_codegen.pipeline import load_model
     from rollmpc_codegen.qp.work import base_work
 
-    tmp = tmp_path_factory.mktemp("tight")
-    model, _ = load_model(short_uav_config(tmp, HORIZON), "double")
-    need = max(base_work(m.data, m.data.has_output_rows) for m in model.modes)
-    return Built(short_uav_config(tmp, HORIZON, "uav_tight", work_budget=need,
-                                  warm_start=False), "double", build_root)
+    path = short_uav_config(tmp, HORIZON, name, warm_start=False)
+    data = {**yaml.safe_load(path.read_text()), **top}
+    path.write_text(yaml.safe_dump(data, sort_keys=False))
+    model, _ = load_model(path, "double")
+    data["solver"]["work_budget"] = max(base_work(m.data, m.data.has_output_rows)
+                                        for m in model.modes)
+    path.write_text(yaml.safe_dump(data, sort_keys=False))
+    return Built(path, "double", build_root)
+
+
+@pytest.fixture(scope="module")
+def tight(tmp_path_factory, build_root):
+    return tight_uav(tmp_path_factory.mktemp("tight"), build_root, "uav_tight")
 
 
 def shifted(U, nu=1):
@@ -69,6 +79,31 @@ def test_time_limit_shifts_the_last_plan_for_horizon_minus_one_samples(tight):
     status, U = both(1, np.zeros(nx1), saturating)
     fresh = tight.fresh_c()
     assert status == TIME_LIMIT and U.tobytes() == fresh.solve_qp(1, np.zeros(nx1), saturating)[1].tobytes()
+
+
+BLOCKS = [1, 1, 2, 4, 12]  # N = 20: blocks of one stage, and longer ones
+
+
+@pytest.fixture(scope="module")
+def tight_blocked(tmp_path_factory, build_root):
+    """A block of one stage takes the next block's value, a longer block keeps its own."""
+    return tight_uav(tmp_path_factory.mktemp("tight_blocked"), build_root,
+                     "uav_blocked_tight", move_blocking=BLOCKS)
+
+
+def test_blocked_plans_shift_block_by_block(tight_blocked):
+    from rollmpc_codegen.status import OPTIMAL, TIME_LIMIT
+
+    c, ref = tight_blocked.fresh_c(), tight_blocked.reference()
+    x = np.zeros(tight_blocked.model.modes[0].data.nx)
+    st, plan, _ = c.solve_qp(0, x, np.full(HORIZON, 0.2))
+    assert int(st) == OPTIMAL and plan.size == len(BLOCKS) and len(set(plan)) == len(BLOCKS)
+    ref.solvers[0].solve(x, np.full(HORIZON, 0.2))
+    st, U, _ = c.solve_qp(0, x, np.full(HORIZON, 80.0))
+    st_r, U_r, *_ = ref.solvers[0].solve(x, np.full(HORIZON, 80.0))
+    assert int(st) == int(st_r) == TIME_LIMIT and U.tobytes() == U_r.tobytes()
+    # blocks 0 and 1 (one stage each) take blocks 1 and 2; 2, 3 and 4 keep their own
+    assert np.array_equal(U, plan[[1, 2, 2, 3, 4]])
 
 
 def test_tilt_limits_hold_through_the_time_limited_manoeuvre(build_root):
