@@ -1911,13 +1911,18 @@ static void keep_progress(chain_soft_work *ws, const chain_soft_mode_data *md,
  * A guessed working set (guess = 1: the shifted warm start) is abandoned as soon as more
  * than half of it has negative multipliers: the operating point moved, and the caller's
  * next seed is cheaper than unwinding it row block by row block. Returns 0 with ws->th
- * optimal and lam set to the exact multipliers, -1 (lam untouched), or OUT_OF_WORK when
- * the budget cannot afford the next step (where: stopped()).
+ * optimal and lam set to the exact multipliers, -1 (lam untouched), GUESS_CAPPED (the
+ * same, for a guess whose every round was a dual solve that switched soft states or
+ * dropped rows: resume_working_set() would repeat them exactly), or OUT_OF_WORK when the
+ * budget cannot afford the next step (where: stopped()).
  */
+#define GUESS_CAPPED (-4)
+
 static int polish(chain_soft_work *ws, const chain_soft_mode_data *md, chain_soft_real *lam,
     int nw, int guess, int *iterations, int *active)
 {
     int i, it, code, known = 0; /* known: the first wset rows whose z is their multiplier */
+    int repeatable = guess; /* every round so far a dual solve that switched or dropped */
     if (nw <= 0 || nw > md->w_cap) {
         return -1;
     }
@@ -1936,6 +1941,7 @@ static int polish(chain_soft_work *ws, const chain_soft_mode_data *md, chain_sof
         ++*iterations;
         if (box_only(ws, md, nw)) {
             /* primal: bound rows first; the multipliers only at a feasible point */
+            repeatable = 0;
             code = primal_solve(ws, md, nw, scan_work(md) + (uint32_t)md->m);
             if (code == OUT_OF_WORK) {
                 return stopped(ws, nw, known, OUT_OF_WORK);
@@ -1992,6 +1998,7 @@ static int polish(chain_soft_work *ws, const chain_soft_mode_data *md, chain_sof
                 known = nw;
                 continue;
             }
+            repeatable = 0; /* dual feasible: the resume would stop here */
             if (!afford(ws, md, correct_work(md, nw) + 2u * scan_work(md) + (uint32_t)md->m)) {
                 return stopped(ws, nw, known, OUT_OF_WORK);
             }
@@ -2015,7 +2022,7 @@ static int polish(chain_soft_work *ws, const chain_soft_mode_data *md, chain_sof
             append_row(ws, md, ws->tmp[i], nw++);
         }
     }
-    return -1;
+    return repeatable ? GUESS_CAPPED : -1;
 }
 
 /* rows added per scan of every row: the scan and the corrected point are paid once for
@@ -2244,9 +2251,12 @@ static int resume_working_set(chain_soft_work *ws, const chain_soft_mode_data *m
     return 0;
 }
 
+#define COLD_START (-2) /* dual_active_set()'s from: no warm start (the guess' repeat) */
+
 /*
  * Dual active-set solve (Goldfarb-Idnani) from the warm start (resume_working_set(), from
- * where the shifted guess stopped if from >= 0) or the unconstrained optimum: add the
+ * where the shifted guess stopped if from >= 0; none if from is COLD_START) or the
+ * unconstrained optimum: add the
  * most violated rows until none is, keeping the multipliers
  * >= 0 and the working set linearly independent, so it finishes where the polish fails
  * (dependent active sets, working sets the shifted guess and the violated rows do not
@@ -2282,7 +2292,7 @@ static int dual_active_set(chain_soft_work *ws, const chain_soft_mode_data *md,
     if (from < 0) {
         ws->chol_holds = CHAIN_SOFT_CHOL_DUAL; /* the factor of the empty working set */
     }
-    if (from >= 0 || CHAIN_SOFT_SOLVER_WARM_START) {
+    if (from >= 0 || (from != COLD_START && CHAIN_SOFT_SOLVER_WARM_START)) {
         nw = resume_working_set(ws, md, lam, from, &steps);
         if (nw == OUT_OF_WORK) { /* lam: the warm start as far as it got */
             keep_progress(ws, md, lam);
@@ -2483,6 +2493,9 @@ int chain_soft_qp_solve(chain_soft_work *ws, chain_soft_real *lam, const chain_s
                 return time_limit_at_th0(ws, md, lam, plan, plan_age, 1, U);
             }
             resume = ws->stop_rows; /* the dual active set takes over from there */
+        }
+        if (i == GUESS_CAPPED) {
+            resume = COLD_START; /* resuming the same guess would repeat it round for round */
         }
     }
     if (resume < 0) {

@@ -1764,13 +1764,18 @@ static void keep_progress(rollmpc_work *ws, const rollmpc_mode_data *md,
  * A guessed working set (guess = 1: the shifted warm start) is abandoned as soon as more
  * than half of it has negative multipliers: the operating point moved, and the caller's
  * next seed is cheaper than unwinding it row block by row block. Returns 0 with ws->th
- * optimal and lam set to the exact multipliers, -1 (lam untouched), or OUT_OF_WORK when
- * the budget cannot afford the next step (where: stopped()).
+ * optimal and lam set to the exact multipliers, -1 (lam untouched), GUESS_CAPPED (the
+ * same, for a guess whose every round was a dual solve that switched soft states or
+ * dropped rows: resume_working_set() would repeat them exactly), or OUT_OF_WORK when the
+ * budget cannot afford the next step (where: stopped()).
  */
+#define GUESS_CAPPED (-4)
+
 static int polish(rollmpc_work *ws, const rollmpc_mode_data *md, rollmpc_real *lam,
     int nw, int guess, int *iterations, int *active)
 {
     int i, it, code, known = 0; /* known: the first wset rows whose z is their multiplier */
+    int repeatable = guess; /* every round so far a dual solve that switched or dropped */
     if (nw <= 0 || nw > md->n) {
         return -1;
     }
@@ -1789,6 +1794,7 @@ static int polish(rollmpc_work *ws, const rollmpc_mode_data *md, rollmpc_real *l
         ++*iterations;
         if (box_only(ws, md, nw)) {
             /* primal: bound rows first; the multipliers only at a feasible point */
+            repeatable = 0;
             code = primal_solve(ws, md, nw, scan_work(md) + (uint32_t)md->m);
             if (code == OUT_OF_WORK) {
                 return stopped(ws, nw, known, OUT_OF_WORK);
@@ -1838,6 +1844,7 @@ static int polish(rollmpc_work *ws, const rollmpc_mode_data *md, rollmpc_real *l
                 known = nw;
                 continue;
             }
+            repeatable = 0; /* dual feasible: the resume would stop here */
             if (!afford(ws, md, correct_work(md, nw) + 2u * scan_work(md) + (uint32_t)md->m)) {
                 return stopped(ws, nw, known, OUT_OF_WORK);
             }
@@ -1861,7 +1868,7 @@ static int polish(rollmpc_work *ws, const rollmpc_mode_data *md, rollmpc_real *l
             append_row(ws, md, ws->tmp[i], nw++);
         }
     }
-    return -1;
+    return repeatable ? GUESS_CAPPED : -1;
 }
 
 /* rows added per scan of every row: the scan and the corrected point are paid once for
@@ -2040,9 +2047,12 @@ static int resume_working_set(rollmpc_work *ws, const rollmpc_mode_data *md,
     return 0;
 }
 
+#define COLD_START (-2) /* dual_active_set()'s from: no warm start (the guess' repeat) */
+
 /*
  * Dual active-set solve (Goldfarb-Idnani) from the warm start (resume_working_set(), from
- * where the shifted guess stopped if from >= 0) or the unconstrained optimum: add the
+ * where the shifted guess stopped if from >= 0; none if from is COLD_START) or the
+ * unconstrained optimum: add the
  * most violated rows until none is, keeping the multipliers
  * >= 0 and the working set linearly independent, so it finishes where the polish fails
  * (dependent active sets, working sets the shifted guess and the violated rows do not
@@ -2077,7 +2087,7 @@ static int dual_active_set(rollmpc_work *ws, const rollmpc_mode_data *md,
     if (from < 0) {
         ws->chol_holds = ROLLMPC_CHOL_DUAL; /* the factor of the empty working set */
     }
-    if (from >= 0 || ROLLMPC_SOLVER_WARM_START) {
+    if (from >= 0 || (from != COLD_START && ROLLMPC_SOLVER_WARM_START)) {
         nw = resume_working_set(ws, md, lam, from, &steps);
         if (nw == OUT_OF_WORK) { /* lam: the warm start as far as it got */
             keep_progress(ws, md, lam);
@@ -2276,6 +2286,9 @@ int rollmpc_qp_solve(rollmpc_work *ws, rollmpc_real *lam, const rollmpc_real *pl
                 return time_limit_at_th0(ws, md, lam, plan, plan_age, 1, U);
             }
             resume = ws->stop_rows; /* the dual active set takes over from there */
+        }
+        if (i == GUESS_CAPPED) {
+            resume = COLD_START; /* resuming the same guess would repeat it round for round */
         }
     }
     if (resume < 0) {

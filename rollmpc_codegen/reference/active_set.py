@@ -13,7 +13,7 @@ import numpy as np
 
 from ..qp.work import add_step_work, correct_work, factor_work, hq_work, predict_work, scan_work, tri_work
 from .linalg import chol_ltsolve_packed, seqsum
-from .polish_dual import CHOL_DUAL, OUT_OF_WORK, OUT_OF_WORK_AT_TH0
+from .polish_dual import CHOL_DUAL, COLD_START, OUT_OF_WORK, OUT_OF_WORK_AT_TH0
 
 
 class ActiveSetMixin:
@@ -162,8 +162,11 @@ class ActiveSetMixin:
 
     def dual_active_set(self, lam, th0, K, gam, resume=None):
         """Mirror of dual_active_set() (``resume``: the working set where the guess
-        stopped, or None): (code 0/1/-1/OUT_OF_WORK, th, active, steps + polish its)."""
+        stopped, None, or COLD_START: no warm start): (code 0/1/-1/OUT_OF_WORK/
+        OUT_OF_WORK_AT_TH0, th, active, steps + polish its)."""
         md = self.md
+        warm = self.warm and resume is not COLD_START
+        resume = None if resume is COLD_START else resume  # the C's from >= 0 or not
         st = {"W": np.zeros(0, np.int64), "z": np.zeros(0, md.Kx.dtype), "steps": 0, "K": K,
               "gam": gam, "in_set": np.zeros(md.m, bool)}
         th, moved = th0.copy(), False  # moved: th is a corrected point
@@ -176,7 +179,7 @@ class ActiveSetMixin:
         if resume is None:
             self.chol_holds = CHOL_DUAL  # the factor of the empty working set
             self.slack_on[:] = False
-        if resume is not None or self.warm:
+        if resume is not None or warm:
             nw, th = self.resume_working_set(lam, th0, K, st, resume)
             if nw == OUT_OF_WORK:  # lam: the warm start as far as it got
                 self.keep_progress(lam)

@@ -13,7 +13,7 @@ import numpy as np
 from ..qp.work import (append_work, correct_work, delete_work, predict_work,
                        scan_work, tri_work)
 from .linalg import chol_solve_packed
-from .polish_dual import CHOL_DUAL, CHOL_NONE, OUT_OF_WORK
+from .polish_dual import CHOL_DUAL, CHOL_NONE, GUESS_CAPPED, OUT_OF_WORK
 
 
 class PolishMixin:
@@ -140,6 +140,7 @@ class PolishMixin:
         md = self.md
         n = md.n
         its, known, z = 0, 0, None
+        repeatable = guess  # every round so far a dual solve that switched or dropped
         if W.size == 0 or W.size > self.wcap:
             return -1, None, 0, its
         if not self.afford(md.m):
@@ -148,6 +149,7 @@ class PolishMixin:
         for _ in range(self.polish_max):
             its += 1
             if np.all(md.row_q[W] < n):  # box_only()
+                repeatable = False
                 ok, th_p, zp = self.primal_solve(th0, W, scan_work(md) + md.m)
                 if ok == OUT_OF_WORK:
                     return self.stopped(W, z, known, OUT_OF_WORK), th, 0, its
@@ -190,6 +192,7 @@ class PolishMixin:
                 if code:
                     known = W.size
                     continue
+                repeatable = False  # dual feasible: the resume would stop here
                 if not self.afford(correct_work(md, W.size) + 2 * scan_work(md) + md.m):
                     return self.stopped(W, z, known, OUT_OF_WORK), th, 0, its
                 th = self.correct(th0, W, z)
@@ -208,4 +211,4 @@ class PolishMixin:
                 return self.stopped(W, z, known, OUT_OF_WORK), th, 0, its
             for p in add:
                 W = self.append_row(W, p)
-        return -1, th, 0, its
+        return (GUESS_CAPPED if repeatable else -1), th, 0, its

@@ -27,7 +27,8 @@ from ..status import INACCURATE, INFEASIBLE, MAX_ITER, NUMERICAL, OPTIMAL, TIME_
 from .active_set import ActiveSetMixin
 from .hq import hessian_reads
 from .polish import PolishMixin
-from .polish_dual import CHOL_NONE, OUT_OF_WORK, OUT_OF_WORK_AT_TH0, DualPolishMixin
+from .polish_dual import (CHOL_NONE, COLD_START, GUESS_CAPPED, OUT_OF_WORK, OUT_OF_WORK_AT_TH0,
+                          DualPolishMixin)
 from .polish_primal import PrimalPolishMixin
 from .rows import RowsMixin
 from .soft_rows import SoftRowsMixin
@@ -184,6 +185,8 @@ class SolverRef(UnconstrainedMixin, RowsMixin, SoftRowsMixin, SweepsMixin, Prima
                         resume = self.stop[0]  # the dual active set takes over from there
                         break
                     return self.time_limit_at_th0(th0, True) + (0, polish_its, 0)
+                if code == GUESS_CAPPED:
+                    resume = COLD_START  # resuming the same guess would repeat it
         if self.active_set:
             code, th_a, act, its = self.dual_active_set(lam, th0, K, gam, resume)
             polish_its += its

@@ -1,0 +1,60 @@
+"""A shifted guess whose polish spends every round switching soft states or dropping rows
+(GUESS_CAPPED) is not resumed by the dual active set: resume_working_set() would repeat it
+round for round before starting cold (docs/solver.md, "The default method", step 5). The
+soft 45 deg roll design of tests/test_sim_metrics.py without a budget meets it on its
+plateau beyond the bound; C and reference stay bit for bit."""
+from __future__ import annotations
+
+import json
+
+import yaml
+
+from conftest import Built, lockstep_closed_loop
+from test_sim_metrics import ROLL, SOFT
+
+STEPS = 900  # the plateau beyond 45 deg starts near sample 600
+
+
+def test_capped_guess_is_not_repeated(tmp_path, build_root):
+    from rollmpc_codegen.qp.work import UNBOUNDED_WORK
+    from rollmpc_codegen.reference import solver as solver_mod
+
+    data = json.loads(json.dumps(ROLL))
+    data.update(precision="float", solver={"work_budget": UNBOUNDED_WORK})
+    data["modes"][0]["bounds"]["soft"] = SOFT
+    path = tmp_path / "roll45_soft.yaml"
+    path.write_text(yaml.safe_dump(data, sort_keys=False))
+    built = Built(path, "float", build_root)
+    bad, seen = lockstep_closed_loop(built, STEPS)
+    assert bad == [] and len(seen) == STEPS
+
+    calls = {"seed": 0, "capped": 0, "capped_steps": [], "seeds_in_capped": []}
+    seed, polish = solver_mod.SolverRef.seed_shifted, solver_mod.SolverRef.polish
+
+    def counting_seed(self, lam):
+        calls["seed"] += 1
+        return seed(self, lam)
+
+    def counting_polish(self, *args, **kwargs):
+        out = polish(self, *args, **kwargs)
+        calls["capped"] += out[0] == solver_mod.GUESS_CAPPED
+        return out
+
+    ref = built.reference()
+    solver = ref.solvers[0]
+    solver.seed_shifted = counting_seed.__get__(solver)
+    solver.polish = counting_polish.__get__(solver)
+
+    class Counting:
+        def step(self, y, s, r):
+            before = (calls["seed"], calls["capped"])
+            out = ref.step(y, s, r)
+            if calls["capped"] > before[1]:
+                calls["seeds_in_capped"].append(calls["seed"] - before[0])
+            return out
+
+    from rollmpc_codegen.sim.simulate import run_closed_loop
+
+    run_closed_loop(built.model.config, Counting(), steps=STEPS)
+    assert calls["capped"] > 20  # measured 148 in the first 1000 samples
+    assert set(calls["seeds_in_capped"]) == {1}  # the guess is seeded once, never again
