@@ -84,3 +84,32 @@ def test_daqp_is_built_with_its_own_optimisation_flags(sources):
     theirs = re.findall(r'"(-[^"]+)"', re.search(r"extra_compile_args=\[([^\]]*)\]", setup)[1])
     assert sorted(f for f in theirs if f != "-DPROFILING") == sorted(
         f for f in HOST_FLAGS if f != "-fPIC")
+
+
+def test_a_missing_sdist_is_one_line_naming_the_download(tmp_path, capsys, monkeypatch):
+    """Without network the daqp_c rows stop the bench with one line that says where DAQP's
+    C comes from and why it is missing (exit 1), not a traceback."""
+    pytest.importorskip("daqp", reason="pip install 'rollmpc-codegen[peers]'")
+    import subprocess
+
+    from rollmpc_codegen.cli.main import main
+    from rollmpc_codegen.host import daqp_harness, peer_daqp_c
+
+    run = subprocess.run
+
+    def no_network(cmd, **kwargs):  # pip fails as offline; the compilers still run
+        if "pip" not in cmd:
+            return run(cmd, **kwargs)
+        return subprocess.CompletedProcess(cmd, 1, "", "ERROR: Could not find a version "
+                                           "that satisfies the requirement daqp")
+
+    real = daqp_harness.daqp_sources
+    monkeypatch.setattr(subprocess, "run", no_network)
+    monkeypatch.setattr(peer_daqp_c, "daqp_sources",
+                        lambda version, cache_dir=None: real(version, tmp_path / "sdist"))
+    monkeypatch.delenv("ROLLMPC_DEBUG", raising=False)
+    code = main(["bench", str(CHAIN), "--variants", "default,daqp_c", "--steps", "40",
+                 "--quiet", "--build-dir", str(tmp_path / "b")])
+    err = capsys.readouterr().err
+    assert code == 1 and err.count("\n") == 1, err
+    assert "DAQP's C comes from its sdist" in err and "Could not find a version" in err

@@ -70,7 +70,10 @@ def daqp_sources(version: str, cache_dir: Path | None = None) -> Path:
                "--disable-pip-version-check", f"daqp=={version}", "-d", str(cache)]
         proc = subprocess.run(cmd, capture_output=True, text=True)
         if proc.returncode != 0 or not tarball.is_file():
-            raise DaqpSourceUnavailable(f"{' '.join(cmd)} failed:\n{proc.stderr.strip()}")
+            why = (proc.stderr.strip().splitlines() or ["no sdist downloaded"])[-1]
+            raise DaqpSourceUnavailable(
+                f"DAQP's C comes from its sdist, downloaded once into {cache} (needs pip "
+                f"and network to PyPI): {why}\n{' '.join(cmd)}\n{proc.stderr.strip()}")
     tmp = cache / f"{top}.tmp"
     shutil.rmtree(tmp, ignore_errors=True)
     with tarfile.open(tarball) as tar:
