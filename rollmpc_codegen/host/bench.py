@@ -58,6 +58,8 @@ PEERS = {
     "osqp": "OSQP (default)",
     "osqp_tight": "OSQP (eps 1e-9, polish)",
 }
+# the rows timed by our own clock (host.peer_daqp_c), each with what it times
+SAME_CLOCK_PEERS = {"daqp_c": "step", "daqp_c_solve": "solve"}
 ROWS = (*C_VARIANTS, *PEERS)
 REFERENCE_ROW = "quadprog"  # the error columns' reference: it always runs
 OURS_AND_PEERS = ("default", "quadprog", "daqp", "osqp")  # the rows run by default
@@ -116,10 +118,10 @@ def make_peer(key: str, model, build_root: Path | None):
     qps = [mm.qp for mm in model.modes]
     if key == "daqp":
         return DaqpPeer(qps)
-    if key in ("daqp_c", "daqp_c_solve"):
+    if key in SAME_CLOCK_PEERS:
         from .peer_daqp_c import DaqpCPeer
 
-        return DaqpCPeer(model, "solve" if key == "daqp_c_solve" else "step", build_root)
+        return DaqpCPeer(model, SAME_CLOCK_PEERS[key], build_root)
     return OsqpPeer(qps, **(OSQP_TIGHT if key == "osqp_tight" else {}))
 
 
@@ -191,8 +193,8 @@ def run_bench(config: str | Path, *, precision: str | None = None,
 
             rep = repeated(key, once)
             label = PEERS[key]
-            timer = (f"C ({peer_module(key)} info)" if key in ("daqp", "osqp", "osqp_tight")
-                     else "C (same clock as solve_ticks)")
+            timer = ("C (same clock as solve_ticks)" if key in SAME_CLOCK_PEERS
+                     else f"C ({peer_module(key)} info)")
         replays[key] = rep
         rows.append(row_summary(key, label, timer, rep, ref, seq, idx, model))
     summary = {

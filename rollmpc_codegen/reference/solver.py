@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..features.move_blocking import next_input_quantity
 from ..features.soft_constraints import slacks as multiplier_slacks
 from ..qp.storage import ModeData
 from ..qp.work import correct_work, finish_work, predict_work, scan_work, sweep_work
@@ -81,6 +82,10 @@ class SolverRef(UnconstrainedMixin, RowsMixin, SoftRowsMixin, SweepsMixin, Prima
         self.stages = md.n_yq // md.ny
         self.mode_index, self.from_plan = mode, False
         self.last_plan = last_plan or LastPlan(self.stages)
+        # each input's value one stage later: the rule of the shifted warm start's rows
+        blocks = ((1,) * self.stages if md.stage_block is None
+                  else tuple(np.bincount(md.stage_block)))
+        self.next_input = next_input_quantity(blocks, md.nu)
         self.one, self.zero = dt(1.0), dt(0.0)
         # the bound data: baked (md), or live with runtime_bounds (ControllerRef.set_bounds)
         self.row_c, self.u_min, self.u_max = md.row_c, md.u_min, md.u_max
@@ -113,12 +118,7 @@ class SolverRef(UnconstrainedMixin, RowsMixin, SoftRowsMixin, SweepsMixin, Prima
         if plan.mode != self.mode_index or plan.age >= self.stages - 1:
             return th0
         self.from_plan = True
-        nu, sb = self.md.nu, self.md.stage_block
-        if sb is None:  # unblocked: a block per stage
-            sb = np.arange(self.stages)
-        src = [sb[t + 1] if t + 1 < self.stages else sb[t]  # the block one stage later
-               for t in range(self.stages) if t == 0 or sb[t] != sb[t - 1]]
-        return plan.U[:self.md.n].reshape(-1, nu)[src].reshape(-1).copy()
+        return plan.U[:self.md.n][self.next_input]
 
     def time_limit_at_th0(self, th0, polished):
         """Mirror of time_limit_at_th0(): TIME_LIMIT at fallback_point(), lam where a
