@@ -128,3 +128,47 @@ def test_reference_rows_keep_the_head_and_append_the_tail(uav_double):
     assert ref.factor_rows is None
     rows = solve(range(48))  # a new factor takes the smaller order: 48 bound rows
     assert rows.form == BOUND and rows.head == list(range(48)) and rows.tail == []
+
+
+def test_tail_keeps_joining_order_and_its_generations(uav_double):
+    """An input that joins the free form's tail goes after the tail rows already there,
+    even where it sorts before them: only its own row is factored. Each update that
+    appends starts a generation; when ROLE_GEN_MAX generations are used up the next
+    solve takes a new factor (the C keeps the generation in 5 bits of input_role)."""
+    from rollmpc_codegen.reference.polish_primal import GEN_MAX
+    from rollmpc_codegen.reference.solver import SolverRef
+
+    md = uav_double.model.modes[1].data
+    ref = SolverRef(md, uav_double.ctx["solver"])
+    n = md.n
+    lower = {int(q): r for r, q in enumerate(md.row_q) if q < n and md.row_sign[r] < 0}
+    th0 = np.zeros(n)
+
+    def solve(free):
+        bound = [q for q in range(81) if q not in free]
+        W = np.array(sorted(lower[q] for q in bound), np.int64)
+        ref.work = 0
+        order, rows, start = ref.primal_order(np.isin(np.arange(n), bound),
+                                              BOUND if len(bound) < n - len(bound) else FREE)
+        ok, _, _ = ref.primal_solve(th0, W, 0)
+        assert ok and ref.factor_rows == rows
+        return rows, start
+
+    solve(set())  # head 99..81
+    rows, start = solve({3})
+    assert (rows.tail, rows.gens, start) == ([3], [1], 19)
+    rows, start = solve({3, 10})  # 10 sorts before 3 in the free form, yet goes after it
+    assert (rows.tail, rows.gens, start) == ([3, 10], [1, 2], 20)
+    rows, start = solve({3, 10, 7, 20})  # one generation, in the head's order
+    assert (rows.tail, rows.gens, start) == ([3, 10, 20, 7], [1, 2, 3, 3], 21)
+    rows, start = solve({3, 20, 7})  # 10 leaves: the rows from its position on
+    assert (rows.tail, rows.gens, start) == ([3, 20, 7], [1, 3, 3], 20)
+    free = {3, 20, 7}
+    for q in range(21, 21 + GEN_MAX - 3):  # up to the last generation, one input each
+        free.add(q)
+        rows, start = solve(free)
+    assert rows.gens[-1] == GEN_MAX and start == 19 + len(rows.tail) - 1
+    free.add(79)
+    rows, start = solve(free)  # no generation left: a new factor, every row in the head
+    nb = 81 - len(free)
+    assert rows.tail == [] and start == 0 and len(rows.head) == min(nb, n - nb)

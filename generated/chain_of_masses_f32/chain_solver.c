@@ -1029,20 +1029,23 @@ static int violated_outside(chain_work *ws, const chain_mode_data *md,
  *  - bound form (FORM_BOUND): Cholesky L of (S^-1)_BB over the bound inputs B.
  * Consecutive solves of one QP differ by a few inputs, so the factor is kept and updated:
  * its rows follow an order that keeps the rows of the last full factorisation first (the
- * head) and the inputs that joined since at the end (the tail; see primal_order()). An
- * input that leaves, or joins the tail before others, changes the rows from its position
- * on, and only those rows are factored again: the row-oriented Cholesky computes row i
- * from the rows above it alone, so the factor is bit for bit the one a full
- * factorisation in that order gives, whether or not the rows above were kept. The NumPy
- * reference therefore needs no cache, and whatever else writes ws->chol in between (the
- * dual solves) costs only the saving, never a bit.
+ * head) and the inputs that joined since at the end, in joining order (the tail; see
+ * primal_order()). An input that leaves changes the rows from its position on, one that
+ * joins only its own row, and only those rows are factored again: the row-oriented
+ * Cholesky computes row i from the rows above it alone, so the factor is bit for bit the
+ * one a full factorisation in that order gives, whether or not the rows above were kept.
+ * The NumPy reference therefore needs no cache, and whatever else writes ws->chol in
+ * between (the dual solves) costs only the saving, never a bit.
  *
- * ws->input_role[i] flags input i (ROLE_*); ws->primal_form and ws->primal_head (the
- * head's rows) describe the factor of the previous primal solve of this QP
- * (primal_form = FORM_NONE at the start of each QP, see unconstrained()). The factor is
- * intact while ws->chol_holds is CHOL_PRIMAL: every other writer of ws->chol changes it.
+ * ws->input_role[i] flags input i (ROLE_*) and, for a tail row, holds its generation:
+ * 1 for the inputs that joined at the first update, one more at each update that appends
+ * inputs. ws->primal_form and ws->primal_head (the head's rows) describe the factor of the
+ * previous primal solve of this QP (primal_form = FORM_NONE at the start of each QP, see
+ * unconstrained()). The factor is intact while ws->chol_holds is CHOL_PRIMAL: every other
+ * writer of ws->chol changes it.
  */
 enum { ROLE_BOUND = 1, ROLE_HEAD = 2, ROLE_TAIL = 4 }; /* bound now; in the head, tail */
+enum { ROLE_GEN_SHIFT = 3, ROLE_GEN_MAX = 31 }; /* a tail row's generation: role >> 3 */
 enum { FORM_NONE = 0, FORM_FREE = 1, FORM_BOUND = 2 };
 
 /*
@@ -1067,55 +1070,88 @@ static int in_form(int role, int form)
     return ((role & ROLE_BOUND) != 0) == (form == FORM_BOUND);
 }
 
+/* The generation of a tail row (0 for the others). */
+static int role_gen(int role)
+{
+    return role >> ROLE_GEN_SHIFT;
+}
+
 /*
  * Compare the factor of the previous solve (form ws->primal_form) with the inputs of that
  * form now: returns the order k of the updated factor, sets *from to the first row that
- * changes (k when none does) and *head to the rows its head keeps. Head and tail run in
- * descending inputs in the free form, ascending in the bound form (primal_order()).
+ * changes (k when none does), *head to the rows its head keeps, *newest to the last
+ * generation of the tail rows it keeps and tail_rows[g] to the rows of generation g
+ * (g <= newest: the kept ones; newest + 1: the inputs that join). The head runs in
+ * descending inputs in the free form, ascending in the bound form, the tail by
+ * generation, each in the head's order (primal_order()): the first row to change is that
+ * of the first input to leave, in that order, or else the first to join, after every
+ * kept row.
  */
-static int primal_diff(const chain_work *ws, int n, int *from, int *head)
+static int primal_diff(const chain_work *ws, int n, int *from, int *head, int *newest,
+    int16_t tail_rows[ROLE_GEN_MAX + 2])
 {
+    /* inputs in ascending order: in the free form the head order is descending, so there
+     * the first row to leave is the last met, and the rows before it those met after it */
     const int form = ws->primal_form, down = form == FORM_FREE;
-    int t, k = 0, kept = 0, cut = -1, tail_before = 0;
-    for (t = 0; t < n; ++t) { /* inputs in head order */
-        const int role = ws->input_role[down ? n - 1 - t : t], in = in_form(role, form);
+    int i, g, k = 0, kept = 0, head_cut = -1, leave_gen = 0, leave_at = -1, joined = 0;
+    *newest = 0;
+    for (g = 0; g <= ROLE_GEN_MAX + 1; ++g) {
+        tail_rows[g] = 0;
+    }
+    for (i = 0; i < n; ++i) {
+        const int role = ws->input_role[i], in = in_form(role, form);
         k += in;
         if (role & ROLE_HEAD) {
-            cut = (cut < 0 && !in) ? kept : cut; /* the first head row that leaves */
+            head_cut = (!in && (down || head_cut < 0)) ? kept : head_cut; /* rows below */
             kept += in;
+        } else if (!(role & ROLE_TAIL)) {
+            joined += in;
+        } else if (in) {
+            g = role_gen(role);
+            tail_rows[g] = (int16_t)(tail_rows[g] + 1);
+            *newest = (g > *newest) ? g : *newest;
+        } else if (leave_at < 0 || role_gen(role) < leave_gen
+                   || (down && role_gen(role) == leave_gen)) {
+            leave_gen = role_gen(role); /* the first tail row to leave, so far */
+            leave_at = tail_rows[leave_gen]; /* its generation's kept rows below it */
         }
     }
     *head = kept;
-    if (cut >= 0) {
-        *from = cut;
+    tail_rows[*newest + 1] = (int16_t)joined;
+    if (head_cut >= 0) {
+        *from = down ? kept - head_cut : head_cut;
         return k;
     }
-    for (t = 0; t < n; ++t) { /* the tail: the first input to leave or join it */
-        const int role = ws->input_role[down ? n - 1 - t : t];
-        if (!(role & ROLE_HEAD)) {
-            if ((role & ROLE_TAIL) ? !in_form(role, form) : in_form(role, form)) {
-                *from = kept + tail_before;
-                return k;
-            }
-            tail_before += (role & ROLE_TAIL) != 0;
-        }
+    *from = kept + ((leave_at < 0) ? 0 : down ? tail_rows[leave_gen] - leave_at : leave_at);
+    for (g = 1; g <= *newest && (leave_at < 0 || g < leave_gen); ++g) {
+        *from += tail_rows[g];
     }
-    *from = k;
     return k;
 }
 
 /*
  * The rows of the factor in order into ws->tmp[0..k): the head (an update: the rows the
- * head keeps; a new factor: all k), then the tail, each in descending inputs in the free
- * form and ascending in the bound form: in an MPC plan the inputs that saturate come
- * first along the horizon, so the inputs next to the saturated ones, where the working
- * set changes, come last. The other inputs follow in ws->tmp[k..n), ascending. Sets the
- * roles to match and ws->primal_form, ws->primal_head.
+ * head keeps; a new factor: all k) in descending inputs in the free form and ascending in
+ * the bound form: in an MPC plan the inputs that saturate come first along the horizon,
+ * so the inputs next to the saturated ones, where the working set changes, come last.
+ * Then (an update) the tail: the kept tail rows by generation, then the inputs that
+ * join as generation newest + 1, each generation in the head's order (tail_rows[g] rows
+ * each, from primal_diff()). The other inputs follow in ws->tmp[k..n), ascending. Sets
+ * the roles to match and ws->primal_form, ws->primal_head.
  */
-static void primal_order(chain_work *ws, int n, int form, int update, int k, int head)
+static void primal_order(chain_work *ws, int n, int form, int update, int k, int head,
+    int newest, int16_t tail_rows[ROLE_GEN_MAX + 2])
 {
-    const int down = form == FORM_FREE;
-    int i, h = down ? head - 1 : 0, tail = down ? k - 1 : head, rest = k;
+    const int down = form == FORM_FREE, step = down ? -1 : 1;
+    int i, g, h = down ? head - 1 : 0, rest = k;
+    if (update) { /* tail_rows[g]: where generation g's next input goes, in ascending inputs */
+        int at = head;
+        for (g = 1; g <= newest + 1; ++g) {
+            const int rows = tail_rows[g];
+            tail_rows[g] = (int16_t)(down ? at + rows - 1 : at);
+            at += rows;
+        }
+    }
     for (i = 0; i < n; ++i) {
         const int role = ws->input_role[i], bound = role & ROLE_BOUND;
         if (!in_form(role, form)) {
@@ -1123,12 +1159,13 @@ static void primal_order(chain_work *ws, int n, int form, int update, int k, int
             ws->input_role[i] = (uint8_t)bound;
         } else if (!update || (role & ROLE_HEAD)) {
             ws->tmp[h] = (int16_t)i;
-            h += down ? -1 : 1;
+            h += step;
             ws->input_role[i] = (uint8_t)(bound | ROLE_HEAD);
         } else {
-            ws->tmp[tail] = (int16_t)i;
-            tail += down ? -1 : 1;
-            ws->input_role[i] = (uint8_t)(bound | ROLE_TAIL);
+            g = (role & ROLE_TAIL) ? role_gen(role) : newest + 1;
+            ws->tmp[tail_rows[g]] = (int16_t)i;
+            tail_rows[g] = (int16_t)(tail_rows[g] + step);
+            ws->input_role[i] = (uint8_t)(bound | ROLE_TAIL | (g << ROLE_GEN_SHIFT));
         }
     }
     ws->primal_form = (int16_t)form;
@@ -1349,7 +1386,9 @@ static int primal_solve(chain_work *ws, const chain_mode_data *md, int nw,
     uint32_t reserve)
 {
     const int n = md->n;
-    int i, k, head, from = 0, form = (nw < n - nw) ? FORM_BOUND : FORM_FREE, update = 0;
+    int i, k, head, newest = 0, from = 0, form = (nw < n - nw) ? FORM_BOUND : FORM_FREE;
+    int update = 0;
+    int16_t tail_rows[ROLE_GEN_MAX + 2]; /* per generation: rows, then next position */
     int adjacent = 0; /* bound inputs next to a bound one set before: nw - adjacent runs */
     for (i = 0; i < n; ++i) {
         ws->input_role[i] = (uint8_t)(ws->input_role[i] & ~ROLE_BOUND);
@@ -1366,12 +1405,13 @@ static int primal_solve(chain_work *ws, const chain_mode_data *md, int nw,
     }
     k = (form == FORM_BOUND) ? nw : n - nw;
     head = k;
-    /* the previous factor, unless it would grow to every input (a new one is then cheaper) */
+    /* the previous factor, unless it would grow to every input (a new one is then cheaper)
+     * or its tail has used up the generations (a new one starts them again) */
     if (ws->primal_form != FORM_NONE && ((ws->primal_form == FORM_FREE) ? nw > 0 : nw < n)) {
         int k_up, head_up;
-        k_up = primal_diff(ws, n, &from, &head_up);
-        update = ws->primal_form == form
-            || primal_cost(md, k_up, from) <= primal_cost(md, k, 0);
+        k_up = primal_diff(ws, n, &from, &head_up, &newest, tail_rows);
+        update = newest < ROLE_GEN_MAX && (ws->primal_form == form
+            || primal_cost(md, k_up, from) <= primal_cost(md, k, 0));
         if (update) {
             form = ws->primal_form;
             k = k_up;
@@ -1398,7 +1438,7 @@ static int primal_solve(chain_work *ws, const chain_mode_data *md, int nw,
         ws->th[q] = (md->row_sign[r] > 0) ? md->row_c[r] : -md->row_c[r];
         ws->dv[q] = ws->th[q] - ws->th0[q];
     }
-    primal_order(ws, n, form, update, k, head);
+    primal_order(ws, n, form, update, k, head, newest, tail_rows);
     if (primal_factor(ws, md, k, from) != 0) {
         return -1;
     }

@@ -24,13 +24,20 @@ from .polish_dual import CHOL_NONE, CHOL_PRIMAL, OUT_OF_WORK
 FREE, BOUND = 1, 2  # FORM_FREE, FORM_BOUND
 
 
+# The C keeps a tail row's generation in the high bits of ws->input_role (ROLE_GEN_*):
+# 1 for the inputs of the first update, one more for each update that appends inputs.
+GEN_MAX = 31
+
+
 class FactorRows(NamedTuple):
-    """The C's ws->primal_form and its rows: the head (the last full factorisation's) then
-    the tail (inputs that joined since), each in descending inputs in the free form and
-    ascending in the bound form."""
+    """The C's ws->primal_form and its rows: the head (the last full factorisation's), in
+    descending inputs in the free form and ascending in the bound form, then the tail
+    (inputs that joined since) in joining order: by generation (``gens``, one per tail
+    row), each generation in the head's order."""
     form: int
     head: list
     tail: list
+    gens: list
 
 
 def primal_cost(n: int, nt: int, k: int, p: int) -> int:
@@ -83,24 +90,27 @@ class PrimalPolishMixin:
         prev = self.factor_rows
         if prev is not None and (nw > 0 if prev.form == FREE else nw < n):
             member = bound if prev.form == BOUND else ~bound
+            kept = [(g, q) for g, q in zip(prev.gens, prev.tail) if member[q]]
+            newest = max((g for g, _ in kept), default=0)
             head = [q for q in prev.head if member[q]]
-            tail = sorted([q for q in prev.tail if member[q]]
-                          + [int(q) for q in np.flatnonzero(member)
+            joined = sorted([int(q) for q in np.flatnonzero(member)
                              if q not in prev.head and q not in prev.tail],
-                          reverse=prev.form == FREE)
+                            reverse=prev.form == FREE)  # appended: the rows above stay
+            tail = [q for _, q in kept] + joined
+            gens = [g for g, _ in kept] + [newest + 1] * len(joined)
             old, new = prev.head + prev.tail, head + tail
             start = next((i for i, (a, b) in enumerate(zip(old, new)) if a != b),
                          min(len(old), len(new)))
             k_new = nw if form == BOUND else n - nw
             nt = self.md.nt
-            if prev.form == form or (primal_cost(n, nt, len(new), start)
-                                     <= primal_cost(n, nt, k_new, 0)):
-                return new, FactorRows(prev.form, head, tail), start
+            if newest < GEN_MAX and (prev.form == form or (primal_cost(n, nt, len(new), start)
+                                                           <= primal_cost(n, nt, k_new, 0))):
+                return new, FactorRows(prev.form, head, tail, gens), start
         member = bound if form == BOUND else ~bound
         head = [int(q) for q in np.flatnonzero(member)]
         if form == FREE:
             head.reverse()
-        return head, FactorRows(form, head, []), 0
+        return head, FactorRows(form, head, [], []), 0
 
     def primal_factor(self, order):
         """Mirror of primal_factor(): L of S_FF or (S^-1)_BB and Y = L^-1 V_F' or
