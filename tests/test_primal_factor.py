@@ -18,7 +18,7 @@ import pytest
 
 from rollmpc_codegen.codegen.render import render_sources
 from rollmpc_codegen.reference.linalg import chol_lsolve_packed, cholesky_packed
-from rollmpc_codegen.reference.polish_primal import BOUND, FREE
+from rollmpc_codegen.reference.primal_rows import BOUND, FREE
 from conftest import require_tool
 
 PREFIX = "rollmpc"
@@ -135,7 +135,7 @@ def test_tail_keeps_joining_order_and_its_generations(uav_double):
     even where it sorts before them: only its own row is factored. Each update that
     appends starts a generation; when ROLE_GEN_MAX generations are used up the next
     solve takes a new factor (the C keeps the generation in 5 bits of input_role)."""
-    from rollmpc_codegen.reference.polish_primal import GEN_MAX
+    from rollmpc_codegen.reference.primal_rows import GEN_MAX
     from rollmpc_codegen.reference.solver import SolverRef
 
     md = uav_double.model.modes[1].data
@@ -148,7 +148,7 @@ def test_tail_keeps_joining_order_and_its_generations(uav_double):
         bound = [q for q in range(81) if q not in free]
         W = np.array(sorted(lower[q] for q in bound), np.int64)
         ref.work = 0
-        order, rows, start = ref.primal_order(np.isin(np.arange(n), bound),
+        order, rows, start, _ = ref.primal_order(np.isin(np.arange(n), bound),
                                               BOUND if len(bound) < n - len(bound) else FREE)
         ok, _, _ = ref.primal_solve(th0, W, 0)
         assert ok and ref.factor_rows == rows
@@ -172,3 +172,44 @@ def test_tail_keeps_joining_order_and_its_generations(uav_double):
     rows, start = solve(free)  # no generation left: a new factor, every row in the head
     nb = 81 - len(free)
     assert rows.tail == [] and start == 0 and len(rows.head) == min(nb, n - nb)
+
+
+def test_a_row_that_leaves_mid_factor_is_deleted_by_an_update(uav_double):
+    """Free form on the paper's outer mode: input 80 becoming bound leaves the descending
+    head at position 19 of 40. Deleting its row by a rank-one update of the 20 rows below
+    (Y carried) costs less than factoring them again, so the solve keeps them: the charge
+    is the deletion's plus a solve with no row factored, and the updated L and Y are those
+    of the new order (L L' = S_FF, L Y = V_F'), to rounding."""
+    from rollmpc_codegen.qp.work import primal_delete_work, primal_work
+    from rollmpc_codegen.reference.linalg import _tri_offsets
+    from rollmpc_codegen.reference.solver import SolverRef
+
+    md = uav_double.model.modes[1].data
+    ref = SolverRef(md, uav_double.ctx["solver"])
+    n = md.n
+    lower = {int(q): r for r, q in enumerate(md.row_q) if q < n and md.row_sign[r] < 0}
+
+    def solve(bound_inputs):
+        W = np.array(sorted(lower[q] for q in bound_inputs), np.int64)
+        ref.work = 0
+        ok, th, _ = ref.primal_solve(np.zeros(n), W, 0)
+        assert ok and np.all(np.isfinite(th))
+        return W
+
+    solve(range(60))
+    assert ref.factor_rows.head == list(range(99, 59, -1))
+    W = solve([*range(60), 80])
+    order = [q for q in range(99, 59, -1) if q != 80]
+    assert ref.factor_rows.head == order and list(ref._idx) == order
+    runs = 2  # bound runs: 0..59 and 80
+    assert ref.work == primal_delete_work(19, 40, md.nt) + primal_work(
+        md, W.size, 39, 39, False, runs) < primal_work(md, W.size, 39, 19, False, runs)
+    k, tri = 39, _tri_offsets(39)
+    L = np.zeros((k, k))
+    for i in range(k):
+        L[i, :i + 1] = ref._chol[tri[i]:tri[i] + i + 1]
+    idx = np.array(order)
+    S_FF = ref.S[np.ix_(idx, idx)]
+    assert np.allclose(L @ L.T, S_FF, rtol=1e-12, atol=1e-12 * np.abs(S_FF).max())
+    assert np.allclose(L @ ref._Y.T, md.V[:, idx].T, rtol=1e-10,
+                       atol=1e-12 * np.abs(md.V).max())

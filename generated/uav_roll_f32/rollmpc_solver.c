@@ -150,6 +150,12 @@ static uint32_t delete_work(int k, int n)
     return (a * a - b * b) / 2u + a + rank_one_work((n - 1 - k > 0) ? n - 1 - k : 0);
 }
 
+/* chol_delete() of the primal factor's row k from order n, carrying Y's nt columns. */
+static uint32_t primal_delete_work(int k, int n, int nt)
+{
+    return delete_work(k, n) + 4u * (uint32_t)nt * (uint32_t)(n - k);
+}
+
 /* factor_working_set() of nw rows: their H entries, then the factorisation. */
 static uint32_t factor_work(const rollmpc_mode_data *md, int nw)
 {
@@ -796,12 +802,15 @@ static int row_violated(const rollmpc_work *ws, const rollmpc_mode_data *md,
  * L L' +- v v' on the trailing block of the packed factor l (order n) from row and column
  * `from` on, v holding the vector's entries from..n-1 (overwritten): the rotations of the
  * classic rank-one update, hyperbolic ones for a downdate. No entry of H is read again.
+ * `carry` (ncarry columns of stride N_MAX, or none) are solves y = L^-1 b that the same
+ * rotations carry along (chol_delete()): column o's entry n holds the extra one.
  * Returns -1 when a downdated pivot keeps no more than DEPENDENCE_TOL of its square: the
  * factor is then not valid, and the caller refactors from scratch.
  */
-static int chol_rank_one(rollmpc_real *l, int from, int n, rollmpc_real *v, int downdate)
+static int chol_rank_one(rollmpc_real *l, int from, int n, rollmpc_real *v, int downdate,
+    rollmpc_real *carry, int ncarry)
 {
-    int i, j;
+    int i, j, o;
     for (j = from; j < n; ++j) {
         const rollmpc_real ljj = l[ROLLMPC_TRI(j, j)], vj = v[j];
         const rollmpc_real r2 = downdate ? (ljj - vj) * (ljj + vj) : ljj * ljj + vj * vj;
@@ -821,6 +830,12 @@ static int chol_rank_one(rollmpc_real *l, int from, int n, rollmpc_real *v, int 
             v[i] = c * v[i] - s * lij;
             off += i + 1;
         }
+        for (o = 0; o < ncarry; ++o) { /* entry j of the solve, as an entry of column j */
+            rollmpc_real *y = &carry[o * ROLLMPC_N_MAX];
+            const rollmpc_real yj = (downdate ? y[j] - s * y[n] : y[j] + s * y[n]) * ic;
+            y[j] = yj;
+            y[n] = c * y[n] - s * yj;
+        }
     }
     return 0;
 }
@@ -828,11 +843,14 @@ static int chol_rank_one(rollmpc_real *l, int from, int n, rollmpc_real *v, int 
 /*
  * Delete row and column k of the factored matrix (order n): the rows below k move up one,
  * dropping their entry k, and that entry (the column below the old pivot) updates the
- * trailing block by rank one. v: scratch of n entries.
+ * trailing block by rank one. v: scratch of n entries. The solves `carry` (ncarry
+ * columns of stride N_MAX, L^-1 b for right-hand sides b) become those of b without entry
+ * k: their entries below k move up and the same rotations take entry k out.
  */
-static void chol_delete(rollmpc_real *l, int k, int n, rollmpc_real *v)
+static void chol_delete(rollmpc_real *l, int k, int n, rollmpc_real *v,
+    rollmpc_real *carry, int ncarry)
 {
-    int i, j, dst = ROLLMPC_TRI(k, 0), src = ROLLMPC_TRI(k + 1, 0);
+    int i, j, o, dst = ROLLMPC_TRI(k, 0), src = ROLLMPC_TRI(k + 1, 0);
     for (i = k + 1; i < n; ++i) {
         for (j = 0; j <= i; ++j, ++src) {
             if (j == k) {
@@ -842,7 +860,15 @@ static void chol_delete(rollmpc_real *l, int k, int n, rollmpc_real *v)
             }
         }
     }
-    (void)chol_rank_one(l, k, n - 1, v, 0); /* an update cannot break down */
+    for (o = 0; o < ncarry; ++o) { /* entry k to the end, where the rotations read it */
+        rollmpc_real *y = &carry[o * ROLLMPC_N_MAX];
+        const rollmpc_real yk = y[k];
+        for (i = k + 1; i < n; ++i) {
+            y[i - 1] = y[i];
+        }
+        y[n - 1] = yk;
+    }
+    (void)chol_rank_one(l, k, n - 1, v, 0, carry, ncarry); /* an update cannot break down */
 }
 
 /*
@@ -1030,12 +1056,13 @@ static int violated_outside(rollmpc_work *ws, const rollmpc_mode_data *md,
  * Consecutive solves of one QP differ by a few inputs, so the factor is kept and updated:
  * its rows follow an order that keeps the rows of the last full factorisation first (the
  * head) and the inputs that joined since at the end, in joining order (the tail; see
- * primal_order()). An input that leaves changes the rows from its position on, one that
- * joins only its own row, and only those rows are factored again: the row-oriented
- * Cholesky computes row i from the rows above it alone, so the factor is bit for bit the
- * one a full factorisation in that order gives, whether or not the rows above were kept.
- * The NumPy reference therefore needs no cache, and whatever else writes ws->chol in
- * between (the dual solves) costs only the saving, never a bit.
+ * primal_order()). An input that joins factors only its own row (the row-oriented
+ * Cholesky computes row i from the rows above it alone). The row of one that leaves is
+ * deleted by a rank-one update of the rows below it, Y carried along (primal_deletes(),
+ * chol_delete()), when that costs less than factoring those rows again from its
+ * position; else they are factored again. The NumPy reference keeps the factor as the C
+ * does and mirrors both, bit for bit. Whatever else writes ws->chol in between (the dual
+ * solves) makes the next primal solve factor from scratch.
  *
  * ws->input_role[i] flags input i (ROLE_*) and, for a tail row, holds its generation:
  * 1 for the inputs that joined at the first update, one more at each update that appends
@@ -1170,6 +1197,65 @@ static void primal_order(rollmpc_work *ws, int n, int form, int update, int k, i
     }
     ws->primal_form = (int16_t)form;
     ws->primal_head = (int16_t)head;
+}
+
+/*
+ * The rows of the previous factor in their order into ws->tmp[0..k_old), from the roles
+ * primal_order() left: the head, then the tail by generation, each in the head's order
+ * (descending inputs in the free form). Returns k_old.
+ */
+static int primal_old_order(rollmpc_work *ws, int n)
+{
+    const int down = ws->primal_form == FORM_FREE, step = down ? -1 : 1;
+    int16_t next[ROLE_GEN_MAX + 1]; /* per generation (0: the head): rows, then position */
+    int i, g, at = 0;
+    for (g = 0; g <= ROLE_GEN_MAX; ++g) {
+        next[g] = 0;
+    }
+    for (i = 0; i < n; ++i) {
+        const int role = ws->input_role[i];
+        if (role & (ROLE_HEAD | ROLE_TAIL)) {
+            g = role_gen(role);
+            next[g] = (int16_t)(next[g] + 1);
+        }
+    }
+    for (g = 0; g <= ROLE_GEN_MAX; ++g) {
+        const int rows = next[g];
+        next[g] = (int16_t)(down ? at + rows - 1 : at);
+        at += rows;
+    }
+    for (i = 0; i < n; ++i) {
+        const int role = ws->input_role[i];
+        if (role & (ROLE_HEAD | ROLE_TAIL)) {
+            g = role_gen(role);
+            ws->tmp[next[g]] = (int16_t)i;
+            next[g] = (int16_t)(next[g] + step);
+        }
+    }
+    return at;
+}
+
+/*
+ * The rows of the previous factor (order k_old, in ws->tmp) whose inputs left the form,
+ * deleted from the last up by chol_delete(), Y's columns carried (apply), or only costed
+ * (!apply). Returns their work.
+ */
+static uint32_t primal_deletes(rollmpc_work *ws, const rollmpc_mode_data *md, int k_old,
+    int apply)
+{
+    const int form = ws->primal_form;
+    int pos, k = k_old;
+    uint32_t work = 0u;
+    for (pos = k_old - 1; pos >= 0; --pos) {
+        if (!in_form(ws->input_role[ws->tmp[pos]], form)) {
+            work += primal_delete_work(pos, k, md->nt);
+            if (apply) {
+                chol_delete(ws->chol, pos, k, ws->rhs, ws->ycol, md->nt);
+            }
+            --k;
+        }
+    }
+    return work;
 }
 
 /*
@@ -1422,14 +1508,31 @@ static int primal_solve(rollmpc_work *ws, const rollmpc_mode_data *md, int nw,
         from = 0;
     }
     {
-        const int start = (ws->chol_holds == ROLLMPC_CHOL_PRIMAL) ? from : 0;
-        const uint32_t cost = primal_work(md, nw, k, start, form == FORM_BOUND, nw - adjacent);
+        const int intact = ws->chol_holds == ROLLMPC_CHOL_PRIMAL, runs = nw - adjacent;
+        const int bound_form = form == FORM_BOUND;
+        int k_old = 0; /* > 0: rows leave by chol_delete() */
+        uint32_t cost = primal_work(md, nw, k, intact ? from : 0, bound_form, runs);
         /* the free form's multipliers are charged by free_multipliers(), granted here */
-        const uint32_t later = (form == FORM_BOUND) ? 0u : multipliers_work(md, nw);
+        const uint32_t later = bound_form ? 0u : multipliers_work(md, nw);
+        if (update && intact && from < k - tail_rows[newest + 1]) {
+            /* rows leave from inside the kept factor: deleting them by updates keeps the
+             * rows below them, when that costs less than factoring those again */
+            const int kept = k - tail_rows[newest + 1], k_prev = primal_old_order(ws, n);
+            const uint32_t by_update = primal_deletes(ws, md, k_prev, 0)
+                + primal_work(md, nw, k, kept, bound_form, runs);
+            if (by_update < cost) {
+                cost = by_update;
+                k_old = k_prev;
+                from = kept;
+            }
+        }
         if (!afford(ws, md, cost + later + reserve)) {
             return OUT_OF_WORK;
         }
         ws->work += cost;
+        if (k_old > 0) {
+            (void)primal_deletes(ws, md, k_old, 1);
+        }
     }
     /* the bound inputs at their bounds only now: out of work, ws->th is still the caller's
      * last point, which TIME_LIMIT returns (the reference's th on entry) */
@@ -1522,6 +1625,12 @@ static void append_row(rollmpc_work *ws, const rollmpc_mode_data *md, int p, int
     }
 }
 
+/* Row r is out of the working set: not flagged in it, its slack (if soft) off. */
+static void forget_row(rollmpc_work *ws, int r)
+{
+    ws->in_set[r] = 0;
+}
+
 /*
  * Working-set position k leaves (wset and z shift down); a kept dual factor loses its row
  * and column by a rank-one update of the rows below (chol_delete(), scratch ws->rhs).
@@ -1529,10 +1638,10 @@ static void append_row(rollmpc_work *ws, const rollmpc_mode_data *md, int p, int
 static void remove_row(rollmpc_work *ws, int k, int *nw)
 {
     int i;
-    ws->in_set[ws->wset[k]] = 0;
+    forget_row(ws, ws->wset[k]);
     if (ws->chol_holds == ROLLMPC_CHOL_DUAL) {
         ws->work += delete_work(k, *nw);
-        chol_delete(ws->chol, k, *nw, ws->rhs);
+        chol_delete(ws->chol, k, *nw, ws->rhs, NULL, 0);
     }
     for (i = k; i + 1 < *nw; ++i) {
         ws->wset[i] = ws->wset[i + 1];
@@ -1653,8 +1762,8 @@ static int given_up(int keep, int nw, int guess)
 }
 
 /*
- * Drop the working-set rows with negative multipliers (remove_row(), from the last
- * position down). Returns 0 if none was dropped, 1 if some were (solve again), -1 if the
+ * Drop the working-set rows with negative multipliers (with a dual factor to update,
+ * remove_row() from the last position down; else in one pass). Returns 0 if none was dropped, 1 if some were (solve again), -1 if the
  * working set is to be given up: emptied, or a guess (see polish()) that would lose more
  * than half of its rows; OUT_OF_WORK if the budget cannot afford the deletions.
  */
@@ -1671,6 +1780,19 @@ static int drop_negative(rollmpc_work *ws, const rollmpc_mode_data *md, int *nw,
     if (ws->chol_holds == ROLLMPC_CHOL_DUAL
         && !afford(ws, md, ((uint32_t)*nw - (uint32_t)keep) * delete_work(0, *nw))) {
         return OUT_OF_WORK;
+    }
+    if (ws->chol_holds != ROLLMPC_CHOL_DUAL) { /* no factor to update: one pass */
+        int kept = 0;
+        for (i = 0; i < *nw; ++i) {
+            if (ws->z[i] >= R_(0.0)) {
+                ws->wset[kept] = ws->wset[i];
+                ws->z[kept++] = ws->z[i];
+            } else {
+                forget_row(ws, ws->wset[i]);
+            }
+        }
+        *nw = kept;
+        return 1;
     }
     for (i = *nw - 1; i >= 0; --i) {
         if (!(ws->z[i] >= R_(0.0))) {

@@ -118,6 +118,11 @@ def delete_work(k: int, n: int) -> int:
     return (n * n - k * k) // 2 + n + rank_one_work(max(n - 1 - k, 0))
 
 
+def primal_delete_work(k: int, n: int, nt: int) -> int:
+    """chol_delete() of the primal factor's row k from order n, carrying Y's nt columns."""
+    return delete_work(k, n) + 4 * nt * (n - k)
+
+
 def factor_work(m, nw: int, factor: int) -> int:
     return nw * (nw + 1) // 2 * hq_work(m, factor) + chol_work(nw)
 

@@ -42,10 +42,11 @@ def cholesky_packed(a: np.ndarray, n: int, start: int = 0) -> bool:
     return True
 
 
-def chol_lsolve_packed(l: np.ndarray, n: int, b: np.ndarray) -> None:
-    """Mirror of ``P_chol_lsolve`` (L y = b, in place on b)."""
+def chol_lsolve_packed(l: np.ndarray, n: int, b: np.ndarray, start: int = 0) -> None:
+    """Mirror of ``P_chol_lsolve_from`` (L y = b, in place on b, rows ``start``..n-1; the
+    rows above already hold y)."""
     tri = _tri_offsets(n)
-    for i in range(n):
+    for i in range(start, n):
         s = seqsum(-(l[tri[i]:tri[i] + i] * b[:i]), start=b[i])
         b[i] = s / l[tri[i] + i]
 

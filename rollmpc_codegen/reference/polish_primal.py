@@ -3,15 +3,13 @@ working set of input bounds only, in free-variable form (Cholesky of S_FF) or bo
 (Cholesky of (S^-1)_BB), the factor of the previous solve of the QP updated when cheaper.
 
 :class:`PrimalPolishMixin` is part of :class:`~.solver.SolverRef`; it reads ``md``,
-``row_c``, ``S`` and ``Sinv``.  The C keeps its factor and refactors only the rows that
-change; each row is bit for bit the full factorisation's in the same row order, so the
-reference keeps only that order (:attr:`factor_rows`, reset by ``unconstrained()``) and
-factors in full.  A free-form solve leaves (d, nu) in ``_free_state`` for
-:meth:`free_multipliers`, as the C leaves them in ``ws->dv`` and ``ws->nu``.
+``row_c``, ``S`` and ``Sinv``.  Like the C it keeps the factor and Y between the solves of
+one QP (``_chol``, ``_Y``, valid while ``chol_holds`` is CHOL_PRIMAL) and factors again
+only the rows that change, after deleting by updates the rows that left
+(:mod:`.primal_rows` chooses which).  A free-form solve leaves (d, nu) in ``_free_state``
+for :meth:`free_multipliers`, as the C leaves them in ``ws->dv`` and ``ws->nu``.
 """
 from __future__ import annotations
-
-from typing import NamedTuple
 
 import numpy as np
 
@@ -19,38 +17,12 @@ from .dot import s_row_dots
 from .linalg import (chol_lsolve_packed, chol_ltsolve_packed, cholesky_packed,
                      factor_and_solve_packed, seqsum)
 from ..qp.work import multipliers_work, primal_work
+from .factor_update import chol_delete
 from .polish_dual import CHOL_NONE, CHOL_PRIMAL, OUT_OF_WORK
-
-FREE, BOUND = 1, 2  # FORM_FREE, FORM_BOUND
-
-
-# The C keeps a tail row's generation in the high bits of ws->input_role (ROLE_GEN_*):
-# 1 for the inputs of the first update, one more for each update that appends inputs.
-GEN_MAX = 31
+from .primal_rows import BOUND, FREE, PrimalRowsMixin
 
 
-class FactorRows(NamedTuple):
-    """The C's ws->primal_form and its rows: the head (the last full factorisation's), in
-    descending inputs in the free form and ascending in the bound form, then the tail
-    (inputs that joined since) in joining order: by generation (``gens``, one per tail
-    row), each generation in the head's order."""
-    form: int
-    head: list
-    tail: list
-    gens: list
-
-
-def primal_cost(n: int, nt: int, k: int, p: int) -> int:
-    """Mirror of primal_cost(): six times the multiply-adds of a solve of order k, rows
-    p.. factored."""
-    factor = (k ** 3 - k - p ** 3 + p) + 3 * (k * (k + 1) - p * (p + 1))
-    solves = 3 * nt * (k * k - k - p * p + p) + 6 * (k * k - k)
-    return factor + solves + 6 * k * (n - k)
-
-
-class PrimalPolishMixin:
-    factor_rows: FactorRows | None = None
-
+class PrimalPolishMixin(PrimalRowsMixin):
     def primal_solve(self, th0, W, reserve):
         """Mirror of primal_solve(): bounds, the updated or new factor, its work charged
         once afford() grants it and ``reserve`` more; (ok, th, z or None), or
@@ -67,69 +39,60 @@ class PrimalPolishMixin:
         bound = np.zeros(n, bool)
         bound[qW] = True
         form = BOUND if nw < n - nw else FREE
-        order, rows, first = self.primal_order(bound, form)
-        start = first if self.chol_holds == CHOL_PRIMAL else 0
+        order, rows, first, old = self.primal_order(bound, form)
+        intact = self.chol_holds == CHOL_PRIMAL
+        start = first if intact else 0
         runs = int(np.count_nonzero(bound & ~np.concatenate(([False], bound[:-1]))))
-        cost = primal_work(md, nw, len(order), start, rows.form == BOUND, runs)
-        later = 0 if rows.form == BOUND else multipliers_work(md, nw)  # free_multipliers()
+        bound_form = rows.form == BOUND
+        cost = primal_work(md, nw, len(order), start, bound_form, runs)
+        later = 0 if bound_form else multipliers_work(md, nw)  # free_multipliers()
+        deletes = []
+        kept = len(old) - len(set(old) - set(order)) if old is not None else 0
+        if intact and old is not None and first < kept:  # rows leave from inside the factor
+            by_update, deletes = self.primal_deletes(old, set(order))
+            by_update += primal_work(md, nw, len(order), kept, bound_form, runs)
+            if by_update < cost:  # the rows below them kept, when that costs less
+                cost, start = by_update, kept
+            else:
+                deletes = []
         if not self.afford(cost + later + reserve):
             return OUT_OF_WORK, None, None
         self.work += cost
         self.factor_rows = rows
-        ok = self.primal_factor(order)
+        ok = self.primal_factor(order, start, deletes)
         if not ok:
             return False, None, None
         if self.factor_rows.form == BOUND:
             return self.primal_solve_bound(th0, W, qW, th, dv, bound)
         return self.primal_solve_free(th0, th, dv, bound)
 
-    def primal_order(self, bound, form):
-        """Mirror of primal_diff() and primal_order(): the rows of the factor in order, the
-        factor_rows they make and the first row factored again."""
-        n, nw = self.md.n, int(np.count_nonzero(bound))
-        prev = self.factor_rows
-        if prev is not None and (nw > 0 if prev.form == FREE else nw < n):
-            member = bound if prev.form == BOUND else ~bound
-            kept = [(g, q) for g, q in zip(prev.gens, prev.tail) if member[q]]
-            newest = max((g for g, _ in kept), default=0)
-            head = [q for q in prev.head if member[q]]
-            joined = sorted([int(q) for q in np.flatnonzero(member)
-                             if q not in prev.head and q not in prev.tail],
-                            reverse=prev.form == FREE)  # appended: the rows above stay
-            tail = [q for _, q in kept] + joined
-            gens = [g for g, _ in kept] + [newest + 1] * len(joined)
-            old, new = prev.head + prev.tail, head + tail
-            start = next((i for i, (a, b) in enumerate(zip(old, new)) if a != b),
-                         min(len(old), len(new)))
-            k_new = nw if form == BOUND else n - nw
-            nt = self.md.nt
-            if newest < GEN_MAX and (prev.form == form or (primal_cost(n, nt, len(new), start)
-                                                           <= primal_cost(n, nt, k_new, 0))):
-                return new, FactorRows(prev.form, head, tail, gens), start
-        member = bound if form == BOUND else ~bound
-        head = [int(q) for q in np.flatnonzero(member)]
-        if form == FREE:
-            head.reverse()
-        return head, FactorRows(form, head, [], []), 0
-
-    def primal_factor(self, order):
-        """Mirror of primal_factor(): L of S_FF or (S^-1)_BB and Y = L^-1 V_F' or
-        L^-1 Uv_B' (rows by ``order``), in full; False (factor forgotten) on a bad pivot."""
+    def primal_factor(self, order, start=0, deletes=()):
+        """Mirror of primal_factor() after primal_deletes(): L of S_FF or (S^-1)_BB and
+        Y = L^-1 V_F' or L^-1 Uv_B' (rows by ``order``), rows from ``start`` factored on the
+        kept ones (those of the previous factor, ``deletes`` (position, order) deleted from
+        it); False (factor forgotten) on a bad pivot."""
         md = self.md
+        dt = md.Kx.dtype
         bound = self.factor_rows.form == BOUND
         A, cols = (self.Sinv, md.Uv) if bound else (self.S, md.V)
         k = len(order)
         idx = np.array(order, np.int64)
-        chol = (np.concatenate([A[idx[a], idx[:a + 1]] for a in range(k)]) if k
-                else np.zeros(0, md.Kx.dtype))
-        ok = cholesky_packed(chol, k)
+        kept_l, kept_y = (self._chol.copy(), self._Y.copy()) if start else (None, None)
+        for pos, kk in deletes:
+            chol_delete(kept_l, pos, kk, np.zeros(kk, dt), kept_y)
+        tri_start = start * (start + 1) // 2
+        chol = np.concatenate([kept_l[:tri_start] if start else np.zeros(0, dt)]
+                              + [A[idx[a], idx[:a + 1]] for a in range(start, k)])
+        ok = cholesky_packed(chol, k, start)
         self.chol_holds = CHOL_PRIMAL if ok else CHOL_NONE  # the C's ws->chol now
         if not ok:
             self.factor_rows = None
             return False
-        Y = np.array(cols[:, idx], md.Kx.dtype) if md.nt else np.zeros((0, k), md.Kx.dtype)
+        Y = np.array(cols[:, idx], dt) if md.nt else np.zeros((0, k), dt)
+        if start:
+            Y[:, :start] = kept_y[:, :start]
         for y in Y:
-            chol_lsolve_packed(chol, k, y)
+            chol_lsolve_packed(chol, k, y, start)
         self._chol, self._Y, self._idx = chol, Y, idx
         return True
 

@@ -2,8 +2,9 @@
 
 It mirrors ``templates/solver.c.j2``, a module per partial of ``templates/solver/``:
 :mod:`.hq`, :mod:`.dot`, :mod:`.unconstrained`, :mod:`.rows` (with ``violated_rows``),
-:mod:`.factor_update`, :mod:`.soft_rows`, :mod:`.sweeps`, :mod:`.polish_primal`, :mod:`.polish_dual`,
-:mod:`.polish`, :mod:`.active_set`, and this module for ``qp_solve``; the ``row_const()``
+:mod:`.factor_update`, :mod:`.soft_rows`, :mod:`.sweeps`, :mod:`.primal_rows`,
+:mod:`.polish_primal`, :mod:`.polish_dual`, :mod:`.polish`, :mod:`.active_set`, and this
+module for ``qp_solve``; the ``row_const()``
 of ``bounds`` is :func:`rollmpc_codegen.features.runtime_bounds.row_constants`, and
 ``linalg.c.j2`` is :mod:`.linalg`.  Each method is named after the C function it mirrors.
 The reference uses the same storage-precision numbers (from :mod:`rollmpc_codegen.qp.storage`),
