@@ -153,7 +153,7 @@ static uint32_t delete_work(int k, int n)
 /* chol_delete() of the primal factor's row k from order n, carrying Y's nt columns. */
 static uint32_t primal_delete_work(int k, int n, int nt)
 {
-    return delete_work(k, n) + 4u * (uint32_t)nt * (uint32_t)(n - k);
+    return delete_work(k, n) + 4u * (uint32_t)nt * ((uint32_t)n - (uint32_t)k);
 }
 
 /* factor_working_set() of nw rows: their H entries, then the factorisation. */
@@ -1072,7 +1072,7 @@ static int violated_outside(zones_work *ws, const zones_mode_data *md,
  * writer of ws->chol changes it.
  */
 enum { ROLE_BOUND = 1, ROLE_HEAD = 2, ROLE_TAIL = 4 }; /* bound now; in the head, tail */
-enum { ROLE_GEN_SHIFT = 3, ROLE_GEN_MAX = 31 }; /* a tail row's generation: role >> 3 */
+enum { ROLE_GEN_ONE = 8, ROLE_GEN_MAX = 31 }; /* a tail row's generation: role / 8 */
 enum { FORM_NONE = 0, FORM_FREE = 1, FORM_BOUND = 2 };
 
 /*
@@ -1100,58 +1100,76 @@ static int in_form(int role, int form)
 /* The generation of a tail row (0 for the others). */
 static int role_gen(int role)
 {
-    return role >> ROLE_GEN_SHIFT;
+    return role / ROLE_GEN_ONE;
+}
+
+/*
+ * ws->tmp[from..to): inputs in the head's order; sorts them by generation, keeping that
+ * order within one (an insertion sort, in place: the tail rarely holds more than a few
+ * generations out of order, and it needs no memory).
+ */
+static void sort_by_generation(zones_work *ws, int from, int to)
+{
+    int a, b;
+    for (a = from + 1; a < to; ++a) {
+        const int16_t q = ws->tmp[a];
+        const int g = role_gen(ws->input_role[q]);
+        for (b = a; b > from && role_gen(ws->input_role[ws->tmp[b - 1]]) > g; --b) {
+            ws->tmp[b] = ws->tmp[b - 1];
+        }
+        ws->tmp[b] = q;
+    }
 }
 
 /*
  * Compare the factor of the previous solve (form ws->primal_form) with the inputs of that
  * form now: returns the order k of the updated factor, sets *from to the first row that
  * changes (k when none does), *head to the rows its head keeps, *newest to the last
- * generation of the tail rows it keeps and tail_rows[g] to the rows of generation g
- * (g <= newest: the kept ones; newest + 1: the inputs that join). The head runs in
- * descending inputs in the free form, ascending in the bound form, the tail by
+ * generation of the tail rows it keeps and *joined to the inputs that join. The head runs
+ * in descending inputs in the free form, ascending in the bound form, the tail by
  * generation, each in the head's order (primal_order()): the first row to change is that
  * of the first input to leave, in that order, or else the first to join, after every
- * kept row.
+ * kept row. Inputs are read in ascending order: in the free form the first in the head's
+ * order is the last met.
  */
 static int primal_diff(const zones_work *ws, int n, int *from, int *head, int *newest,
-    int16_t tail_rows[ROLE_GEN_MAX + 2])
+    int *joined)
 {
-    /* inputs in ascending order: in the free form the head order is descending, so there
-     * the first row to leave is the last met, and the rows before it those met after it */
     const int form = ws->primal_form, down = form == FORM_FREE;
-    int i, g, k = 0, kept = 0, head_cut = -1, leave_gen = 0, leave_at = -1, joined = 0;
+    int i, k = 0, kept = 0, head_cut = -1, tail = 0, leave_gen = 0, leave_at = -1;
     *newest = 0;
-    for (g = 0; g <= ROLE_GEN_MAX + 1; ++g) {
-        tail_rows[g] = 0;
-    }
+    *joined = 0;
     for (i = 0; i < n; ++i) {
-        const int role = ws->input_role[i], in = in_form(role, form);
+        const int role = ws->input_role[i], in = in_form(role, form), g = role_gen(role);
         k += in;
         if (role & ROLE_HEAD) {
             head_cut = (!in && (down || head_cut < 0)) ? kept : head_cut; /* rows below */
             kept += in;
         } else if (!(role & ROLE_TAIL)) {
-            joined += in;
+            *joined += in;
         } else if (in) {
-            g = role_gen(role);
-            tail_rows[g] = (int16_t)(tail_rows[g] + 1);
+            ++tail;
             *newest = (g > *newest) ? g : *newest;
-        } else if (leave_at < 0 || role_gen(role) < leave_gen
-                   || (down && role_gen(role) == leave_gen)) {
-            leave_gen = role_gen(role); /* the first tail row to leave, so far */
-            leave_at = tail_rows[leave_gen]; /* its generation's kept rows below it */
+        } else {
+            if (leave_at < 0 || g < leave_gen || (down && g == leave_gen)) {
+                leave_gen = g; /* the first tail row to leave, so far */
+                leave_at = i;
+            }
         }
     }
     *head = kept;
-    tail_rows[*newest + 1] = (int16_t)joined;
     if (head_cut >= 0) {
         *from = down ? kept - head_cut : head_cut;
         return k;
     }
-    *from = kept + ((leave_at < 0) ? 0 : down ? tail_rows[leave_gen] - leave_at : leave_at);
-    for (g = 1; g <= *newest && (leave_at < 0 || g < leave_gen); ++g) {
-        *from += tail_rows[g];
+    *from = kept + tail;
+    if (leave_at >= 0) { /* the kept tail rows before it */
+        *from = kept;
+        for (i = 0; i < n; ++i) {
+            const int role = ws->input_role[i], g = role_gen(role);
+            *from += (role & ROLE_TAIL) && in_form(role, form)
+                && (g < leave_gen || (g == leave_gen && (down ? i > leave_at : i < leave_at)));
+        }
     }
     return k;
 }
@@ -1161,24 +1179,16 @@ static int primal_diff(const zones_work *ws, int n, int *from, int *head, int *n
  * head keeps; a new factor: all k) in descending inputs in the free form and ascending in
  * the bound form: in an MPC plan the inputs that saturate come first along the horizon,
  * so the inputs next to the saturated ones, where the working set changes, come last.
- * Then (an update) the tail: the kept tail rows by generation, then the inputs that
- * join as generation newest + 1, each generation in the head's order (tail_rows[g] rows
- * each, from primal_diff()). The other inputs follow in ws->tmp[k..n), ascending. Sets
- * the roles to match and ws->primal_form, ws->primal_head.
+ * Then (an update) the tail: the kept tail rows by generation, then the inputs that join
+ * as generation newest + 1, each generation in the head's order. The other inputs follow
+ * in ws->tmp[k..n), ascending. Sets the roles to match and ws->primal_form,
+ * ws->primal_head.
  */
 static void primal_order(zones_work *ws, int n, int form, int update, int k, int head,
-    int newest, int16_t tail_rows[ROLE_GEN_MAX + 2])
+    int newest)
 {
     const int down = form == FORM_FREE, step = down ? -1 : 1;
-    int i, g, h = down ? head - 1 : 0, rest = k;
-    if (update) { /* tail_rows[g]: where generation g's next input goes, in ascending inputs */
-        int at = head;
-        for (g = 1; g <= newest + 1; ++g) {
-            const int rows = tail_rows[g];
-            tail_rows[g] = (int16_t)(down ? at + rows - 1 : at);
-            at += rows;
-        }
-    }
+    int i, h = down ? head - 1 : 0, t = down ? k - 1 : head, rest = k;
     for (i = 0; i < n; ++i) {
         const int role = ws->input_role[i], bound = role & ROLE_BOUND;
         if (!in_form(role, form)) {
@@ -1189,12 +1199,14 @@ static void primal_order(zones_work *ws, int n, int form, int update, int k, int
             h += step;
             ws->input_role[i] = (uint8_t)(bound | ROLE_HEAD);
         } else {
-            g = (role & ROLE_TAIL) ? role_gen(role) : newest + 1;
-            ws->tmp[tail_rows[g]] = (int16_t)i;
-            tail_rows[g] = (int16_t)(tail_rows[g] + step);
-            ws->input_role[i] = (uint8_t)(bound | ROLE_TAIL | (g << ROLE_GEN_SHIFT));
+            const int g = (role & ROLE_TAIL) ? role_gen(role) : newest + 1;
+            const int tail_role = bound | ROLE_TAIL | (g * ROLE_GEN_ONE);
+            ws->tmp[t] = (int16_t)i;
+            t += step;
+            ws->input_role[i] = (uint8_t)tail_role;
         }
     }
+    sort_by_generation(ws, head, k);
     ws->primal_form = (int16_t)form;
     ws->primal_head = (int16_t)head;
 }
@@ -1207,32 +1219,26 @@ static void primal_order(zones_work *ws, int n, int form, int update, int k, int
 static int primal_old_order(zones_work *ws, int n)
 {
     const int down = ws->primal_form == FORM_FREE, step = down ? -1 : 1;
-    int16_t next[ROLE_GEN_MAX + 1]; /* per generation (0: the head): rows, then position */
-    int i, g, at = 0;
-    for (g = 0; g <= ROLE_GEN_MAX; ++g) {
-        next[g] = 0;
+    int i, heads = 0, rows = 0, h, t;
+    for (i = 0; i < n; ++i) {
+        heads += (ws->input_role[i] & ROLE_HEAD) != 0;
+        rows += (ws->input_role[i] & (ROLE_HEAD | ROLE_TAIL)) != 0;
     }
+    h = down ? heads - 1 : 0;
+    t = down ? rows - 1 : heads;
     for (i = 0; i < n; ++i) {
         const int role = ws->input_role[i];
-        if (role & (ROLE_HEAD | ROLE_TAIL)) {
-            g = role_gen(role);
-            next[g] = (int16_t)(next[g] + 1);
+        if (role & ROLE_HEAD) {
+            ws->tmp[h] = (int16_t)i;
+            h += step;
+        }
+        if (role & ROLE_TAIL) {
+            ws->tmp[t] = (int16_t)i;
+            t += step;
         }
     }
-    for (g = 0; g <= ROLE_GEN_MAX; ++g) {
-        const int rows = next[g];
-        next[g] = (int16_t)(down ? at + rows - 1 : at);
-        at += rows;
-    }
-    for (i = 0; i < n; ++i) {
-        const int role = ws->input_role[i];
-        if (role & (ROLE_HEAD | ROLE_TAIL)) {
-            g = role_gen(role);
-            ws->tmp[next[g]] = (int16_t)i;
-            next[g] = (int16_t)(next[g] + step);
-        }
-    }
-    return at;
+    sort_by_generation(ws, heads, rows);
+    return rows;
 }
 
 /*
@@ -1473,8 +1479,7 @@ static int primal_solve(zones_work *ws, const zones_mode_data *md, int nw,
 {
     const int n = md->n;
     int i, k, head, newest = 0, from = 0, form = (nw < n - nw) ? FORM_BOUND : FORM_FREE;
-    int update = 0;
-    int16_t tail_rows[ROLE_GEN_MAX + 2]; /* per generation: rows, then next position */
+    int update = 0, joined = 0;
     int adjacent = 0; /* bound inputs next to a bound one set before: nw - adjacent runs */
     for (i = 0; i < n; ++i) {
         ws->input_role[i] = (uint8_t)(ws->input_role[i] & ~ROLE_BOUND);
@@ -1495,7 +1500,7 @@ static int primal_solve(zones_work *ws, const zones_mode_data *md, int nw,
      * or its tail has used up the generations (a new one starts them again) */
     if (ws->primal_form != FORM_NONE && ((ws->primal_form == FORM_FREE) ? nw > 0 : nw < n)) {
         int k_up, head_up;
-        k_up = primal_diff(ws, n, &from, &head_up, &newest, tail_rows);
+        k_up = primal_diff(ws, n, &from, &head_up, &newest, &joined);
         update = newest < ROLE_GEN_MAX && (ws->primal_form == form
             || primal_cost(md, k_up, from) <= primal_cost(md, k, 0));
         if (update) {
@@ -1514,10 +1519,10 @@ static int primal_solve(zones_work *ws, const zones_mode_data *md, int nw,
         uint32_t cost = primal_work(md, nw, k, intact ? from : 0, bound_form, runs);
         /* the free form's multipliers are charged by free_multipliers(), granted here */
         const uint32_t later = bound_form ? 0u : multipliers_work(md, nw);
-        if (update && intact && from < k - tail_rows[newest + 1]) {
+        if (update && intact && from < k - joined) {
             /* rows leave from inside the kept factor: deleting them by updates keeps the
              * rows below them, when that costs less than factoring those again */
-            const int kept = k - tail_rows[newest + 1], k_prev = primal_old_order(ws, n);
+            const int kept = k - joined, k_prev = primal_old_order(ws, n);
             const uint32_t by_update = primal_deletes(ws, md, k_prev, 0)
                 + primal_work(md, nw, k, kept, bound_form, runs);
             if (by_update < cost) {
@@ -1541,7 +1546,7 @@ static int primal_solve(zones_work *ws, const zones_mode_data *md, int nw,
         ws->th[q] = (md->row_sign[r] > 0) ? md->row_c[r] : -md->row_c[r];
         ws->dv[q] = ws->th[q] - ws->th0[q];
     }
-    primal_order(ws, n, form, update, k, head, newest, tail_rows);
+    primal_order(ws, n, form, update, k, head, newest);
     if (primal_factor(ws, md, k, from) != 0) {
         return -1;
     }
