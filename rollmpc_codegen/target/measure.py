@@ -27,7 +27,7 @@ def _toolchain_version() -> str:
         return "unknown"
 
 
-def _top_functions(counts, limit: int = 16) -> list[dict]:
+def _top_functions(counts, limit: int = 20) -> list[dict]:
     rows = sorted(counts.by_function.items(), key=lambda kv: -kv[1][1])[:limit]
     return [{"function": name, "cycles": int(cyc), "instructions": int(ins),
              "share": round(cyc / counts.cycles, 4) if counts.cycles else 0.0}
