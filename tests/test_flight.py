@@ -216,16 +216,21 @@ def test_reference_default_file_and_duration(tmp_path):
 def test_matrix_of_conditions():
     """docs/flight.md's table: every turbulence level, 3 seeds, and the latency sweep."""
     from rollmpc_codegen.flight.matrix import run_matrix
-    from rollmpc_codegen.target.measure import GOALS
+    from rollmpc_codegen.pipeline import load_model
+    from rollmpc_codegen.target.measure import budget_verdict
 
     if not installed("jsbsim"):
         pytest.skip(FLIGHT_HINT)
     target = installed("unicorn") and shutil.which("arm-none-eabi-gcc") is not None
     matrix = run_matrix(str(C172), target=target)
+    cfg = load_model(C172, "float")[0].config
     assert len(matrix["cells"]) == 12
     for cell in matrix["cells"]:
         mpc, pid = cell["mpc"], cell["pid"]
-        assert mpc["statuses"] == {"optimal": 6000}
+        # the default work budget: a few TIME_LIMIT samples, nothing else (measured 2-4 a
+        # flight at 802a9c0), and the issue-19 floor of 99 % OPTIMAL
+        assert set(mpc["statuses"]) <= {"optimal", "time_limit"}, mpc["statuses"]
+        assert mpc["statuses"]["optimal"] >= 0.99 * 6000
         assert mpc["rms"] < pid["rms"]
         assert np.mean(mpc["settling"][1:]) < np.mean([p for p in pid["settling"][1:]
                                                       if p is not None])
@@ -234,6 +239,6 @@ def test_matrix_of_conditions():
         if target:
             m4f = cell["m4f"]
             assert m4f["bit_exact_vs_host"] and m4f["commands_match_flight"]
-            assert m4f["worst_cycles"] <= GOALS["worst_step_cycles"]
+            assert budget_verdict(cfg, m4f["worst_cycles"])["worst_fits"]  # within its Ts
     for row in matrix["latency"]:
         assert row["mpc_latency_model"]["rms"] < row["pid"]["rms"]
