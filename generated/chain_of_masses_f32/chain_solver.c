@@ -1768,9 +1768,10 @@ static int given_up(int keep, int nw, int guess)
 
 /*
  * Drop the working-set rows with negative multipliers (with a dual factor to update,
- * remove_row() from the last position down; else in one pass). Returns 0 if none was dropped, 1 if some were (solve again), -1 if the
- * working set is to be given up: emptied, or a guess (see polish()) that would lose more
- * than half of its rows; OUT_OF_WORK if the budget cannot afford the deletions.
+ * remove_row() from the last position down; else in one pass). Returns 0 if none was
+ * dropped, 1 if some were (solve again), -1 if the working set is to be given up:
+ * emptied, or a guess (see polish()) that would lose more than half of its rows;
+ * OUT_OF_WORK if the budget cannot afford the deletions.
  */
 static int drop_negative(chain_work *ws, const chain_mode_data *md, int *nw, int guess)
 {
