@@ -178,6 +178,12 @@ static uint32_t multipliers_work(const chain_rb_mode_data *md, int nw)
     return 3u * (uint32_t)nw * ((uint32_t)md->n + (uint32_t)md->nt) / 6u;
 }
 
+/* guess_reversed() on `rows` rows: each about twice one of free_multipliers()'s multipliers. */
+static uint32_t guess_sample_work(const chain_rb_mode_data *md, int rows)
+{
+    return multipliers_work(md, 2 * rows);
+}
+
 /*
  * primal_solve() on nw bound inputs with a factor of order k whose rows from `start` are
  * factored again (0: a new factor): its Cholesky at 2/6 of a unit per operation, its
@@ -1400,6 +1406,18 @@ static int primal_solve_free(chain_rb_work *ws, const chain_rb_mode_data *md, in
     return 0;
 }
 
+/* Row r's multiplier from g = (S d)_q: -/+ (g + V_q' nu) by the row's side. */
+static chain_rb_real signed_multiplier(const chain_rb_work *ws, const chain_rb_mode_data *md,
+    int r, chain_rb_real g)
+{
+    const int q = md->row_q[r];
+    int o;
+    for (o = 0; o < md->nt; ++o) {
+        g += md->V[o * md->n + q] * ws->nu[o];
+    }
+    return (md->row_sign[r] > 0) ? -g : g;
+}
+
 /*
  * Multipliers of the free-form solution, z_k = -sign_k g_{q_k} with g = S d + V' nu: the
  * nw x n part of a polish step, so polish() computes them only once the bound inputs make
@@ -1410,7 +1428,7 @@ static int primal_solve_free(chain_rb_work *ws, const chain_rb_mode_data *md, in
 static void free_multipliers(chain_rb_work *ws, const chain_rb_mode_data *md, int nw)
 {
     const int n = md->n, all = 4 * nw > 3 * n;
-    int a, o, paired = 0;
+    int a, paired = 0;
     ws->work += multipliers_work(md, nw); /* granted by the primal_solve() before */
     if (all) {
         sym_product(md->S_p, n, ws->dv, ws->rhs);
@@ -1430,11 +1448,34 @@ static void free_multipliers(chain_rb_work *ws, const chain_rb_mode_data *md, in
         } else {
             g = s_row_dot(md->S_p, n, q, ws->dv);
         }
-        for (o = 0; o < md->nt; ++o) {
-            g += md->V[o * md->n + q] * ws->nu[o];
-        }
-        ws->z[a] = (md->row_sign[r] > 0) ? -g : g;
+        ws->z[a] = signed_multiplier(ws, md, r, g);
     }
+}
+
+/*
+ * Has a guess's first point reversed the saturation? Its middle, first and last rows all
+ * have negative multipliers: after a reference step that reverses it, every multiplier of
+ * the shifted guess is, and given_up() would give it up once free_multipliers() paid for
+ * all of them. Three rows cost a few hundredths of that on a large guess; any other
+ * guess goes on to free_multipliers(). The middle first: a shifted guess changes at its
+ * ends, so its middle row is the likeliest to show, at one row's cost, that it holds.
+ * Charged by the row; granted with the solve.
+ */
+static int guess_reversed(chain_rb_work *ws, const chain_rb_mode_data *md, int nw)
+{
+    int s;
+    if (nw < 8) {
+        return 0;
+    }
+    for (s = 0; s < 3; ++s) {
+        const int r = ws->wset[(s == 0) ? nw / 2 : ((s == 1) ? 0 : nw - 1)];
+        ws->work += guess_sample_work(md, 1);
+        if (!(signed_multiplier(ws, md, r, s_row_dot(md->S_p, md->n, md->row_q[r], ws->dv))
+              < R_(0.0))) {
+            return 0;
+        }
+    }
+    return 1;
 }
 
 /*
@@ -1978,7 +2019,8 @@ static int polish(chain_rb_work *ws, const chain_rb_mode_data *md, chain_rb_real
         if (box_only(ws, md, nw)) {
             /* primal: bound rows first; the multipliers only at a feasible point */
             repeatable = 0;
-            code = primal_solve(ws, md, nw, scan_work(md) + (uint32_t)md->m);
+            code = primal_solve(ws, md, nw, scan_work(md) + (uint32_t)md->m
+                                + (guess ? guess_sample_work(md, 3) : 0u));
             if (code == OUT_OF_WORK) {
                 return stopped(ws, nw, known, OUT_OF_WORK);
             }
@@ -1987,10 +2029,12 @@ static int polish(chain_rb_work *ws, const chain_rb_mode_data *md, chain_rb_real
             }
             known = (code == 1) ? nw : 0;
             nadd = violated_outside(ws, md, ws->th, ws->in_set, ws->tmp, md->n - nw);
+            if (code == 0 && guess && it == 0 && guess_reversed(ws, md, nw)) {
+                return -1; /* before free_multipliers() below, which would confirm it */
+            }
             if (nadd > 0 && guess && it == 0) {
-                /* a guess whose first point already has most of its multipliers negative
-                 * (a reference step reversed the saturation) is given up before it grows,
-                 * by drop_negative()'s rule; primal_solve() granted these multipliers */
+                /* a guess whose first point has most multipliers negative (a reference step
+                 * reversed the saturation) is given up before it grows, by given_up() */
                 if (code == 0) {
                     free_multipliers(ws, md, nw);
                 }

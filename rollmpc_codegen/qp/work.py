@@ -161,6 +161,17 @@ def multipliers_work(m, nw: int) -> int:
     return PRIMAL_SIXTHS_PER_OP[1] * nw * (m.n + m.nt) // 6
 
 
+# guess_reversed() samples three rows of a free-form guess of at least this many rows: on
+# a smaller one the sample would cost about as much as free_multipliers() itself
+GUESS_SAMPLE_MIN = 8
+
+
+def guess_sample_work(m, rows: int) -> int:
+    """guess_reversed() on ``rows`` rows: each multiplier row by row costs about twice one
+    from free_multipliers()'s symmetric product on the M4F."""
+    return multipliers_work(m, 2 * rows)
+
+
 def add_step_work(nw: int) -> int:
     return 2 * tri_work(nw) + 5 * nw + max(delete_work(0, nw), rank_one_work(nw))
 

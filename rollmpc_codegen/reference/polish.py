@@ -10,8 +10,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..qp.work import (append_work, correct_work, delete_work, predict_work,
-                       scan_work, tri_work)
+from ..qp.work import (append_work, correct_work, delete_work, guess_sample_work,
+                       predict_work, scan_work, tri_work)
 from .linalg import chol_solve_packed
 from .polish_dual import CHOL_DUAL, CHOL_NONE, GUESS_CAPPED, OUT_OF_WORK
 
@@ -150,7 +150,8 @@ class PolishMixin:
             its += 1
             if np.all(md.row_q[W] < n):  # box_only()
                 repeatable = False
-                ok, th_p, zp = self.primal_solve(th0, W, scan_work(md) + md.m)
+                ok, th_p, zp = self.primal_solve(th0, W, scan_work(md) + md.m
+                                                 + (guess_sample_work(md, 3) if guess else 0))
                 if ok == OUT_OF_WORK:
                     return self.stopped(W, z, known, OUT_OF_WORK), th, 0, its
                 if not ok:
@@ -160,6 +161,8 @@ class PolishMixin:
                     z = zp
                 known = W.size if zp is not None else 0
                 add = self.violated_outside(th, gam, W)
+                if zp is None and guess and its == 1 and self.guess_reversed(W):
+                    return -1, None, 0, its  # before free_multipliers() would confirm it
                 if add.size and guess and its == 1:  # the C's early test of a guess
                     zc = zp if zp is not None else self.free_multipliers(W)
                     if self.given_up(int(np.count_nonzero(zc >= 0)), W.size, True):
