@@ -1510,13 +1510,14 @@ static int primal_solve_bound(drives_work *ws, const drives_mode_data *md, int n
  * per input): U_B at the bounds, d_B = U_B - th0_B, then the factor of the previous solve
  * updated, or a new one in the form of smaller order, whichever costs fewer
  * multiply-adds (primal_cost()). Charges its work (primal_work(): the rows it factors
- * again) once afford() grants it and `reserve` more.
+ * again) once afford() grants it and `reserve` more (`sample` more in the free form: a
+ * guess's guess_reversed()).
  * Writes ws->th; returns 1 when ws->z is written too (bound form), 0 when it is left to
  * free_multipliers() (free form), -1 if a factorisation breaks down, OUT_OF_WORK (the
  * factor and its rows unchanged) when the budget cannot pay.
  */
 static int primal_solve(drives_work *ws, const drives_mode_data *md, int nw,
-    uint32_t reserve)
+    uint32_t reserve, uint32_t sample)
 {
     const int n = md->n;
     int i, k, head, newest = 0, from = 0, form = (nw < n - nw) ? FORM_BOUND : FORM_FREE;
@@ -1559,7 +1560,7 @@ static int primal_solve(drives_work *ws, const drives_mode_data *md, int nw,
         int k_old = 0; /* > 0: rows leave by chol_delete() */
         uint32_t cost = primal_work(md, nw, k, intact ? from : 0, bound_form, runs);
         /* the free form's multipliers are charged by free_multipliers(), granted here */
-        const uint32_t later = bound_form ? 0u : multipliers_work(md, nw);
+        const uint32_t later = bound_form ? 0u : multipliers_work(md, nw) + sample;
         if (update && intact && from < k - joined) {
             /* rows leave from inside the kept factor: deleting them by updates keeps the
              * rows below them, when that costs less than factoring those again */
@@ -2004,8 +2005,8 @@ static int polish(drives_work *ws, const drives_mode_data *md, drives_real *lam,
         if (box_only(ws, md, nw)) {
             /* primal: bound rows first; the multipliers only at a feasible point */
             repeatable = 0;
-            code = primal_solve(ws, md, nw, scan_work(md) + (uint32_t)md->m
-                                + (guess ? guess_sample_work(md, 3) : 0u));
+            code = primal_solve(ws, md, nw, scan_work(md) + (uint32_t)md->m,
+                                guess ? guess_sample_work(md, 3) : 0u);
             if (code == OUT_OF_WORK) {
                 return stopped(ws, nw, known, OUT_OF_WORK);
             }

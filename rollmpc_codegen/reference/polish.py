@@ -150,8 +150,8 @@ class PolishMixin:
             its += 1
             if np.all(md.row_q[W] < n):  # box_only()
                 repeatable = False
-                ok, th_p, zp = self.primal_solve(th0, W, scan_work(md) + md.m
-                                                 + (guess_sample_work(md, 3) if guess else 0))
+                ok, th_p, zp = self.primal_solve(th0, W, scan_work(md) + md.m,
+                                                 guess_sample_work(md, 3) if guess else 0)
                 if ok == OUT_OF_WORK:
                     return self.stopped(W, z, known, OUT_OF_WORK), th, 0, its
                 if not ok:

@@ -23,9 +23,10 @@ from .primal_rows import BOUND, FREE, PrimalRowsMixin
 
 
 class PrimalPolishMixin(PrimalRowsMixin):
-    def primal_solve(self, th0, W, reserve):
+    def primal_solve(self, th0, W, reserve, sample=0):
         """Mirror of primal_solve(): bounds, the updated or new factor, its work charged
-        once afford() grants it and ``reserve`` more; (ok, th, z or None), or
+        once afford() grants it and ``reserve`` more (``sample`` more in the free form, for
+        a guess's guess_reversed()); (ok, th, z or None), or
         (OUT_OF_WORK, None, None) with the factor's rows unchanged."""
         md = self.md
         n, nw, dt = md.n, W.size, md.Kx.dtype
@@ -45,7 +46,7 @@ class PrimalPolishMixin(PrimalRowsMixin):
         runs = int(np.count_nonzero(bound & ~np.concatenate(([False], bound[:-1]))))
         bound_form = rows.form == BOUND
         cost = primal_work(md, nw, len(order), start, bound_form, runs)
-        later = 0 if bound_form else multipliers_work(md, nw)  # free_multipliers()
+        later = 0 if bound_form else multipliers_work(md, nw) + sample  # free_multipliers()
         deletes = []
         kept = len(old) - len(set(old) - set(order)) if old is not None else 0
         if intact and old is not None and first < kept:  # rows leave from inside the factor
