@@ -1444,12 +1444,14 @@ static void free_multipliers(zones_work *ws, const zones_mode_data *md, int nw)
  * all of them. Three rows cost a few hundredths of that on a large guess; any other
  * guess goes on to free_multipliers(). The middle first: a shifted guess changes at its
  * ends, so its middle row is the likeliest to show, at one row's cost, that it holds.
- * Charged by the row; granted with the solve.
+ * Charged by the row, and skipped unless the budget can pay all three beside what
+ * primal_solve() granted polish(): free_multipliers() and its reserve.
  */
 static int guess_reversed(zones_work *ws, const zones_mode_data *md, int nw)
 {
     int s;
-    if (nw < 8) {
+    if (nw < 8 || !afford(ws, md, guess_sample_work(md, 3)
+            + multipliers_work(md, nw) + scan_work(md) + (uint32_t)md->m)) {
         return 0;
     }
     for (s = 0; s < 3; ++s) {
@@ -1510,14 +1512,13 @@ static int primal_solve_bound(zones_work *ws, const zones_mode_data *md, int nw)
  * per input): U_B at the bounds, d_B = U_B - th0_B, then the factor of the previous solve
  * updated, or a new one in the form of smaller order, whichever costs fewer
  * multiply-adds (primal_cost()). Charges its work (primal_work(): the rows it factors
- * again) once afford() grants it and `reserve` more (`sample` more in the free form: a
- * guess's guess_reversed()).
+ * again) once afford() grants it and `reserve` more.
  * Writes ws->th; returns 1 when ws->z is written too (bound form), 0 when it is left to
  * free_multipliers() (free form), -1 if a factorisation breaks down, OUT_OF_WORK (the
  * factor and its rows unchanged) when the budget cannot pay.
  */
 static int primal_solve(zones_work *ws, const zones_mode_data *md, int nw,
-    uint32_t reserve, uint32_t sample)
+    uint32_t reserve)
 {
     const int n = md->n;
     int i, k, head, newest = 0, from = 0, form = (nw < n - nw) ? FORM_BOUND : FORM_FREE;
@@ -1560,7 +1561,7 @@ static int primal_solve(zones_work *ws, const zones_mode_data *md, int nw,
         int k_old = 0; /* > 0: rows leave by chol_delete() */
         uint32_t cost = primal_work(md, nw, k, intact ? from : 0, bound_form, runs);
         /* the free form's multipliers are charged by free_multipliers(), granted here */
-        const uint32_t later = bound_form ? 0u : multipliers_work(md, nw) + sample;
+        const uint32_t later = bound_form ? 0u : multipliers_work(md, nw);
         if (update && intact && from < k - joined) {
             /* rows leave from inside the kept factor: deleting them by updates keeps the
              * rows below them, when that costs less than factoring those again */
@@ -2005,8 +2006,7 @@ static int polish(zones_work *ws, const zones_mode_data *md, zones_real *lam,
         if (box_only(ws, md, nw)) {
             /* primal: bound rows first; the multipliers only at a feasible point */
             repeatable = 0;
-            code = primal_solve(ws, md, nw, scan_work(md) + (uint32_t)md->m,
-                                guess ? guess_sample_work(md, 3) : 0u);
+            code = primal_solve(ws, md, nw, scan_work(md) + (uint32_t)md->m);
             if (code == OUT_OF_WORK) {
                 return stopped(ws, nw, known, OUT_OF_WORK);
             }

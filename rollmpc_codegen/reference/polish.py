@@ -10,8 +10,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..qp.work import (append_work, correct_work, delete_work, guess_sample_work,
-                       predict_work, scan_work, tri_work)
+from ..qp.work import (append_work, correct_work, delete_work, predict_work,
+                       scan_work, tri_work)
 from .linalg import chol_solve_packed
 from .polish_dual import CHOL_DUAL, CHOL_NONE, GUESS_CAPPED, OUT_OF_WORK
 
@@ -150,8 +150,7 @@ class PolishMixin:
             its += 1
             if np.all(md.row_q[W] < n):  # box_only()
                 repeatable = False
-                ok, th_p, zp = self.primal_solve(th0, W, scan_work(md) + md.m,
-                                                 guess_sample_work(md, 3) if guess else 0)
+                ok, th_p, zp = self.primal_solve(th0, W, scan_work(md) + md.m)
                 if ok == OUT_OF_WORK:
                     return self.stopped(W, z, known, OUT_OF_WORK), th, 0, its
                 if not ok:

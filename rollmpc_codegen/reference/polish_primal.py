@@ -16,17 +16,17 @@ import numpy as np
 from .dot import s_row_dots
 from .linalg import (chol_lsolve_packed, chol_ltsolve_packed, cholesky_packed,
                      factor_and_solve_packed, seqsum)
-from ..qp.work import GUESS_SAMPLE_MIN, guess_sample_work, multipliers_work, primal_work
+from ..qp.work import (GUESS_SAMPLE_MIN, guess_sample_work, multipliers_work, primal_work,
+                       scan_work)
 from .factor_update import chol_delete
 from .polish_dual import CHOL_NONE, CHOL_PRIMAL, OUT_OF_WORK
 from .primal_rows import BOUND, FREE, PrimalRowsMixin
 
 
 class PrimalPolishMixin(PrimalRowsMixin):
-    def primal_solve(self, th0, W, reserve, sample=0):
+    def primal_solve(self, th0, W, reserve):
         """Mirror of primal_solve(): bounds, the updated or new factor, its work charged
-        once afford() grants it and ``reserve`` more (``sample`` more in the free form, for
-        a guess's guess_reversed()); (ok, th, z or None), or
+        once afford() grants it and ``reserve`` more; (ok, th, z or None), or
         (OUT_OF_WORK, None, None) with the factor's rows unchanged."""
         md = self.md
         n, nw, dt = md.n, W.size, md.Kx.dtype
@@ -46,7 +46,7 @@ class PrimalPolishMixin(PrimalRowsMixin):
         runs = int(np.count_nonzero(bound & ~np.concatenate(([False], bound[:-1]))))
         bound_form = rows.form == BOUND
         cost = primal_work(md, nw, len(order), start, bound_form, runs)
-        later = 0 if bound_form else multipliers_work(md, nw) + sample  # free_multipliers()
+        later = 0 if bound_form else multipliers_work(md, nw)  # free_multipliers()
         deletes = []
         kept = len(old) - len(set(old) - set(order)) if old is not None else 0
         if intact and old is not None and first < kept:  # rows leave from inside the factor
@@ -152,9 +152,10 @@ class PrimalPolishMixin(PrimalRowsMixin):
     def guess_reversed(self, W):
         """Mirror of guess_reversed(): a free-form guess of GUESS_SAMPLE_MIN rows or more
         whose middle, first and last rows (in that order) all have negative multipliers."""
-        nw = W.size
-        if nw < GUESS_SAMPLE_MIN:
-            return False
+        md, nw = self.md, W.size
+        if nw < GUESS_SAMPLE_MIN or not self.afford(
+                guess_sample_work(md, 3) + multipliers_work(md, nw) + scan_work(md) + md.m):
+            return False  # the budget keeps what primal_solve() granted polish()
         for a in (nw // 2, 0, nw - 1):
             self.work += guess_sample_work(self.md, 1)
             if not self.signed_multipliers(W[a:a + 1])[0] < 0:
