@@ -1,8 +1,9 @@
 """A reversed guess is given up from a sample of its multipliers (issue 19).
 
-After a reference step that reverses the saturation, every multiplier of the shifted
-guess is negative, and given_up() gives it up. guess_reversed() decides that from the
-first, middle and last rows (templates/solver/polish_primal.c.j2) instead of paying
+After a reference step every multiplier of the shifted guess can be negative (the paper
+config's steps 941 and 3070: the saturation ends earlier than the guess's), and
+given_up() gives it up. guess_reversed() decides that from the middle, first and last
+rows (templates/solver/polish_primal.c.j2) instead of paying
 free_multipliers() for all of them. It is a shortcut, so it must never give up a guess
 that the full rule would keep; the C and the reference must agree on its work.
 """

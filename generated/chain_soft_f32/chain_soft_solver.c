@@ -1566,10 +1566,11 @@ static void free_multipliers(chain_soft_work *ws, const chain_soft_mode_data *md
 }
 
 /*
- * Has a guess's first point reversed the saturation? Its middle, first and last rows all
- * have negative multipliers: after a reference step that reverses it, every multiplier of
- * the shifted guess is, and given_up() would give it up once free_multipliers() paid for
- * all of them. Three rows cost a few hundredths of that on a large guess; any other
+ * Has a guess's first point reversed the sign of its multipliers? Its middle, first and
+ * last rows all have negative ones: after a reference step every multiplier of the shifted
+ * guess can be negative (the saturation reversed, or, under a heavy terminal weight, ending
+ * earlier than the guess's), and given_up() would give it up once free_multipliers() paid
+ * for all of them. Three rows cost a few hundredths of that on a large guess; any other
  * guess goes on to free_multipliers(). The middle first: a shifted guess changes at its
  * ends, so its middle row is the likeliest to show, at one row's cost, that it holds.
  * Charged by the row, and skipped unless the budget can pay all three beside what
