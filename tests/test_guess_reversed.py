@@ -20,7 +20,8 @@ from rollmpc_codegen.sim.simulate import run_closed_loop
 @pytest.fixture(scope="module")
 def reversals(uav_double):
     """Every guess_reversed() call of the paper's nominal scenario (reference, double):
-    (rows, sampled verdict, given_up() on all multipliers, work the sample charged)."""
+    (rows, sampled verdict, given_up() on all multipliers, work the sample charged, the
+    mode's data)."""
     calls = []
     sample = PrimalPolishMixin.guess_reversed
 
@@ -29,7 +30,7 @@ def reversals(uav_double):
         verdict = sample(self, W)
         z = self.signed_multipliers(W)  # uncharged: the full rule's view
         full = self.given_up(int(np.count_nonzero(z >= 0)), W.size, True)
-        calls.append((W.size, verdict, full, self.work - before))
+        calls.append((W.size, verdict, full, self.work - before, self.md))
         return verdict
 
     PrimalPolishMixin.guess_reversed = recording
@@ -44,16 +45,15 @@ def reversals(uav_double):
 def test_sample_never_gives_up_a_guess_the_full_rule_keeps(reversals):
     _, calls = reversals
     given = [c for c in calls if c[1]]
-    assert len(given) >= 2, "the scenario's reversals (steps 941 and 3070) take the shortcut"
-    assert all(full for _, _, full, _ in given)
-    assert not any(verdict for nw, verdict, _, _ in calls if nw < GUESS_SAMPLE_MIN)
+    assert len(given) >= 2, "steps 941 and 3070 (guesses too long) take the shortcut"
+    assert all(full for _, _, full, _, _ in given)
+    assert not any(verdict for nw, verdict, *_ in calls if nw < GUESS_SAMPLE_MIN)
 
 
 def test_sample_is_charged_by_the_row_and_costs_less_than_all_multipliers(reversals):
-    uav, calls = reversals
-    md = uav.model.modes[0].data
-    one = guess_sample_work(md, 1)
-    for nw, verdict, _, work in calls:
+    _, calls = reversals
+    for nw, verdict, _, work, md in calls:
+        one = guess_sample_work(md, 1)
         assert work in ((0,) if nw < GUESS_SAMPLE_MIN else (one, 2 * one, 3 * one))
         if verdict:
             assert work == 3 * one < multipliers_work(md, nw)

@@ -178,6 +178,12 @@ static uint32_t multipliers_work(const quadatt_mode_data *md, int nw)
     return 3u * (uint32_t)nw * ((uint32_t)md->n + (uint32_t)md->nt) / 6u;
 }
 
+/* What polish() still spends after a primal solve: its check of every row and accept(). */
+static uint32_t primal_reserve(const quadatt_mode_data *md)
+{
+    return scan_work(md) + (uint32_t)md->m;
+}
+
 /* guess_reversed() on `rows` rows: each about twice one of free_multipliers()'s multipliers. */
 static uint32_t guess_sample_work(const quadatt_mode_data *md, int rows)
 {
@@ -1446,13 +1452,13 @@ static void free_multipliers(quadatt_work *ws, const quadatt_mode_data *md, int 
  * guess goes on to free_multipliers(). The middle first: a shifted guess changes at its
  * ends, so its middle row is the likeliest to show, at one row's cost, that it holds.
  * Charged by the row, and skipped unless the budget can pay all three beside what
- * primal_solve() granted polish(): free_multipliers() and its reserve.
+ * primal_solve() granted polish(): free_multipliers() and primal_reserve().
  */
 static int guess_reversed(quadatt_work *ws, const quadatt_mode_data *md, int nw)
 {
     int s;
     if (nw < 8 || !afford(ws, md, guess_sample_work(md, 3)
-            + multipliers_work(md, nw) + scan_work(md) + (uint32_t)md->m)) {
+            + multipliers_work(md, nw) + primal_reserve(md))) {
         return 0;
     }
     for (s = 0; s < 3; ++s) {
@@ -2007,7 +2013,7 @@ static int polish(quadatt_work *ws, const quadatt_mode_data *md, quadatt_real *l
         if (box_only(ws, md, nw)) {
             /* primal: bound rows first; the multipliers only at a feasible point */
             repeatable = 0;
-            code = primal_solve(ws, md, nw, scan_work(md) + (uint32_t)md->m);
+            code = primal_solve(ws, md, nw, primal_reserve(md));
             if (code == OUT_OF_WORK) {
                 return stopped(ws, nw, known, OUT_OF_WORK);
             }

@@ -161,6 +161,12 @@ def multipliers_work(m, nw: int) -> int:
     return PRIMAL_SIXTHS_PER_OP[1] * nw * (m.n + m.nt) // 6
 
 
+def primal_reserve(m) -> int:
+    """What polish() still spends after a primal solve: its check of every row and
+    accept()."""
+    return scan_work(m) + m.m
+
+
 # guess_reversed() samples three rows of a free-form guess of at least this many rows: on
 # a smaller one the sample would cost about as much as free_multipliers() itself
 GUESS_SAMPLE_MIN = 8

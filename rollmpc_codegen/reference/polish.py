@@ -11,7 +11,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..qp.work import (append_work, correct_work, delete_work, predict_work,
-                       scan_work, tri_work)
+                       primal_reserve, scan_work, tri_work)
 from .linalg import chol_solve_packed
 from .polish_dual import CHOL_DUAL, CHOL_NONE, GUESS_CAPPED, OUT_OF_WORK
 
@@ -150,7 +150,7 @@ class PolishMixin:
             its += 1
             if np.all(md.row_q[W] < n):  # box_only()
                 repeatable = False
-                ok, th_p, zp = self.primal_solve(th0, W, scan_work(md) + md.m)
+                ok, th_p, zp = self.primal_solve(th0, W, primal_reserve(md))
                 if ok == OUT_OF_WORK:
                     return self.stopped(W, z, known, OUT_OF_WORK), th, 0, its
                 if not ok:

@@ -16,8 +16,8 @@ import numpy as np
 from .dot import s_row_dots
 from .linalg import (chol_lsolve_packed, chol_ltsolve_packed, cholesky_packed,
                      factor_and_solve_packed, seqsum)
-from ..qp.work import (GUESS_SAMPLE_MIN, guess_sample_work, multipliers_work, primal_work,
-                       scan_work)
+from ..qp.work import (GUESS_SAMPLE_MIN, guess_sample_work, multipliers_work, primal_reserve,
+                       primal_work)
 from .factor_update import chol_delete
 from .polish_dual import CHOL_NONE, CHOL_PRIMAL, OUT_OF_WORK
 from .primal_rows import BOUND, FREE, PrimalRowsMixin
@@ -154,7 +154,7 @@ class PrimalPolishMixin(PrimalRowsMixin):
         whose middle, first and last rows (in that order) all have negative multipliers."""
         md, nw = self.md, W.size
         if nw < GUESS_SAMPLE_MIN or not self.afford(
-                guess_sample_work(md, 3) + multipliers_work(md, nw) + scan_work(md) + md.m):
+                guess_sample_work(md, 3) + multipliers_work(md, nw) + primal_reserve(md)):
             return False  # the budget keeps what primal_solve() granted polish()
         for a in (nw // 2, 0, nw - 1):
             self.work += guess_sample_work(self.md, 1)
