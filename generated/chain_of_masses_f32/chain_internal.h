@@ -39,7 +39,7 @@ typedef struct {
     const chain_real *GEinvGt_p;        /**< [nyq(nyq+1)/2] packed Gamma E^-1 Gamma' (null: no output rows). */
     const chain_real *Omega2;           /**< [N][ny][ny] 2Q per stage, 2P at the last. */
     const chain_real *Phi;              /**< [nyq][nx] free response of the predicted outputs. */
-    const chain_real *markov;           /**< [N][ny][nu] Markov parameters C A^i B. */
+    const chain_real *markov_by_output; /**< [ny][N*nu] Markov parameters C A^i B by output, the longest lag first: row a holds (C A^(N-1-j) B)[a, :] from j nu, so output a of stage s is its last (s+1) nu entries times th's first ones. */
     const int16_t *pred_out;            /**< [ny] the predicted outputs, ascending, then the others. */
     const int16_t *row_q;               /**< [m] quantity of each row (U index, n + Y index, or n + nyq + Δu index). */
     const int8_t *row_sign;             /**< [m] -1 lower / +1 upper bound row. */

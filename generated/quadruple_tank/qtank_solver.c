@@ -639,38 +639,45 @@ static void unconstrained(qtank_work *ws, const qtank_mode_data *md,
 
 /*
  * yv = Gamma th (block Toeplitz in the Markov parameters).
- * Input (t, b) is spread over every later output in one strided pass, so each output
- * still sums its terms in (t, b) order, as the reference does, with the longest loop
- * innermost. Only the outputs md->pred_out[0..ny_pred) are predicted, those with
- * constraint rows (all of them when more than two thirds have rows: one loop is then
- * faster): no row reads the others, which stay 0.
+ * Each output sums its terms in (t, b) order, as the reference does: output a of stage s
+ * is row a of md->markov_by_output (lags descending) from lag s down, times th from
+ * stage 0, one contiguous dot product. Only the outputs md->pred_out[0..ny_pred) are predicted, those with
+ * constraint rows (all of them when more than two thirds have rows): no row reads the
+ * others, which stay 0.
  */
 static void predict_outputs(qtank_work *ws, const qtank_mode_data *md,
     const qtank_real *th)
 {
     const int ny = md->ny, nu = md->nu, nyq = md->nyq, npred = md->ny_pred;
-    int k, t, b, j, i;
+    const int row_len = (nyq / ny) * nu; /* N nu */
+    int s, i, j;
     ws->work += predict_work(md);
-    for (k = 0; k < nyq; ++k) {
-        ws->yv[k] = R_(0.0);
+    if (npred != ny) {
+        for (s = 0; s < nyq; ++s) {
+            ws->yv[s] = R_(0.0);
+        }
     }
-    for (t = 0; t < nyq / ny; ++t) {
-        qtank_real *y = &ws->yv[t * ny]; /* outputs of stages t.. */
-        const int len = nyq - t * ny;
-        for (b = 0; b < nu; ++b) {
-            const qtank_real u = th[t * nu + b];
-            const qtank_real *mk = &md->markov[b]; /* (stage - t, a) with stride nu */
-            if (npred == ny) {
-                for (j = 0; j < len; ++j) {
-                    y[j] += mk[j * nu] * u;
-                }
-            } else {
-                for (i = 0; i < npred; ++i) { /* each predicted output over the stages */
-                    for (j = md->pred_out[i]; j < len; j += ny) {
-                        y[j] += mk[j * nu] * u;
-                    }
-                }
+    for (s = 0; s < nyq / ny; ++s) {
+        const int len = (s + 1) * nu; /* inputs of stages 0..s */
+        for (i = 0; i < npred; i += 2) { /* two outputs of the stage share th's reads */
+            const int a0 = (npred == ny) ? i : md->pred_out[i];
+            const int a1 = (i + 1 >= npred) ? a0 : ((npred == ny) ? i + 1 : md->pred_out[i + 1]);
+            const qtank_real *m0 = &md->markov_by_output[a0 * row_len + row_len - len];
+            const qtank_real *m1 = &md->markov_by_output[a1 * row_len + row_len - len];
+            qtank_real acc0 = R_(0.0), acc1 = R_(0.0);
+            for (j = 0; j + 1 < len; j += 2) {
+                const qtank_real ua = th[j], ub = th[j + 1];
+                acc0 += m0[j] * ua;
+                acc1 += m1[j] * ua;
+                acc0 += m0[j + 1] * ub;
+                acc1 += m1[j + 1] * ub;
             }
+            if (j < len) {
+                acc0 += m0[j] * th[j];
+                acc1 += m1[j] * th[j];
+            }
+            ws->yv[s * ny + a0] = acc0;
+            ws->yv[s * ny + a1] = acc1; /* the same output again when a1 = a0 */
         }
     }
 }

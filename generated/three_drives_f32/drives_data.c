@@ -360,12 +360,12 @@ static const drives_real drives_mode0_Phi[50] = {
     2.99954772f, 1.0f, 2.99969697f, 1.0f, 2.99979687f, 1.0f,
     2.99986386f, 1.0f
 };
-static const drives_real drives_mode0_markov[25] = {
-    0.0105480067f, 0.0268513374f, 0.0377797857f, 0.0451053455f, 0.0500158146f, 0.0533073992f,
-    0.0555138178f, 0.0569928214f, 0.0579842292f, 0.0586487874f, 0.0590942539f, 0.059392862f,
-    0.0595930219f, 0.0597271957f, 0.0598171316f, 0.0598774217f, 0.0599178337f, 0.0599449202f,
-    0.059963081f, 0.0599752516f, 0.0599834099f, 0.0599888787f, 0.0599925444f, 0.059995003f,
-    0.0599966496f
+static const drives_real drives_mode0_markov_by_output[25] = {
+    0.0599966496f, 0.059995003f, 0.0599925444f, 0.0599888787f, 0.0599834099f, 0.0599752516f,
+    0.059963081f, 0.0599449202f, 0.0599178337f, 0.0598774217f, 0.0598171316f, 0.0597271957f,
+    0.0595930219f, 0.059392862f, 0.0590942539f, 0.0586487874f, 0.0579842292f, 0.0569928214f,
+    0.0555138178f, 0.0533073992f, 0.0500158146f, 0.0451053455f, 0.0377797857f, 0.0268513374f,
+    0.0105480067f
 };
 static const int16_t drives_mode0_pred_out[1] = {
     0
@@ -790,12 +790,12 @@ static const drives_real drives_mode1_Phi[50] = {
     7.90178108f, 1.0f, 7.91958523f, 1.0f, 7.93416214f, 1.0f,
     7.94609642f, 1.0f
 };
-static const drives_real drives_mode1_markov[25] = {
-    0.0149846021f, 0.0412714332f, 0.0627932698f, 0.0804138631f, 0.094840385f, 0.10665182f,
-    0.116322204f, 0.124239646f, 0.130721897f, 0.136029109f, 0.140374303f, 0.143931836f,
-    0.146844506f, 0.149229184f, 0.151181608f, 0.152780116f, 0.154088855f, 0.155160367f,
-    0.156037644f, 0.156755894f, 0.157343954f, 0.15782541f, 0.158219591f, 0.158542335f,
-    0.158806562f
+static const drives_real drives_mode1_markov_by_output[25] = {
+    0.158806562f, 0.158542335f, 0.158219591f, 0.15782541f, 0.157343954f, 0.156755894f,
+    0.156037644f, 0.155160367f, 0.154088855f, 0.152780116f, 0.151181608f, 0.149229184f,
+    0.146844506f, 0.143931836f, 0.140374303f, 0.136029109f, 0.130721897f, 0.124239646f,
+    0.116322204f, 0.10665182f, 0.094840385f, 0.0804138631f, 0.0627932698f, 0.0412714332f,
+    0.0149846021f
 };
 static const int16_t drives_mode1_pred_out[1] = {
     0
@@ -1220,12 +1220,12 @@ static const drives_real drives_mode2_Phi[50] = {
     16.559103f, 1.0f, 16.8236523f, 1.0f, 17.0678616f, 1.0f,
     17.2932949f, 1.0f
 };
-static const drives_real drives_mode2_markov[25] = {
-    0.0155817317f, 0.0451372117f, 0.0724203587f, 0.0976058766f, 0.120855048f, 0.142316729f,
-    0.162128359f, 0.180416808f, 0.197299153f, 0.212883547f, 0.227269739f, 0.240549877f,
-    0.252808988f, 0.264125556f, 0.274572074f, 0.28421545f, 0.293117374f, 0.301334918f,
-    0.308920652f, 0.315923154f, 0.322387278f, 0.328354448f, 0.333862811f, 0.338947684f,
-    0.343641609f
+static const drives_real drives_mode2_markov_by_output[25] = {
+    0.343641609f, 0.338947684f, 0.333862811f, 0.328354448f, 0.322387278f, 0.315923154f,
+    0.308920652f, 0.301334918f, 0.293117374f, 0.28421545f, 0.274572074f, 0.264125556f,
+    0.252808988f, 0.240549877f, 0.227269739f, 0.212883547f, 0.197299153f, 0.180416808f,
+    0.162128359f, 0.142316729f, 0.120855048f, 0.0976058766f, 0.0724203587f, 0.0451372117f,
+    0.0155817317f
 };
 static const int16_t drives_mode2_pred_out[1] = {
     0
@@ -1325,7 +1325,7 @@ const drives_mode_data drives_modes[DRIVES_N_MODES] = {
         .GEinvGt_p = drives_mode0_GEinvGt_p,
         .Omega2 = drives_mode0_Omega2,
         .Phi = drives_mode0_Phi,
-        .markov = drives_mode0_markov,
+        .markov_by_output = drives_mode0_markov_by_output,
         .pred_out = drives_mode0_pred_out,
         .row_q = drives_mode0_row_q,
         .row_sign = drives_mode0_row_sign,
@@ -1363,7 +1363,7 @@ const drives_mode_data drives_modes[DRIVES_N_MODES] = {
         .GEinvGt_p = drives_mode1_GEinvGt_p,
         .Omega2 = drives_mode1_Omega2,
         .Phi = drives_mode1_Phi,
-        .markov = drives_mode1_markov,
+        .markov_by_output = drives_mode1_markov_by_output,
         .pred_out = drives_mode1_pred_out,
         .row_q = drives_mode1_row_q,
         .row_sign = drives_mode1_row_sign,
@@ -1401,7 +1401,7 @@ const drives_mode_data drives_modes[DRIVES_N_MODES] = {
         .GEinvGt_p = drives_mode2_GEinvGt_p,
         .Omega2 = drives_mode2_Omega2,
         .Phi = drives_mode2_Phi,
-        .markov = drives_mode2_markov,
+        .markov_by_output = drives_mode2_markov_by_output,
         .pred_out = drives_mode2_pred_out,
         .row_q = drives_mode2_row_q,
         .row_sign = drives_mode2_row_sign,

@@ -120,7 +120,10 @@ STORED_ARRAYS = (
     StoredArray("Omega2", REAL, ("N", "ny", "ny"), "2Q per stage, 2P at the last."),
     StoredArray("Phi", REAL, ("nyq", "nx"), "free response of the predicted outputs.",
                 blame="plant"),
-    StoredArray("markov", REAL, ("N", "ny", "nu"), "Markov parameters C A^i B.", blame="plant"),
+    StoredArray("markov_by_output", REAL, ("ny", "N*nu"), "Markov parameters C A^i B by "
+                "output, the longest lag first: row a holds (C A^(N-1-j) B)[a, :] from j nu, so "
+                "output a of stage s is its last (s+1) nu entries times th's first ones.",
+                blame="plant"),
     StoredArray("pred_out", "int16_t", ("ny",), "the predicted outputs, ascending, then the "
                 "others."),
     StoredArray("row_q", "int16_t", ("m",), "quantity of each row (U index, n + Y index, "

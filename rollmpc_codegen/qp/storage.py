@@ -115,7 +115,7 @@ class ModeData:
     GEinvGt_p: np.ndarray  # empty without output rows
     Omega2: np.ndarray
     Phi: np.ndarray
-    markov: np.ndarray
+    markov_by_output: np.ndarray
     row_q: np.ndarray
     row_sign: np.ndarray
     row_c: np.ndarray
@@ -221,7 +221,7 @@ def mode_data(name: str, actuator_index, plant: DiscretePlant, obs_gain: np.ndar
     def cast(a):
         return np.ascontiguousarray(np.asarray(a, dtype=np.float64).astype(dt))
 
-    markov = cast(qp.markov)
+    markov = cast(qp.markov)  # (N, ny, nu)
     soft = {"w_cap": qp.n}
     if soft_l2 is not None:
         l1, w = soft_constraints.storage(soft_l1, soft_l2)
@@ -235,7 +235,8 @@ def mode_data(name: str, actuator_index, plant: DiscretePlant, obs_gain: np.ndar
         Kx=cast(qp.Kx), EinvGt=cast(EinvGt), Sinv_p=cast(packed_lower(Sinv)), Ew=cast(Ew),
         Uv=cast(Uv), T=cast(T), S_p=cast(packed_lower(S)), V=cast(V), P2inv=cast(P2inv),
         GEinvGt_p=cast(packed_lower(GEinvGt)), Omega2=cast(Omega2), Phi=cast(qp.Phi),
-        markov=markov, row_q=row_q, row_sign=qp.row_sign.astype(np.int32), row_c=cast(qp.c),
+        markov_by_output=markov_by_output(markov), row_q=row_q,
+        row_sign=qp.row_sign.astype(np.int32), row_c=cast(qp.c),
         row_next=next_stage_rows(row_q, qp.row_sign, qp.n, nu, ny, N * ny, qp.blocks),
         colsum=cast(colsum), out_bound=cast(output_bound(markov, dt)),
         u_min=cast(u_min), u_max=cast(u_max),
@@ -260,6 +261,14 @@ def next_stage_rows(row_q: np.ndarray, row_sign: np.ndarray, n: int, nu: int,
         nxt = int(q) + step
         out[r] = where.get((nxt, int(s)), r) if nxt < end else r
     return out
+
+
+def markov_by_output(markov: np.ndarray) -> np.ndarray:
+    """The (N, ny, nu) Markov parameters as predict_outputs() reads them: one row per
+    output, lags descending, so each output's sum over the inputs (t, b) in order is one
+    contiguous dot product with th."""
+    N, ny, nu = markov.shape
+    return np.ascontiguousarray(markov[::-1].transpose(1, 0, 2).reshape(ny, N * nu))
 
 
 def output_bound(markov: np.ndarray, dt) -> np.ndarray:

@@ -23,8 +23,7 @@ def output_prediction(md: ModeData) -> tuple[np.ndarray, np.ndarray | None]:
               (md.stage_block[:, None] * nu + np.arange(nu)[None, :]).reshape(-1))
     for k in range(nyq):
         stage, a = divmod(k, ny)
-        for t in range(stage + 1):
-            Gam[k, t * nu:(t + 1) * nu] = md.markov[stage - t, a, :]
+        Gam[k, :(stage + 1) * nu] = md.markov_by_output[a, (N - 1 - stage) * nu:]
     return Gam, expand
 
 
