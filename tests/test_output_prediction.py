@@ -5,6 +5,8 @@ the bank angle but not the sideslip: predict_outputs() (C and reference) skips t
 unbounded outputs, which no row reads, and charges only the predicted ones
 (qp/work.py predict_work). Measured on quad_attitude's scenario (float, default budget):
 215 -> 150 TIME_LIMIT samples; fw_lateral 18 -> 9 (a28a654; docs/solver.md, "Work budget").
+Since the prediction is one dot product per output at half a unit per multiply-add
+(PREDICT_UNITS_PER_OP, 3/5): quad_attitude 99 -> 63, fw_lateral 9 -> 5.
 """
 from __future__ import annotations
 
@@ -12,7 +14,7 @@ import numpy as np
 import pytest
 
 from conftest import ROOT, Built, lockstep_closed_loop
-from rollmpc_codegen.qp.work import predict_work
+from rollmpc_codegen.qp.work import PREDICT_UNITS_PER_OP, predict_work
 from rollmpc_codegen.status import OPTIMAL, TIME_LIMIT
 
 QUAD = ROOT / "examples" / "quad_attitude.yaml"
@@ -31,7 +33,8 @@ def test_only_bounded_outputs_are_predicted_and_charged():
     md = model.modes[0].data
     assert md.ny == 4 and md.ny_pred == 2 and list(md.pred_out) == [0, 1, 2, 3]
     stages = md.n_yq // md.ny
-    assert predict_work(md) == 2 * md.nu * stages * (stages + 1) // 2 + md.n_yq
+    units, per = PREDICT_UNITS_PER_OP
+    assert predict_work(md) == 2 * md.nu * stages * (stages + 1) // 2 * units // per + md.n_yq
     ref = SolverRef(md, ctx["solver"])
     th = np.random.default_rng(0).normal(size=md.n)
     y = ref.predict_outputs(th).reshape(stages, md.ny)
@@ -55,10 +58,10 @@ def test_mostly_bounded_outputs_are_all_predicted(example, with_rows):
 
 
 def test_partial_prediction_is_bit_exact_with_the_reference(quad_float):
-    """The C's strided loop over the predicted outputs sums each of them in the reference's
-    order: the closed loop through the tilt-limited manoeuvre (TIME_LIMIT included) is the
+    """The C's dot products over the predicted outputs (two at a time, markov_by_output)
+    sum each of them in the reference's order: the closed loop through the tilt-limited manoeuvre (TIME_LIMIT included) is the
     reference's bit for bit: status, command, corrections, active rows and work."""
     bad, seen = lockstep_closed_loop(quad_float, 500)
     assert bad == []
     statuses = [s for s, _ in seen]
-    assert statuses.count(TIME_LIMIT) >= 20 and statuses.count(OPTIMAL) >= 400
+    assert statuses.count(TIME_LIMIT) >= 10 and statuses.count(OPTIMAL) >= 400  # 20 and 480 now

@@ -43,12 +43,15 @@ static uint32_t hq_work(const fwlat_mode_data *md)
     return ((uint32_t)md->nt + 4u) * 2u;
 }
 
-/* predict_outputs(): the Markov sum of each output with rows over the stages before it. */
+/*
+ * predict_outputs(): the Markov sum of each output with rows over the stages before it, at
+ * 3/5 of a unit per multiply-add (PREDICT_UNITS_PER_OP), and a unit per output.
+ */
 static uint32_t predict_work(const fwlat_mode_data *md)
 {
     const uint32_t stages = (uint32_t)md->nyq / (uint32_t)md->ny;
     return (uint32_t)md->ny_pred * (uint32_t)md->nu * stages * (stages + 1u) / 2u
-        + (uint32_t)md->nyq;
+        * 3u / 5u + (uint32_t)md->nyq;
 }
 
 /*
@@ -686,11 +689,12 @@ static void predict_outputs(fwlat_work *ws, const fwlat_mode_data *md,
     }
     for (s = 0; s < nyq / ny; ++s) {
         const int len = (s + 1) * nu; /* inputs of stages 0..s */
-        for (i = 0; i < npred; i += 2) { /* two outputs of the stage share th's reads */
+        const int first = row_len - len; /* lag s in each row of markov_by_output */
+        for (i = 0; i + 1 < npred; i += 2) { /* two outputs of the stage share th's reads */
             const int a0 = (npred == ny) ? i : md->pred_out[i];
-            const int a1 = (i + 1 >= npred) ? a0 : ((npred == ny) ? i + 1 : md->pred_out[i + 1]);
-            const fwlat_real *m0 = &md->markov_by_output[a0 * row_len + row_len - len];
-            const fwlat_real *m1 = &md->markov_by_output[a1 * row_len + row_len - len];
+            const int a1 = (npred == ny) ? i + 1 : md->pred_out[i + 1];
+            const fwlat_real *m0 = &md->markov_by_output[a0 * row_len + first];
+            const fwlat_real *m1 = &md->markov_by_output[a1 * row_len + first];
             fwlat_real acc0 = R_(0.0), acc1 = R_(0.0);
             for (j = 0; j + 1 < len; j += 2) {
                 const fwlat_real ua = th[j], ub = th[j + 1];
@@ -704,7 +708,22 @@ static void predict_outputs(fwlat_work *ws, const fwlat_mode_data *md,
                 acc1 += m1[j] * th[j];
             }
             ws->yv[s * ny + a0] = acc0;
-            ws->yv[s * ny + a1] = acc1; /* the same output again when a1 = a0 */
+            ws->yv[s * ny + a1] = acc1;
+        }
+        if (i < npred) { /* an odd last output alone */
+            const int a0 = (npred == ny) ? i : md->pred_out[i];
+            const fwlat_real *m0 = &md->markov_by_output[a0 * row_len + first];
+            fwlat_real acc0 = R_(0.0);
+            for (j = 0; j + 3 < len; j += 4) {
+                acc0 += m0[j] * th[j];
+                acc0 += m0[j + 1] * th[j + 1];
+                acc0 += m0[j + 2] * th[j + 2];
+                acc0 += m0[j + 3] * th[j + 3];
+            }
+            for (; j < len; ++j) {
+                acc0 += m0[j] * th[j];
+            }
+            ws->yv[s * ny + a0] = acc0;
         }
     }
 }

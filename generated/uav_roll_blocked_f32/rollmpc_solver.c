@@ -43,12 +43,15 @@ static uint32_t hq_work(const rollmpc_mode_data *md)
     return ((uint32_t)md->nt + 4u) * 1u;
 }
 
-/* predict_outputs(): the Markov sum of each output with rows over the stages before it. */
+/*
+ * predict_outputs(): the Markov sum of each output with rows over the stages before it, at
+ * 3/5 of a unit per multiply-add (PREDICT_UNITS_PER_OP), and a unit per output.
+ */
 static uint32_t predict_work(const rollmpc_mode_data *md)
 {
     const uint32_t stages = (uint32_t)md->nyq / (uint32_t)md->ny;
     return (uint32_t)md->ny_pred * (uint32_t)md->nu * stages * (stages + 1u) / 2u
-        + (uint32_t)md->nyq;
+        * 3u / 5u + (uint32_t)md->nyq;
 }
 
 /*
@@ -660,11 +663,12 @@ static void predict_outputs(rollmpc_work *ws, const rollmpc_mode_data *md,
     }
     for (s = 0; s < nyq / ny; ++s) {
         const int len = (s + 1) * nu; /* inputs of stages 0..s */
-        for (i = 0; i < npred; i += 2) { /* two outputs of the stage share th's reads */
+        const int first = row_len - len; /* lag s in each row of markov_by_output */
+        for (i = 0; i + 1 < npred; i += 2) { /* two outputs of the stage share th's reads */
             const int a0 = (npred == ny) ? i : md->pred_out[i];
-            const int a1 = (i + 1 >= npred) ? a0 : ((npred == ny) ? i + 1 : md->pred_out[i + 1]);
-            const rollmpc_real *m0 = &md->markov_by_output[a0 * row_len + row_len - len];
-            const rollmpc_real *m1 = &md->markov_by_output[a1 * row_len + row_len - len];
+            const int a1 = (npred == ny) ? i + 1 : md->pred_out[i + 1];
+            const rollmpc_real *m0 = &md->markov_by_output[a0 * row_len + first];
+            const rollmpc_real *m1 = &md->markov_by_output[a1 * row_len + first];
             rollmpc_real acc0 = R_(0.0), acc1 = R_(0.0);
             int t, b;
             for (t = 0, j = 0; t <= s; ++t) {
@@ -675,7 +679,20 @@ static void predict_outputs(rollmpc_work *ws, const rollmpc_mode_data *md,
                 }
             }
             ws->yv[s * ny + a0] = acc0;
-            ws->yv[s * ny + a1] = acc1; /* the same output again when a1 = a0 */
+            ws->yv[s * ny + a1] = acc1;
+        }
+        if (i < npred) { /* an odd last output alone */
+            const int a0 = (npred == ny) ? i : md->pred_out[i];
+            const rollmpc_real *m0 = &md->markov_by_output[a0 * row_len + first];
+            rollmpc_real acc0 = R_(0.0);
+            int t, b;
+            for (t = 0, j = 0; t <= s; ++t) {
+                const rollmpc_real *u = &th[md->stage_block[t] * nu];
+                for (b = 0; b < nu; ++b, ++j) {
+                    acc0 += m0[j] * u[b];
+                }
+            }
+            ws->yv[s * ny + a0] = acc0;
         }
     }
 }

@@ -16,8 +16,8 @@ from ..features.runtime_bounds import context_bounds
 from ..model.controller import ControllerModel
 from ..qp.arrays import REAL, declared_for
 from ..qp.sizes import working_set_lengths
-from ..qp.work import (ADD_BATCH, CHOL_UNITS_PER_OP, GUESS_SAMPLE_MIN, PRIMAL_CALL_OPS,
-                       PRIMAL_CALL_UNITS, PRIMAL_SIXTHS_PER_OP, TRI_UNITS_PER_OP, check_work_budget)
+from ..qp.work import (ADD_BATCH, CHOL_UNITS_PER_OP, GUESS_SAMPLE_MIN, PREDICT_UNITS_PER_OP,
+                       PRIMAL_CALL_OPS, PRIMAL_CALL_UNITS, PRIMAL_SIXTHS_PER_OP, TRI_UNITS_PER_OP, check_work_budget)
 from ..status import UNKNOWN_MESSAGE, context_statuses
 
 
@@ -113,7 +113,8 @@ def build_context(model: ControllerModel) -> dict:
             "work_units": {"chol": CHOL_UNITS_PER_OP, "tri": TRI_UNITS_PER_OP,
                            "primal": PRIMAL_SIXTHS_PER_OP, "primal_call": PRIMAL_CALL_UNITS,
                            "primal_call_ops": PRIMAL_CALL_OPS,
-                           "guess_sample_min": GUESS_SAMPLE_MIN},
+                           "guess_sample_min": GUESS_SAMPLE_MIN,
+                           "predict": PREDICT_UNITS_PER_OP},
         },
         "sizes": {
             "nx_max": max(m["nx"] for m in modes), "nu_max": max(m["nu"] for m in modes),

@@ -37,9 +37,19 @@ def hq_work(m, factor: int) -> int:
     return (m.nt + 4) * factor
 
 
+# predict_outputs(): one contiguous dot product per output, two outputs at a time, runs
+# at 6.5 cycles per multiply-add in its inner loop on the emulated M4F (float, -O2), 7.3-9.3
+# per call with its per-stage setup (quad_attitude, chain_runtime_bounds, fw_lateral's
+# single bounded output), so it is charged 3/5 of a unit per multiply-add (11.5-14.4
+# cycles per unit), and a unit per output. At 1/2 fw_lateral's heavy steps ran at 20.13
+# cycles per unit, over CYCLES_PER_WORK_UNIT.
+PREDICT_UNITS_PER_OP = (3, 5)
+
+
 def predict_work(m) -> int:
     stages = m.n_yq // m.ny
-    return m.ny_pred * m.nu * stages * (stages + 1) // 2 + m.n_yq
+    return (m.ny_pred * m.nu * stages * (stages + 1) // 2 * PREDICT_UNITS_PER_OP[0]
+            // PREDICT_UNITS_PER_OP[1] + m.n_yq)
 
 
 def scan_work(m) -> int:
