@@ -437,6 +437,14 @@ static void sparse_rows_dot(const rollmpc_real *mp, int n, const int16_t *rows, 
             if (a + 1 < nrows && rows[a] >= hi - 1 && rows[a + 1] >= hi - 1) {
                 packed_range_dot2(mp, rows[a], rows[a + 1], x, lo, hi, &out[a], &out[a + 1]);
                 ++a;
+            } else if (hi - lo < 4) { /* a short run (scattered bound inputs): no call */
+                const int q = rows[a];
+                rollmpc_real acc = out[a];
+                int j;
+                for (j = lo; j < hi; ++j) {
+                    acc += mp[(j <= q) ? ROLLMPC_TRI(q, j) : ROLLMPC_TRI(j, q)] * x[j];
+                }
+                out[a] = acc;
             } else {
                 out[a] = packed_range_dot(mp, rows[a], x, lo, hi, out[a]);
             }
