@@ -65,3 +65,29 @@ def test_partial_prediction_is_bit_exact_with_the_reference(quad_float):
     assert bad == []
     statuses = [s for s, _ in seen]
     assert statuses.count(TIME_LIMIT) >= 10 and statuses.count(OPTIMAL) >= 400  # 20 and 480 now
+
+
+@pytest.mark.parametrize("example", ["quad_attitude", "chain_of_masses"])
+def test_markov_by_output_is_the_plants_block_toeplitz_gamma(example):
+    """The stored markov_by_output, as the reference's Gamma reads it, is C A^(s-t) B of
+    the mode's own discrete model at every (stage s, output a; input stage t): computed
+    here from A, B, C, not from the stored array, so a wrong layout would show."""
+    from rollmpc_codegen.pipeline import load_model
+    from rollmpc_codegen.reference.unconstrained import output_prediction
+
+    model, _ = load_model(ROOT / "examples" / f"{example}.yaml", "double")
+    md = model.modes[0].data
+    Gam, _ = output_prediction(md)
+    A, B, C = (np.asarray(a, np.float64) for a in (md.A, md.B, md.C))
+    lags, AkB = [], B
+    for _ in range(md.N):
+        lags.append(C @ AkB)
+        AkB = A @ AkB
+    expected = np.zeros_like(Gam, dtype=np.float64)
+    for k in range(md.n_yq):
+        stage, a = divmod(k, md.ny)
+        for t in range(stage + 1):
+            expected[k, t * md.nu:(t + 1) * md.nu] = lags[stage - t][a]
+    scale = np.abs(expected).max()
+    assert scale > 0.0
+    np.testing.assert_allclose(Gam, expected, rtol=1e-9, atol=1e-12 * scale)
