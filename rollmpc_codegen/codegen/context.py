@@ -17,7 +17,8 @@ from ..model.controller import ControllerModel
 from ..qp.arrays import REAL, declared_for
 from ..qp.sizes import working_set_lengths
 from ..qp.work import (ADD_BATCH, CHOL_UNITS_PER_OP, GUESS_SAMPLE_MIN, PREDICT_UNITS_PER_OP,
-                       PRIMAL_CALL_OPS, PRIMAL_CALL_UNITS, PRIMAL_SIXTHS_PER_OP, TRI_UNITS_PER_OP, check_work_budget)
+                       PRIMAL_CALL_OPS, PRIMAL_CALL_UNITS, PRIMAL_SIXTHS_PER_OP,
+                       TRI_UNITS_PER_OP, check_work_budget)
 from ..status import UNKNOWN_MESSAGE, context_statuses
 
 
