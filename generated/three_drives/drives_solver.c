@@ -653,8 +653,7 @@ static void unconstrained(drives_work *ws, const drives_mode_data *md,
  * Each output sums its terms in (t, b) order, as the reference does: output a of stage s
  * is row a of md->markov_by_output (lags descending) from lag s down, times th from
  * stage 0, one contiguous dot product. Only the outputs md->pred_out[0..ny_pred) are predicted, those with
- * constraint rows (all of them when more than two thirds have rows): no row reads the
- * others, which stay 0.
+ * constraint rows: no row reads the others, which stay 0.
  */
 static void predict_outputs(drives_work *ws, const drives_mode_data *md,
     const drives_real *th)

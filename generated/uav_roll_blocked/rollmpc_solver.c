@@ -654,8 +654,7 @@ static void unconstrained(rollmpc_work *ws, const rollmpc_mode_data *md,
  * is row a of md->markov_by_output (lags descending) from lag s down, times th from
  * stage 0, one contiguous dot product (stage t reading its block's
  * inputs). Only the outputs md->pred_out[0..ny_pred) are predicted, those with
- * constraint rows (all of them when more than two thirds have rows): no row reads the
- * others, which stay 0.
+ * constraint rows: no row reads the others, which stay 0.
  */
 static void predict_outputs(rollmpc_work *ws, const rollmpc_mode_data *md,
     const rollmpc_real *th)

@@ -49,19 +49,11 @@ class ModeSizes:
     nt: int  # terminal rows of the E split: ny when P is positive definite
     w_cap: int  # working-set capacity: n + soft (output, stage) pairs
     has_output_rows: bool
-    ny_pred: int  # outputs predicted on line (predicted_outputs_count())
+    ny_pred: int  # outputs predicted on line: those with constraint rows
 
     @property
     def n_yq(self) -> int:
         return self.N * self.ny
-
-
-def predicted_outputs_count(with_rows: int, ny: int) -> int:
-    """How many outputs predict_outputs() computes when ``with_rows`` of the ``ny`` have
-    constraint rows: only those, unless more than two thirds have rows; then all of them,
-    in the one contiguous loop, whose single setup per (stage, input) is faster than a loop
-    per output (chain_runtime_bounds, 5 of 6: its worst step +2.6 % with a loop each)."""
-    return ny if 3 * with_rows > 2 * ny else with_rows
 
 
 def plant_order(mode: ModeConfig, ny: int) -> int:
@@ -88,7 +80,7 @@ def mode_sizes(cfg: ControllerConfig, mode: ModeConfig) -> ModeSizes:
     return ModeSizes(N=N, nx=plant_order(mode, ny) + nd + n_prev, nu=nu, ny=ny, n=n,
                      m=qp_rows(N, mode), nt=ny if np.linalg.eigvalsh(mode.P).min() > 0 else 0,
                      w_cap=n + soft, has_output_rows=bool(np.any(bounded)),
-                     ny_pred=predicted_outputs_count(int(np.sum(bounded)), ny))
+                     ny_pred=int(np.sum(bounded)))
 
 
 def features_of(cfg: ControllerConfig) -> dict:

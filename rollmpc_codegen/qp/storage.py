@@ -56,7 +56,6 @@ import numpy as np
 from ..features import move_blocking, soft_constraints
 from .arrays import STORED_ARRAYS
 from .condense import CondensedQP, solve_refined
-from .sizes import predicted_outputs_count
 from ..model.plant import DiscretePlant
 
 
@@ -152,11 +151,13 @@ class ModeData:
     @cached_property
     def _predicted(self) -> tuple[np.ndarray, int]:
         """(pred_out, ny_pred): the outputs predict_outputs() computes, ascending, then the
-        others, and their count (sizes.predicted_outputs_count()). Those with constraint
-        rows: an output that is tracked but never bounded (a yaw, a climb rate) costs
-        nothing in the prediction."""
+        others, and their count. Those with constraint rows: an output that is tracked
+        but never bounded (a yaw, a climb rate) costs nothing in the prediction, whose
+        dot product per output would cost as much for it (until da87413 the prediction
+        spread each input over every output, and predicted all of them once more than
+        two thirds had rows)."""
         rows = np.unique((self.row_q[self.output_rows] - self.n) % self.ny)
-        count = predicted_outputs_count(int(rows.size), self.ny)
+        count = int(rows.size)
         if count == self.ny:
             return np.arange(self.ny, dtype=np.int32), count
         rest = np.setdiff1d(np.arange(self.ny), rows)
