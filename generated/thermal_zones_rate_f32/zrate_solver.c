@@ -226,29 +226,49 @@ static uint32_t add_step_work(int nw)
     return 2u * tri_work(nw) + 5u * (uint32_t)nw + ((leave > flip) ? leave : flip);
 }
 
+/* E^-1(a, b) for inputs a, b < n, in Woodbury form: E^-1 = S^-1 - Ew' Ew. */
+static zrate_real einv(const zrate_mode_data *md, int a, int b)
+{
+    const int n = md->n;
+    const zrate_real si = (a >= b) ? md->Sinv_p[ZRATE_TRI(a, b)] : md->Sinv_p[ZRATE_TRI(b, a)];
+    zrate_real acc = R_(0.0);
+    int o;
+    for (o = 0; o < md->nt; ++o) {
+        acc += md->Ew[o * n + a] * md->Ew[o * n + b];
+    }
+    return si - acc;
+}
+
+/*
+ * Hq(n + k, b): output k against quantity b, from G E^-1 (EinvGt's row b, column k) or
+ * G E^-1 G'; a Δu quantity b as hq_side() forms it.
+ */
+static zrate_real hq_output(const zrate_mode_data *md, int k, int b)
+{
+    const int n = md->n, nyq = md->nyq;
+    const int d = b - (n + nyq);
+    if (d >= 0) {
+        const zrate_real h = md->EinvGt[d * nyq + k];
+        return (d >= md->nu) ? h - md->EinvGt[(d - md->nu) * nyq + k] : h;
+    }
+    if (b < n) {
+        return md->EinvGt[b * nyq + k];
+    }
+    b -= n;
+    return (k >= b) ? md->GEinvGt_p[ZRATE_TRI(k, b)] : md->GEinvGt_p[ZRATE_TRI(b, k)];
+}
+
 /* Element (a, b) of Hq = [[E^-1, E^-1 G'], [G E^-1, G E^-1 G']] (quantities a, b). */
 static zrate_real hq_base(const zrate_mode_data *md, int a, int b)
 {
     const int n = md->n;
     if (a < n) {
         if (b < n) {
-            /* Woodbury: E^-1 = S^-1 - Ew' Ew */
-            const zrate_real si = (a >= b) ? md->Sinv_p[ZRATE_TRI(a, b)] : md->Sinv_p[ZRATE_TRI(b, a)];
-            zrate_real acc = R_(0.0);
-            int o;
-            for (o = 0; o < md->nt; ++o) {
-                acc += md->Ew[o * n + a] * md->Ew[o * n + b];
-            }
-            return si - acc;
+            return einv(md, a, b);
         }
         return md->EinvGt[a * md->nyq + (b - n)];
     }
-    if (b < n) {
-        return md->EinvGt[b * md->nyq + (a - n)];
-    }
-    a -= n;
-    b -= n;
-    return (a >= b) ? md->GEinvGt_p[ZRATE_TRI(a, b)] : md->GEinvGt_p[ZRATE_TRI(b, a)];
+    return hq_output(md, a - n, b);
 }
 
 /*
@@ -283,6 +303,102 @@ static zrate_real h_rows(const zrate_mode_data *md, int r, int s)
 {
     const zrate_real h = hq(md, md->row_q[r], md->row_q[s]);
     return (md->row_sign[r] == md->row_sign[s]) ? h : -h;
+}
+
+/* H_Wp a column at a time: the polish's and the dual active set's reads (no data, same values) */
+/*
+ * col[i] = E^-1(i, b) over the inputs i, or with `less` col[i] -= E^-1(i, b): einv()'s
+ * operations, walking S^-1's row b and then its column b.
+ */
+static void einv_column(const zrate_mode_data *md, int b, int less, zrate_real *col)
+{
+    const int n = md->n;
+    const zrate_real *ewb = &md->Ew[b]; /* Ew[o * n + b] = ewb[o * n] */
+    int i, o, k = ZRATE_TRI(b, 0);
+    for (i = 0; i < n; ++i) {
+        zrate_real acc = R_(0.0), e;
+        for (o = 0; o < md->nt; ++o) {
+            acc += md->Ew[o * n + i] * ewb[o * n];
+        }
+        e = md->Sinv_p[k] - acc;
+        col[i] = less ? col[i] - e : e;
+        k += (i < b) ? 1 : i + 1; /* TRI(b, i + 1) while i < b, then TRI(i + 1, b) */
+    }
+}
+
+/*
+ * Column b of Hq over the n inputs, col[i] = Hq(i, b) formed as hq() forms it (a Δu
+ * quantity b as the difference of two columns). One pass over the inputs: the column
+ * repays itself once enough input and Δu rows read it (h_column()).
+ */
+static void hq_input_column(const zrate_mode_data *md, int b, zrate_real *col)
+{
+    const int n = md->n;
+    int i;
+    const int d = b - (n + md->nyq);
+    if (d >= 0) { /* Δu: U_d - U_(d-nu), or U_d in the first stage */
+        einv_column(md, d, 0, col);
+        if (d >= md->nu) {
+            einv_column(md, d - md->nu, 1, col);
+        }
+        return;
+    }
+    if (b < n) {
+        einv_column(md, b, 0, col);
+        return;
+    }
+    for (i = 0; i < n; ++i) {
+        col[i] = md->EinvGt[i * md->nyq + (b - n)];
+    }
+}
+
+/* Whether quantity q is an input or a Δu (what hq_input_column() serves). */
+static int on_inputs(const zrate_mode_data *md, int q)
+{
+    return q < md->n || q >= md->n + md->nyq;
+}
+
+/*
+ * H_rp with p's input column col (hq_input_column()), or NULL: an input or Δu row r reads
+ * col (else hq()), an output row hq_output().
+ */
+static zrate_real h_from_column(const zrate_mode_data *md, int r, int p, const zrate_real *col)
+{
+    const int a = md->row_q[r];
+    zrate_real h;
+    if (!on_inputs(md, a)) {
+        h = hq_output(md, a - md->n, md->row_q[p]);
+    } else if (col == NULL) {
+        h = hq(md, a, md->row_q[p]);
+    } else if (a >= md->n) { /* Δu: U_d - U_(d-nu), or U_d in the first stage */
+        const int d = a - (md->n + md->nyq);
+        h = (d >= md->nu) ? col[d] - col[d - md->nu] : col[d];
+    } else {
+        h = col[a];
+    }
+    return (md->row_sign[r] == md->row_sign[p]) ? h : -h;
+}
+
+/*
+ * H_Wp = h_rows(wset[i], p) into out[0..nw): through p's input column in col (n reals of
+ * scratch) once the input and Δu rows among them number at least n / 2, else entry by
+ * entry. Same values either way.
+ */
+static void h_column(const zrate_mode_data *md, const int16_t *wset, int nw, int p,
+    zrate_real *col, zrate_real *out)
+{
+    int i, inputs = 0;
+    for (i = 0; i < nw; ++i) {
+        inputs += on_inputs(md, md->row_q[wset[i]]);
+    }
+    if (2 * inputs >= md->n) {
+        hq_input_column(md, md->row_q[p], col);
+    } else {
+        col = NULL;
+    }
+    for (i = 0; i < nw; ++i) {
+        out[i] = h_from_column(md, wset[i], p, col);
+    }
 }
 
 /*
@@ -1685,16 +1801,17 @@ static int primal_solve(zrate_work *ws, const zrate_mode_data *md, int nw,
 
 /*
  * L = chol(H_WW) for W = wset[0..nw) (plus w on the diagonal of slack soft rows) into
- * ws->chol, from scratch: the fallback whenever the kept factor may not be valid. Sets
- * ws->chol_holds; -1 if a pivot breaks down.
+ * ws->chol, from scratch, H_WW read a column at a time (h_column()): the fallback
+ * whenever the kept factor may not be valid. Sets ws->chol_holds; -1 if a pivot breaks down.
  */
 static int factor_working_set(zrate_work *ws, const zrate_mode_data *md, int nw)
 {
     int i, j;
     ws->work += factor_work(md, nw);
-    for (i = 0; i < nw; ++i) {
-        for (j = 0; j <= i; ++j) {
-            ws->chol[ZRATE_TRI(i, j)] = h_rows(md, ws->wset[i], ws->wset[j]);
+    for (j = 0; j < nw; ++j) { /* column j of H_WW, on and below the diagonal (scratch dv, rhs) */
+        h_column(md, &ws->wset[j], nw - j, ws->wset[j], ws->dv, ws->rhs);
+        for (i = j; i < nw; ++i) {
+            ws->chol[ZRATE_TRI(i, j)] = ws->rhs[i - j];
         }
     }
     if (zrate_cholesky_from(ws->chol, 0, nw) != 0) {
@@ -1738,16 +1855,13 @@ static void factor_append(zrate_work *ws, int nw, zrate_real zeta)
  */
 static void append_row(zrate_work *ws, const zrate_mode_data *md, int p, int nw)
 {
-    int i;
     ws->wset[nw] = (int16_t)p;
     ws->in_set[p] = 1;
     if (ws->chol_holds == ZRATE_CHOL_DUAL) {
         const zrate_real hpp = hq(md, md->row_q[p], md->row_q[p]);
         zrate_real zeta;
         ws->work += ((uint32_t)nw + 1u) * hq_work(md);
-        for (i = 0; i < nw; ++i) {
-            ws->rhs[i] = h_rows(md, ws->wset[i], p);
-        }
+        h_column(md, ws->wset, nw, p, ws->ycol, ws->rhs); /* ycol: the primal factor's Y is not held */
         zeta = factor_pivot(ws, nw, hpp);
         if (zeta > ZRATE_SOLVER_DEPENDENCE_TOL * hpp) {
             factor_append(ws, nw, zeta);
@@ -2230,9 +2344,7 @@ static int add_to_set(zrate_work *ws, const zrate_mode_data *md, int p, int rech
         return OUT_OF_WORK;
     }
     ws->work += ((uint32_t)*nw + 1u) * hq_work(md);
-    for (i = 0; i < *nw; ++i) { /* H_Wp, read once for every step of this add */
-        hcol[i] = h_rows(md, ws->wset[i], p);
-    }
+    h_column(md, ws->wset, *nw, p, ws->dv, hcol); /* H_Wp, read once for every step of this add */
     if (recheck) { /* chosen at an earlier point: still violated at this one? */
         zrate_real viol = -ws->K[p];
         for (i = 0; i < *nw; ++i) {

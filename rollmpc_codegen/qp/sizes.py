@@ -99,9 +99,11 @@ def working_set_lengths(w: int) -> dict[str, int]:
       entries: gcc cannot see that the working set stays within md->w_cap (data), so at
       w = 1 it takes free_multipliers()' read of wset[a + 1] and factor_append()'s loop
       over row nw (both dead code there) for accesses past a 1-element array and refuses
-      them (-Warray-bounds at -O2). A second element keeps them inside the array.
+      them (-Warray-bounds at -O2). A second element keeps them inside the array; ``chol``
+      takes three, the packed factor of two rows, for factor_working_set()'s column loop
+      (gcc 12 reads its chol(1, 1) at w = 1 the same way).
     """
-    return {"wset": max(w, 2), "tmp": max(w, ADD_BATCH), "chol": max(w * (w + 1) // 2, 2)}
+    return {"wset": max(w, 2), "tmp": max(w, ADD_BATCH), "chol": max(w * (w + 1) // 2, 3)}
 
 
 def real_bytes(precision: str) -> int:

@@ -1,9 +1,11 @@
 """Mirror of ``templates/solver/hq.c.j2`` (and ``s_at()`` of ``dot.c.j2``).
 
-The C reads the dual Hessian H = M E^-1 M' element by element through the quantity
-Hessian Hq (``hq()``, ``h_rows()``) and never stores it.  The reference
-tabulates the same elements once per mode, each formed by the same operations in the same
-order, so every read agrees bit for bit.
+The C reads the dual Hessian H = M E^-1 M' through the quantity Hessian Hq and never
+stores it: element by element (``hq()``, ``h_rows()``), or, for the polish's and the dual
+active set's H_Wp, a column at a time (``h_column()``: ``einv_column()``,
+``hq_input_column()``, ``h_from_column()``), which forms every element by ``hq()``'s
+operations.  The reference tabulates the same elements once per mode, each formed by the
+same operations in the same order, so every read agrees bit for bit either way.
 """
 from __future__ import annotations
 
