@@ -227,7 +227,7 @@ static uint32_t add_step_work(int nw)
 }
 
 /* E^-1(a, b) for inputs a, b < n, in Woodbury form: E^-1 = S^-1 - Ew' Ew. */
-static chain_real einv(const chain_mode_data *md, int a, int b)
+static inline chain_real einv(const chain_mode_data *md, int a, int b)
 {
     const int n = md->n;
     const chain_real si = (a >= b) ? md->Sinv_p[CHAIN_TRI(a, b)] : md->Sinv_p[CHAIN_TRI(b, a)];
@@ -243,7 +243,7 @@ static chain_real einv(const chain_mode_data *md, int a, int b)
  * Hq(n + k, b): output k against quantity b, from G E^-1 (EinvGt's row b, column k) or
  * G E^-1 G'.
  */
-static chain_real hq_output(const chain_mode_data *md, int k, int b)
+static inline chain_real hq_output(const chain_mode_data *md, int k, int b)
 {
     const int n = md->n, nyq = md->nyq;
     if (b < n) {
@@ -319,8 +319,8 @@ static int on_inputs(const chain_mode_data *md, int q)
 }
 
 /*
- * H_rp with p's input column col (hq_input_column()), or NULL: an input or Δu row r reads
- * col (else hq()), an output row hq_output().
+ * H_rp with p's input column col (hq_input_column()): an input or Δu row r reads col, an
+ * output row hq_output().
  */
 static chain_real h_from_column(const chain_mode_data *md, int r, int p, const chain_real *col)
 {
@@ -328,8 +328,6 @@ static chain_real h_from_column(const chain_mode_data *md, int r, int p, const c
     chain_real h;
     if (!on_inputs(md, a)) {
         h = hq_output(md, a - md->n, md->row_q[p]);
-    } else if (col == NULL) {
-        h = hq(md, a, md->row_q[p]);
     } else {
         h = col[a];
     }
@@ -337,24 +335,47 @@ static chain_real h_from_column(const chain_mode_data *md, int r, int p, const c
 }
 
 /*
+ * The E^-1 entries that reading H_Wp entry by entry forms per input entry of p's
+ * quantity, over the rows wset[0..nw): one per input row (h_column() weighs them against the n of a column).
+ */
+static int einv_reads(const chain_mode_data *md, const int16_t *wset, int nw)
+{
+    int i, reads = 0;
+    for (i = 0; i < nw; ++i) {
+        const int q = md->row_q[wset[i]];
+        reads += (q < md->n);
+    }
+    return reads;
+}
+
+/*
+ * Whether forming a column of n entries pays for rows that would form `reads` entries of
+ * E^-1 one by one (einv_reads()): from n / 2 on (of 1/4, 3/8, 1/2, 3/4 and 1, the fewest
+ * cycles on the emulated M4F).
+ */
+static int column_pays(const chain_mode_data *md, int reads)
+{
+    return 2 * reads >= md->n;
+}
+
+/*
  * H_Wp = h_rows(wset[i], p) into out[0..nw): through p's input column in col (n reals of
- * scratch) once the input and Δu rows among them number at least n / 2, else entry by
- * entry. Same values either way.
+ * scratch) where the rows' einv_reads() (`reads`, or counted here when negative) make it
+ * pay (column_pays()), else entry by entry. Same values either way.
  */
 static void h_column(const chain_mode_data *md, const int16_t *wset, int nw, int p,
-    chain_real *col, chain_real *out)
+    int reads, chain_real *col, chain_real *out)
 {
-    int i, inputs = 0;
-    for (i = 0; i < nw; ++i) {
-        inputs += on_inputs(md, md->row_q[wset[i]]);
-    }
-    if (2 * inputs >= md->n) {
+    int i;
+    if (column_pays(md, (reads < 0) ? einv_reads(md, wset, nw) : reads)) {
         hq_input_column(md, md->row_q[p], col);
+        for (i = 0; i < nw; ++i) {
+            out[i] = h_from_column(md, wset[i], p, col);
+        }
     } else {
-        col = NULL;
-    }
-    for (i = 0; i < nw; ++i) {
-        out[i] = h_from_column(md, wset[i], p, col);
+        for (i = 0; i < nw; ++i) {
+            out[i] = h_rows(md, wset[i], p);
+        }
     }
 }
 
@@ -1741,17 +1762,25 @@ static int primal_solve(chain_work *ws, const chain_mode_data *md, int nw,
 
 /*
  * L = chol(H_WW) for W = wset[0..nw) (plus w on the diagonal of slack soft rows) into
- * ws->chol, from scratch, H_WW read a column at a time (h_column()): the fallback
- * whenever the kept factor may not be valid. Sets ws->chol_holds; -1 if a pivot breaks down.
+ * ws->chol, from scratch: the fallback whenever the kept factor may not be valid. H_WW's
+ * leading columns are read a column at a time while that pays (column_pays()), the rest
+ * entry by entry. Sets ws->chol_holds; -1 if a pivot breaks down.
  */
 static int factor_working_set(chain_work *ws, const chain_mode_data *md, int nw)
 {
-    int i, j;
+    int i, j = 0, k, reads = einv_reads(md, ws->wset, nw);
     ws->work += factor_work(md, nw);
-    for (j = 0; j < nw; ++j) { /* column j of H_WW, on and below the diagonal (scratch dv, rhs) */
-        h_column(md, &ws->wset[j], nw - j, ws->wset[j], ws->dv, ws->rhs);
+    while (j < nw && column_pays(md, reads)) { /* column j through h_column(), scratch dv, rhs */
+        h_column(md, &ws->wset[j], nw - j, ws->wset[j], reads, ws->dv, ws->rhs);
         for (i = j; i < nw; ++i) {
             ws->chol[CHAIN_TRI(i, j)] = ws->rhs[i - j];
+        }
+        reads -= einv_reads(md, &ws->wset[j], 1);
+        ++j;
+    }
+    for (i = j; i < nw; ++i) { /* the rest, too few input rows for a column: row by row */
+        for (k = j; k <= i; ++k) {
+            ws->chol[CHAIN_TRI(i, k)] = h_rows(md, ws->wset[i], ws->wset[k]);
         }
     }
     if (chain_cholesky_from(ws->chol, 0, nw) != 0) {
@@ -1801,7 +1830,8 @@ static void append_row(chain_work *ws, const chain_mode_data *md, int p, int nw)
         const chain_real hpp = hq(md, md->row_q[p], md->row_q[p]);
         chain_real zeta;
         ws->work += ((uint32_t)nw + 1u) * hq_work(md);
-        h_column(md, ws->wset, nw, p, ws->ycol, ws->rhs); /* ycol: the primal factor's Y is not held */
+        /* scratch ycol: the primal factor's Y is not held */
+        h_column(md, ws->wset, nw, p, -1, ws->ycol, ws->rhs);
         zeta = factor_pivot(ws, nw, hpp);
         if (zeta > CHAIN_SOLVER_DEPENDENCE_TOL * hpp) {
             factor_append(ws, nw, zeta);
@@ -2284,7 +2314,8 @@ static int add_to_set(chain_work *ws, const chain_mode_data *md, int p, int rech
         return OUT_OF_WORK;
     }
     ws->work += ((uint32_t)*nw + 1u) * hq_work(md);
-    h_column(md, ws->wset, *nw, p, ws->dv, hcol); /* H_Wp, read once for every step of this add */
+    /* H_Wp, read once for every step of this add */
+    h_column(md, ws->wset, *nw, p, -1, ws->dv, hcol);
     if (recheck) { /* chosen at an earlier point: still violated at this one? */
         chain_real viol = -ws->K[p];
         for (i = 0; i < *nw; ++i) {
