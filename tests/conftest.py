@@ -11,6 +11,7 @@ import pytest
 # slower on the 2-core machines under load; effective when numpy is not imported yet
 os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 os.environ.setdefault("OMP_NUM_THREADS", "1")
+import rollmpc_codegen  # noqa: E402,F401  pins OpenBLAS's kernels before NumPy loads
 
 ROOT = Path(__file__).resolve().parents[1]
 UAV = ROOT / "examples" / "uav_roll.yaml"

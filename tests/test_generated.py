@@ -60,14 +60,16 @@ def test_context_json_carries_the_contract():
 
 
 def test_regeneration_does_not_depend_on_blas_threads(tmp_path):
-    """A plain `rollmpc generate` from a shell (no OPENBLAS_NUM_THREADS) is reproducible:
-    a threaded BLAS sums in another order, which changed quadruple_tank's data before."""
+    """A plain `rollmpc generate` from a shell (no OPENBLAS_NUM_THREADS, no
+    OPENBLAS_CORETYPE) is reproducible: a threaded BLAS sums in another order, which
+    changed quadruple_tank's data before, and so do another CPU's kernels."""
     import os
     import subprocess
     import sys
 
     env = {k: v for k, v in os.environ.items()
-           if k not in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS")}
+           if k not in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS",
+                        "OPENBLAS_CORETYPE")}
     env["OPENBLAS_NUM_THREADS"] = env["OMP_NUM_THREADS"] = "2"
     out = tmp_path / "quadruple_tank"
     subprocess.run([sys.executable, "-m", "rollmpc_codegen.cli.main", "generate",
@@ -76,3 +78,15 @@ def test_regeneration_does_not_depend_on_blas_threads(tmp_path):
     ref_dir = ROOT / "generated" / "quadruple_tank"
     changed = [p.name for p in out.iterdir() if p.read_bytes() != (ref_dir / p.name).read_bytes()]
     assert changed == []
+
+
+def test_openblas_runs_the_pinned_kernels():
+    """`import rollmpc_codegen` pinned OpenBLAS's kernels before NumPy loaded
+    (rollmpc_codegen/blas_kernels.py): AVX-512 kernels change the generated data's last
+    bits, 32,202 numbers of uav_roll's."""
+    from rollmpc_codegen.blas_kernels import PINNED_CORE, _cpu_has, kernels_in_use
+    import platform
+
+    if platform.machine().lower() not in ("x86_64", "amd64") or not _cpu_has({"avx2", "fma"}):
+        pytest.skip("the kernels are pinned on x86-64 Linux with AVX2 only")
+    assert kernels_in_use() == [PINNED_CORE]
