@@ -7,9 +7,9 @@ Pipeline (one folder per stage, pipeline.py runs them): config -> model -> qp (+
 """
 __version__ = "0.1.0"
 
-from .blas_kernels import pin_kernels as _pin_kernels
+from .model.blas_kernels import pin_kernels as _pin_kernels
 
-_pin_kernels()  # before any module of ours imports NumPy: blas_kernels.py says why
+_pin_kernels()  # before any module of ours imports NumPy: model/blas_kernels.py says why
 
 # name -> the module that defines it (PEP 562: loaded when first asked for)
 _LAZY = {"Design": "api", "Mode": "api", "CompiledController": "api", "ConfigError": "config"}

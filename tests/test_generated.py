@@ -82,9 +82,9 @@ def test_regeneration_does_not_depend_on_blas_threads(tmp_path):
 
 def test_openblas_runs_the_pinned_kernels():
     """`import rollmpc_codegen` pinned OpenBLAS's kernels before NumPy loaded
-    (rollmpc_codegen/blas_kernels.py): AVX-512 kernels change the generated data's last
+    (rollmpc_codegen/model/blas_kernels.py): AVX-512 kernels change the generated data's last
     bits, 32,202 numbers of uav_roll's."""
-    from rollmpc_codegen.blas_kernels import PINNED_CORE, _cpu_has, kernels_in_use
+    from rollmpc_codegen.model.blas_kernels import PINNED_CORE, _cpu_has, kernels_in_use
     import platform
 
     if platform.machine().lower() not in ("x86_64", "amd64") or not _cpu_has({"avx2", "fma"}):
