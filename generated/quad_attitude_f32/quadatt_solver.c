@@ -312,12 +312,6 @@ static void hq_input_column(const quadatt_mode_data *md, int b, quadatt_real *co
     }
 }
 
-/* Whether quantity q is an input (what hq_input_column() serves). */
-static int on_inputs(const quadatt_mode_data *md, int q)
-{
-    return q < md->n;
-}
-
 /*
  * H_rp with p's input column col (hq_input_column()): an input or Δu row r reads col, an
  * output row hq_output().
@@ -326,7 +320,7 @@ static quadatt_real h_from_column(const quadatt_mode_data *md, int r, int p, con
 {
     const int a = md->row_q[r];
     quadatt_real h;
-    if (!on_inputs(md, a)) {
+    if (a >= md->n) { /* an output: not in p's input column */
         h = hq_output(md, a - md->n, md->row_q[p]);
     } else {
         h = col[a];

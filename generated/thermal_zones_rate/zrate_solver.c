@@ -352,12 +352,6 @@ static void hq_input_column(const zrate_mode_data *md, int b, zrate_real *col)
     }
 }
 
-/* Whether quantity q is an input or a Δu (what hq_input_column() serves). */
-static int on_inputs(const zrate_mode_data *md, int q)
-{
-    return q < md->n || q >= md->n + md->nyq;
-}
-
 /*
  * H_rp with p's input column col (hq_input_column()): an input or Δu row r reads col, an
  * output row hq_output().
@@ -366,7 +360,7 @@ static zrate_real h_from_column(const zrate_mode_data *md, int r, int p, const z
 {
     const int a = md->row_q[r];
     zrate_real h;
-    if (!on_inputs(md, a)) {
+    if ((a >= md->n && a < md->n + md->nyq)) { /* an output: not in p's input column */
         h = hq_output(md, a - md->n, md->row_q[p]);
     } else if (a >= md->n) { /* Δu: U_d - U_(d-nu), or U_d in the first stage */
         const int d = a - (md->n + md->nyq);
