@@ -85,11 +85,10 @@ def test_openblas_runs_the_pinned_kernels():
     (rollmpc_codegen/model/blas_kernels.py): AVX-512 kernels change the generated data's last
     bits, 32,202 numbers of uav_roll's."""
     import os
-    import platform
 
-    from rollmpc_codegen.model.blas_kernels import PINNED_CORE, _cpu_has, kernels_in_use
+    from rollmpc_codegen.model.blas_kernels import PINNED_CORE, kernels_in_use, pins_here
 
-    if platform.machine().lower() not in ("x86_64", "amd64") or not _cpu_has({"avx2", "fma"}):
+    if not pins_here():
         pytest.skip("the kernels are pinned on x86-64 Linux with AVX2 only")
     if os.environ.get("OPENBLAS_CORETYPE") != PINNED_CORE:
         pytest.skip(f"OPENBLAS_CORETYPE={os.environ.get('OPENBLAS_CORETYPE')} was set "

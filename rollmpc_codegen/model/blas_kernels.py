@@ -29,10 +29,16 @@ def _cpu_has(flags: set[str]) -> bool:
     return False
 
 
+def pins_here() -> bool:
+    """Whether this machine takes the pin: x86-64 Linux with AVX2 and FMA (a forced core
+    the CPU cannot run would stop on an illegal instruction)."""
+    return platform.machine().lower() in ("x86_64", "amd64") and _cpu_has({"avx2", "fma"})
+
+
 def pin_kernels() -> None:
-    """Set OPENBLAS_CORETYPE to :data:`PINNED_CORE` on x86-64 Linux with AVX2 (a forced
-    core the CPU cannot run would stop on an illegal instruction); elsewhere nothing."""
-    if platform.machine().lower() in ("x86_64", "amd64") and _cpu_has({"avx2", "fma"}):
+    """Set OPENBLAS_CORETYPE to :data:`PINNED_CORE` where :func:`pins_here`, unless the
+    user set it; elsewhere nothing."""
+    if pins_here():
         os.environ.setdefault("OPENBLAS_CORETYPE", PINNED_CORE)
 
 
