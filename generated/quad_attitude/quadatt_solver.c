@@ -373,6 +373,10 @@ static void h_column(const quadatt_mode_data *md, const int16_t *wset, int nw, i
     }
 }
 
+/* a run of bound inputs shorter than this is summed inline, not by a call; bound inputs
+ * in runs shorter than this on average are summed by columns (sparse_rows_dot()) */
+#define SHORT_RUN 4
+
 /*
  * (M x)_q for a symmetric M stored as its packed lower triangle (row q up to the
  * diagonal, column q below it) is one sequential sum over j = 0..n-1 of M(q, j) x_j. Every
@@ -517,14 +521,54 @@ static void s_row_dot2(const quadatt_real *mp, int n, int q, const quadatt_real 
 }
 
 /*
+ * out[a] += M(rows[a], j) x_j, then M(rows[a], j + 1) x_(j+1) when pair, for every row:
+ * one or two columns of M read down the rows (row j up to the diagonal, column j below
+ * it), each row's terms in increasing j as a walk along the row would add them.
+ * Cost: nrows (1 + pair) multiply-adds.
+ */
+static void packed_columns_axpy(const quadatt_real *mp, int j, int pair, const quadatt_real *x,
+    const int16_t *rows, int nrows, quadatt_real *out)
+{
+    const quadatt_real *row_j = &mp[QUADATT_TRI(j, 0)], *row_j1 = row_j + j + 1;
+    const quadatt_real x0 = x[j];
+    int a;
+    if (!pair) {
+        for (a = 0; a < nrows; ++a) {
+            const int q = rows[a];
+            out[a] += ((q <= j) ? row_j[q] : mp[QUADATT_TRI(q, j)]) * x0;
+        }
+        return;
+    }
+    {
+        const quadatt_real x1 = x[j + 1];
+        for (a = 0; a < nrows; ++a) {
+            const int q = rows[a];
+            quadatt_real acc = out[a];
+            if (q <= j) {
+                acc += row_j[q] * x0;
+                acc += row_j1[q] * x1;
+            } else {
+                const quadatt_real *m = &mp[QUADATT_TRI(q, j)]; /* M(q, j + 1) next */
+                acc += m[0] * x0;
+                acc += m[1] * x1;
+            }
+            out[a] = acc;
+        }
+    }
+}
+
+/*
  * out[a] = (M x)_{rows[a]} for a < nrows, x zero outside a support given by the ascending
  * list[0..count): the support itself (complement = 0) or its complement in 0..n-1
- * (complement = 1). The support is walked once, run by run, each run added to every row;
- * to two rows at a time where the run lies in both rows' stored parts.
+ * (complement = 1). The support is walked once, run by run, each run added to every row:
+ * to two rows at a time where the run lies in both rows' stored parts; with by_columns
+ * (the caller's choice where the runs are short: scattered bound inputs) a column or two
+ * at a time down the rows instead, which adds each row's terms in the same order (the same
+ * sums to the bit) without a call or a test per row and run.
  * Cost: nrows |support| multiply-adds.
  */
 static void sparse_rows_dot(const quadatt_real *mp, int n, const int16_t *rows, int nrows,
-    const quadatt_real *x, const int16_t *list, int count, int complement,
+    const quadatt_real *x, const int16_t *list, int count, int complement, int by_columns,
     quadatt_real *out)
 {
     int a, i = 0, lo = 0, hi;
@@ -548,11 +592,14 @@ static void sparse_rows_dot(const quadatt_real *mp, int n, const int16_t *rows, 
                 ++hi;
             }
         }
+        for (; by_columns && lo < hi; lo += 2) {
+            packed_columns_axpy(mp, lo, lo + 1 < hi, x, rows, nrows, out);
+        }
         for (a = 0; lo < hi && a < nrows; ++a) {
             if (a + 1 < nrows && rows[a] >= hi - 1 && rows[a + 1] >= hi - 1) {
                 packed_range_dot2(mp, rows[a], rows[a + 1], x, lo, hi, &out[a], &out[a + 1]);
                 ++a;
-            } else if (hi - lo < 4) { /* a short run (scattered bound inputs): no call */
+            } else if (hi - lo < SHORT_RUN) { /* a short run: no call */
                 const int q = rows[a];
                 quadatt_real acc = out[a];
                 int j;
@@ -1523,12 +1570,14 @@ static int terminal_step(quadatt_work *ws, const quadatt_mode_data *md, int k)
  * through y0 = L^-1 (-S_FB d_B), the terminal step, and d_F = L'^-1 (y0 - Y nu).
  * Multipliers come later (free_multipliers()), from g = S d + V' nu.
  */
-static int primal_solve_free(quadatt_work *ws, const quadatt_mode_data *md, int k)
+static int primal_solve_free(quadatt_work *ws, const quadatt_mode_data *md, int k,
+    int by_columns)
 {
     const quadatt_real *l = ws->chol;
     int a;
     /* -S_FB d_B: dv is 0 on the free inputs here, so the sums run over B = tmp[k..n) */
-    sparse_rows_dot(md->S_p, md->n, ws->tmp, k, ws->dv, &ws->tmp[k], md->n - k, 0, ws->rhs);
+    sparse_rows_dot(md->S_p, md->n, ws->tmp, k, ws->dv, &ws->tmp[k], md->n - k, 0, by_columns,
+                    ws->rhs);
     for (a = 0; a < k; ++a) {
         ws->rhs[a] = -ws->rhs[a];
     }
@@ -1627,7 +1676,8 @@ static int guess_reversed(quadatt_work *ws, const quadatt_mode_data *md, int nw)
  *     d_F = S^-1_FB beta - Uv_F' nu,  z_k = -sign_k beta_k.
  * ws->tmp[0..k) holds B in factor order, ws->tmp[k..n) the free inputs.
  */
-static int primal_solve_bound(quadatt_work *ws, const quadatt_mode_data *md, int nw)
+static int primal_solve_bound(quadatt_work *ws, const quadatt_mode_data *md, int nw,
+    int by_columns)
 {
     const int n = md->n, nt = md->nt, k = nw;
     const quadatt_real *l = ws->chol;
@@ -1650,7 +1700,8 @@ static int primal_solve_bound(quadatt_work *ws, const quadatt_mode_data *md, int
     }
     /* d_F = S^-1_FB beta - Uv_F' nu: beta (in dv) is zero outside B, the complement of
      * F = tmp[k..n); ws->rhs is free again */
-    sparse_rows_dot(md->Sinv_p, n, &ws->tmp[k], n - k, ws->dv, &ws->tmp[k], n - k, 1, ws->rhs);
+    sparse_rows_dot(md->Sinv_p, n, &ws->tmp[k], n - k, ws->dv, &ws->tmp[k], n - k, 1, by_columns,
+                    ws->rhs);
     for (i = k; i < n; ++i) {
         const int f = ws->tmp[i];
         quadatt_real acc = ws->rhs[i - k];
@@ -1677,7 +1728,7 @@ static int primal_solve(quadatt_work *ws, const quadatt_mode_data *md, int nw,
 {
     const int n = md->n;
     int i, k, head, newest = 0, from = 0, form = (nw < n - nw) ? FORM_BOUND : FORM_FREE;
-    int update = 0, joined = 0;
+    int update = 0, joined = 0, by_columns;
     int adjacent = 0; /* bound inputs next to a bound one set before: nw - adjacent runs */
     for (i = 0; i < n; ++i) {
         ws->input_role[i] = (uint8_t)(ws->input_role[i] & ~ROLE_BOUND);
@@ -1692,6 +1743,7 @@ static int primal_solve(quadatt_work *ws, const quadatt_mode_data *md, int nw,
             + (q + 1 < n && (ws->input_role[q + 1] & ROLE_BOUND));
         ws->input_role[q] = (uint8_t)(ws->input_role[q] | ROLE_BOUND);
     }
+    by_columns = nw < SHORT_RUN * (nw - adjacent); /* runs of bound inputs short on average */
     k = (form == FORM_BOUND) ? nw : n - nw;
     head = k;
     /* the previous factor, unless it would grow to every input (a new one is then cheaper)
@@ -1749,9 +1801,9 @@ static int primal_solve(quadatt_work *ws, const quadatt_mode_data *md, int nw,
         return -1;
     }
     if (form == FORM_BOUND) {
-        return (primal_solve_bound(ws, md, nw) == 0) ? 1 : -1;
+        return (primal_solve_bound(ws, md, nw, by_columns) == 0) ? 1 : -1;
     }
-    return primal_solve_free(ws, md, k);
+    return primal_solve_free(ws, md, k, by_columns);
 }
 
 /*
