@@ -22,6 +22,7 @@ import sys
 from pathlib import Path
 from typing import TYPE_CHECKING
 
+from ..config import ConfigError
 from .options import (add_build_dir, add_outputs, add_perturbations, add_precision, add_quiet,
                       check_outputs, check_perturbations, check_steps, progress_of,
                       require_plot, write_json)
@@ -40,7 +41,13 @@ def add_parser(sub) -> None:
     s.add_argument("--baseline", choices=["none", "lqr"], default="none",
                    help="also simulate an LQR-with-saturation baseline (plotted alongside)")
     add_perturbations(s)
-    s.add_argument("--steps", type=int, default=None, help="samples (default: whole scenario)")
+    s.add_argument("--flights", type=int, default=0,
+                   help="fly K random flights instead of the scenario (levels uniform within "
+                   "the output bounds, flight i seeded with --seed + i, as `rollmpc report "
+                   "--flights`): statuses, TIME_LIMIT runs and hard-bound violations per "
+                   "flight; with --json only")
+    s.add_argument("--steps", type=int, default=None,
+                   help="samples (default: whole scenario; with --flights, per flight)")
     add_quiet(s, "no progress bar")
     add_build_dir(s)
     s.set_defaults(func=run)
@@ -68,11 +75,25 @@ def _check_args(args) -> None:
     check_steps(args)
     check_perturbations(args)
     check_outputs(args, OUTPUTS)
+    if args.flights < 0:
+        raise ConfigError("--flights", f"must be >= 0, got {args.flights}")
+    if args.flights:
+        for opt in ("csv", "plot"):
+            if getattr(args, opt):
+                raise ConfigError(f"--{opt}", "writes one closed loop: drop --flights "
+                                  "(rerun one flight with --flights 1 --seed <its seed>)")
+        if args.baseline != "none":
+            raise ConfigError("--baseline", "runs on the scenario only: drop --flights")
 
 
 def solver_text(ctx: dict) -> str:
     """The solver as configured, e.g. ``hildreth_plus_prime + polish``."""
     return f"{ctx['solver']['method']}{' + polish' if ctx['solver']['polish'] else ''}"
+
+
+def beyond_text(y_max_beyond: dict) -> str:
+    """How far each output passed a hard bound, e.g. ``roll 23.5, pitch 6.21``."""
+    return ", ".join(f"{name} {v:.3g}" for name, v in y_max_beyond.items())
 
 
 def print_summary(cfg, ctx: dict, s: dict) -> None:
@@ -96,7 +117,7 @@ def print_summary(cfg, ctx: dict, s: dict) -> None:
     print(f"  switches: {s['switches']} (samples per mode: {modes})")
     umax = ", ".join(f"{a} {v:g}" for a, v in s["max_abs_u"].items())
     cv = s["constraint_violations"]
-    far = ", ".join(f"{name} {v:.3g}" for name, v in cv["y_max_beyond"].items())
+    far = beyond_text(cv["y_max_beyond"])
     print(f"  max |u|{u_unit}: {umax}; constraint violations: {cv['total']} "
           f"(u {cv['u']}, inactive {cv['inactive_actuator_nonzero']}, y {cv['y']}"
           f"{f' by up to {far}{y_unit}' if far else ''}; hard "
@@ -122,10 +143,52 @@ def print_summary(cfg, ctx: dict, s: dict) -> None:
               f"constraint violations {base['constraint_violations']['total']}")
 
 
+def print_flights(cfg, ctx: dict, s: dict) -> None:
+    """A line per flight, then the totals."""
+    from ..sim.metrics import time_limit_warning
+
+    t, y_unit = s["totals"], cfg.units.label("outputs")
+    print(f"rollmpc simulate: {t['flights']} random flights of {s['steps']} samples, "
+          f"{ctx['precision']}, solver {solver_text(ctx)}")
+    for f in s["flights"]:
+        cv = f["constraint_violations"]
+        far = beyond_text(cv["y_max_beyond"])
+        print(f"  flight {f['flight']} (seed {f['seed']}): optimal "
+              f"{f['status_counts'].get('optimal', 0)} of {f['samples']}, longest TIME_LIMIT "
+              f"run {f['longest_time_limit_run']}; constraint violations {cv['total']}"
+              f"{f' (y by up to {far}{y_unit})' if far else ''}")
+    far = beyond_text(t["y_max_beyond"])
+    print(f"  all flights: optimal {t['status_counts'].get('optimal', 0)} of {t['samples']} "
+          f"({t['optimal_percent']:g} %), longest TIME_LIMIT run "
+          f"{t['longest_time_limit_run']}; {t['flights_with_violations']} of {t['flights']} "
+          f"flights break a hard bound{f' (y by up to {far}{y_unit})' if far else ''}")
+    warning = time_limit_warning(t["status_counts"], t["samples"])
+    if warning:
+        print(f"  warning: {warning}")
+
+
+def run_flights_cli(args) -> int:
+    from ..sim.flights_run import run_flights
+
+    result = run_flights(args.config, flights=args.flights, seed=args.seed,
+                         precision=args.precision, steps=args.steps, noise_std=args.noise,
+                         disturbance=args.disturbance, mismatch=args.mismatch,
+                         build_dir=args.build_dir, progress=progress_of(args))
+    if args.json:
+        write_json(args.json, result.summary)
+    print_flights(result.config, result.ctx, result.summary)
+    if args.json:
+        print(f"rollmpc: wrote {args.json}")
+    sys.stdout.flush()
+    return 0
+
+
 def run(args) -> int:
     from ..sim.scenario_run import run_scenario
 
     _check_args(args)
+    if args.flights:
+        return run_flights_cli(args)
     require_plot(args)
     result = run_scenario(args.config, precision=args.precision, steps=args.steps,
                           noise_std=args.noise, disturbance=args.disturbance,

@@ -1,6 +1,6 @@
 """One measurement of ``rollmpc report`` (:mod:`rollmpc_codegen.target.report`): the target
 image's flash, RAM and stack, then the scenario or each flight of a
-:class:`~rollmpc_codegen.target.flights.FlightPlan` recorded on the host and replayed on
+:class:`~rollmpc_codegen.sim.flight_plan.FlightPlan` recorded on the host and replayed on
 the emulated Cortex-M4F, with the cycles of the counted steps judged against the config's
 own sample time and its ``target:`` section (clock; flash and RAM when given).
 """
@@ -15,7 +15,8 @@ from .. import __version__
 from ..sim.metrics import status_counts
 from .build import (CORTEX_M4F, CROSS_CC, TARGET_CFLAGS, build_target, image_sizes,
                     largest_symbols, worst_stack)
-from .flights import FlightPlan, FlightRun, fly
+from ..sim.flight_plan import FlightPlan
+from .flights import FlightRun, fly
 from .replay import INFO_FIELDS, HostRecord
 
 

@@ -27,7 +27,7 @@ from ..extras import installed
 from ..host.build_cache import private_root
 from ..pipeline import load_model
 from . import flight_replay
-from .flights import FlightPlan
+from ..sim.flight_plan import FlightPlan
 from .horizons import horizon_table
 from .measure import measure
 
@@ -47,7 +47,7 @@ def run_report(config: str | Path, *, precision: str | None = None,
 
     ``steps`` samples of the scenario, or of each of ``flights`` random flights, are
     replayed (default: the scenario's length); ``seed``, ``noise_std``, ``disturbance``
-    and ``mismatch`` perturb them (:class:`~rollmpc_codegen.target.flights.FlightPlan`).
+    and ``mismatch`` perturb them (:class:`~rollmpc_codegen.sim.flight_plan.FlightPlan`).
     Cycles are counted on every ``sample_every``-th step and on the ``hardest`` steps,
     ranked by the smallest host solve time of ``host_repeats`` runs; ``extra_cflags`` are
     appended to the target's flags. ``flight``: replay the first ``steps`` samples of that

@@ -1,0 +1,95 @@
+"""``rollmpc simulate --flights K``: K random flights (:mod:`.flight_plan`) of the generated C
+on the host, each summarized, and what they add up to.
+
+One scenario says little about a design whose solver can stop at its work budget: where a
+run of TIME_LIMIT samples starts depends on the reference, and a long one can let an output
+past a hard bound (docs/solver.md, "quad_attitude against its budget"). Flights with
+random levels within the output bounds show how often. Per flight: the statuses, the
+longest run of TIME_LIMIT samples, the hard-constraint violations (sim/metrics.py); over
+all of them the same, and how many flights broke a hard bound. The host C's statuses are
+the reference's and the emulated M4F's bit for bit, so ``rollmpc report --flights`` with
+the same options flies the same flights with their cycles.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from ..config import ControllerConfig
+from ..host.build import build_host_controller
+from ..pipeline import load_model
+from ..status import TIME_LIMIT
+from .flight_plan import FlightPlan
+from .metrics import constraint_violations, status_counts
+from .scenario import scenario_reference
+from .simulate import run_closed_loop, start_phase
+
+
+def longest_run(statuses: np.ndarray, status: int = TIME_LIMIT) -> int:
+    """The most consecutive samples that ended with ``status``."""
+    longest = run = 0
+    for s in np.asarray(statuses, int):
+        run = run + 1 if s == status else 0
+        longest = max(longest, run)
+    return longest
+
+
+@dataclass
+class FlightsRun:
+    """``summary`` is the JSON document: the settings, ``flights`` (one entry each) and
+    ``totals``."""
+
+    config: ControllerConfig
+    ctx: dict
+    summary: dict
+
+
+def _totals(entries: list[dict], outputs: list[str]) -> dict:
+    counts: dict[str, int] = {}
+    beyond = dict.fromkeys(outputs, 0.0)
+    for e in entries:
+        for name, n in e["status_counts"].items():
+            counts[name] = counts.get(name, 0) + n
+        for name, v in e["constraint_violations"]["y_max_beyond"].items():
+            beyond[name] = max(beyond[name], v)
+    samples = sum(e["samples"] for e in entries)
+    return {"flights": len(entries), "samples": samples, "status_counts": counts,
+            "optimal_percent": round(100.0 * counts.get("optimal", 0) / samples, 2),
+            "longest_time_limit_run": max(e["longest_time_limit_run"] for e in entries),
+            "flights_with_violations": sum(e["constraint_violations"]["total"] > 0
+                                           for e in entries),
+            "y_max_beyond": {name: v for name, v in beyond.items() if v > 0}}
+
+
+def run_flights(config: str | Path, *, flights: int, seed: int = 0,
+                precision: str | None = None, steps: int | None = None,
+                noise_std: float = 0.0, disturbance: float = 0.0, mismatch: float = 0.0,
+                build_dir: str | Path | None = None, progress=None) -> FlightsRun:
+    """Fly ``flights`` random flights of ``steps`` samples each (default: the scenario's
+    length) through one host build, from P_init() each, flight i seeded ``seed + i``."""
+    model, ctx = load_model(config, precision)
+    cfg = model.config
+    steps = steps if steps is not None else len(scenario_reference(cfg))
+    plan = FlightPlan(flights=flights, seed=seed, noise_std=noise_std,
+                      disturbance=disturbance, mismatch=mismatch)
+    controller = build_host_controller(ctx, Path(build_dir) if build_dir else None)
+    entries = []
+    for fl in plan.plan(cfg, steps):
+        controller.init()
+        log = run_closed_loop(cfg, controller, steps=steps, info=controller.info,
+                              progress=start_phase(progress, steps, f"simulate: flight "
+                                                   f"{fl.index} ({fl.index + 1} of {flights})"),
+                              **plan.loop_options(fl))
+        entries.append({
+            "flight": fl.index, "seed": fl.seed, "levels": fl.levels.tolist(),
+            "plant_mismatch": None if fl.mismatch is None else fl.mismatch.as_dict(),
+            "samples": int(len(log.t)), "status_counts": status_counts(log.status),
+            "longest_time_limit_run": longest_run(log.status),
+            "constraint_violations": constraint_violations(cfg, log)})
+    summary = {"config": str(config), "precision": ctx["precision"],
+               "solver": dict(ctx["solver"]), "sample_time": cfg.sample_time,
+               "horizon": cfg.horizon, "flight_plan": plan.as_dict(), "steps": steps,
+               "flights": entries, "totals": _totals(entries, list(cfg.outputs))}
+    return FlightsRun(config=cfg, ctx=ctx, summary=summary)
