@@ -22,7 +22,7 @@ STEPS = 2200
 PNG_MAGIC = b"\x89PNG\r\n\x1a\n"
 SUMMARY_KEYS = {"segments", "max_settled_error", "max_overshoot", "switches", "switch_times_s",
                 "max_abs_u", "constraint_violations", "non_optimal", "status_counts",
-                "max_iterations", "solve_us", "by_mode", "samples"}
+                "max_iterations", "solve_us", "by_mode", "samples", "longest_time_limit_run"}
 SEGMENT_KEYS = {"t_start", "t_end", "settled_window_s", "reference", "step", "settled_error",
                 "overshoot", "overshoot_pct", "settling_time_s", "index"}
 

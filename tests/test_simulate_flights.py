@@ -9,7 +9,7 @@ import json
 import numpy as np
 import pytest
 
-from rollmpc_codegen.sim.flights_run import longest_run
+from rollmpc_codegen.sim.metrics import longest_run, time_limit_warning
 from rollmpc_codegen.status import OPTIMAL, TIME_LIMIT
 
 from conftest import ROOT
@@ -76,6 +76,17 @@ def test_a_flight_flies_again_alone_and_as_the_reference(three_flights, tmp_path
     statuses = log.status
     assert np.count_nonzero(statuses == OPTIMAL) == one["status_counts"]["optimal"]
     assert longest_run(statuses) == one["longest_time_limit_run"]
+
+
+def test_time_limit_warning_names_a_run_that_outlasts_the_plan():
+    """A TIME_LIMIT sample falls back to the last plan for horizon - 1 samples; a longer run
+    is said, since the clamped unconstrained optimum after it ignores the output bounds."""
+    counts = {"optimal": 900, "time_limit": 100}
+    plain = time_limit_warning(counts, 1000, longest=29, horizon=30)
+    long = time_limit_warning(counts, 1000, longest=30, horizon=30)
+    assert "outlasted" not in plain
+    assert "The longest run, 30 samples, outlasted the last plan (it covers 29)" in long
+    assert time_limit_warning({"optimal": 5}, 5, longest=0, horizon=30) is None
 
 
 def test_longest_run():

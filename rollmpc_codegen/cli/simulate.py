@@ -130,9 +130,11 @@ def print_summary(cfg, ctx: dict, s: dict) -> None:
               f"{sb['max_beyond']:.3g}{y_unit} (not violations)")
     st = s["solve_us"]
     if st["median"] is not None:
-        print(f"  non-optimal: {s['non_optimal']}; max iterations: {s['max_iterations']}; "
+        print(f"  non-optimal: {s['non_optimal']} (longest TIME_LIMIT run "
+              f"{s['longest_time_limit_run']}); max iterations: {s['max_iterations']}; "
               f"solve time median {st['median']:.1f} us, max {st['max']:.1f} us")
-    warning = time_limit_warning(s["status_counts"], s["samples"])
+    warning = time_limit_warning(s["status_counts"], s["samples"],
+                                 s["longest_time_limit_run"], cfg.horizon)
     if warning:
         print(f"  warning: {warning}")
     base = s.get("baseline")
@@ -162,7 +164,8 @@ def print_flights(cfg, ctx: dict, s: dict) -> None:
           f"({t['optimal_percent']:g} %), longest TIME_LIMIT run "
           f"{t['longest_time_limit_run']}; {t['flights_with_violations']} of {t['flights']} "
           f"flights break a hard bound{f' (y by up to {far}{y_unit})' if far else ''}")
-    warning = time_limit_warning(t["status_counts"], t["samples"])
+    warning = time_limit_warning(t["status_counts"], t["samples"],
+                                 t["longest_time_limit_run"], cfg.horizon)
     if warning:
         print(f"  warning: {warning}")
 

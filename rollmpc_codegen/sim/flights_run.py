@@ -15,25 +15,13 @@ from __future__ import annotations
 from dataclasses import dataclass
 from pathlib import Path
 
-import numpy as np
-
 from ..config import ControllerConfig
 from ..host.build import build_host_controller
 from ..pipeline import load_model
-from ..status import TIME_LIMIT
 from .flight_plan import FlightPlan
-from .metrics import constraint_violations, status_counts
+from .metrics import constraint_violations, longest_run, status_counts
 from .scenario import scenario_reference
 from .simulate import run_closed_loop, start_phase
-
-
-def longest_run(statuses: np.ndarray, status: int = TIME_LIMIT) -> int:
-    """The most consecutive samples that ended with ``status``."""
-    longest = run = 0
-    for s in np.asarray(statuses, int):
-        run = run + 1 if s == status else 0
-        longest = max(longest, run)
-    return longest
 
 
 @dataclass

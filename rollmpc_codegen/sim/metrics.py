@@ -39,7 +39,7 @@ import numpy as np
 
 from ..config import ControllerConfig
 from .simulate import ClosedLoopLog
-from ..status import OPTIMAL, STATUS_NAMES
+from ..status import OPTIMAL, STATUS_NAMES, TIME_LIMIT
 
 
 def _time(k, ts: float) -> float:
@@ -193,16 +193,34 @@ def status_counts(statuses) -> dict:
             for s, n in zip(*np.unique(np.asarray(statuses, int), return_counts=True))}
 
 
-def time_limit_warning(counts: dict, samples: int) -> str | None:
-    """What ``simulate`` and ``report`` say when solves stopped at the work budget."""
+def longest_run(statuses, status: int = TIME_LIMIT) -> int:
+    """The most consecutive samples that ended with ``status``."""
+    longest = run = 0
+    for s in np.asarray(statuses, int):
+        run = run + 1 if s == status else 0
+        longest = max(longest, run)
+    return longest
+
+
+def time_limit_warning(counts: dict, samples: int, longest: int = 0,
+                       horizon: int | None = None) -> str | None:
+    """What ``simulate`` and ``report`` say when solves stopped at the work budget; with
+    the ``longest`` run of them and the ``horizon``, whether a run outlasted the shifted
+    plan a TIME_LIMIT sample falls back to (horizon - 1 samples)."""
     limited = counts.get("time_limit", 0)
     if not limited:
         return None
+    outlasted = ""
+    if horizon is not None and longest > horizon - 1:
+        outlasted = (f" The longest run, {longest} samples, outlasted the last plan (it covers "
+                     f"{horizon - 1}): past it a TIME_LIMIT sample without a point of its own "
+                     f"commands the unconstrained optimum clamped to the input bounds, which "
+                     f"ignores the output bounds.")
     return (f"{limited} of {samples} samples ({100 * limited / samples:.1f} %) stopped at the "
             f"work budget (TIME_LIMIT): their commands are the best point found in time, inside "
-            f"the input bounds but not necessarily the output bounds. Give the solver more of "
-            f"Ts (solver.budget_share, target.cpu_mhz) or a smaller QP (docs/solver.md, "
-            f"\"Work budget\")")
+            f"the input bounds but not necessarily the output bounds.{outlasted} Give the "
+            f"solver more of Ts (solver.budget_share, target.cpu_mhz) or a smaller QP "
+            f"(docs/solver.md, \"Work budget\")")
 
 
 def summarize(cfg: ControllerConfig, log: ClosedLoopLog) -> dict:
@@ -245,6 +263,7 @@ def summarize(cfg: ControllerConfig, log: ClosedLoopLog) -> dict:
         "violation_tolerance": cfg.feasibility_tol,
         "non_optimal": int(np.count_nonzero(log.status != OPTIMAL)),
         "status_counts": statuses,
+        "longest_time_limit_run": longest_run(log.status),
         "max_iterations": int(log.iterations.max()) if len(log.t) else 0,
         "solve_us": _stats(log.solve_us),
         "by_mode": by_mode,
