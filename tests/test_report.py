@@ -58,8 +58,29 @@ def test_report_json_keys_and_bit_exact(target_tools, tmp_path, build_root, caps
     text = capsys.readouterr().out
     assert "168 MHz" in text and "bit-exact vs host: yes" in text
     # every replayed step's status (uav_roll's own budget: no TIME_LIMIT), and no warning
-    assert rep["statuses"] == {"optimal": 960}
+    assert rep["statuses"] == {"optimal": 960} and rep["longest_time_limit_run"] == 0
     assert "solver statuses over optimal 960 of 960 steps" in text and "warning" not in text
+
+
+def test_summary_names_the_longest_time_limit_run():
+    """The report's summary line gives the longest run of TIME_LIMIT samples, and its
+    warning says when one outlasted the last plan (horizon - 1 samples)."""
+    from rollmpc_codegen.cli.report import summary_text
+
+    rep = {"budget": {"worst_fits": True, "cpu_mhz": 168, "worst_load_percent": 40.0,
+                      "cycles_per_sample": 1_680_000},
+           "worst_step_top_functions": [], "worst_flight": None, "worst_step": 7,
+           "precision": "float", "horizon": 30, "toolchain": "gcc", "flash_bytes": 1,
+           "ram_bytes": 1, "ctrl_bytes": 1, "stack_bytes": 1, "stack_measured_bytes": 1,
+           "stack_entry_bytes": 1, "steps_emulated": 100, "steps_counted": 10,
+           "hardest_steps": [], "sample_every": 20, "bit_exact_vs_host": True,
+           "worst_step_mode": 0, "worst_step_cycles": 1, "worst_step_instructions": 1,
+           "median_step_cycles": 1, "cpu_mhz_needed": 1.0, "sample_time": 0.01,
+           "statuses": {"optimal": 60, "time_limit": 40}, "goals": {}}
+    short = summary_text(dict(rep, longest_time_limit_run=29))
+    long = summary_text(dict(rep, longest_time_limit_run=30))
+    assert "of 100 steps (longest TIME_LIMIT run 29)" in short and "outlasted" not in short
+    assert "The longest run, 30 samples, outlasted the last plan (it covers 29)" in long
 
 
 def test_emulated_cycles_are_deterministic(target_tools, float_model, build_root):

@@ -99,9 +99,11 @@ def summary_text(rep: dict) -> str:
                      f"({flight}step {cpw['step_of_max']}), median {cpw['median']}; work budget "
                      f"{rep['work_budget']:,} units")
     counts = rep.get("statuses", {})
+    longest = rep.get("longest_time_limit_run", 0)
     lines.append("  solver statuses over " + ", ".join(f"{n} {c}" for n, c in counts.items())
-                 + f" of {sum(counts.values())} steps")
-    warning = time_limit_warning(counts, sum(counts.values()))
+                 + f" of {sum(counts.values())} steps"
+                 + (f" (longest TIME_LIMIT run {longest})" if longest else ""))
+    warning = time_limit_warning(counts, sum(counts.values()), longest, rep["horizon"])
     if warning:
         lines.append(f"  warning: {warning}")
     if rep["goals"]:

@@ -12,10 +12,10 @@ from pathlib import Path
 import numpy as np
 
 from .. import __version__
-from ..sim.metrics import status_counts
+from ..sim.flight_plan import FlightPlan
+from ..sim.metrics import longest_run, status_counts
 from .build import (CORTEX_M4F, CROSS_CC, TARGET_CFLAGS, build_target, image_sizes,
                     largest_symbols, worst_stack)
-from ..sim.flight_plan import FlightPlan
 from .flights import FlightRun, fly
 from .replay import INFO_FIELDS, HostRecord
 
@@ -159,6 +159,8 @@ def measure(model, ctx: dict, build_root: Path, *, plan: FlightPlan = FlightPlan
         "work_budget": int(ctx["solver"]["work_budget"]),
         "cycles_per_work_unit": cycles_per_work(runs),
         "statuses": status_counts([info["status"] for f in runs for info in f.record.info]),
+        "longest_time_limit_run": max(longest_run([info["status"] for info in f.record.info])
+                                      for f in runs),
         "worst_step_instructions": int(worst.instructions),
         "worst_step_cycles": int(worst.cycles),
         "median_step_cycles": int(np.median(sweep_cycles)),
