@@ -45,7 +45,7 @@ def add_parser(sub) -> None:
                    help="fly K random flights instead of the scenario (levels uniform within "
                    "the output bounds, flight i seeded with --seed + i, as `rollmpc report "
                    "--flights`): statuses, TIME_LIMIT runs and hard-bound violations per "
-                   "flight; with --json only")
+                   "flight; of the output files only --json")
     s.add_argument("--steps", type=int, default=None,
                    help="samples (default: whole scenario; with --flights, per flight)")
     add_quiet(s, "no progress bar")
