@@ -1,6 +1,6 @@
 """`rollmpc simulate --flights K`: random flights of the host C (sim/flights_run.py), each
 with its statuses, longest TIME_LIMIT run and hard-bound violations, the totals adding them
-up, flight i flown again alone with --seed S+i, the statuses those of the reference, and
+up, flight i flown again alone with --seed S+i, its statuses' counts those of the reference, and
 one-line errors for the options that write one closed loop."""
 from __future__ import annotations
 
@@ -56,8 +56,8 @@ def test_totals_add_up_the_flights(three_flights):
 
 
 def test_a_flight_flies_again_alone_and_as_the_reference(three_flights, tmp_path, capsys):
-    """Flight 1 of --seed 7 is flight 0 of --seed 8, and its statuses are the reference
-    controller's over the same reference, plant and noise, sample for sample."""
+    """Flight 1 of --seed 7 is flight 0 of --seed 8, and the reference controller over the
+    same reference, plant and noise has its OPTIMAL count and longest TIME_LIMIT run."""
     from rollmpc_codegen.pipeline import load_model
     from rollmpc_codegen.reference.controller import ControllerRef
     from rollmpc_codegen.sim.flight_plan import FlightPlan
