@@ -1,6 +1,6 @@
 """`rollmpc simulate --flights K`: random flights of the host C (sim/flights_run.py), each
-with its statuses, longest TIME_LIMIT run and hard-bound violations, the totals adding them
-up, flight i flown again alone with --seed S+i, its statuses' counts those of the reference, and
+with its statuses, longest TIME_LIMIT run and hard-bound violations; the totals adding them
+up; flight i flown again alone with --seed S+i, its counts those of the reference; and
 one-line errors for the options that write one closed loop."""
 from __future__ import annotations
 
