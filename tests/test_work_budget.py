@@ -22,6 +22,7 @@ import numpy as np
 import pytest
 
 from conftest import ROOT, Built, config_error, lockstep_closed_loop
+from rollmpc_codegen.sim.metrics import longest_run
 from rollmpc_codegen.status import OPTIMAL, TIME_LIMIT
 
 FW = ROOT / "examples" / "fw_lateral.yaml"
@@ -294,17 +295,8 @@ def test_randomized_loop_recovers_within_the_default_budget(fw_default):
     _assert_safe(log, works, budget, fw_default.model.modes[0].data)
     assert budget == 84000  # auto: half of Ts = 20 ms at 168 MHz, 20 cycles per unit
     assert 1 <= np.count_nonzero(log.status == TIME_LIMIT) <= 120  # measured 3 (float), 38
-    longest = _longest_time_limit_run(log.status)
+    longest = longest_run(log.status)
     assert longest <= RECOVERY_SAMPLES, longest
-
-
-def _longest_time_limit_run(status) -> int:
-    """The most TIME_LIMIT samples in a row: how long a TIME_LIMIT takes to recover."""
-    longest, run = 0, 0
-    for st in status:
-        run = run + 1 if st == TIME_LIMIT else 0
-        longest = max(longest, run)
-    return longest
 
 
 def test_quad_attitude_recovers_and_holds_its_tilt_bound(build_root):
@@ -320,7 +312,7 @@ def test_quad_attitude_recovers_and_holds_its_tilt_bound(build_root):
     mode = built.model.config.modes[0]
     _assert_safe(log, works, built.ctx["solver"]["work_budget"], built.model.modes[0].data)
     assert np.count_nonzero(log.status == OPTIMAL) >= QUAD_OPTIMAL
-    assert 1 <= _longest_time_limit_run(log.status) <= QUAD_RECOVERY_SAMPLES
+    assert 1 <= longest_run(log.status) <= QUAD_RECOVERY_SAMPLES
     bounded = np.isfinite(mode.y_max)
     assert np.all(log.y[:, bounded] <= mode.y_max[bounded])
     assert np.all(log.y[:, bounded] >= mode.y_min[bounded])

@@ -76,6 +76,11 @@ def check_perturbations(args) -> None:
         raise ConfigError("--mismatch", f"must be in [0, 1), got {args.mismatch}")
 
 
+def check_flights(args) -> None:
+    if args.flights < 0:
+        raise ConfigError("--flights", f"must be >= 0, got {args.flights}")
+
+
 def check_steps(args) -> None:
     if args.steps is not None and args.steps < 1:
         raise ConfigError("--steps", f"must be >= 1, got {args.steps}")

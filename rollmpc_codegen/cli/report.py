@@ -6,7 +6,8 @@ from __future__ import annotations
 
 from ..config.errors import ConfigError
 from .options import (add_build_dir, add_outputs, add_perturbations, add_precision, add_quiet,
-                      check_perturbations, check_steps, progress_of, write_json)
+                      check_flights, check_perturbations, check_steps, progress_of,
+                      write_json)
 
 
 def add_parser(sub) -> None:
@@ -164,8 +165,7 @@ def run(args) -> int:
 
     check_steps(args)
     check_perturbations(args)
-    if args.flights < 0:
-        raise ConfigError("--flights", f"must be >= 0, got {args.flights}")
+    check_flights(args)
     if args.sample_every < 1 or args.hardest < 0 or args.host_repeats < 1:
         raise ConfigError("--sample-every/--hardest/--host-repeats", "must be >= 1, >= 0, >= 1")
     horizons = parse_horizons(args.horizons) if args.horizons else None

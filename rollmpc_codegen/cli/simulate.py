@@ -24,7 +24,8 @@ from typing import TYPE_CHECKING
 
 from ..config import ConfigError
 from .options import (add_build_dir, add_outputs, add_perturbations, add_precision, add_quiet,
-                      check_outputs, check_perturbations, check_steps, progress_of,
+                      check_flights, check_outputs, check_perturbations, check_steps,
+                      progress_of,
                       require_plot, write_json)
 
 if TYPE_CHECKING:
@@ -75,8 +76,7 @@ def _check_args(args) -> None:
     check_steps(args)
     check_perturbations(args)
     check_outputs(args, OUTPUTS)
-    if args.flights < 0:
-        raise ConfigError("--flights", f"must be >= 0, got {args.flights}")
+    check_flights(args)
     if args.flights:
         for opt in ("csv", "plot"):
             if getattr(args, opt):
