@@ -356,8 +356,9 @@ def test_the_predicted_sizes_are_those_of_the_maths(path):
     predicted = tuple(mode_sizes(cfg, m) for m in cfg.modes)
     for s, mm, mode in zip(predicted, model.modes, cfg.modes):
         d = mm.data
-        assert (s.N, s.nu, s.ny, s.n, s.m, s.nt, s.w_cap, s.has_output_rows, s.ny_pred) == (
-            d.N, d.nu, d.ny, d.n, d.m, d.nt, d.w_cap, d.has_output_rows, d.ny_pred)
+        assert (s.N, s.nu, s.ny, s.n, s.m, s.m_box, s.nt, s.w_cap, s.has_output_rows,
+                s.ny_pred) == (d.N, d.nu, d.ny, d.n, d.m, d.m_box, d.nt, d.w_cap,
+                               d.has_output_rows, d.ny_pred)
         assert s.nx == d.nx if mode.plant.tf_matrix is None else s.nx >= d.nx
     _, arrays = declared_for(features_of(cfg))
     actual = sum(np.asarray(entry[a.name]).size * (4 if a.ctype == REAL else

@@ -83,3 +83,18 @@ def test_mode_without_output_rows_stores_a_null_pointer(tmp_path):
         dataclasses.replace(md, Kx=md.Kx[:, 1:])
     with pytest.raises(ValueError, match="GEinvGt_p has shape"):
         dataclasses.replace(md, GEinvGt_p=md.GEinvGt_p[1:])
+
+
+@pytest.mark.parametrize("tree", TREES)
+def test_scan_rows_list_each_kind_in_row_order(tree):
+    """violated_kind() reads one kind's rows through scan_rows and appends them in the
+    order it meets them, which must be the row order a scan of every row had: the m_box
+    rows that are not output rows, ascending, then the output rows, ascending."""
+    ctx = _tree(ROOT / "generated" / tree)[0]
+    for md in ctx["modes"]:
+        rows, m, m_box = np.asarray(md["scan_rows"]), md["m"], md["m_box"]
+        q = np.asarray(md["row_q"])[rows]
+        output = (q >= md["n"]) & (q < md["n"] + md["nyq"])
+        assert sorted(rows.tolist()) == list(range(m))
+        assert not output[:m_box].any() and output[m_box:].all()
+        assert (np.diff(rows[:m_box]) > 0).all() and (np.diff(rows[m_box:]) > 0).all()

@@ -1198,29 +1198,28 @@ static chain_real sweep(chain_work *ws, const chain_mode_data *md,
 }
 
 /*
- * Rows of one kind (outputs = 0: input rows, 1: output rows) violated at th and not
- * flagged in `member` (0: no row is), appended in row order to out; cap + 1 when more
- * than cap.
+ * Rows of one kind (outputs = 0: input and Δu rows, 1: output rows) violated at th and
+ * not flagged in `member` (0: no row is), appended in row order to out; cap + 1 when more
+ * than cap. Charged m, a scan of every row, whichever kind it reads.
  */
 static int violated_kind(chain_work *ws, const chain_mode_data *md,
     const chain_real *th, const uint8_t *member, int16_t *out, int cap, int outputs)
 {
-    const int n = md->n, m = md->m;
-    const int16_t *row_q = md->row_q;
+    const int m = md->m;
     const int8_t *row_sign = md->row_sign;
     const chain_real *gam = ws->gam;
     const chain_real *values = outputs ? ws->yv : th; /* of quantity q at q - base */
-    const int base = outputs ? n : 0;
-    int r, nout = 0;
+    const int base = outputs ? md->n : 0;
+    /* this kind's rows, ascending (md->scan_rows): the other kind is not even read */
+    const int16_t *rows = outputs ? &md->scan_rows[md->m_box] : md->scan_rows;
+    const int count = outputs ? m - md->m_box : md->m_box;
+    int i, nout = 0;
     ws->work += (uint32_t)m;
-    for (r = 0; r < m; ++r) {
-        const int q = row_q[r];
+    for (i = 0; i < count; ++i) {
+        const int r = rows[i];
         chain_real v, g, viol, ag;
-        if ((q >= n) != outputs) {
-            continue;
-        }
         /* row_violated() inline: the tolerance is at least FEAS_TOL, so reject early */
-        v = values[q - base];
+        v = values[md->row_q[r] - base];
         g = gam[r];
         viol = (row_sign[r] > 0) ? v - g : -v - g;
         if (!(viol > CHAIN_SOLVER_FEAS_TOL)) {
@@ -1713,6 +1712,63 @@ static int primal_solve_bound(chain_work *ws, const chain_mode_data *md, int nw,
     return 0;
 }
 
+/* Four roles as one word, byte b of the four in bits 8b..8b+7 (a compiler merges the four
+ * loads, or stores, into one where it can, on any target). */
+static uint32_t role_word(const uint8_t *role)
+{
+    return (uint32_t)role[0] | ((uint32_t)role[1] << 8) | ((uint32_t)role[2] << 16)
+        | ((uint32_t)role[3] << 24);
+}
+
+static void set_role_word(uint8_t *role, uint32_t w)
+{
+    role[0] = (uint8_t)w;
+    role[1] = (uint8_t)(w >> 8);
+    role[2] = (uint8_t)(w >> 16);
+    role[3] = (uint8_t)(w >> 24);
+}
+
+/*
+ * ROLE_BOUND on exactly the inputs of wset[0..nw), and d = 0 on every input (the bound
+ * ones get theirs once the solve is granted). Returns the pairs of neighbouring bound
+ * inputs (the bound inputs form nw - pairs runs), or -1 if an input has both bounds (not
+ * a valid working set). It runs at every correction, so the roles are cleared and their
+ * pairs counted four inputs at a time (role_word(); ROLE_BOUND is bit 0 of each role).
+ */
+static int mark_bound_inputs(chain_work *ws, const chain_mode_data *md, int nw)
+{
+    const uint32_t bound_bits = 0x01010101u; /* ROLE_BOUND (1) in each role */
+    const int n = md->n;
+    uint8_t *role = ws->input_role;
+    int i, pairs = 0;
+    for (i = 0; i + 4 <= n; i += 4) {
+        set_role_word(&role[i], role_word(&role[i]) & ~bound_bits);
+    }
+    for (; i < n; ++i) {
+        role[i] = (uint8_t)(role[i] & ~ROLE_BOUND);
+    }
+    for (i = 0; i < n; ++i) {
+        ws->dv[i] = R_(0.0);
+    }
+    for (i = 0; i < nw; ++i) {
+        const int q = md->row_q[ws->wset[i]];
+        if (role[q] & ROLE_BOUND) {
+            return -1;
+        }
+        role[q] = (uint8_t)(role[q] | ROLE_BOUND);
+    }
+    for (i = 0; i + 4 <= n; i += 4) {
+        uint32_t w = role_word(&role[i]) & bound_bits;
+        w &= w >> 8; /* bit 8b: inputs i + b and i + b + 1 both bound */
+        pairs += (int)((w * 0x01010101u) >> 24); /* the sum of those bits, at most 3 */
+        pairs += (i > 0) ? (role[i - 1] & role[i] & ROLE_BOUND) : 0; /* across words */
+    }
+    for (; i < n; ++i) {
+        pairs += (i > 0) ? (role[i - 1] & role[i] & ROLE_BOUND) : 0;
+    }
+    return pairs;
+}
+
 /*
  * Primal solve on a working set of input-bound rows only (wset[0..nw), at most one row
  * per input): U_B at the bounds, d_B = U_B - th0_B, then the factor of the previous solve
@@ -1729,19 +1785,9 @@ static int primal_solve(chain_work *ws, const chain_mode_data *md, int nw,
     const int n = md->n;
     int i, k, head, newest = 0, from = 0, form = (nw < n - nw) ? FORM_BOUND : FORM_FREE;
     int update = 0, joined = 0, by_columns;
-    int adjacent = 0; /* bound inputs next to a bound one set before: nw - adjacent runs */
-    for (i = 0; i < n; ++i) {
-        ws->input_role[i] = (uint8_t)(ws->input_role[i] & ~ROLE_BOUND);
-        ws->dv[i] = R_(0.0);
-    }
-    for (i = 0; i < nw; ++i) {
-        const int r = ws->wset[i], q = md->row_q[r];
-        if (ws->input_role[q] & ROLE_BOUND) {
-            return -1; /* both bounds of one input: not a valid working set */
-        }
-        adjacent += (q > 0 && (ws->input_role[q - 1] & ROLE_BOUND))
-            + (q + 1 < n && (ws->input_role[q + 1] & ROLE_BOUND));
-        ws->input_role[q] = (uint8_t)(ws->input_role[q] | ROLE_BOUND);
+    const int adjacent = mark_bound_inputs(ws, md, nw); /* nw - adjacent runs */
+    if (adjacent < 0) {
+        return -1;
     }
     by_columns = nw < SHORT_RUN * (nw - adjacent); /* runs of bound inputs short on average */
     k = (form == FORM_BOUND) ? nw : n - nw;
@@ -2199,7 +2245,7 @@ static void keep_progress(chain_work *ws, const chain_mode_data *md,
 static int polish(chain_work *ws, const chain_mode_data *md, chain_real *lam,
     int nw, int guess, int *iterations, int *active)
 {
-    int i, it, code, known = 0; /* known: the first wset rows whose z is their multiplier */
+    int i, it, code, box, known = 0; /* known: the first wset rows whose z is their multiplier */
     int repeatable = guess; /* every round so far a dual solve that switched or dropped */
     if (nw <= 0 || nw > md->n) {
         return -1;
@@ -2214,10 +2260,11 @@ static int polish(chain_work *ws, const chain_mode_data *md, chain_real *lam,
     for (i = 0; i < nw; ++i) {
         ws->in_set[ws->wset[i]] = 1;
     }
+    box = box_only(ws, md, nw); /* kept through the rounds, which add and drop rows */
     for (it = 0; it < CHAIN_SOLVER_POLISH_MAX; ++it) {
         int nadd;
         ++*iterations;
-        if (box_only(ws, md, nw)) {
+        if (box) { /* a subset of input bounds stays one: drop_negative() keeps it */
             /* primal: bound rows first; the multipliers only at a feasible point */
             repeatable = 0;
             code = primal_solve(ws, md, nw, primal_reserve(md));
@@ -2269,6 +2316,7 @@ static int polish(chain_work *ws, const chain_mode_data *md, chain_real *lam,
                     return stopped(ws, nw, known, code);
                 }
                 known = nw;
+                box = box_only(ws, md, nw); /* the last rows of other kinds may have left */
                 continue;
             }
             repeatable = 0; /* dual feasible: the resume would stop here */
@@ -2292,6 +2340,7 @@ static int polish(chain_work *ws, const chain_mode_data *md, chain_real *lam,
             return stopped(ws, nw, known, OUT_OF_WORK);
         }
         for (i = 0; i < nadd; ++i) {
+            box = box && md->row_q[ws->tmp[i]] < md->n;
             append_row(ws, md, ws->tmp[i], nw++);
         }
     }

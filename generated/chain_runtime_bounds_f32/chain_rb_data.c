@@ -1575,6 +1575,19 @@ static const chain_rb_real chain_rb_mode0_row_c[170] = {
     0.600000024f, 0.600000024f, 0.600000024f, 0.600000024f, 0.600000024f, 0.600000024f,
     0.600000024f, 0.600000024f
 };
+static const int16_t chain_rb_mode0_scan_rows[170] = {
+    0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15,
+    25, 26, 27, 28, 29, 30, 31, 32, 42, 43, 44, 45, 46, 47, 48, 49,
+    59, 60, 61, 62, 63, 64, 65, 66, 76, 77, 78, 79, 80, 81, 82, 83,
+    93, 94, 95, 96, 97, 98, 99, 100, 110, 111, 112, 113, 114, 115, 116, 117,
+    127, 128, 129, 130, 131, 132, 133, 134, 144, 145, 146, 147, 148, 149, 150, 151,
+    16, 17, 18, 19, 20, 21, 22, 23, 24, 33, 34, 35, 36, 37, 38, 39,
+    40, 41, 50, 51, 52, 53, 54, 55, 56, 57, 58, 67, 68, 69, 70, 71,
+    72, 73, 74, 75, 84, 85, 86, 87, 88, 89, 90, 91, 92, 101, 102, 103,
+    104, 105, 106, 107, 108, 109, 118, 119, 120, 121, 122, 123, 124, 125, 126, 135,
+    136, 137, 138, 139, 140, 141, 142, 143, 152, 153, 154, 155, 156, 157, 158, 159,
+    160, 161, 162, 163, 164, 165, 166, 167, 168, 169
+};
 static const int16_t chain_rb_mode0_row_next[170] = {
     8, 9, 10, 11, 12, 13, 14, 15, 25, 26, 27, 28, 29, 30, 31, 32,
     33, 34, 35, 36, 37, 38, 39, 40, 41, 42, 43, 44, 45, 46, 47, 48,
@@ -1658,6 +1671,7 @@ const chain_rb_mode_data chain_rb_modes[CHAIN_RB_N_MODES] = {
         .m = 170,
         .nyq = 60,
         .nt = 6,
+        .m_box = 80,
         .ny_pred = 5,
         .actuator_index = chain_rb_mode0_actuator_index,
         .A = chain_rb_mode0_A,
@@ -1682,6 +1696,7 @@ const chain_rb_mode_data chain_rb_modes[CHAIN_RB_N_MODES] = {
         .row_q = chain_rb_mode0_row_q,
         .row_sign = chain_rb_mode0_row_sign,
         .row_c = chain_rb_mode0_row_c,
+        .scan_rows = chain_rb_mode0_scan_rows,
         .row_next = chain_rb_mode0_row_next,
         .colsum = chain_rb_mode0_colsum,
         .out_bound = chain_rb_mode0_out_bound,

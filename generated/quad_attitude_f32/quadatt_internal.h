@@ -20,6 +20,7 @@ typedef struct {
     int m;                              /**< Constraint rows. */
     int nyq;                            /**< Predicted outputs N ny. */
     int nt;                             /**< Terminal rows of the E split (0: P stays in S). */
+    int m_box;                          /**< Rows that are not output rows (input and Δu bounds): the first m_box of scan_rows. */
     int ny_pred;                        /**< Outputs predict_outputs() computes: the first ny_pred of pred_out (those with constraint rows, or all of them). */
     const int16_t *actuator_index;      /**< [nu] physical actuator of each mode input. */
     const quadatt_real *A;              /**< [nx][nx] discrete state matrix. */
@@ -44,6 +45,7 @@ typedef struct {
     const int16_t *row_q;               /**< [m] quantity of each row (U index, n + Y index, or n + nyq + Δu index). */
     const int8_t *row_sign;             /**< [m] -1 lower / +1 upper bound row. */
     const quadatt_real *row_c;          /**< [m] constant right-hand side c. */
+    const int16_t *scan_rows;           /**< [m] the rows by kind: the m_box rows that are not output rows, ascending, then the output rows, ascending (violated_kind()). */
     const int16_t *row_next;            /**< [m] same constraint one stage later (shifted warm start). */
     const quadatt_real *colsum;         /**< [ny][n] sum of the E^-1 Gamma' columns of stages 0..N-2. */
     const quadatt_real *out_bound;      /**< [nyq] |(Gamma th)_k| <= out_bound[k] max|th|. */

@@ -946,6 +946,18 @@ static const qtank_real qtank_mode0_row_c[160] = {
     3.0f, 3.0f, 10.0f, 10.0f, 7.0f, 7.0f,
     10.0f, 10.0f, 7.0f, 7.0f
 };
+static const int16_t qtank_mode0_scan_rows[160] = {
+    0, 1, 2, 3, 4, 5, 6, 7, 12, 13, 14, 15, 20, 21, 22, 23,
+    28, 29, 30, 31, 36, 37, 38, 39, 44, 45, 46, 47, 52, 53, 54, 55,
+    60, 61, 62, 63, 68, 69, 70, 71, 76, 77, 78, 79, 84, 85, 86, 87,
+    92, 93, 94, 95, 100, 101, 102, 103, 108, 109, 110, 111, 116, 117, 118, 119,
+    124, 125, 126, 127, 132, 133, 134, 135, 140, 141, 142, 143, 148, 149, 150, 151,
+    8, 9, 10, 11, 16, 17, 18, 19, 24, 25, 26, 27, 32, 33, 34, 35,
+    40, 41, 42, 43, 48, 49, 50, 51, 56, 57, 58, 59, 64, 65, 66, 67,
+    72, 73, 74, 75, 80, 81, 82, 83, 88, 89, 90, 91, 96, 97, 98, 99,
+    104, 105, 106, 107, 112, 113, 114, 115, 120, 121, 122, 123, 128, 129, 130, 131,
+    136, 137, 138, 139, 144, 145, 146, 147, 152, 153, 154, 155, 156, 157, 158, 159
+};
 static const int16_t qtank_mode0_row_next[160] = {
     4, 5, 6, 7, 12, 13, 14, 15, 16, 17, 18, 19, 20, 21, 22, 23,
     24, 25, 26, 27, 28, 29, 30, 31, 32, 33, 34, 35, 36, 37, 38, 39,
@@ -999,6 +1011,7 @@ const qtank_mode_data qtank_modes[QTANK_N_MODES] = {
         .m = 160,
         .nyq = 40,
         .nt = 2,
+        .m_box = 80,
         .ny_pred = 2,
         .actuator_index = qtank_mode0_actuator_index,
         .A = qtank_mode0_A,
@@ -1023,6 +1036,7 @@ const qtank_mode_data qtank_modes[QTANK_N_MODES] = {
         .row_q = qtank_mode0_row_q,
         .row_sign = qtank_mode0_row_sign,
         .row_c = qtank_mode0_row_c,
+        .scan_rows = qtank_mode0_scan_rows,
         .row_next = qtank_mode0_row_next,
         .colsum = qtank_mode0_colsum,
         .out_bound = qtank_mode0_out_bound,

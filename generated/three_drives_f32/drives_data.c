@@ -407,6 +407,15 @@ static const drives_real drives_mode0_row_c[100] = {
     1.0f, 1.0f, 10.0f, 10.0f, 1.0f, 1.0f,
     10.0f, 10.0f, 10.0f, 10.0f
 };
+static const int16_t drives_mode0_scan_rows[100] = {
+    0, 1, 2, 3, 6, 7, 10, 11, 14, 15, 18, 19, 22, 23, 26, 27,
+    30, 31, 34, 35, 38, 39, 42, 43, 46, 47, 50, 51, 54, 55, 58, 59,
+    62, 63, 66, 67, 70, 71, 74, 75, 78, 79, 82, 83, 86, 87, 90, 91,
+    94, 95, 4, 5, 8, 9, 12, 13, 16, 17, 20, 21, 24, 25, 28, 29,
+    32, 33, 36, 37, 40, 41, 44, 45, 48, 49, 52, 53, 56, 57, 60, 61,
+    64, 65, 68, 69, 72, 73, 76, 77, 80, 81, 84, 85, 88, 89, 92, 93,
+    96, 97, 98, 99
+};
 static const int16_t drives_mode0_row_next[100] = {
     2, 3, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15, 16, 17, 18, 19,
     20, 21, 22, 23, 24, 25, 26, 27, 28, 29, 30, 31, 32, 33, 34, 35,
@@ -836,6 +845,15 @@ static const drives_real drives_mode1_row_c[100] = {
     10.0f, 10.0f, 1.0f, 1.0f, 10.0f, 10.0f,
     1.0f, 1.0f, 10.0f, 10.0f, 1.0f, 1.0f,
     10.0f, 10.0f, 10.0f, 10.0f
+};
+static const int16_t drives_mode1_scan_rows[100] = {
+    0, 1, 2, 3, 6, 7, 10, 11, 14, 15, 18, 19, 22, 23, 26, 27,
+    30, 31, 34, 35, 38, 39, 42, 43, 46, 47, 50, 51, 54, 55, 58, 59,
+    62, 63, 66, 67, 70, 71, 74, 75, 78, 79, 82, 83, 86, 87, 90, 91,
+    94, 95, 4, 5, 8, 9, 12, 13, 16, 17, 20, 21, 24, 25, 28, 29,
+    32, 33, 36, 37, 40, 41, 44, 45, 48, 49, 52, 53, 56, 57, 60, 61,
+    64, 65, 68, 69, 72, 73, 76, 77, 80, 81, 84, 85, 88, 89, 92, 93,
+    96, 97, 98, 99
 };
 static const int16_t drives_mode1_row_next[100] = {
     2, 3, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15, 16, 17, 18, 19,
@@ -1267,6 +1285,15 @@ static const drives_real drives_mode2_row_c[100] = {
     1.0f, 1.0f, 10.0f, 10.0f, 1.0f, 1.0f,
     10.0f, 10.0f, 10.0f, 10.0f
 };
+static const int16_t drives_mode2_scan_rows[100] = {
+    0, 1, 2, 3, 6, 7, 10, 11, 14, 15, 18, 19, 22, 23, 26, 27,
+    30, 31, 34, 35, 38, 39, 42, 43, 46, 47, 50, 51, 54, 55, 58, 59,
+    62, 63, 66, 67, 70, 71, 74, 75, 78, 79, 82, 83, 86, 87, 90, 91,
+    94, 95, 4, 5, 8, 9, 12, 13, 16, 17, 20, 21, 24, 25, 28, 29,
+    32, 33, 36, 37, 40, 41, 44, 45, 48, 49, 52, 53, 56, 57, 60, 61,
+    64, 65, 68, 69, 72, 73, 76, 77, 80, 81, 84, 85, 88, 89, 92, 93,
+    96, 97, 98, 99
+};
 static const int16_t drives_mode2_row_next[100] = {
     2, 3, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15, 16, 17, 18, 19,
     20, 21, 22, 23, 24, 25, 26, 27, 28, 29, 30, 31, 32, 33, 34, 35,
@@ -1306,6 +1333,7 @@ const drives_mode_data drives_modes[DRIVES_N_MODES] = {
         .m = 100,
         .nyq = 25,
         .nt = 1,
+        .m_box = 50,
         .ny_pred = 1,
         .actuator_index = drives_mode0_actuator_index,
         .A = drives_mode0_A,
@@ -1330,6 +1358,7 @@ const drives_mode_data drives_modes[DRIVES_N_MODES] = {
         .row_q = drives_mode0_row_q,
         .row_sign = drives_mode0_row_sign,
         .row_c = drives_mode0_row_c,
+        .scan_rows = drives_mode0_scan_rows,
         .row_next = drives_mode0_row_next,
         .colsum = drives_mode0_colsum,
         .out_bound = drives_mode0_out_bound,
@@ -1344,6 +1373,7 @@ const drives_mode_data drives_modes[DRIVES_N_MODES] = {
         .m = 100,
         .nyq = 25,
         .nt = 1,
+        .m_box = 50,
         .ny_pred = 1,
         .actuator_index = drives_mode1_actuator_index,
         .A = drives_mode1_A,
@@ -1368,6 +1398,7 @@ const drives_mode_data drives_modes[DRIVES_N_MODES] = {
         .row_q = drives_mode1_row_q,
         .row_sign = drives_mode1_row_sign,
         .row_c = drives_mode1_row_c,
+        .scan_rows = drives_mode1_scan_rows,
         .row_next = drives_mode1_row_next,
         .colsum = drives_mode1_colsum,
         .out_bound = drives_mode1_out_bound,
@@ -1382,6 +1413,7 @@ const drives_mode_data drives_modes[DRIVES_N_MODES] = {
         .m = 100,
         .nyq = 25,
         .nt = 1,
+        .m_box = 50,
         .ny_pred = 1,
         .actuator_index = drives_mode2_actuator_index,
         .A = drives_mode2_A,
@@ -1406,6 +1438,7 @@ const drives_mode_data drives_modes[DRIVES_N_MODES] = {
         .row_q = drives_mode2_row_q,
         .row_sign = drives_mode2_row_sign,
         .row_c = drives_mode2_row_c,
+        .scan_rows = drives_mode2_scan_rows,
         .row_next = drives_mode2_row_next,
         .colsum = drives_mode2_colsum,
         .out_bound = drives_mode2_out_bound,

@@ -91,6 +91,8 @@ MODE_SIZES = (
     StoredSize("m", "Constraint rows."),
     StoredSize("nyq", "Predicted outputs N ny.", field="n_yq"),
     StoredSize("nt", "Terminal rows of the E split (0: P stays in S)."),
+    StoredSize("m_box", "Rows that are not output rows (input and Δu bounds): the first "
+               "m_box of scan_rows."),
     StoredSize("ny_pred", "Outputs predict_outputs() computes: the first ny_pred of "
                "pred_out (those with constraint rows, or all of them)."),
     StoredSize("w_cap", "Working-set capacity: n + soft (output, stage) pairs.",
@@ -130,6 +132,8 @@ STORED_ARRAYS = (
                 "or n + nyq + Δu index)."),
     StoredArray("row_sign", "int8_t", ("m",), "-1 lower / +1 upper bound row."),
     StoredArray("row_c", REAL, ("m",), "constant right-hand side c.", blame="bounds"),
+    StoredArray("scan_rows", "int16_t", ("m",), "the rows by kind: the m_box rows that are not "
+                "output rows, ascending, then the output rows, ascending (violated_kind())."),
     StoredArray("row_next", "int16_t", ("m",), "same constraint one stage later "
                 "(shifted warm start)."),
     StoredArray("colsum", REAL, ("ny", "n"), "sum of the E^-1 Gamma' columns of stages 0..N-2."),

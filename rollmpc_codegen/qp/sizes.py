@@ -46,6 +46,7 @@ class ModeSizes:
     ny: int
     n: int  # decision variables
     m: int  # constraint rows
+    m_box: int  # rows that are not output rows (input and Δu bounds)
     nt: int  # terminal rows of the E split: ny when P is positive definite
     w_cap: int  # working-set capacity: n + soft (output, stage) pairs
     has_output_rows: bool
@@ -77,8 +78,10 @@ def mode_sizes(cfg: ControllerConfig, mode: ModeConfig) -> ModeSizes:
     bounded = np.isfinite(mode.y_min) | np.isfinite(mode.y_max)
     soft = (0 if mode.soft_l2 is None else
             N * int(np.sum(np.any(mode.soft_l2 > 0.0, axis=1) & bounded)))
+    m = qp_rows(N, mode)
+    output_rows = N * int(np.isfinite(mode.y_min).sum() + np.isfinite(mode.y_max).sum())
     return ModeSizes(N=N, nx=plant_order(mode, ny) + nd + n_prev, nu=nu, ny=ny, n=n,
-                     m=qp_rows(N, mode), nt=ny if np.linalg.eigvalsh(mode.P).min() > 0 else 0,
+                     m=m, m_box=m - output_rows, nt=ny if np.linalg.eigvalsh(mode.P).min() > 0 else 0,
                      w_cap=n + soft, has_output_rows=bool(np.any(bounded)),
                      ny_pred=int(np.sum(bounded)))
 

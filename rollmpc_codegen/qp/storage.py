@@ -171,6 +171,19 @@ class ModeData:
     def ny_pred(self) -> int:
         return self._predicted[1]
 
+    @property
+    def scan_rows(self) -> np.ndarray:
+        """The rows by kind, for violated_kind(): the rows that are not output rows (input
+        and Δu bounds), ascending, then the output rows, ascending. A scan of one kind
+        then reads only its own rows, in the order a scan of every row meets them."""
+        out = self.output_rows
+        return np.concatenate((np.flatnonzero(~out), np.flatnonzero(out))).astype(np.int32)
+
+    @property
+    def m_box(self) -> int:
+        """The rows that are not output rows: the first m_box of scan_rows."""
+        return int(np.count_nonzero(~self.output_rows))
+
     def soft_rows(self) -> tuple[np.ndarray, np.ndarray]:
         """(l1, w) of every row, as the C's soft_of() reads them (0 for hard rows)."""
         l1, w = np.zeros(self.m, self.Kx.dtype), np.zeros(self.m, self.Kx.dtype)
