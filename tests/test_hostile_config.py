@@ -334,7 +334,7 @@ SIZES = [
 
 def test_stored_data_beyond_the_limit_is_refused(tmp_path, capsys):
     err = _generate(tmp_path, capsys, both(set_("horizon", 1000), _no_output_bounds))
-    assert err == ("rollmpc: error: horizon: too long: the stored data would take 32,324,632 "
+    assert err == ("rollmpc: error: horizon: too long: the stored data would take 32,332,632 "
                    "bytes (modes[0]: n = 1000 variables, m = 2000 rows); at most 16,777,216 "
                    "supported\n")
 

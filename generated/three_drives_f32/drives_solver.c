@@ -1712,7 +1712,7 @@ static int primal_solve_bound(drives_work *ws, const drives_mode_data *md, int n
     return 0;
 }
 
-/* Four roles as one word, byte b of the four in bits 8b..8b+7 (a compiler merges the four
+/* Four roles as one word, role b of the four in bits 8b..8b+7 (a compiler merges the four
  * loads, or stores, into one where it can, on any target). */
 static uint32_t role_word(const uint8_t *role)
 {
@@ -1732,17 +1732,18 @@ static void set_role_word(uint8_t *role, uint32_t w)
  * ROLE_BOUND on exactly the inputs of wset[0..nw), and d = 0 on every input (the bound
  * ones get theirs once the solve is granted). Returns the pairs of neighbouring bound
  * inputs (the bound inputs form nw - pairs runs), or -1 if an input has both bounds (not
- * a valid working set). It runs at every correction, so the roles are cleared and their
- * pairs counted four inputs at a time (role_word(); ROLE_BOUND is bit 0 of each role).
+ * a valid working set). It runs at every correction: the flags are cleared four roles at
+ * a time (role_word(), ROLE_BOUND being bit 0 of each), and the pairs counted in one pass
+ * over the roles rather than by two neighbour tests per row. (Counting the pairs by words
+ * too took polish()'s host frame 16 B past the stack limit of tests/test_reliability_memory.)
  */
 static int mark_bound_inputs(drives_work *ws, const drives_mode_data *md, int nw)
 {
-    const uint32_t bound_bits = 0x01010101u; /* ROLE_BOUND (1) in each role */
     const int n = md->n;
     uint8_t *role = ws->input_role;
-    int i, pairs = 0;
-    for (i = 0; i + 4 <= n; i += 4) {
-        set_role_word(&role[i], role_word(&role[i]) & ~bound_bits);
+    int i = 0, pairs = 0;
+    for (; i + 4 <= n; i += 4) {
+        set_role_word(&role[i], role_word(&role[i]) & ~0x01010101u); /* ROLE_BOUND of each */
     }
     for (; i < n; ++i) {
         role[i] = (uint8_t)(role[i] & ~ROLE_BOUND);
@@ -1757,14 +1758,8 @@ static int mark_bound_inputs(drives_work *ws, const drives_mode_data *md, int nw
         }
         role[q] = (uint8_t)(role[q] | ROLE_BOUND);
     }
-    for (i = 0; i + 4 <= n; i += 4) {
-        uint32_t w = role_word(&role[i]) & bound_bits;
-        w &= w >> 8; /* bit 8b: inputs i + b and i + b + 1 both bound */
-        pairs += (int)((w * 0x01010101u) >> 24); /* the sum of those bits, at most 3 */
-        pairs += (i > 0) ? (role[i - 1] & role[i] & ROLE_BOUND) : 0; /* across words */
-    }
-    for (; i < n; ++i) {
-        pairs += (i > 0) ? (role[i - 1] & role[i] & ROLE_BOUND) : 0;
+    for (i = 1; i < n; ++i) {
+        pairs += role[i - 1] & role[i] & ROLE_BOUND;
     }
     return pairs;
 }
