@@ -81,7 +81,8 @@ def mode_sizes(cfg: ControllerConfig, mode: ModeConfig) -> ModeSizes:
     m = qp_rows(N, mode)
     output_rows = N * int(np.isfinite(mode.y_min).sum() + np.isfinite(mode.y_max).sum())
     return ModeSizes(N=N, nx=plant_order(mode, ny) + nd + n_prev, nu=nu, ny=ny, n=n,
-                     m=m, m_box=m - output_rows, nt=ny if np.linalg.eigvalsh(mode.P).min() > 0 else 0,
+                     m=m, m_box=m - output_rows,
+                     nt=ny if np.linalg.eigvalsh(mode.P).min() > 0 else 0,
                      w_cap=n + soft, has_output_rows=bool(np.any(bounded)),
                      ny_pred=int(np.sum(bounded)))
 
