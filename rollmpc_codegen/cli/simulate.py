@@ -25,8 +25,7 @@ from typing import TYPE_CHECKING
 from ..config import ConfigError
 from .options import (add_build_dir, add_outputs, add_perturbations, add_precision, add_quiet,
                       check_flights, check_outputs, check_perturbations, check_steps,
-                      progress_of,
-                      require_plot, write_json)
+                      progress_of, require_plot, write_json)
 
 if TYPE_CHECKING:
     from ..sim.simulate import ClosedLoopLog

@@ -15,16 +15,22 @@ from .schema import (BOUND_KEYS, MAX_ROWS, WEIGHT_KEYS, ModeConfig, SchedulerCon
                      SimulationConfig, SolverConfig, storage_range)
 
 
+def _finite(bound) -> int:
+    return 0 if bound is None else int(np.isfinite(bound).sum())
+
+
+def output_rows(horizon: int, mode: ModeConfig) -> int:
+    """The output-bound rows among :func:`qp_rows`: one per finite output bound on stages
+    1..N."""
+    return horizon * (_finite(mode.y_min) + _finite(mode.y_max))
+
+
 def qp_rows(horizon: int, mode: ModeConfig) -> int:
     """The constraint rows of the mode's QP (condense._constraints): 2 nu per move (stage
-    or block), one per finite output bound on stages 1..N and per finite Δu bound on
-    stages 0..N-1."""
-    def finite(bound) -> int:
-        return 0 if bound is None else int(np.isfinite(bound).sum())
-
+    or block), the :func:`output_rows`, and one per finite Δu bound on stages 0..N-1."""
     moves = horizon if mode.blocks is None else len(mode.blocks)
-    return moves * 2 * len(mode.actuators) + horizon * sum(
-        finite(b) for b in (mode.y_min, mode.y_max, mode.du_min, mode.du_max))
+    return (moves * 2 * len(mode.actuators) + output_rows(horizon, mode)
+            + horizon * (_finite(mode.du_min) + _finite(mode.du_max)))
 
 
 def check_horizon(horizon: int, modes: tuple[ModeConfig, ...]) -> None:

@@ -26,7 +26,7 @@ from math import prod
 import numpy as np
 
 from ..config import ConfigError, ControllerConfig, ModeConfig
-from ..config.checks import qp_rows
+from ..config.checks import output_rows, qp_rows
 from ..config.schema import (MAX_CONDENSING_BYTES, MAX_ROWS, MAX_STATES, MAX_STORED_BYTES,
                               MAX_STRUCT_BYTES)
 from .arrays import REAL, declared_for
@@ -79,9 +79,8 @@ def mode_sizes(cfg: ControllerConfig, mode: ModeConfig) -> ModeSizes:
     soft = (0 if mode.soft_l2 is None else
             N * int(np.sum(np.any(mode.soft_l2 > 0.0, axis=1) & bounded)))
     m = qp_rows(N, mode)
-    output_rows = N * int(np.isfinite(mode.y_min).sum() + np.isfinite(mode.y_max).sum())
     return ModeSizes(N=N, nx=plant_order(mode, ny) + nd + n_prev, nu=nu, ny=ny, n=n,
-                     m=m, m_box=m - output_rows,
+                     m=m, m_box=m - output_rows(N, mode),
                      nt=ny if np.linalg.eigvalsh(mode.P).min() > 0 else 0,
                      w_cap=n + soft, has_output_rows=bool(np.any(bounded)),
                      ny_pred=int(np.sum(bounded)))
