@@ -31,9 +31,9 @@ def test_capped_guess_is_not_repeated(tmp_path, build_root):
     calls = {"seed": 0, "capped": 0, "capped_steps": [], "seeds_in_capped": []}
     seed, polish = solver_mod.SolverRef.seed_shifted, solver_mod.SolverRef.polish
 
-    def counting_seed(self, lam):
+    def counting_seed(self, lam, *truncate):
         calls["seed"] += 1
-        return seed(self, lam)
+        return seed(self, lam, *truncate)
 
     def counting_polish(self, *args, **kwargs):
         out = polish(self, *args, **kwargs)

@@ -218,6 +218,17 @@ static uint32_t primal_work(const chain_mode_data *md, int nw, int k, int start,
         + (bound_form ? multipliers_work(md, nw) : 0u);
 }
 
+/* independent_rows() on nw rows, at most: each appended to all the rows before it. */
+static uint32_t independent_work(const chain_mode_data *md, int nw)
+{
+    uint32_t w = 0u;
+    int k;
+    for (k = 0; k < nw; ++k) {
+        w += append_work(md, k);
+    }
+    return w;
+}
+
 /* One step of add_to_set() on nw rows: two triangular solves, then a row leaves, switches
  * state or joins. */
 static uint32_t add_step_work(int nw)
@@ -1935,6 +1946,32 @@ static void forget_row(chain_work *ws, int r)
 }
 
 /*
+ * The rows of wset[0..nw) in order, each kept when its pivot on the rows kept before it
+ * exceeds the dependence tolerance times its diagonal (plus w for a slack row), the others
+ * leaving (forget_row()); their factor into ws->chol. Returns how many are kept: where a
+ * factor from scratch broke down, a linearly independent working set to resume from.
+ */
+static int independent_rows(chain_work *ws, const chain_mode_data *md, int nw)
+{
+    int i, kept = 0;
+    ws->chol_holds = CHAIN_CHOL_DUAL;
+    for (i = 0; i < nw; ++i) {
+        const int p = ws->wset[i];
+        chain_real hpp = hq(md, md->row_q[p], md->row_q[p]), zeta;
+        ws->work += ((uint32_t)kept + 1u) * hq_work(md);
+        h_column(md, ws->wset, kept, p, -1, ws->ycol, ws->rhs);
+        zeta = factor_pivot(ws, kept, hpp);
+        if (zeta > CHAIN_SOLVER_DEPENDENCE_TOL * hpp) {
+            factor_append(ws, kept, zeta);
+            ws->wset[kept++] = (int16_t)p;
+        } else {
+            forget_row(ws, p);
+        }
+    }
+    return kept;
+}
+
+/*
  * Working-set position k leaves (wset and z shift down); a kept dual factor loses its row
  * and column by a rank-one update of the rows below (chol_delete(), scratch ws->rhs).
  */
@@ -2011,10 +2048,10 @@ static int seed_from_multipliers(chain_work *ws, const chain_mode_data *md,
 /*
  * Working set from the previous active set (optimal, or where a TIME_LIMIT stopped)
  * shifted one stage along the horizon (row r joins when its next-stage row was active):
- * the receding-horizon guess; -1 if more than the working set holds.
+ * the receding-horizon guess; -1 if more than the working set holds (truncate: its first).
  */
 static int seed_shifted(chain_work *ws, const chain_mode_data *md,
-    const chain_real *lam)
+    const chain_real *lam, int truncate)
 {
     int r, nw = 0;
     new_working_set(ws);
@@ -2022,7 +2059,7 @@ static int seed_shifted(chain_work *ws, const chain_mode_data *md,
     for (r = 0; r < md->m; ++r) {
         if (lam[md->row_next[r]] > R_(0.0)) {
             if (nw == md->n) {
-                return -1;
+                return truncate ? nw : -1;
             }
             ws->wset[nw++] = (int16_t)r;
         }
@@ -2478,15 +2515,17 @@ static int add_to_set(chain_work *ws, const chain_mode_data *md, int p, int rech
  * The warm start of dual_active_set(): the working set where the shifted guess' polish
  * stopped (wset[0..from), its factor as ws->chol_holds says), or with from < 0 the
  * previous working set shifted one stage (seed_shifted(): optimal, or where a TIME_LIMIT
- * stopped), made dual feasible by solving on it, switching the soft states whose
- * multipliers cross l1 and dropping the rows with negative multipliers until none is;
+ * stopped; its first rows that the working set holds), made dual feasible by solving on
+ * it (if its factor breaks down, its dependent rows leave: independent_rows()), switching
+ * the soft states whose multipliers cross l1 and dropping the rows with negative
+ * multipliers until none is;
  * ws->th is then its point. Returns its size (0: no seed, or it broke down or emptied:
  * start cold) or OUT_OF_WORK (where: stopped()).
  */
 static int resume_working_set(chain_work *ws, const chain_mode_data *md,
     const chain_real *lam, int from, int *steps)
 {
-    int i, round, code, nw = (from >= 0) ? from : seed_shifted(ws, md, lam);
+    int i, round, code, nw = (from >= 0) ? from : seed_shifted(ws, md, lam, 1);
     for (i = 0; i < nw; ++i) {
         ws->in_set[ws->wset[i]] = 1;
     }
@@ -2494,6 +2533,13 @@ static int resume_working_set(chain_work *ws, const chain_mode_data *md,
         int known;
         ++*steps;
         code = dual_solve(ws, md, nw);
+        if (code == -1) { /* dependent rows: keep the independent ones, in order */
+            if (!afford(ws, md, independent_work(md, nw))) {
+                break; /* start cold, with the work that is left */
+            }
+            nw = independent_rows(ws, md, nw);
+            continue;
+        }
         known = (code == 0) ? nw : 0;
         code = (code == 0) ? drop_negative(ws, md, &nw, 0) : code;
         if (code == OUT_OF_WORK) {
@@ -2735,7 +2781,7 @@ int chain_qp_solve(chain_work *ws, chain_real *lam, const chain_real *plan,
         if (!afford(ws, md, (uint32_t)md->m)) {
             return time_limit_at_th0(ws, md, lam, plan, plan_age, 0, U);
         }
-        count = seed_shifted(ws, md, lam);
+        count = seed_shifted(ws, md, lam, 0);
         if (CHAIN_SOLVER_ACTIVE_SET && !box_only(ws, md, count)) {
             ws->work_limit = ws->work + (CHAIN_SOLVER_WORK_BUDGET - ws->work) / 3u;
         }

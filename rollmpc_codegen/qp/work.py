@@ -141,6 +141,11 @@ def append_work(m, nw: int, factor: int) -> int:
     return (nw + 1) * hq_work(m, factor) + tri_work(nw) + nw
 
 
+def independent_work(m, nw: int, factor: int) -> int:
+    """independent_rows() on nw rows, at most: each appended to all the rows before it."""
+    return sum(append_work(m, k, factor) for k in range(nw))
+
+
 def primal_work(m, nw: int, k: int, start: int = 0, bound_form: bool = True,
                 bound_runs: int = 0) -> int:
     """primal_solve() with a factor of order k whose rows (and Y's) from ``start`` are
@@ -210,6 +215,7 @@ def largest_unit(m, wcap: int, factor: int) -> int:
     """An upper bound of every count the C forms (its intermediates are uint32): the
     cube of the working-set capacity, a factorisation, a sweep over every row."""
     return max(wcap ** 3, factor_work(m, wcap, factor) + append_work(m, wcap, factor),
+               independent_work(m, wcap, factor),
                sweep_work(m, m.m, factor) + correct_work(m, m.m) + 2 * scan_work(m),
                CHOL_UNITS_PER_OP[0] * chol_ops(wcap),
                6 * (primal_work(m, m.n, m.n, 0, True) + 1), add_step_work(wcap))

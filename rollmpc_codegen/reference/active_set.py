@@ -11,7 +11,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..qp.work import add_step_work, correct_work, factor_work, hq_work, predict_work, scan_work, tri_work
+from ..qp.work import (add_step_work, correct_work, factor_work, hq_work, independent_work,
+                       predict_work, scan_work, tri_work)
 from .linalg import chol_ltsolve_packed, seqsum
 from .polish_dual import CHOL_DUAL, COLD_START, OUT_OF_WORK, OUT_OF_WORK_AT_TH0
 
@@ -127,18 +128,21 @@ class ActiveSetMixin:
 
     def resume_working_set(self, lam, th0, K, st, resume):
         """Mirror of resume_working_set(): the working set ``resume`` where the guess
-        stopped, else the shifted previous one, made dual feasible in st (W, z, in_set);
-        returns (its size, 0 to start cold, or OUT_OF_WORK with ``stop``; th)."""
-        if resume is None:
-            W = self.seed_shifted(lam)
-            if W.size > self.wcap:  # the C's seed gives up: cold
-                W = W[:0]
-        else:
-            W = resume
+        stopped, else the shifted previous one (its first wcap rows), made dual feasible in
+        st (W, z, in_set), its dependent rows leaving if its factor breaks down; returns
+        (its size, 0 to start cold, or OUT_OF_WORK with ``stop``; th)."""
+        W = self.seed_shifted(lam, True) if resume is None else resume
         st["in_set"][W] = True
         for _ in range(self.polish_max if W.size else 0):
             st["steps"] += 1
             code, z = self.dual_solve(W, K)
+            if code == -1:  # dependent rows: keep the independent ones, in order
+                if not self.afford(independent_work(self.md, W.size, self.hq_factor)):
+                    break  # start cold, with the work that is left
+                st["in_set"][W] = False
+                W = self.independent_rows(W)
+                st["in_set"][W] = True
+                continue
             known = W.size if code == 0 else 0
             if code == 0 and self.soft:
                 code = self.switch_states(W, z)

@@ -31,13 +31,15 @@ class PolishMixin:
         self.set_state(seed, lam[seed])
         return seed
 
-    def seed_shifted(self, lam):
+    def seed_shifted(self, lam, truncate=False):
         """Mirror of seed_shifted(): row r where its next-stage row was active, slack where
-        that row's lam > l1."""
+        that row's lam > l1 (with ``truncate``, only the first wcap such rows)."""
         self.new_working_set()
         self.work += self.md.m
         row_next = self.md.row_next
         W = np.flatnonzero(lam[row_next] > 0)
+        if truncate:
+            W = W[:self.wcap]
         self.set_state(W, lam[row_next[W]])
         return W
 

@@ -66,6 +66,24 @@ class DualPolishMixin:
                 self.chol_holds = CHOL_NONE
         return np.append(W, p)
 
+    def independent_rows(self, W):
+        """Mirror of independent_rows(): W's rows in order, each kept when its pivot on the
+        rows kept before it exceeds the dependence tolerance times its diagonal (plus w for
+        a slack row), the others leaving; their factor into ``chol``."""
+        kept = []
+        self.chol_holds = CHOL_DUAL
+        for p in W:
+            hpp = self.Hdiag[p] + (self.soft_w[p] if self.slack_on[p] else 0)
+            self.work += (len(kept) + 1) * hq_work(self.md, self.hq_factor)
+            y = self.H[kept, p].astype(self.chol.dtype)
+            zeta = self.factor_pivot(y, hpp)
+            if zeta > self.dep_tol * hpp:
+                self.factor_append(y, zeta)
+                kept.append(p)
+            else:
+                self.slack_on[p] = False
+        return np.array(kept, dtype=W.dtype)
+
     def remove_row(self, W, z, k):
         """Mirror of remove_row(): position k leaves W and z (and the kept factor)."""
         self.slack_on[W[k]] = False
