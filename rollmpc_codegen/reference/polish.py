@@ -38,10 +38,9 @@ class PolishMixin:
         self.work += self.md.m
         row_next = self.md.row_next
         W = np.flatnonzero(lam[row_next] > 0)
-        if truncate:
-            W = W[:self.wcap]
-        self.set_state(W, lam[row_next[W]])
-        return W
+        head = W[:self.wcap]  # the C sets the states of the rows it stores, then gives up
+        self.set_state(head, lam[row_next[head]])
+        return head if truncate else W
 
     def seed_from_violated(self, K):
         """Mirror of seed_from_violated(): the rows th0 violates (K < 0), all tight."""
