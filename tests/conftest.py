@@ -128,6 +128,23 @@ def short_uav_config(tmp_path: Path, horizon: int = 20, name: str = "uav_short",
     return path
 
 
+def reference_closed_loop(built: Built, ref, steps: int) -> list:
+    """The scenario's closed loop driven by the reference controller ``ref`` (a
+    ``built.reference()``, possibly with recording wrappers): (status, work) of every step."""
+    from rollmpc_codegen.sim.simulate import run_closed_loop
+
+    seen = []
+
+    class Reference:
+        def step(self, y, s, r):
+            out = ref.step(y, s, r)
+            seen.append((int(out[0]), ref.last["work"]))
+            return out
+
+    run_closed_loop(built.model.config, Reference(), steps=steps)
+    return seen
+
+
 def lockstep_closed_loop(built: Built, steps: int) -> tuple[list, list]:
     """The scenario's closed loop driven by a fresh host C controller, the reference
     stepped beside it on the same inputs: (mismatches as (step, C's, reference's), and

@@ -1481,6 +1481,16 @@ static uint32_t primal_deletes(qtank_work *ws, const qtank_mode_data *md, int k_
     return work;
 }
 
+/* Are the working-set rows all input bounds (the primal form's working sets)? */
+static int box_only(const qtank_work *ws, const qtank_mode_data *md, int nw)
+{
+    int i, box = 1;
+    for (i = 0; i < nw; ++i) {
+        box = box && md->row_q[ws->wset[i]] < md->n;
+    }
+    return box;
+}
+
 /*
  * Rows from..k-1 of the factor L (ws->chol) of S_FF (free form) or (S^-1)_BB (bound
  * form) in the order of ws->tmp, and the same rows of Y = L^-1 V_F' or L^-1 Uv_B'
@@ -2143,16 +2153,6 @@ static int drop_negative(qtank_work *ws, const qtank_mode_data *md, int *nw, int
     return 1;
 }
 
-/* Are the working-set rows all input bounds (the primal form's working sets)? */
-static int box_only(const qtank_work *ws, const qtank_mode_data *md, int nw)
-{
-    int i, box = 1;
-    for (i = 0; i < nw; ++i) {
-        box = box && md->row_q[ws->wset[i]] < md->n;
-    }
-    return box;
-}
-
 /* Do the working-set rows hold (within the feasibility tolerance) at ws->th? */
 static int working_set_holds(qtank_work *ws, const qtank_mode_data *md, int nw)
 {
@@ -2229,13 +2229,17 @@ static int accept(qtank_work *ws, const qtank_mode_data *md, qtank_real *lam,
     return 0;
 }
 
+#define GUESS_CAPPED (-4) /* polish(): a guess that resume_working_set() would repeat */
+#define GUESS_DEPENDENT (-5) /* polish(): a guess' joining row is dependent (stopped()) */
+
 /*
- * Where polish() stopped when the budget ran out (code OUT_OF_WORK): its working set
- * wset[0..nw), the first `known` of them with their multipliers in z. Returns code.
+ * Where polish() stopped when the budget ran out (code OUT_OF_WORK), or before a guess'
+ * dependent joining row (GUESS_DEPENDENT): its working set wset[0..nw), the first `known`
+ * of them with their multipliers in z. Returns code.
  */
 static int stopped(qtank_work *ws, int nw, int known, int code)
 {
-    if (code == OUT_OF_WORK) {
+    if (code == OUT_OF_WORK || code == GUESS_DEPENDENT) {
         ws->stop_rows = nw;
         ws->stop_known = known;
     }
@@ -2269,11 +2273,11 @@ static void keep_progress(qtank_work *ws, const qtank_mode_data *md,
  * next seed is cheaper than unwinding it row block by row block. Returns 0 with ws->th
  * optimal and lam set to the exact multipliers, -1 (lam untouched), GUESS_CAPPED (the
  * same, for a guess whose every round was a dual solve that switched soft states or
- * dropped rows: resume_working_set() would repeat them exactly), or OUT_OF_WORK when the
- * budget cannot afford the next step (where: stopped()).
+ * dropped rows: resume_working_set() would repeat them exactly), GUESS_DEPENDENT (a row
+ * joining a guess' dual-feasible working set is dependent: the dual active set goes on
+ * from that set and its factor, which the appends kept) or OUT_OF_WORK when the budget
+ * cannot afford the next step (where: stopped()).
  */
-#define GUESS_CAPPED (-4)
-
 static int polish(qtank_work *ws, const qtank_mode_data *md, qtank_real *lam,
     int nw, int guess, int *iterations, int *active)
 {
@@ -2294,7 +2298,7 @@ static int polish(qtank_work *ws, const qtank_mode_data *md, qtank_real *lam,
     }
     box = box_only(ws, md, nw); /* kept through the rounds, which add and drop rows */
     for (it = 0; it < QTANK_SOLVER_POLISH_MAX; ++it) {
-        int nadd;
+        int nadd, dual; /* dual: wset[0..dual) dual feasible with its factor, or -1 */
         ++*iterations;
         if (box) { /* a subset of input bounds stays one: drop_negative() keeps it */
             /* primal: bound rows first; the multipliers only at a feasible point */
@@ -2371,9 +2375,15 @@ static int polish(qtank_work *ws, const qtank_mode_data *md, qtank_real *lam,
             && !afford(ws, md, (uint32_t)nadd * append_work(md, nw + nadd))) {
             return stopped(ws, nw, known, OUT_OF_WORK);
         }
+        dual = (ws->chol_holds == QTANK_CHOL_DUAL) ? nw : -1;
         for (i = 0; i < nadd; ++i) {
             box = box && md->row_q[ws->tmp[i]] < md->n;
             append_row(ws, md, ws->tmp[i], nw++);
+        }
+        if (guess && QTANK_SOLVER_ACTIVE_SET && dual >= 0
+            && ws->chol_holds != QTANK_CHOL_DUAL) {
+            ws->chol_holds = QTANK_CHOL_DUAL; /* rows 0..dual-1 of it stand */
+            return stopped(ws, dual, dual, GUESS_DEPENDENT);
         }
     }
     return repeatable ? GUESS_CAPPED : -1;
@@ -2790,7 +2800,7 @@ int qtank_qp_solve(qtank_work *ws, qtank_real *lam, const qtank_real *plan,
         if (i == 0) {
             return finish(ws, md, lam, QTANK_OPTIMAL, U);
         }
-        if (i == OUT_OF_WORK) {
+        if (i == OUT_OF_WORK || i == GUESS_DEPENDENT) {
             if (!QTANK_SOLVER_ACTIVE_SET) {
                 return time_limit_at_th0(ws, md, lam, plan, plan_age, 1, U);
             }

@@ -13,7 +13,7 @@ import numpy as np
 from ..qp.work import (append_work, correct_work, delete_work, predict_work,
                        primal_reserve, scan_work, tri_work)
 from .linalg import chol_solve_packed
-from .polish_dual import CHOL_DUAL, CHOL_NONE, GUESS_CAPPED, OUT_OF_WORK
+from .polish_dual import CHOL_DUAL, CHOL_NONE, GUESS_CAPPED, GUESS_DEPENDENT, OUT_OF_WORK
 
 
 class PolishMixin:
@@ -135,9 +135,10 @@ class PolishMixin:
 
     def polish(self, W, lam, th0, K, gam, guess=False, th=None):
         """Mirror of polish() from working set W (taking the dual factor ``chol`` when
-        ``chol_holds`` says it is W's); returns (0 / -1 / OUT_OF_WORK, th, active,
-        iterations), th after OUT_OF_WORK being the C's ws->th then (``th`` on entry) and
-        ``stop`` where it stopped."""
+        ``chol_holds`` says it is W's); returns (0 / -1 / GUESS_CAPPED / GUESS_DEPENDENT /
+        OUT_OF_WORK, th, active, iterations), th after OUT_OF_WORK being the C's ws->th
+        then (``th`` on entry) and ``stop`` where it stopped (after GUESS_DEPENDENT: the
+        dual-feasible rows before a dependent joining row, with their factor)."""
         md = self.md
         n = md.n
         its, known, z = 0, 0, None
@@ -212,6 +213,11 @@ class PolishMixin:
             if self.chol_holds == CHOL_DUAL and not self.afford(
                     add.size * append_work(md, W.size + add.size, self.hq_factor)):
                 return self.stopped(W, z, known, OUT_OF_WORK), th, 0, its
+            feasible, was_dual = W.size, self.chol_holds == CHOL_DUAL
             for p in add:
                 W = self.append_row(W, p)
+            if guess and self.active_set and was_dual and self.chol_holds != CHOL_DUAL:
+                self.chol_holds = CHOL_DUAL  # of W[:feasible], which the appends kept
+                self.stop = (W[:feasible].copy(), z.copy(), feasible)
+                return GUESS_DEPENDENT, th, 0, its
         return (GUESS_CAPPED if repeatable else -1), th, 0, its

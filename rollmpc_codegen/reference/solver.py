@@ -29,8 +29,8 @@ from ..status import INACCURATE, INFEASIBLE, MAX_ITER, NUMERICAL, OPTIMAL, TIME_
 from .active_set import ActiveSetMixin
 from .hq import hessian_reads
 from .polish import PolishMixin
-from .polish_dual import (CHOL_NONE, COLD_START, GUESS_CAPPED, OUT_OF_WORK, OUT_OF_WORK_AT_TH0,
-                          DualPolishMixin)
+from .polish_dual import (CHOL_NONE, COLD_START, GUESS_CAPPED, GUESS_DEPENDENT, OUT_OF_WORK,
+                          OUT_OF_WORK_AT_TH0, DualPolishMixin)
 from .polish_primal import PrimalPolishMixin
 from .rows import RowsMixin
 from .soft_rows import SoftRowsMixin
@@ -181,10 +181,10 @@ class SolverRef(UnconstrainedMixin, RowsMixin, SoftRowsMixin, SweepsMixin, Prima
                 polish_its += its
                 if code == 0:
                     return self.finish(th_p, th0, OPTIMAL) + (0, polish_its, act)
+                if code == GUESS_DEPENDENT or (code == OUT_OF_WORK and guess and self.active_set):
+                    resume = self.stop[0]  # the dual active set takes over from there
+                    break
                 if code == OUT_OF_WORK:
-                    if guess and self.active_set:
-                        resume = self.stop[0]  # the dual active set takes over from there
-                        break
                     return self.time_limit_at_th0(th0, True) + (0, polish_its, 0)
                 if code == GUESS_CAPPED:
                     resume = COLD_START  # resuming the same guess would repeat it
