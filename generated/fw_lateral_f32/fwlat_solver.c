@@ -2448,16 +2448,16 @@ static int accept(fwlat_work *ws, const fwlat_mode_data *md, fwlat_real *lam,
 }
 
 #define GUESS_CAPPED (-4) /* polish(): a guess that resume_working_set() would repeat */
-#define GUESS_DEPENDENT (-5) /* polish(): a guess' joining row is dependent (stopped()) */
+#define GUESS_HANDED_OVER (-5) /* polish(): a guess' dual-feasible set goes on (stopped()) */
 
 /*
- * Where polish() stopped when the budget ran out (code OUT_OF_WORK), or before a guess'
- * dependent joining row (GUESS_DEPENDENT): its working set wset[0..nw), the first `known`
- * of them with their multipliers in z. Returns code.
+ * Where polish() stopped when the budget ran out (code OUT_OF_WORK), or at a guess'
+ * dual-feasible working set it hands over (GUESS_HANDED_OVER): its working set
+ * wset[0..nw), the first `known` of them with their multipliers in z. Returns code.
  */
 static int stopped(fwlat_work *ws, int nw, int known, int code)
 {
-    if (code == OUT_OF_WORK || code == GUESS_DEPENDENT) {
+    if (code == OUT_OF_WORK || code == GUESS_HANDED_OVER) {
         ws->stop_rows = nw;
         ws->stop_known = known;
     }
@@ -2491,10 +2491,10 @@ static void keep_progress(fwlat_work *ws, const fwlat_mode_data *md,
  * next seed is cheaper than unwinding it row block by row block. Returns 0 with ws->th
  * optimal and lam set to the exact multipliers, -1 (lam untouched), GUESS_CAPPED (the
  * same, for a guess whose every round was a dual solve that switched soft states or
- * dropped rows: resume_working_set() would repeat them exactly), GUESS_DEPENDENT (a row
- * joining a guess' dual-feasible working set is dependent: the dual active set goes on
- * from that set and its factor, which the appends kept) or OUT_OF_WORK when the budget
- * cannot afford the next step (where: stopped()).
+ * dropped rows: resume_working_set() would repeat them exactly), GUESS_HANDED_OVER (a
+ * guess' dual-feasible working set whose violated rows overflow it, or one of which is
+ * dependent: the dual active set goes on from that set and its factor, which the appends
+ * kept) or OUT_OF_WORK when the budget cannot afford the next step (where: stopped()).
  */
 static int polish(fwlat_work *ws, const fwlat_mode_data *md, fwlat_real *lam,
     int nw, int guess, int *iterations, int *active)
@@ -2516,7 +2516,7 @@ static int polish(fwlat_work *ws, const fwlat_mode_data *md, fwlat_real *lam,
     }
     box = box_only(ws, md, nw); /* kept through the rounds, which add and drop rows */
     for (it = 0; it < FWLAT_SOLVER_POLISH_MAX; ++it) {
-        int nadd, dual; /* dual: wset[0..dual) dual feasible with its factor, or -1 */
+        int nadd, dual; /* dual: a guess' wset[0..dual) dual feasible, factored, or -1 */
         ++*iterations;
         if (box) { /* a subset of input bounds stays one: drop_negative() keeps it */
             /* primal: bound rows first; the multipliers only at a feasible point */
@@ -2593,22 +2593,22 @@ static int polish(fwlat_work *ws, const fwlat_mode_data *md, fwlat_real *lam,
                 return (code == 0) ? accept(ws, md, lam, nw, active) : stopped(ws, nw, known, code);
             }
         }
+        dual = (guess && FWLAT_SOLVER_ACTIVE_SET
+                && ws->chol_holds == FWLAT_CHOL_DUAL) ? nw : -1;
         if (nadd > md->w_cap - nw) {
-            return -1;
+            return (dual >= 0) ? stopped(ws, dual, dual, GUESS_HANDED_OVER) : -1;
         }
         if (ws->chol_holds == FWLAT_CHOL_DUAL
             && !afford(ws, md, (uint32_t)nadd * append_work(md, nw + nadd))) {
             return stopped(ws, nw, known, OUT_OF_WORK);
         }
-        dual = (ws->chol_holds == FWLAT_CHOL_DUAL) ? nw : -1;
         for (i = 0; i < nadd; ++i) {
             box = box && md->row_q[ws->tmp[i]] < md->n;
             append_row(ws, md, ws->tmp[i], nw++);
         }
-        if (guess && FWLAT_SOLVER_ACTIVE_SET && dual >= 0
-            && ws->chol_holds != FWLAT_CHOL_DUAL) {
+        if (dual >= 0 && ws->chol_holds != FWLAT_CHOL_DUAL) {
             ws->chol_holds = FWLAT_CHOL_DUAL; /* rows 0..dual-1 of it stand */
-            return stopped(ws, dual, dual, GUESS_DEPENDENT);
+            return stopped(ws, dual, dual, GUESS_HANDED_OVER);
         }
     }
     return repeatable ? GUESS_CAPPED : -1;
@@ -3085,7 +3085,7 @@ int fwlat_qp_solve(fwlat_work *ws, fwlat_real *lam, const fwlat_real *plan,
         if (i == 0) {
             return finish(ws, md, lam, FWLAT_OPTIMAL, U);
         }
-        if (i == OUT_OF_WORK || i == GUESS_DEPENDENT) {
+        if (i == OUT_OF_WORK || i == GUESS_HANDED_OVER) {
             if (!FWLAT_SOLVER_ACTIVE_SET) {
                 return time_limit_at_th0(ws, md, lam, plan, plan_age, 1, U);
             }

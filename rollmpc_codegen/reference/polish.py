@@ -13,7 +13,7 @@ import numpy as np
 from ..qp.work import (append_work, correct_work, delete_work, predict_work,
                        primal_reserve, scan_work, tri_work)
 from .linalg import chol_solve_packed
-from .polish_dual import CHOL_DUAL, CHOL_NONE, GUESS_CAPPED, GUESS_DEPENDENT, OUT_OF_WORK
+from .polish_dual import CHOL_DUAL, CHOL_NONE, GUESS_CAPPED, GUESS_HANDED_OVER, OUT_OF_WORK
 
 
 class PolishMixin:
@@ -125,6 +125,12 @@ class PolishMixin:
                          known)
         return code
 
+    def hand_over(self, W, z, known):
+        """Mirror of stopped() with GUESS_HANDED_OVER: ``stop`` = W, all ``known`` rows
+        with their multipliers z; returns GUESS_HANDED_OVER."""
+        self.stop = (W.copy(), z.copy(), known)
+        return GUESS_HANDED_OVER
+
     def keep_progress(self, lam):
         """Mirror of keep_progress(): lam = the stopped working set, its first ``known``
         rows with their positive multipliers, the others with a token one."""
@@ -135,10 +141,10 @@ class PolishMixin:
 
     def polish(self, W, lam, th0, K, gam, guess=False, th=None):
         """Mirror of polish() from working set W (taking the dual factor ``chol`` when
-        ``chol_holds`` says it is W's); returns (0 / -1 / GUESS_CAPPED / GUESS_DEPENDENT /
+        ``chol_holds`` says it is W's); returns (0 / -1 / GUESS_CAPPED / GUESS_HANDED_OVER /
         OUT_OF_WORK, th, active, iterations), th after OUT_OF_WORK being the C's ws->th
-        then (``th`` on entry) and ``stop`` where it stopped (after GUESS_DEPENDENT: the
-        dual-feasible rows before a dependent joining row, with their factor)."""
+        then (``th`` on entry) and ``stop`` where it stopped (after GUESS_HANDED_OVER: a
+        guess' dual-feasible rows, with their factor)."""
         md = self.md
         n = md.n
         its, known, z = 0, 0, None
@@ -208,16 +214,16 @@ class PolishMixin:
                     if code:
                         return self.stopped(W, z, known, code), th, 0, its
                     return 0, th, self.accept(lam, W, z), its
+            dual = (W.size if guess and self.active_set and self.chol_holds == CHOL_DUAL
+                    else -1)  # a guess' dual-feasible, factored working set
             if add.size > self.wcap - W.size:
-                return -1, th, 0, its
+                return (self.hand_over(W, z, dual) if dual >= 0 else -1), th, 0, its
             if self.chol_holds == CHOL_DUAL and not self.afford(
                     add.size * append_work(md, W.size + add.size, self.hq_factor)):
                 return self.stopped(W, z, known, OUT_OF_WORK), th, 0, its
-            feasible, was_dual = W.size, self.chol_holds == CHOL_DUAL
             for p in add:
                 W = self.append_row(W, p)
-            if guess and self.active_set and was_dual and self.chol_holds != CHOL_DUAL:
-                self.chol_holds = CHOL_DUAL  # of W[:feasible], which the appends kept
-                self.stop = (W[:feasible].copy(), z.copy(), feasible)
-                return GUESS_DEPENDENT, th, 0, its
+            if dual >= 0 and self.chol_holds != CHOL_DUAL:
+                self.chol_holds = CHOL_DUAL  # of W[:dual], which the appends kept
+                return self.hand_over(W[:dual], z, dual), th, 0, its
         return (GUESS_CAPPED if repeatable else -1), th, 0, its

@@ -20,7 +20,7 @@ CHOL_NONE, CHOL_DUAL, CHOL_PRIMAL = 0, 1, 2
 OUT_OF_WORK = -2  # the C's: a solver part stopped, the budget cannot afford its next unit
 OUT_OF_WORK_AT_TH0 = -3  # the C's: the dual active set stopped so before a point of its own
 GUESS_CAPPED = -4  # the C's: a guess' polish() that resume_working_set() would repeat
-GUESS_DEPENDENT = -5  # the C's: a guess' joining row is dependent; ``stop``: the rows before
+GUESS_HANDED_OVER = -5  # the C's: a guess' dual-feasible working set (``stop``) goes on
 COLD_START = "cold start"  # the C's dual_active_set() from = COLD_START: no warm start
 
 

@@ -29,7 +29,7 @@ from ..status import INACCURATE, INFEASIBLE, MAX_ITER, NUMERICAL, OPTIMAL, TIME_
 from .active_set import ActiveSetMixin
 from .hq import hessian_reads
 from .polish import PolishMixin
-from .polish_dual import (CHOL_NONE, COLD_START, GUESS_CAPPED, GUESS_DEPENDENT, OUT_OF_WORK,
+from .polish_dual import (CHOL_NONE, COLD_START, GUESS_CAPPED, GUESS_HANDED_OVER, OUT_OF_WORK,
                           OUT_OF_WORK_AT_TH0, DualPolishMixin)
 from .polish_primal import PrimalPolishMixin
 from .rows import RowsMixin
@@ -181,7 +181,8 @@ class SolverRef(UnconstrainedMixin, RowsMixin, SoftRowsMixin, SweepsMixin, Prima
                 polish_its += its
                 if code == 0:
                     return self.finish(th_p, th0, OPTIMAL) + (0, polish_its, act)
-                if code == GUESS_DEPENDENT or (code == OUT_OF_WORK and guess and self.active_set):
+                if code == GUESS_HANDED_OVER or (code == OUT_OF_WORK and self.active_set
+                                                 and guess):
                     resume = self.stop[0]  # the dual active set takes over from there
                     break
                 if code == OUT_OF_WORK:
