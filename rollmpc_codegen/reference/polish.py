@@ -119,17 +119,12 @@ class PolishMixin:
         return W.size
 
     def stopped(self, W, z, known, code):
-        """Mirror of stopped(): where polish() ran out of work (W, z, known); returns code."""
-        if code == OUT_OF_WORK:
+        """Mirror of stopped(): where polish() ran out of work, or the working set a guess
+        hands over (W, z, known); returns code."""
+        if code in (OUT_OF_WORK, GUESS_HANDED_OVER):
             self.stop = (W.copy(), np.zeros(0, self.md.Kx.dtype) if z is None else z.copy(),
                          known)
         return code
-
-    def hand_over(self, W, z, known):
-        """Mirror of stopped() with GUESS_HANDED_OVER: ``stop`` = W, all ``known`` rows
-        with their multipliers z; returns GUESS_HANDED_OVER."""
-        self.stop = (W.copy(), z.copy(), known)
-        return GUESS_HANDED_OVER
 
     def keep_progress(self, lam):
         """Mirror of keep_progress(): lam = the stopped working set, its first ``known``
@@ -217,7 +212,8 @@ class PolishMixin:
             dual = (W.size if guess and self.active_set and self.chol_holds == CHOL_DUAL
                     else -1)  # a guess' dual-feasible, factored working set
             if add.size > self.wcap - W.size:
-                return (self.hand_over(W, z, dual) if dual >= 0 else -1), th, 0, its
+                code = self.stopped(W, z, dual, GUESS_HANDED_OVER) if dual >= 0 else -1
+                return code, th, 0, its
             if self.chol_holds == CHOL_DUAL and not self.afford(
                     add.size * append_work(md, W.size + add.size, self.hq_factor)):
                 return self.stopped(W, z, known, OUT_OF_WORK), th, 0, its
@@ -225,5 +221,5 @@ class PolishMixin:
                 W = self.append_row(W, p)
             if dual >= 0 and self.chol_holds != CHOL_DUAL:
                 self.chol_holds = CHOL_DUAL  # of W[:dual], which the appends kept
-                return self.hand_over(W[:dual], z, dual), th, 0, its
+                return self.stopped(W[:dual], z, dual, GUESS_HANDED_OVER), th, 0, its
         return (GUESS_CAPPED if repeatable else -1), th, 0, its
