@@ -145,14 +145,15 @@ def reference_closed_loop(built: Built, ref, steps: int) -> list:
     return seen
 
 
-def lockstep_closed_loop(built: Built, steps: int) -> tuple[list, list]:
+def lockstep_closed_loop(built: Built, steps: int, ref=None) -> tuple[list, list]:
     """The scenario's closed loop driven by a fresh host C controller, the reference
-    stepped beside it on the same inputs: (mismatches as (step, C's, reference's), and
-    (status, work) of every step). A step matches when its status, command bytes,
-    sweeps, polish corrections, active rows and work are the same."""
+    (``ref``, possibly with recording wrappers, or a new one) stepped beside it on the same
+    inputs: (mismatches as (step, C's, reference's), and (status, work) of every step). A
+    step matches when its status, command bytes, sweeps, polish corrections, active rows
+    and work are the same."""
     from rollmpc_codegen.sim.simulate import run_closed_loop
 
-    c, ref = built.fresh_c(), built.reference()
+    c, ref = built.fresh_c(), ref or built.reference()
     keys = ("iterations", "polish_iterations", "active", "work")
     seen, bad = [], []
 

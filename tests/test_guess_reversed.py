@@ -3,7 +3,7 @@
 After a reference step every multiplier of the shifted guess can be negative (the paper
 config's steps 941 and 3070: the saturation ends earlier than the guess's), and
 given_up() gives it up. guess_reversed() decides that from the middle, first and last
-rows (templates/solver/polish_primal.c.j2) instead of paying
+rows (templates/solver/guess.c.j2) instead of paying
 free_multipliers() for all of them. It is a shortcut, so it must never give up a guess
 that the full rule would keep; the C and the reference must agree on its work.
 """
@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 
 from rollmpc_codegen.qp.work import GUESS_SAMPLE_MIN, guess_sample_work, multipliers_work
-from rollmpc_codegen.reference.polish_primal import PrimalPolishMixin
+from rollmpc_codegen.reference.guess import GuessMixin
 from rollmpc_codegen.sim.simulate import run_closed_loop
 
 
@@ -23,7 +23,7 @@ def reversals(uav_double):
     (rows, sampled verdict, given_up() on all multipliers, work the sample charged, the
     mode's data)."""
     calls = []
-    sample = PrimalPolishMixin.guess_reversed
+    sample = GuessMixin.guess_reversed
 
     def recording(self, W):
         before = self.work
@@ -33,12 +33,12 @@ def reversals(uav_double):
         calls.append((W.size, verdict, full, self.work - before, self.md))
         return verdict
 
-    PrimalPolishMixin.guess_reversed = recording
+    GuessMixin.guess_reversed = recording
     try:
         ref = uav_double.reference()
         run_closed_loop(uav_double.model.config, ref)
     finally:
-        PrimalPolishMixin.guess_reversed = sample
+        GuessMixin.guess_reversed = sample
     return uav_double, calls
 
 

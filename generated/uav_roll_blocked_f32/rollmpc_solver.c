@@ -193,6 +193,12 @@ static uint32_t guess_sample_work(const rollmpc_mode_data *md, int rows)
     return multipliers_work(md, 2 * rows);
 }
 
+/* trim_guess() on a guess of nw rows at most: its scans of the guess (twice) and of every row. */
+static uint32_t trim_work(const rollmpc_mode_data *md, int nw)
+{
+    return (uint32_t)md->m + 2u * (uint32_t)nw;
+}
+
 /*
  * primal_solve() on nw bound inputs with a factor of order k whose rows from `start` are
  * factored again (0: a new factor): its Cholesky at 2/6 of a unit per operation, its
@@ -1657,35 +1663,6 @@ static void free_multipliers(rollmpc_work *ws, const rollmpc_mode_data *md, int 
 }
 
 /*
- * Has a guess's first point reversed the sign of its multipliers? Its middle, first and
- * last rows all have negative ones: after a reference step every multiplier of the shifted
- * guess can be negative (the saturation reversed, or, under a heavy terminal weight, ending
- * earlier than the guess's), and given_up() would give it up once free_multipliers() paid
- * for all of them. Three rows cost a few hundredths of that on a large guess; any other
- * guess goes on to free_multipliers(). The middle first: a shifted guess changes at its
- * ends, so its middle row is the likeliest to show, at one row's cost, that it holds.
- * Charged by the row, and skipped unless the budget can pay all three beside what
- * primal_solve() granted polish(): free_multipliers() and primal_reserve().
- */
-static int guess_reversed(rollmpc_work *ws, const rollmpc_mode_data *md, int nw)
-{
-    int s;
-    if (nw < 8 || !afford(ws, md, guess_sample_work(md, 3)
-            + multipliers_work(md, nw) + primal_reserve(md))) {
-        return 0;
-    }
-    for (s = 0; s < 3; ++s) {
-        const int r = ws->wset[(s == 0) ? nw / 2 : ((s == 1) ? 0 : nw - 1)];
-        ws->work += guess_sample_work(md, 1);
-        if (!(signed_multiplier(ws, md, r, s_row_dot(md->S_p, md->n, md->row_q[r], ws->dv))
-              < R_(0.0))) {
-            return 0;
-        }
-    }
-    return 1;
-}
-
-/*
  * Bound form, through S^-1 (few bound inputs): with beta = g_B (the bound forces),
  * Uv = V S^-1, T = (2P)^-1 + V S^-1 V' and L L' = (S^-1)_BB,
  *     beta = L'^-1 (y0 + Y nu),  y0 = L^-1 d_B,  (T - Y'Y) nu = Y'y0,
@@ -2021,6 +1998,12 @@ static int dual_solve(rollmpc_work *ws, const rollmpc_mode_data *md, int nw)
     return 0;
 }
 
+/* Does the unconstrained solution violate row r (K < 0; seed_from_violated()'s rows)? */
+static inline int violated_at_th0(const rollmpc_work *ws, const rollmpc_mode_data *md, int r)
+{
+    return (ws->out_slacks_ok || md->row_q[r] < md->n) && ws->K[r] < R_(0.0);
+}
+
 /*
  * A new working set: a dual factor belongs to the old one; a primal factor describes
  * inputs, not rows (polish_primal.c.j2), and stays.
@@ -2080,7 +2063,7 @@ static int seed_from_violated(rollmpc_work *ws, const rollmpc_mode_data *md)
     new_working_set(ws);
     ws->work += (uint32_t)md->m;
     for (r = 0; r < md->m; ++r) {
-        if ((ws->out_slacks_ok || md->row_q[r] < md->n) && ws->K[r] < R_(0.0)) {
+        if (violated_at_th0(ws, md, r)) {
             if (nw == md->n) {
                 return -1;
             }
@@ -2088,6 +2071,94 @@ static int seed_from_violated(rollmpc_work *ws, const rollmpc_mode_data *md)
         }
     }
     return nw;
+}
+
+
+/* The order of a primal factor on nw bound rows of n inputs: of the bound or the free ones. */
+static inline int factor_order(int nw, int n)
+{
+    return (nw < n - nw) ? nw : n - nw;
+}
+
+/*
+ * Has a guess's first point reversed the sign of its multipliers? Its middle, first and
+ * last rows all have negative ones: after a reference step every multiplier of the shifted
+ * guess can be negative (the saturation reversed, or, under a heavy terminal weight, ending
+ * earlier than the guess's), and given_up() would give it up once free_multipliers() paid
+ * for all of them. Three rows cost a few hundredths of that on a large guess; any other
+ * guess goes on to free_multipliers(). The middle first: a shifted guess changes at its
+ * ends, so its middle row is the likeliest to show, at one row's cost, that it holds.
+ * Charged by the row, and skipped unless the budget can pay all three beside what
+ * primal_solve() granted polish(): free_multipliers() and primal_reserve().
+ */
+static int guess_reversed(rollmpc_work *ws, const rollmpc_mode_data *md, int nw)
+{
+    int s;
+    if (nw < 8 || !afford(ws, md, guess_sample_work(md, 3)
+            + multipliers_work(md, nw) + primal_reserve(md))) {
+        return 0;
+    }
+    for (s = 0; s < 3; ++s) {
+        const int r = ws->wset[(s == 0) ? nw / 2 : ((s == 1) ? 0 : nw - 1)];
+        ws->work += guess_sample_work(md, 1);
+        if (!(signed_multiplier(ws, md, r, s_row_dot(md->S_p, md->n, md->row_q[r], ws->dv))
+              < R_(0.0))) {
+            return 0;
+        }
+    }
+    return 1;
+}
+
+/*
+ * A reversed guess (guess_reversed()) trimmed to the rows it likely holds, or -1 to give
+ * it up. Under a heavy terminal weight every multiplier of a guess whose saturated run
+ * lasts a few stages too long is negative, though most of the guess holds (the paper
+ * config's steps 941 and 3070: 89 and 100 rows, 83 and 93 of them optimal). The rows it
+ * should not hold are the run's edge, where the multipliers carried from the previous
+ * sample (lam of the next-stage row, which seed_shifted() read) fall towards zero. The
+ * trim keeps the rows carrying at least half of the largest, and is taken when it keeps
+ * 3/4 of the guess or more (an edge, not a reversal: the whole saturation gone) and its
+ * first factor, of the bound or the free inputs, is of lower order than that of the
+ * violated rows seed_from_violated() would start from. Rows trimmed wrongly join back as
+ * violated rows; a trimmed guess that fails is given up like any other. Updates wset and
+ * in_set; charged trim_work().
+ */
+static int trim_guess(rollmpc_work *ws, const rollmpc_mode_data *md,
+    const rollmpc_real *lam, int nw)
+{
+    rollmpc_real edge = R_(0.0);
+    int i, kept = 0, violated = 0;
+    if (!afford(ws, md, trim_work(md, nw))) {
+        return -1;
+    }
+    ws->work += 2u * (uint32_t)nw; /* the guess's scans; the rows' below, if it gets there */
+    for (i = 0; i < nw; ++i) {
+        const rollmpc_real c = lam[md->row_next[ws->wset[i]]];
+        edge = (c > edge) ? c : edge;
+    }
+    edge *= R_(0.5);
+    for (i = 0; i < nw; ++i) {
+        kept += (lam[md->row_next[ws->wset[i]]] >= edge);
+    }
+    if (4 * kept < 3 * nw) {
+        return -1;
+    }
+    ws->work += (uint32_t)md->m;
+    for (i = 0; i < md->m; ++i) {
+        violated += violated_at_th0(ws, md, i);
+    }
+    if (factor_order(kept, md->n) >= factor_order(violated, md->n)) {
+        return -1;
+    }
+    for (i = 0, kept = 0; i < nw; ++i) {
+        const int r = ws->wset[i];
+        if (lam[md->row_next[r]] >= edge) {
+            ws->wset[kept++] = (int16_t)r;
+        } else {
+            ws->in_set[r] = 0;
+        }
+    }
+    return kept;
 }
 
 /* The working-set rows whose multiplier z is not negative. */
@@ -2309,7 +2380,11 @@ static int polish(rollmpc_work *ws, const rollmpc_mode_data *md, rollmpc_real *l
             known = (code == 1) ? nw : 0;
             nadd = violated_outside(ws, md, ws->th, ws->in_set, ws->tmp, md->n - nw);
             if (code == 0 && guess && it == 0 && guess_reversed(ws, md, nw)) {
-                return -1; /* before free_multipliers() below, which would confirm it */
+                nw = trim_guess(ws, md, lam, nw); /* before free_multipliers() below */
+                if (nw < 0) {
+                    return -1;
+                }
+                continue; /* its first point is the next round's, no longer the guess's */
             }
             if (nadd > 0 && guess && it == 0) {
                 /* a guess whose first point has most multipliers negative (a reference step

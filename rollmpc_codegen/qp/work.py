@@ -193,6 +193,12 @@ def guess_sample_work(m, rows: int) -> int:
     return multipliers_work(m, 2 * rows)
 
 
+def trim_work(m, nw: int) -> int:
+    """trim_guess() on a guess of nw rows at most: its scans of the guess (twice) and of
+    every row."""
+    return m.m + 2 * nw
+
+
 def add_step_work(nw: int) -> int:
     return 2 * tri_work(nw) + 5 * nw + max(delete_work(0, nw), rank_one_work(nw))
 

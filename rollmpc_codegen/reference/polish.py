@@ -1,5 +1,5 @@
-"""Mirror of ``templates/solver/polish.c.j2``: the working-set seeds and the polish, an
-exact solve on a guessed working set, corrected until KKT holds.
+"""Mirror of ``templates/solver/polish.c.j2``: the polish, an exact solve on a seeded
+working set (:mod:`.seeds`), corrected until KKT holds.
 
 :class:`PolishMixin` is part of :class:`~.solver.SolverRef`; it reads ``md``, ``wcap``,
 ``polish_max``, ``soft``, ``tol`` and ``slack_on``, and solves through the primal and
@@ -13,43 +13,10 @@ import numpy as np
 from ..qp.work import (append_work, correct_work, delete_work, predict_work,
                        primal_reserve, scan_work, tri_work)
 from .linalg import chol_solve_packed
-from .polish_dual import CHOL_DUAL, CHOL_NONE, GUESS_CAPPED, GUESS_HANDED_OVER, OUT_OF_WORK
+from .polish_dual import CHOL_DUAL, GUESS_CAPPED, GUESS_HANDED_OVER, OUT_OF_WORK
 
 
 class PolishMixin:
-    def new_working_set(self):
-        """Mirror of new_working_set(): a dual factor belongs to the old working set."""
-        if self.chol_holds == CHOL_DUAL:
-            self.chol_holds = CHOL_NONE
-
-    def seed_from_multipliers(self, lam, S):
-        """Mirror of seed_from_multipliers(): the rows of S with positive multipliers,
-        slack where lam > l1."""
-        self.new_working_set()
-        self.work += S.size
-        seed = S[lam[S] > 0]
-        self.set_state(seed, lam[seed])
-        return seed
-
-    def seed_shifted(self, lam, truncate=False):
-        """Mirror of seed_shifted(): row r where its next-stage row was active, slack where
-        that row's lam > l1 (with ``truncate``, only the first wcap such rows)."""
-        self.new_working_set()
-        self.work += self.md.m
-        row_next = self.md.row_next
-        W = np.flatnonzero(lam[row_next] > 0)
-        head = W[:self.wcap]  # the C sets the states of the rows it stores, then gives up
-        self.set_state(head, lam[row_next[head]])
-        return head if truncate else W
-
-    def seed_from_violated(self, K):
-        """Mirror of seed_from_violated(): the rows th0 violates (K < 0), all tight."""
-        self.new_working_set()
-        self.work += self.md.m
-        W = np.flatnonzero(K < 0)
-        self.slack_on[W] = False
-        return W
-
     @staticmethod
     def given_up(kept, size, guess):
         """Mirror of given_up(): emptied, or a guess losing more than half of its rows."""
@@ -164,7 +131,10 @@ class PolishMixin:
                 known = W.size if zp is not None else 0
                 add = self.violated_outside(th, gam, W)
                 if zp is None and guess and its == 1 and self.guess_reversed(W):
-                    return -1, None, 0, its  # before free_multipliers() would confirm it
+                    W = self.trim_guess(W, lam, K)  # before free_multipliers()
+                    if W is None:
+                        return -1, None, 0, its
+                    continue
                 if add.size and guess and its == 1:  # the C's early test of a guess
                     zc = zp if zp is not None else self.free_multipliers(W)
                     if self.given_up(int(np.count_nonzero(zc >= 0)), W.size, True):

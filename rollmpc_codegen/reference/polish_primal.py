@@ -16,8 +16,7 @@ import numpy as np
 from .dot import s_row_dots
 from .linalg import (chol_lsolve_packed, chol_ltsolve_packed, cholesky_packed,
                      factor_and_solve_packed, seqsum)
-from ..qp.work import (GUESS_SAMPLE_MIN, guess_sample_work, multipliers_work, primal_reserve,
-                       primal_work)
+from ..qp.work import multipliers_work, primal_work
 from .factor_update import chol_delete
 from .polish_dual import CHOL_NONE, CHOL_PRIMAL, OUT_OF_WORK
 from .primal_rows import BOUND, FREE, PrimalRowsMixin
@@ -148,19 +147,6 @@ class PrimalPolishMixin(PrimalRowsMixin):
         g = s_row_dots(self.S, qW, dv)
         g = np.add.accumulate(np.hstack((g[:, None], md.V[:, qW].T * nu[None, :])), axis=1)[:, -1]
         return np.where(md.row_sign[W] > 0, -g, g)
-
-    def guess_reversed(self, W):
-        """Mirror of guess_reversed(): a free-form guess of GUESS_SAMPLE_MIN rows or more
-        whose middle, first and last rows (in that order) all have negative multipliers."""
-        md, nw = self.md, W.size
-        if nw < GUESS_SAMPLE_MIN or not self.afford(
-                guess_sample_work(md, 3) + multipliers_work(md, nw) + primal_reserve(md)):
-            return False  # the budget keeps what primal_solve() granted polish()
-        for a in (nw // 2, 0, nw - 1):
-            self.work += guess_sample_work(self.md, 1)
-            if not self.signed_multipliers(W[a:a + 1])[0] < 0:
-                return False
-        return True
 
     def primal_solve_bound(self, th0, W, qW, th, dv, bound):
         """Mirror of primal_solve_bound() (through S^-1; few bound inputs)."""

@@ -3,9 +3,8 @@
 It mirrors ``templates/solver.c.j2``, a module per partial of ``templates/solver/``:
 :mod:`.hq`, :mod:`.dot`, :mod:`.unconstrained`, :mod:`.rows` (with ``violated_rows``),
 :mod:`.factor_update`, :mod:`.soft_rows`, :mod:`.sweeps`, :mod:`.primal_rows`,
-:mod:`.polish_primal`, :mod:`.polish_dual`, :mod:`.polish`, :mod:`.active_set`, and this
-module for ``qp_solve``; the ``row_const()``
-of ``bounds`` is :func:`rollmpc_codegen.features.runtime_bounds.row_constants`, and
+:mod:`.polish_primal`, :mod:`.polish_dual`, :mod:`.seeds`, :mod:`.guess`, :mod:`.polish`,
+:mod:`.active_set`, and this module for ``qp_solve``; the ``row_const()`` of ``bounds`` is :func:`rollmpc_codegen.features.runtime_bounds.row_constants`, and
 ``linalg.c.j2`` is :mod:`.linalg`.  Each method is named after the C function it mirrors.
 The reference uses the same storage-precision numbers (from :mod:`rollmpc_codegen.qp.storage`),
 the same loops in the same order, scalars of the storage dtype (float32 where the C uses
@@ -28,11 +27,13 @@ from ..qp.work import correct_work, finish_work, predict_work, scan_work, sweep_
 from ..status import INACCURATE, INFEASIBLE, MAX_ITER, NUMERICAL, OPTIMAL, TIME_LIMIT
 from .active_set import ActiveSetMixin
 from .hq import hessian_reads
+from .guess import GuessMixin
 from .polish import PolishMixin
 from .polish_dual import (CHOL_NONE, COLD_START, GUESS_CAPPED, GUESS_HANDED_OVER, OUT_OF_WORK,
                           OUT_OF_WORK_AT_TH0, DualPolishMixin)
 from .polish_primal import PrimalPolishMixin
 from .rows import RowsMixin
+from .seeds import SeedsMixin
 from .soft_rows import SoftRowsMixin
 from .sweeps import SweepsMixin
 from .unconstrained import UnconstrainedMixin, output_prediction
@@ -52,7 +53,7 @@ class LastPlan:
 
 
 class SolverRef(UnconstrainedMixin, RowsMixin, SoftRowsMixin, SweepsMixin, PrimalPolishMixin,
-                DualPolishMixin, PolishMixin, ActiveSetMixin):
+                DualPolishMixin, SeedsMixin, GuessMixin, PolishMixin, ActiveSetMixin):
     """Reference of ``P_qp_solve`` for one mode; holds that mode's warm-start multipliers
     and shares the controller's :class:`LastPlan` with the other modes' solvers.
 

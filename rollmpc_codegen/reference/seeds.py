@@ -1,0 +1,47 @@
+"""Mirror of ``templates/solver/seeds.c.j2``: the polish's working-set seeds, from
+multipliers, the previous active set shifted one stage (the guess), or the rows the
+unconstrained solution violates.
+
+:class:`SeedsMixin` is part of :class:`~.solver.SolverRef`; it reads ``md``, ``wcap`` and
+``chol_holds`` and sets the soft rows' states (:mod:`.soft_rows`).
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from .polish_dual import CHOL_DUAL, CHOL_NONE
+
+
+class SeedsMixin:
+    def new_working_set(self):
+        """Mirror of new_working_set(): a dual factor belongs to the old working set."""
+        if self.chol_holds == CHOL_DUAL:
+            self.chol_holds = CHOL_NONE
+
+    def seed_from_multipliers(self, lam, S):
+        """Mirror of seed_from_multipliers(): the rows of S with positive multipliers,
+        slack where lam > l1."""
+        self.new_working_set()
+        self.work += S.size
+        seed = S[lam[S] > 0]
+        self.set_state(seed, lam[seed])
+        return seed
+
+    def seed_shifted(self, lam, truncate=False):
+        """Mirror of seed_shifted(): row r where its next-stage row was active, slack where
+        that row's lam > l1 (with ``truncate``, only the first wcap such rows)."""
+        self.new_working_set()
+        self.work += self.md.m
+        row_next = self.md.row_next
+        W = np.flatnonzero(lam[row_next] > 0)
+        head = W[:self.wcap]  # the C sets the states of the rows it stores, then gives up
+        self.set_state(head, lam[row_next[head]])
+        return head if truncate else W
+
+    def seed_from_violated(self, K):
+        """Mirror of seed_from_violated(): the rows th0 violates (K < 0), all tight."""
+        self.new_working_set()
+        self.work += self.md.m
+        W = np.flatnonzero(K < 0)
+        self.slack_on[W] = False
+        return W
