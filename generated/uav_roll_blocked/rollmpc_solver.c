@@ -1310,6 +1310,15 @@ static int64_t primal_cost(const rollmpc_mode_data *md, int64_t k, int64_t p)
     return factor + solves + 6 * k * (n - k);
 }
 
+/*
+ * The order of a new primal factor on nw bound inputs of n: the bound form's (nw) when
+ * fewer are bound than free, else the free form's (primal_solve() picks the form so).
+ */
+static int factor_order(int nw, int n)
+{
+    return (nw < n - nw) ? nw : n - nw;
+}
+
 /* Is an input of this role a row of a factor of this form (bound inputs, or free ones)? */
 static int in_form(int role, int form)
 {
@@ -1779,7 +1788,7 @@ static int primal_solve(rollmpc_work *ws, const rollmpc_mode_data *md, int nw,
         return -1;
     }
     by_columns = nw < SHORT_RUN * (nw - adjacent); /* runs of bound inputs short on average */
-    k = (form == FORM_BOUND) ? nw : n - nw;
+    k = factor_order(nw, n);
     head = k;
     /* the previous factor, unless it would grow to every input (a new one is then cheaper)
      * or its tail has used up the generations (a new one starts them again) */
@@ -2073,12 +2082,6 @@ static int seed_from_violated(rollmpc_work *ws, const rollmpc_mode_data *md)
     return nw;
 }
 
-
-/* The order of a primal factor on nw bound rows of n inputs: of the bound or the free ones. */
-static inline int factor_order(int nw, int n)
-{
-    return (nw < n - nw) ? nw : n - nw;
-}
 
 /*
  * Has a guess's first point reversed the sign of its multipliers? Its middle, first and

@@ -11,11 +11,7 @@ import numpy as np
 
 from ..qp.work import (GUESS_SAMPLE_MIN, guess_sample_work, multipliers_work, primal_reserve,
                        trim_work)
-
-
-def factor_order(nw: int, n: int) -> int:
-    """Mirror of factor_order(): a primal factor's order on nw bound rows of n inputs."""
-    return nw if nw < n - nw else n - nw
+from .primal_rows import factor_order
 
 
 class GuessMixin:

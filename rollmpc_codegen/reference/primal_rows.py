@@ -17,6 +17,12 @@ from ..qp.work import primal_delete_work
 FREE, BOUND = 1, 2  # FORM_FREE, FORM_BOUND
 
 
+def factor_order(nw: int, n: int) -> int:
+    """Mirror of factor_order(): a new primal factor's order on nw bound inputs of n (the
+    bound form's when fewer are bound than free)."""
+    return nw if nw < n - nw else n - nw
+
+
 # The C keeps a tail row's generation in the high bits of ws->input_role (ROLE_GEN_*):
 # 1 for the inputs of the first update, one more for each update that appends inputs.
 GEN_MAX = 31
@@ -63,7 +69,7 @@ class PrimalRowsMixin:
             old, new = prev.head + prev.tail, head + tail
             start = next((i for i, (a, b) in enumerate(zip(old, new)) if a != b),
                          min(len(old), len(new)))
-            k_new = nw if form == BOUND else n - nw
+            k_new = factor_order(nw, n)
             nt = self.md.nt
             if newest < GEN_MAX and (prev.form == form or (primal_cost(n, nt, len(new), start)
                                                            <= primal_cost(n, nt, k_new, 0))):
