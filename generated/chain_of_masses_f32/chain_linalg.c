@@ -58,6 +58,119 @@ static void cholesky_block(chain_real *r0, chain_real *r1, const chain_real *q0,
     r1[j + 1] = s11 / q1[j + 1];
 }
 
+/*
+ * Columns j .. j + 3 of row r of L from their sums s0 .. s3 over k < j, against rows
+ * q0 .. q3 = q2 + j + 3 of L: the terms k = j .. j + 2 in k order, each column divided by
+ * its pivot before the next one uses it.
+ */
+static inline void finish_four(chain_real *r, chain_real s0, chain_real s1, chain_real s2,
+    chain_real s3, const chain_real *q0, int j)
+{
+    const chain_real *q1 = q0 + j + 1, *q2 = q1 + j + 2, *q3 = q2 + j + 3;
+    chain_real t1 = s1, t2 = s2, t3 = s3;
+    r[j] = s0 / q0[j];
+    t1 -= r[j] * q1[j];
+    r[j + 1] = t1 / q1[j + 1];
+    t2 -= r[j] * q2[j];
+    t2 -= r[j + 1] * q2[j + 1];
+    r[j + 2] = t2 / q2[j + 2];
+    t3 -= r[j] * q3[j];
+    t3 -= r[j + 1] * q3[j + 1];
+    t3 -= r[j + 2] * q3[j + 2];
+    r[j + 3] = t3 / q3[j + 3];
+}
+
+#if CHAIN_WIDE_KERNELS
+/*
+ * As cholesky_block() for four rows of L (q0 .. q3, columns j .. j + 3, j a multiple of
+ * 4) against four rows r0 .. r3 of A (each r_(a+1) = r_a + i + a + 1): each element read
+ * serves four products, so a Cortex-M4F loads 8 operands per 16 multiply-adds instead of
+ * 4 per 4. The sums over k < j run side by side; finish_four() completes each row.
+ */
+static void cholesky_block44(chain_real *r0, chain_real *r1, chain_real *r2,
+    chain_real *r3, const chain_real *q0, int j)
+{
+    const chain_real *q1 = q0 + j + 1, *q2 = q1 + j + 2, *q3 = q2 + j + 3;
+    chain_real s00 = r0[j], s01 = r0[j + 1], s02 = r0[j + 2], s03 = r0[j + 3];
+    chain_real s10 = r1[j], s11 = r1[j + 1], s12 = r1[j + 2], s13 = r1[j + 3];
+    chain_real s20 = r2[j], s21 = r2[j + 1], s22 = r2[j + 2], s23 = r2[j + 3];
+    chain_real s30 = r3[j], s31 = r3[j + 1], s32 = r3[j + 2], s33 = r3[j + 3];
+    const chain_real *x0 = r0, *x1 = r1, *x2 = r2, *x3 = r3;
+    const chain_real *y0 = q0, *y1 = q1, *y2 = q2, *y3 = q3, *end = q0 + j;
+    while (y0 != end) { /* one k per trip */
+        const chain_real a0 = *x0++, a1 = *x1++, a2 = *x2++, a3 = *x3++;
+        const chain_real b0 = *y0++, b1 = *y1++, b2 = *y2++, b3 = *y3++;
+        s00 -= a0 * b0;
+        s01 -= a0 * b1;
+        s02 -= a0 * b2;
+        s03 -= a0 * b3;
+        s10 -= a1 * b0;
+        s11 -= a1 * b1;
+        s12 -= a1 * b2;
+        s13 -= a1 * b3;
+        s20 -= a2 * b0;
+        s21 -= a2 * b1;
+        s22 -= a2 * b2;
+        s23 -= a2 * b3;
+        s30 -= a3 * b0;
+        s31 -= a3 * b1;
+        s32 -= a3 * b2;
+        s33 -= a3 * b3;
+    }
+    finish_four(r0, s00, s01, s02, s03, q0, j);
+    finish_four(r1, s10, s11, s12, s13, q0, j);
+    finish_four(r2, s20, s21, s22, s23, q0, j);
+    finish_four(r3, s30, s31, s32, s33, q0, j);
+}
+#endif
+
+/*
+ * As cholesky_block44() for two rows r0, r1 of A (j even): 6 operands per 8
+ * multiply-adds.
+ */
+static void cholesky_block4(chain_real *r0, chain_real *r1, const chain_real *q0,
+    int j)
+{
+    const chain_real *q1 = q0 + j + 1, *q2 = q1 + j + 2, *q3 = q2 + j + 3;
+    chain_real s00 = r0[j], s01 = r0[j + 1], s02 = r0[j + 2], s03 = r0[j + 3];
+    chain_real s10 = r1[j], s11 = r1[j + 1], s12 = r1[j + 2], s13 = r1[j + 3];
+    const chain_real *x0 = r0, *x1 = r1, *y0 = q0, *y1 = q1, *y2 = q2, *y3 = q3;
+    const chain_real *end = q0 + j;
+    while (y0 != end) { /* two k per trip */
+        chain_real a0 = x0[0], a1 = x1[0], b0 = y0[0], b1 = y1[0], b2 = y2[0], b3 = y3[0];
+        s00 -= a0 * b0;
+        s01 -= a0 * b1;
+        s02 -= a0 * b2;
+        s03 -= a0 * b3;
+        s10 -= a1 * b0;
+        s11 -= a1 * b1;
+        s12 -= a1 * b2;
+        s13 -= a1 * b3;
+        a0 = x0[1];
+        a1 = x1[1];
+        b0 = y0[1];
+        b1 = y1[1];
+        b2 = y2[1];
+        b3 = y3[1];
+        s00 -= a0 * b0;
+        s01 -= a0 * b1;
+        s02 -= a0 * b2;
+        s03 -= a0 * b3;
+        s10 -= a1 * b0;
+        s11 -= a1 * b1;
+        s12 -= a1 * b2;
+        s13 -= a1 * b3;
+        x0 += 2;
+        x1 += 2;
+        y0 += 2;
+        y1 += 2;
+        y2 += 2;
+        y3 += 2;
+    }
+    finish_four(r0, s00, s01, s02, s03, q0, j);
+    finish_four(r1, s10, s11, s12, s13, q0, j);
+}
+
 /* As cholesky_block() for one row of L (q0, column j) against rows r0, r1. */
 static void cholesky_column(chain_real *r0, chain_real *r1, const chain_real *q0,
     int j)
@@ -71,6 +184,53 @@ static void cholesky_column(chain_real *r0, chain_real *r1, const chain_real *q0
     }
     r0[j] = s0 / q0[j];
     r1[j] = s1 / q0[j];
+}
+
+/*
+ * Columns first .. end - 1 of rows r0, r1 of L (first even, end <= the first row's index), four
+ * columns at a time, then two, then one.
+ */
+static void pair_columns(chain_real *a, chain_real *r0, chain_real *r1, int first,
+    int end)
+{
+    int j = first;
+    for (; j + 3 < end; j += 4) {
+        cholesky_block4(r0, r1, &a[CHAIN_TRI(j, 0)], j);
+    }
+    if (j + 1 < end) {
+        cholesky_block(r0, r1, &a[CHAIN_TRI(j, 0)], j);
+        j += 2;
+    }
+    if (j < end) {
+        cholesky_column(r0, r1, &a[CHAIN_TRI(j, 0)], j);
+    }
+}
+
+/*
+ * The 2 x 2 diagonal block (i, i), (i + 1, i), (i + 1, i + 1) of rows r0, r1, whose
+ * columns < i are L's; -1 on a bad pivot.
+ */
+static inline int pair_diagonal(chain_real *r0, chain_real *r1, int i)
+{
+    chain_real s00 = r0[i], s10 = r1[i], s11 = r1[i + 1];
+    const chain_real *x0 = r0, *x1 = r1, *end = r0 + i;
+    while (x0 != end) {
+        const chain_real a0 = *x0++, a1 = *x1++;
+        s00 -= a0 * a0;
+        s10 -= a1 * a0;
+        s11 -= a1 * a1;
+    }
+    if (!(s00 > CHAIN_R(0.0))) {
+        return -1;
+    }
+    r0[i] = CHAIN_SQRT(s00);
+    r1[i] = s10 / r0[i];
+    s11 -= r1[i] * r1[i];
+    if (!(s11 > CHAIN_R(0.0))) {
+        return -1;
+    }
+    r1[i + 1] = CHAIN_SQRT(s11);
+    return 0;
 }
 
 /*
@@ -120,11 +280,12 @@ static int cholesky_row(chain_real *a, chain_real *r, int i)
  *
  * Rows 0..from-1 must already hold L (the row-oriented algorithm computes row i from the
  * rows above it), so a working set that lost a row refactors only the rows below it, and
- * one that gained rows at the end computes only those (bordering). Rows are computed two
- * at a time, against two rows of L at a time; every entry is the sequential sum of the
- * plain algorithm, L_ij = (A_ij - sum_{k<j} L_ik L_jk) / L_jj, so the result does not
- * depend on @p from (a division, not a multiplication by 1 / L_jj: the dual active set's
- * infeasibility proofs on nearly dependent rows are sensitive to that rounding).
+ * one that gained rows at the end computes only those (bordering). Rows are computed four
+ * at a time against four rows of L at a time (then in pairs); every entry is the
+ * sequential sum of the plain algorithm, L_ij = (A_ij - sum_{k<j} L_ik L_jk) / L_jj, so
+ * the result does not depend on @p from or on the blocking (a division, not a
+ * multiplication by 1 / L_jj: the dual active set's infeasibility proofs on nearly
+ * dependent rows are sensitive to that rounding).
  * Cost: sum_{i=from}^{n-1} i (i + 1) / 2 = (n^3 - n - from^3 + from) / 6 multiply-adds,
  * (n - from)(n + from - 1) / 2 divisions and n - from square roots.
  * @param a Packed lower triangle: L in rows < from, A in rows >= from on entry; L on return.
@@ -134,37 +295,36 @@ static int cholesky_row(chain_real *a, chain_real *r, int i)
  */
 int chain_cholesky_from(chain_real *a, int from, int n)
 {
-    int i = from, j;
+    int i = from;
+#if CHAIN_WIDE_KERNELS
+    for (; i + 3 < n; i += 4) {
+        int j;
+        chain_real *r0 = &a[CHAIN_TRI(i, 0)], *r1 = r0 + i + 1;
+        chain_real *r2 = r1 + i + 2, *r3 = r2 + i + 3;
+        for (j = 0; j + 3 < i; j += 4) {
+            cholesky_block44(r0, r1, r2, r3, &a[CHAIN_TRI(j, 0)], j);
+        }
+        if (j < i) { /* the last one to three columns */
+            pair_columns(a, r0, r1, j, i);
+            pair_columns(a, r2, r3, j, i);
+        }
+        if (pair_diagonal(r0, r1, i) != 0) {
+            return -1;
+        }
+        cholesky_block(r2, r3, r0, i); /* columns i, i + 1 of rows i + 2, i + 3 */
+        if (pair_diagonal(r2, r3, i + 2) != 0) {
+            return -1;
+        }
+    }
+#endif
     for (; i + 1 < n; i += 2) {
         chain_real *r0 = &a[CHAIN_TRI(i, 0)], *r1 = r0 + i + 1;
-        chain_real s00, s10, s11;
-        const chain_real *x0 = r0, *x1 = r1, *end = r0 + i;
-        for (j = 0; j + 1 < i; j += 2) {
-            cholesky_block(r0, r1, &a[CHAIN_TRI(j, 0)], j);
+        if (i > 0) {
+            pair_columns(a, r0, r1, 0, i);
         }
-        if (j < i) {
-            cholesky_column(r0, r1, &a[CHAIN_TRI(j, 0)], j);
-        }
-        /* the 2 x 2 diagonal block: (i, i), (i + 1, i), (i + 1, i + 1) */
-        s00 = r0[i];
-        s10 = r1[i];
-        s11 = r1[i + 1];
-        while (x0 != end) {
-            const chain_real a0 = *x0++, a1 = *x1++;
-            s00 -= a0 * a0;
-            s10 -= a1 * a0;
-            s11 -= a1 * a1;
-        }
-        if (!(s00 > CHAIN_R(0.0))) {
+        if (pair_diagonal(r0, r1, i) != 0) {
             return -1;
         }
-        r0[i] = CHAIN_SQRT(s00);
-        r1[i] = s10 / r0[i];
-        s11 -= r1[i] * r1[i];
-        if (!(s11 > CHAIN_R(0.0))) {
-            return -1;
-        }
-        r1[i + 1] = CHAIN_SQRT(s11);
     }
     if (i < n) {
         return cholesky_row(a, &a[CHAIN_TRI(i, 0)], i);
@@ -187,8 +347,8 @@ int chain_cholesky(chain_real *a, int n)
  * @brief Solve L y = b in place (forward substitution) from row @p from on.
  *
  * b[0..from) must already hold y (they do not depend on the rows below), so a factor
- * that kept its first rows keeps that part of its solves. Two rows at a time; each y_i
- * is the sequential sum b_i - sum_{k<i} L_ik y_k divided by L_ii.
+ * that kept its first rows keeps that part of its solves. Four rows at a time, then two;
+ * each y_i is the sequential sum b_i - sum_{k<i} L_ik y_k divided by L_ii.
  * Cost: (n^2 - n - from^2 + from) / 2 multiply-adds and n - from divisions.
  * @param l Packed lower Cholesky factor.
  * @param from First row to solve.
@@ -198,6 +358,28 @@ int chain_cholesky(chain_real *a, int n)
 void chain_chol_lsolve_from(const chain_real *l, int from, int n, chain_real *b)
 {
     int i = from;
+    for (; i + 3 < n; i += 4) { /* rows i .. i + 3: each y_k read serves four sums */
+        const chain_real *r0 = &l[CHAIN_TRI(i, 0)], *r1 = r0 + i + 1;
+        const chain_real *r2 = r1 + i + 2, *r3 = r2 + i + 3, *y = b, *end = b + i;
+        chain_real s0 = b[i], s1 = b[i + 1], s2 = b[i + 2], s3 = b[i + 3];
+        while (y != end) {
+            const chain_real v = *y++;
+            s0 -= *r0++ * v;
+            s1 -= *r1++ * v;
+            s2 -= *r2++ * v;
+            s3 -= *r3++ * v;
+        }
+        b[i] = s0 / r0[0];
+        s1 -= r1[0] * b[i];
+        s2 -= r2[0] * b[i];
+        s3 -= r3[0] * b[i];
+        b[i + 1] = s1 / r1[1];
+        s2 -= r2[1] * b[i + 1];
+        s3 -= r3[1] * b[i + 1];
+        b[i + 2] = s2 / r2[2];
+        s3 -= r3[2] * b[i + 2];
+        b[i + 3] = s3 / r3[3];
+    }
     for (; i + 1 < n; i += 2) {
         const chain_real *r0 = &l[CHAIN_TRI(i, 0)], *r1 = r0 + i + 1, *y = b;
         const chain_real *end = b + i;

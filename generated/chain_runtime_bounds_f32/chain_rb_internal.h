@@ -87,6 +87,20 @@ static inline int chain_rb_all_finite(const chain_rb_real *v, int n)
 #define CHAIN_RB_CHOL_DUAL 1
 #define CHAIN_RB_CHOL_PRIMAL 2
 
+/*
+ * The widest kernel loops where the FPU has 32 single-precision registers (ARM VFP, the
+ * Cortex-M4F): cholesky_from()'s 4 x 4 blocks keep 16 sums and 8 operands in registers,
+ * and the unconstrained step's sums over a run of stages take four terms per trip. On a
+ * host (16 SSE registers) the same loops would spill to the stack or widen the frames on
+ * the worst path past its 1,024-B budget, so it takes the plain ones. Every sum is the
+ * same sequential sum either way: host and target results stay bit for bit equal.
+ */
+#if defined(__ARM_FP) && !defined(__aarch64__)
+#define CHAIN_RB_WIDE_KERNELS 1
+#else
+#define CHAIN_RB_WIDE_KERNELS 0
+#endif
+
 /* Linear algebra on packed symmetric matrices (chain_rb_linalg.c). */
 int chain_rb_cholesky(chain_rb_real *a, int n);
 int chain_rb_cholesky_from(chain_rb_real *a, int from, int n);

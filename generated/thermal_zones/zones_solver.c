@@ -471,6 +471,31 @@ static void packed_range_dot2(const zones_real *mp, int q0, int q1, const zones_
 }
 
 /*
+ * acc[b] += sum_{j=lo}^{hi-1} M(rows[b], j) x_j for b < 4, every range inside its row's
+ * stored part (hi <= rows[b] + 1): each x_j read serves four sums.
+ * Cost: 4 (hi - lo) multiply-adds.
+ */
+static void packed_range_dot4(const zones_real *mp, const int16_t *rows, const zones_real *x,
+    int lo, int hi, zones_real *acc)
+{
+    const zones_real *m0 = &mp[ZONES_TRI(rows[0], lo)], *m1 = &mp[ZONES_TRI(rows[1], lo)];
+    const zones_real *m2 = &mp[ZONES_TRI(rows[2], lo)], *m3 = &mp[ZONES_TRI(rows[3], lo)];
+    const zones_real *v = &x[lo], *end = &x[hi];
+    zones_real s0 = acc[0], s1 = acc[1], s2 = acc[2], s3 = acc[3];
+    while (v != end) {
+        const zones_real xv = *v++;
+        s0 += *m0++ * xv;
+        s1 += *m1++ * xv;
+        s2 += *m2++ * xv;
+        s3 += *m3++ * xv;
+    }
+    acc[0] = s0;
+    acc[1] = s1;
+    acc[2] = s2;
+    acc[3] = s3;
+}
+
+/*
  * out[t] = M(qa, q0 + t dir) for t < len (dir = 1 or -1): a run of consecutive columns of
  * row qa, from row qa up to the diagonal and from column qa below it, with no index
  * reads. Cost: len copies.
@@ -538,6 +563,48 @@ static void s_row_dot2(const zones_real *mp, int n, int q, const zones_real *x,
 }
 
 /*
+ * g[b] = (M x)_(q+b) for b < 4 over all j: the rows up to q side by side
+ * (packed_range_dot4()), the 3 x 3 corner j = q + 1 .. q + 3 term by term, then the
+ * columns below q + 3, whose entries M(j, q .. q + 3) are neighbours in row j.
+ * Cost: 4 n multiply-adds.
+ */
+static void s_row_dot4(const zones_real *mp, int n, int q, const zones_real *x,
+    zones_real *g)
+{
+    const int16_t rows[4] = { (int16_t)q, (int16_t)(q + 1), (int16_t)(q + 2), (int16_t)(q + 3) };
+    zones_real s0, s1, s2, s3;
+    const zones_real *m;
+    int j, b;
+    for (b = 0; b < 4; ++b) {
+        g[b] = R_(0.0);
+    }
+    packed_range_dot4(mp, rows, x, 0, q + 1, g);
+    for (j = q + 1; j < q + 4; ++j) { /* row j holds M(j, q .. j), column j the rest */
+        for (b = 0; b < 4; ++b) {
+            const int r = q + b;
+            g[b] += mp[(r < j) ? ZONES_TRI(j, r) : ZONES_TRI(r, j)] * x[j];
+        }
+    }
+    s0 = g[0];
+    s1 = g[1];
+    s2 = g[2];
+    s3 = g[3];
+    m = &mp[ZONES_TRI(q + 4, q)];
+    for (j = q + 4; j < n; ++j) {
+        const zones_real xv = x[j];
+        s0 += m[0] * xv;
+        s1 += m[1] * xv;
+        s2 += m[2] * xv;
+        s3 += m[3] * xv;
+        m += j + 1;
+    }
+    g[0] = s0;
+    g[1] = s1;
+    g[2] = s2;
+    g[3] = s3;
+}
+
+/*
  * out[a] += M(rows[a], j) x_j, then M(rows[a], j + 1) x_(j+1) when pair, for every row:
  * one or two columns of M read down the rows (row j up to the diagonal, column j below
  * it), each row's terms in increasing j as a walk along the row would add them.
@@ -578,7 +645,7 @@ static void packed_columns_axpy(const zones_real *mp, int j, int pair, const zon
  * out[a] = (M x)_{rows[a]} for a < nrows, x zero outside a support given by the ascending
  * list[0..count): the support itself (complement = 0) or its complement in 0..n-1
  * (complement = 1). The support is walked once, run by run, each run added to every row:
- * to two rows at a time where the run lies in both rows' stored parts; with by_columns
+ * to four or two rows at a time where the run lies in their stored parts; with by_columns
  * (the caller's choice where the runs are short: scattered bound inputs) a column or two
  * at a time down the rows instead, which adds each row's terms in the same order (the same
  * sums to the bit) without a call or a test per row and run.
@@ -612,10 +679,16 @@ static void sparse_rows_dot(const zones_real *mp, int n, const int16_t *rows, in
         for (; by_columns && lo < hi; lo += 2) {
             packed_columns_axpy(mp, lo, lo + 1 < hi, x, rows, nrows, out);
         }
-        for (a = 0; lo < hi && a < nrows; ++a) {
+        a = 0;
+        while (lo < hi && a < nrows) {
+            if (a + 3 < nrows && rows[a] >= hi - 1 && rows[a + 1] >= hi - 1
+                && rows[a + 2] >= hi - 1 && rows[a + 3] >= hi - 1) {
+                packed_range_dot4(mp, &rows[a], x, lo, hi, &out[a]);
+                a += 4;
+            } else
             if (a + 1 < nrows && rows[a] >= hi - 1 && rows[a + 1] >= hi - 1) {
                 packed_range_dot2(mp, rows[a], rows[a + 1], x, lo, hi, &out[a], &out[a + 1]);
-                ++a;
+                a += 2;
             } else if (hi - lo < SHORT_RUN) { /* a short run: no call */
                 const int q = rows[a];
                 zones_real acc = out[a];
@@ -624,8 +697,10 @@ static void sparse_rows_dot(const zones_real *mp, int n, const int16_t *rows, in
                     acc += mp[(j <= q) ? ZONES_TRI(q, j) : ZONES_TRI(j, q)] * x[j];
                 }
                 out[a] = acc;
+                ++a;
             } else {
                 out[a] = packed_range_dot(mp, rows[a], x, lo, hi, out[a]);
+                ++a;
             }
         }
         lo = hi + 1; /* the next gap starts after list[i - 1] */
@@ -747,6 +822,30 @@ static int reference_runs(zones_work *ws, const zones_mode_data *md, int *longes
 }
 
 /*
+ * g[from ny] + ... + g[(to - 1) ny], in stage order from 0; four terms per loop trip when
+ * the stages are neighbours (one output) and the target's frames allow it (WIDE_KERNELS).
+ */
+static zones_real stage_sum(const zones_real *g, int from, int to, int ny)
+{
+    zones_real sum = R_(0.0);
+    const zones_real *p = &g[from * ny], *end = &g[to * ny];
+#if ZONES_WIDE_KERNELS
+    if (ny == 1) {
+        for (; end - p >= 4; p += 4) {
+            sum += p[0];
+            sum += p[1];
+            sum += p[2];
+            sum += p[3];
+        }
+    }
+#endif
+    for (; p != end; p += ny) {
+        sum += *p;
+    }
+    return sum;
+}
+
+/*
  * For output a, the runs other than the longest (nruns > 1): th0_i += w_j s_ij in run
  * order, s_ij the sum of row i's columns (stage, a) of E^-1 G' over run j, and
  * coef_i = colsum_(a,i) - sum_j s_ij, the longest run's column sum.
@@ -756,15 +855,12 @@ static void other_runs(zones_work *ws, const zones_mode_data *md, int a, int nru
 {
     const int n = md->n, ny = md->ny, nyq = md->nyq;
     const zones_real *g = &md->EinvGt[a], *w = &ws->yv[a]; /* g[i nyq + stage ny] */
-    int i, j, stage;
+    int i, j;
     for (i = 0; i < n; ++i, g += nyq) {
         zones_real acc = ws->th0[i], other = R_(0.0);
         for (j = 0; j < nruns; ++j) {
             if (j != longest) {
-                zones_real sum = R_(0.0);
-                for (stage = ws->run[j]; stage < ws->run[j + 1]; ++stage) {
-                    sum += g[stage * ny];
-                }
+                const zones_real sum = stage_sum(g, ws->run[j], ws->run[j + 1], ny);
                 acc += w[ws->run[j] * ny] * sum;
                 other += sum;
             }
@@ -1651,7 +1747,7 @@ static zones_real signed_multiplier(const zones_work *ws, const zones_mode_data 
 static void free_multipliers(zones_work *ws, const zones_mode_data *md, int nw)
 {
     const int n = md->n, all = 4 * nw > 3 * n;
-    int a, paired = 0;
+    int a, ready = 0; /* rows whose g came with a row above */
     ws->work += multipliers_work(md, nw); /* granted by the primal_solve() before */
     if (all) {
         sym_product(md->S_p, n, ws->dv, ws->rhs);
@@ -1661,13 +1757,18 @@ static void free_multipliers(zones_work *ws, const zones_mode_data *md, int nw)
         zones_real g;
         if (all) {
             g = ws->rhs[q];
-        } else if (paired) { /* g came with the row above */
+        } else if (ready) {
             g = ws->rhs[a];
-            paired = 0;
+            --ready;
+        } else if (a + 3 < nw && md->row_q[ws->wset[a + 1]] == q + 1
+                   && md->row_q[ws->wset[a + 2]] == q + 2 && md->row_q[ws->wset[a + 3]] == q + 3) {
+            s_row_dot4(md->S_p, n, q, ws->dv, &ws->rhs[a]); /* this row and the next three */
+            g = ws->rhs[a];
+            ready = 3;
         } else if (a + 1 < nw && md->row_q[ws->wset[a + 1]] == q + 1) {
             s_row_dot2(md->S_p, n, q, ws->dv, &ws->rhs[a]); /* this row and the next */
             g = ws->rhs[a];
-            paired = 1;
+            ready = 1;
         } else {
             g = s_row_dot(md->S_p, n, q, ws->dv);
         }

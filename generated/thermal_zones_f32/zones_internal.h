@@ -87,6 +87,20 @@ static inline int zones_all_finite(const zones_real *v, int n)
 #define ZONES_CHOL_DUAL 1
 #define ZONES_CHOL_PRIMAL 2
 
+/*
+ * The widest kernel loops where the FPU has 32 single-precision registers (ARM VFP, the
+ * Cortex-M4F): cholesky_from()'s 4 x 4 blocks keep 16 sums and 8 operands in registers,
+ * and the unconstrained step's sums over a run of stages take four terms per trip. On a
+ * host (16 SSE registers) the same loops would spill to the stack or widen the frames on
+ * the worst path past its 1,024-B budget, so it takes the plain ones. Every sum is the
+ * same sequential sum either way: host and target results stay bit for bit equal.
+ */
+#if defined(__ARM_FP) && !defined(__aarch64__)
+#define ZONES_WIDE_KERNELS 1
+#else
+#define ZONES_WIDE_KERNELS 0
+#endif
+
 /* Linear algebra on packed symmetric matrices (zones_linalg.c). */
 int zones_cholesky(zones_real *a, int n);
 int zones_cholesky_from(zones_real *a, int from, int n);

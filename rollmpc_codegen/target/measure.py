@@ -35,6 +35,12 @@ def _top_functions(counts, limit: int = 20) -> list[dict]:
             for name, (ins, cyc) in rows]
 
 
+def _other_share(counts, limit: int = 20) -> float:
+    """The share of the step's cycles in the functions past _top_functions()'s ``limit``."""
+    rest = sorted((cyc for _ins, cyc in counts.by_function.values()), reverse=True)[limit:]
+    return round(sum(rest) / counts.cycles, 4) if counts.cycles else 0.0
+
+
 def budget_verdict(cfg, worst_cycles: int) -> dict:
     """The worst step against one sample time at the config's ``target.cpu_mhz``."""
     budget = cfg.cycles_per_sample
@@ -169,6 +175,7 @@ def measure(model, ctx: dict, build_root: Path, *, plan: FlightPlan = FlightPlan
         "budget": budget_verdict(cfg, int(worst.cycles)),
         "goals": memory_goals(cfg, sizes["flash_bytes"], sizes["ram_bytes"], ctrl_bytes),
         "worst_step_top_functions": _top_functions(worst),
+        "worst_step_other_functions_share": _other_share(worst),
         "by_mode": cycles_by_mode(worst_run, ctx),
         "hardest_step_cycles": [
             {"step": k, "cycles": int(counts[k].cycles),
