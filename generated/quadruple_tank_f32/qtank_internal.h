@@ -89,13 +89,15 @@ static inline int qtank_all_finite(const qtank_real *v, int n)
 
 /*
  * The widest kernel loops where the FPU has 32 single-precision registers (ARM VFP, the
- * Cortex-M4F): cholesky_from()'s 4 x 4 blocks keep 16 sums and 8 operands in registers,
- * and the unconstrained step's sums over a run of stages take four terms per trip. On a
- * host (16 SSE registers) the same loops would spill to the stack or widen the frames on
- * the worst path past its 1,024-B budget, so it takes the plain ones. Every sum is the
- * same sequential sum either way: host and target results stay bit for bit equal.
+ * Cortex-M4F) and the tree is in float: cholesky_from()'s 4 x 4 blocks keep 16 sums and 8
+ * operands in registers, and the unconstrained step's sums over a run of stages take four
+ * terms per trip. On a host (16 SSE registers) the same loops would spill to the stack or
+ * widen the frames on the worst path past its 1,024-B budget, and a double tree on a
+ * single-precision FPU computes in software, where they only spill (+472 B of stack on
+ * the M4F): both take the plain ones. Every sum is the same sequential sum either way:
+ * host and target results stay bit for bit equal.
  */
-#if defined(__ARM_FP) && !defined(__aarch64__)
+#if defined(__ARM_FP) && (__ARM_FP & 4) && !defined(__aarch64__)
 #define QTANK_WIDE_KERNELS 1
 #else
 #define QTANK_WIDE_KERNELS 0
