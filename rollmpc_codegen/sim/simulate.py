@@ -35,7 +35,9 @@ class ClosedLoopLog:
 
 
 def progress_printer(total: int, label: str, stream=None):
-    """A callback(k) that prints a one-line progress bar to stderr about every 5 %.
+    """A callback(k) that prints a progress bar to stderr: redrawn in place about every 5 %
+    on a terminal, or a line of its own about every 25 % elsewhere (a CI log or a file,
+    where carriage returns would pile twenty bars onto one line).
 
     This is also the progress factory the long-running library functions take (their
     ``progress`` keyword, see :func:`start_phase`).  A phase of ``total`` 0 has no steps:
@@ -46,15 +48,18 @@ def progress_printer(total: int, label: str, stream=None):
         stream.write(f"{label}\n")
         stream.flush()
         return None
-    step = max(1, total // 20)
+    tty = bool(getattr(stream, "isatty", lambda: False)())
+    step = max(1, total // (20 if tty else 4))
 
     def report(k: int) -> None:
         if k % step == 0 or k == total - 1:
             done = (k + 1) / total
             bar = "#" * int(done * 20)
-            stream.write(f"\r{label} [{bar:<20}] {done * 100:5.1f}% ({k + 1}/{total})")
-            if k == total - 1:
-                stream.write("\n")
+            line = f"{label} [{bar:<20}] {done * 100:5.1f}% ({k + 1}/{total})"
+            if tty:
+                stream.write("\r" + line + ("\n" if k == total - 1 else ""))
+            else:
+                stream.write(line + "\n")
             stream.flush()
 
     return report
