@@ -2400,6 +2400,30 @@ static int seed_from_violated(fwlat_work *ws, const fwlat_mode_data *md)
     return nw;
 }
 
+/*
+ * The rows th0 violates, seeded again as the dual active set's start after their polish
+ * failed when no warm start was left (the shifted set empty): resume_working_set() makes
+ * them dual feasible, keeping their independent rows, where a cold start would add each
+ * of them again one by one. They are also what a TIME_LIMIT before the dual active set
+ * has a point keeps (keep_progress(): stop_rows, none with a multiplier yet). Returns
+ * their count, or -1 (the budget, none, or more than wcap): the dual active set then
+ * starts cold, as before.
+ */
+static int violated_resume(fwlat_work *ws, const fwlat_mode_data *md)
+{
+    int nw;
+    if (!afford(ws, md, (uint32_t)md->m)) {
+        return -1;
+    }
+    nw = seed_from_violated(ws, md);
+    if (nw <= 0) {
+        return -1;
+    }
+    ws->stop_rows = nw;
+    ws->stop_known = 0;
+    return nw;
+}
+
 
 /*
  * Has a guess's first point reversed the sign of its multipliers? Its middle, first and
@@ -3286,6 +3310,9 @@ int fwlat_qp_solve(fwlat_work *ws, fwlat_real *lam, const fwlat_real *plan,
             }
             if (i == OUT_OF_WORK) {
                 return time_limit_at_th0(ws, md, lam, plan, plan_age, 1, U);
+            }
+            if (i == -1 && count == 0 && FWLAT_SOLVER_ACTIVE_SET) {
+                resume = violated_resume(ws, md); /* not cold: from the rows th0 violates */
             }
         }
     }

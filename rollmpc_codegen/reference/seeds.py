@@ -45,3 +45,15 @@ class SeedsMixin:
         W = np.flatnonzero(K < 0)
         self.slack_on[W] = False
         return W
+
+    def violated_resume(self, K):
+        """Mirror of violated_resume(): the rows th0 violates, seeded again as the dual
+        active set's start (``stop``: them, none known), or None (the budget, none, or
+        more than wcap: a cold start)."""
+        if not self.afford(self.md.m):
+            return None
+        W = self.seed_from_violated(K)
+        if W.size == 0 or W.size > self.wcap:
+            return None
+        self.stop = (W.copy(), np.zeros(0, self.md.Kx.dtype), 0)
+        return W

@@ -190,6 +190,8 @@ class SolverRef(UnconstrainedMixin, RowsMixin, SoftRowsMixin, SweepsMixin, Prima
                     return self.time_limit_at_th0(th0, True) + (0, polish_its, 0)
                 if code == GUESS_CAPPED:
                     resume = COLD_START  # resuming the same guess would repeat it
+                if code == -1 and not guess and warm_rows == 0 and self.active_set:
+                    resume = self.violated_resume(K)  # not cold: from the rows th0 violates
         if self.active_set:
             code, th_a, act, its = self.dual_active_set(lam, th0, K, gam, resume)
             polish_its += its
