@@ -2352,11 +2352,18 @@ static int drop_negative(qtank_work *ws, const qtank_mode_data *md, int *nw, int
     return 1;
 }
 
-/* Do the working-set rows hold (within the feasibility tolerance) at ws->th? */
-static int working_set_holds(qtank_work *ws, const qtank_mode_data *md, int nw)
+/*
+ * Do the working-set rows hold (within the feasibility tolerance) at ws->th? predicted:
+ * violated_outside() has just predicted the outputs at ws->th into ws->yv (it found no
+ * violated row), so only whether they need checking is decided again (outputs_certified(),
+ * n + m), not the N^2/2 prediction.
+ */
+static int working_set_holds(qtank_work *ws, const qtank_mode_data *md, int nw,
+    int predicted)
 {
     int i;
-    const int outputs = outputs_to_check(ws, md, ws->th);
+    const int outputs = predicted ? (md->GEinvGt_p != 0 && !outputs_certified(ws, md, ws->th))
+                                  : outputs_to_check(ws, md, ws->th);
     for (i = 0; i < nw; ++i) {
         const int r = ws->wset[i];
         if ((outputs || md->row_q[r] < md->n) && row_violated(ws, md, ws->th, r)) {
@@ -2398,7 +2405,7 @@ static int refine_dual(qtank_work *ws, const qtank_mode_data *md, int nw)
             return -1; /* a sign changed: not this working set's point */
         }
         correct(ws, md, ws->wset, nw, ws->z, 0);
-        if (working_set_holds(ws, md, nw)) {
+        if (working_set_holds(ws, md, nw, 0)) {
             return (violated_outside(ws, md, ws->th, ws->in_set, ws->tmp, 0) == 0) ? 0 : -1;
         }
     }
@@ -2567,7 +2574,7 @@ static int polish(qtank_work *ws, const qtank_mode_data *md, qtank_real *lam,
             if (nadd == 0) {
                 /* a (near-)singular H_WW, e.g. parallel rows of an infeasible QP, can give
                  * multipliers whose point misses its own working set: not optimal */
-                code = working_set_holds(ws, md, nw) ? 0 : refine_dual(ws, md, nw);
+                code = working_set_holds(ws, md, nw, 1) ? 0 : refine_dual(ws, md, nw);
                 return (code == 0) ? accept(ws, md, lam, nw, active) : stopped(ws, nw, known, code);
             }
         }

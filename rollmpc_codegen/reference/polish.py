@@ -38,9 +38,14 @@ class PolishMixin:
             W, z = self.remove_row(W, z, k)
         return W, z, 1
 
-    def working_set_holds(self, W, z, th, gam):
-        """Mirror of working_set_holds() (violated_in_set() with soft rows) at th."""
-        self.outputs_to_check(th, gam)  # its work; the mirror checks every row
+    def working_set_holds(self, W, z, th, gam, predicted=False):
+        """Mirror of working_set_holds() (violated_in_set() with soft rows) at th;
+        ``predicted``: violated_outside() has just predicted the outputs at th."""
+        if predicted:
+            if self.has_out:
+                self.outputs_certified(th, gam)  # its work: the prediction stands
+        else:
+            self.outputs_to_check(th, gam)  # its work; the mirror checks every row
         viol, scale = self.row_excess(th, gam)
         if self.soft:
             return not np.any(viol[W] - self.slack_in_set(W, z) > self.tol * scale[W])
@@ -174,7 +179,7 @@ class PolishMixin:
                 add = self.violated_outside(th, gam, W)
                 if add.size == 0:
                     code = 0
-                    if not self.working_set_holds(W, z, th, gam):
+                    if not self.working_set_holds(W, z, th, gam, predicted=True):
                         code, th, z = self.refine_dual(W, z, th0, K, gam, th)
                     if code:
                         return self.stopped(W, z, known, code), th, 0, its
