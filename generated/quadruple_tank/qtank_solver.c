@@ -1078,6 +1078,13 @@ static int slacks(qtank_work *ws, const qtank_mode_data *md)
     return count;
 }
 
+/* 1 if there are output rows and outputs_certified() cannot clear them at th. */
+static int outputs_uncertified(qtank_work *ws, const qtank_mode_data *md,
+    const qtank_real *th)
+{
+    return md->GEinvGt_p != 0 && !outputs_certified(ws, md, th);
+}
+
 /*
  * 1 if the output rows need checking at th (not certified); ws->yv then holds Gamma th.
  * 0 if there are none or none can be violated.
@@ -1085,7 +1092,7 @@ static int slacks(qtank_work *ws, const qtank_mode_data *md)
 static int outputs_to_check(qtank_work *ws, const qtank_mode_data *md,
     const qtank_real *th)
 {
-    if (md->GEinvGt_p == 0 || outputs_certified(ws, md, th)) {
+    if (!outputs_uncertified(ws, md, th)) {
         return 0;
     }
     predict_outputs(ws, md, th);
@@ -2355,14 +2362,14 @@ static int drop_negative(qtank_work *ws, const qtank_mode_data *md, int *nw, int
 /*
  * Do the working-set rows hold (within the feasibility tolerance) at ws->th? predicted:
  * violated_outside() has just predicted the outputs at ws->th into ws->yv (it found no
- * violated row), so only whether they need checking is decided again (outputs_certified(),
+ * violated row), so only whether they need checking is decided again (outputs_uncertified(),
  * n + m), not the N^2/2 prediction.
  */
 static int working_set_holds(qtank_work *ws, const qtank_mode_data *md, int nw,
     int predicted)
 {
     int i;
-    const int outputs = predicted ? (md->GEinvGt_p != 0 && !outputs_certified(ws, md, ws->th))
+    const int outputs = predicted ? outputs_uncertified(ws, md, ws->th)
                                   : outputs_to_check(ws, md, ws->th);
     for (i = 0; i < nw; ++i) {
         const int r = ws->wset[i];

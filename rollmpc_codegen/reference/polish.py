@@ -42,8 +42,7 @@ class PolishMixin:
         """Mirror of working_set_holds() (violated_in_set() with soft rows) at th;
         ``predicted``: violated_outside() has just predicted the outputs at th."""
         if predicted:
-            if self.has_out:
-                self.outputs_certified(th, gam)  # its work: the prediction stands
+            self.outputs_uncertified(th, gam)  # its work: the prediction stands
         else:
             self.outputs_to_check(th, gam)  # its work; the mirror checks every row
         viol, scale = self.row_excess(th, gam)

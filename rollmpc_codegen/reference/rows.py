@@ -49,10 +49,15 @@ class RowsMixin:
         q = md.row_q[out] - md.n
         return bool(np.all(md.out_bound[q] * thmax <= gam[out]))
 
+    def outputs_uncertified(self, th, gam):
+        """Mirror of outputs_uncertified(): are there output rows the certificate cannot
+        clear at th?"""
+        return self.has_out and not self.outputs_certified(th, gam)
+
     def outputs_to_check(self, th, gam):
         """Mirror of outputs_to_check()'s decision and work: must the output rows be
         checked at th (then the C predicts them)?"""
-        if not self.has_out or self.outputs_certified(th, gam):
+        if not self.outputs_uncertified(th, gam):
             return False
         self.work += predict_work(self.md)
         return True

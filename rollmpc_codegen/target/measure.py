@@ -35,10 +35,10 @@ def _top_functions(counts, limit: int = 20) -> list[dict]:
             for name, (ins, cyc) in rows]
 
 
-def _other_share(counts, limit: int = 20) -> float:
-    """The share of the step's cycles in the functions past _top_functions()'s ``limit``."""
-    rest = sorted((cyc for _ins, cyc in counts.by_function.values()), reverse=True)[limit:]
-    return round(sum(rest) / counts.cycles, 4) if counts.cycles else 0.0
+def _other_share(counts, top: list[dict]) -> float:
+    """The share of the step's cycles in the functions _top_functions() left out (``top``)."""
+    rest = sum(cyc for _ins, cyc in counts.by_function.values()) - sum(f["cycles"] for f in top)
+    return round(rest / counts.cycles, 4) if counts.cycles else 0.0
 
 
 def budget_verdict(cfg, worst_cycles: int) -> dict:
@@ -129,6 +129,7 @@ def measure(model, ctx: dict, build_root: Path, *, plan: FlightPlan = FlightPlan
     mismatched = [f for f in runs if f.run.mismatches]
     ctrl_bytes = len(record.final_state)
     info_w = record.info[worst_k]
+    top = _top_functions(worst)
     report = {
         "config_hash": ctx["config_hash"],
         "generator": f"rollmpc-codegen {__version__}",
@@ -174,8 +175,8 @@ def measure(model, ctx: dict, build_root: Path, *, plan: FlightPlan = FlightPlan
         "cpu_mhz_needed": round(worst.cycles / ts / 1e6, 2),
         "budget": budget_verdict(cfg, int(worst.cycles)),
         "goals": memory_goals(cfg, sizes["flash_bytes"], sizes["ram_bytes"], ctrl_bytes),
-        "worst_step_top_functions": _top_functions(worst),
-        "worst_step_other_functions_share": _other_share(worst),
+        "worst_step_top_functions": top,
+        "worst_step_other_functions_share": _other_share(worst, top),
         "by_mode": cycles_by_mode(worst_run, ctx),
         "hardest_step_cycles": [
             {"step": k, "cycles": int(counts[k].cycles),
