@@ -2,7 +2,9 @@
 ARM single-precision FPU only) factor and solve bit for bit as the plain ones and as the
 NumPy reference, whatever the order and the first row. The host never takes that path by
 itself, so it is built here a second time with __ARM_FP defined as a Cortex-M4F's
-compiler defines it."""
+compiler defines it. The back substitution (chol_ltsolve(), four rows a trip on every
+target, each sum in decreasing k) is checked the same way, every order's last block of
+one to four rows included."""
 from __future__ import annotations
 
 import shutil
@@ -12,7 +14,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from rollmpc_codegen.reference.linalg import chol_lsolve_packed, cholesky_packed
+from rollmpc_codegen.reference.linalg import (chol_lsolve_packed, chol_ltsolve_packed,
+                                              cholesky_packed)
 
 TREE = Path(__file__).resolve().parent.parent / "generated" / "uav_roll_f32"
 CASES = [(n, start) for n in (1, 2, 3, 4, 5, 7, 8, 9, 13, 16, 31, 50) for start in
@@ -55,7 +58,7 @@ static void put(const float *v, int count)
 
 int main(int argc, char **argv)
 {
-    static float a[64 * 65 / 2], full[64 * 65 / 2], y[64];
+    static float a[64 * 65 / 2], full[64 * 65 / 2], y[64], x[64];
     int c;
     printf("wide %d\n", ROLLMPC_WIDE_KERNELS);
     for (c = 1; c + 1 < argc; c += 2) {
@@ -74,9 +77,12 @@ int main(int argc, char **argv)
             y[i] = (float)(i % 5) - 1.75f;
         }
         rollmpc_chol_lsolve_from(a, 0, n, y);
+        memcpy(x, y, sizeof x);
+        rollmpc_chol_ltsolve(a, n, x);
         printf("%d ", status);
         put(a, n * (n + 1) / 2);
         put(y, n);
+        put(x, n);
         printf("\n");
     }
     return 0;
@@ -104,6 +110,7 @@ def words(text: list[str]) -> np.ndarray:
 
 
 def test_wide_kernels_factor_and_solve_as_the_plain_ones_and_the_reference(tmp_path):
+    """Factor, forward and back substitution: wide == plain == reference, bit for bit."""
     plain = build_and_run(tmp_path, "plain", ())
     wide = build_and_run(tmp_path, "wide", ("-D__ARM_FP=4",))
     assert plain[0] == "wide 0" and wide[0] == "wide 1"  # each build took its own path
@@ -118,5 +125,7 @@ def test_wide_kernels_factor_and_solve_as_the_plain_ones_and_the_reference(tmp_p
         assert status == 0 and cholesky_packed(a, n)
         y = np.array([(i % 5) - 1.75 for i in range(n)], np.float32)
         chol_lsolve_packed(a, n, y)
-        assert np.array_equal(got.view(np.uint32), np.concatenate((a, y)).view(np.uint32)), \
+        x = y.copy()
+        chol_ltsolve_packed(a, n, x)
+        assert np.array_equal(got.view(np.uint32), np.concatenate((a, y, x)).view(np.uint32)), \
             (n, start)

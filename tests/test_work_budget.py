@@ -220,8 +220,9 @@ def test_time_limit_is_bit_exact_with_the_reference(fw_small):
     bad, seen = lockstep_closed_loop(fw_small, 700)
     assert bad == []
     statuses = [s for s, _ in seen]
-    # measured 161 and 539 (double), 104 and 596 (float)
-    assert statuses.count(TIME_LIMIT) >= 80 and statuses.count(OPTIMAL) >= 400
+    # measured 155 and 545 (double), 79 and 621 (float) with the back substitution's sums
+    # in decreasing k (91 and 609 before it, in float)
+    assert statuses.count(TIME_LIMIT) >= 60 and statuses.count(OPTIMAL) >= 400
     assert max(w for _, w in seen) <= budget
 
 

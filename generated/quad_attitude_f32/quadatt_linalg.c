@@ -417,10 +417,11 @@ void quadatt_chol_lsolve(const quadatt_real *l, int n, quadatt_real *b)
 /**
  * @brief Solve L' x = y in place (back substitution), L from quadatt_cholesky().
  *
- * x_i = (y_i - sum_{k>i} L_ki x_k) / L_ii, the sum in increasing k down column i of the
- * packed rows (row k starts k + 1 after row k - 1), four terms per loop trip. (The order
- * matters beyond rounding: the dual active set's infeasibility proofs on nearly dependent
- * rows follow it.)
+ * x_i = (y_i - sum_{k>i} L_ki x_k) / L_ii, the sum in decreasing k: the terms of the rows
+ * solved first come first, so four rows i - 3..i accumulate together from the same x_k
+ * (their L_ki are adjacent in packed row k) while x_i is not yet known, and each row's
+ * chain waits only for its last terms. Every x_i is the same sequential sum however many
+ * rows share a trip.
  * Cost: (n^2 - n) / 2 multiply-adds and n divisions.
  * @param l Packed lower Cholesky factor.
  * @param n Order.
@@ -428,21 +429,35 @@ void quadatt_chol_lsolve(const quadatt_real *l, int n, quadatt_real *b)
  */
 void quadatt_chol_ltsolve(const quadatt_real *l, int n, quadatt_real *b)
 {
-    int i, k;
-    for (i = n - 1; i >= 0; --i) {
-        const quadatt_real *lk = &l[QUADATT_TRI(i + 1, i)]; /* L_(i+1),i */
-        quadatt_real s = b[i];
-        for (k = i + 1; k + 3 < n; k += 4) {
-            const quadatt_real *l1 = lk + k + 1, *l2 = l1 + k + 2, *l3 = l2 + k + 3;
-            s -= *lk * b[k];
-            s -= *l1 * b[k + 1];
-            s -= *l2 * b[k + 2];
-            s -= *l3 * b[k + 3];
-            lk = l3 + k + 4;
+    int i = n - 1, k;
+    for (; i >= 3; i -= 4) {
+        quadatt_real s0 = b[i - 3], s1 = b[i - 2], s2 = b[i - 1], s3 = b[i];
+        const quadatt_real *r3 = &l[QUADATT_TRI(i, 0)], *r2 = r3 - i;
+        const quadatt_real *r1 = r2 - (i - 1);
+        const quadatt_real *lk = &l[QUADATT_TRI(n - 1, i - 3)];
+        for (k = n - 1; k > i; lk -= k, --k) { /* L_k,(i-3..i): adjacent in packed row k */
+            const quadatt_real v = b[k];
+            s0 -= lk[0] * v;
+            s1 -= lk[1] * v;
+            s2 -= lk[2] * v;
+            s3 -= lk[3] * v;
         }
-        for (; k < n; ++k) {
+        b[i] = s3 / r3[i];
+        s0 -= r3[i - 3] * b[i];
+        s1 -= r3[i - 2] * b[i];
+        s2 -= r3[i - 1] * b[i];
+        b[i - 1] = s2 / r2[i - 1];
+        s0 -= r2[i - 3] * b[i - 1];
+        s1 -= r2[i - 2] * b[i - 1];
+        b[i - 2] = s1 / r1[i - 2];
+        s0 -= r1[i - 3] * b[i - 2];
+        b[i - 3] = s0 / l[QUADATT_TRI(i - 3, i - 3)];
+    }
+    for (; i >= 0; --i) {
+        const quadatt_real *lk = &l[QUADATT_TRI(n - 1, i)];
+        quadatt_real s = b[i];
+        for (k = n - 1; k > i; lk -= k, --k) {
             s -= *lk * b[k];
-            lk += k + 1;
         }
         b[i] = s / l[QUADATT_TRI(i, i)];
     }

@@ -52,11 +52,12 @@ def chol_lsolve_packed(l: np.ndarray, n: int, b: np.ndarray, start: int = 0) -> 
 
 
 def chol_ltsolve_packed(l: np.ndarray, n: int, b: np.ndarray) -> None:
-    """Mirror of ``P_chol_ltsolve`` (L' x = y, in place on b)."""
+    """Mirror of ``P_chol_ltsolve`` (L' x = y, in place on b): each x_i's sum in decreasing
+    k, however many rows the C solves in one trip."""
     tri = _tri_offsets(n)
     for i in range(n - 1, -1, -1):
         col = l[tri[i + 1:n] + i] if i + 1 < n else np.zeros(0, l.dtype)
-        s = seqsum(-(col * b[i + 1:n]), start=b[i])
+        s = seqsum(-(col * b[i + 1:n])[::-1], start=b[i])
         b[i] = s / l[tri[i] + i]
 
 
