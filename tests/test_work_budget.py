@@ -87,7 +87,7 @@ int shim_append({p}_real *l, int nw, const {p}_real *h, {p}_real hpp)
     {p}_real zeta;
     for (i = 0; i < nw * (nw + 1) / 2; ++i) shim_ws.chol[i] = l[i];
     for (i = 0; i < nw; ++i) shim_ws.rhs[i] = h[i];
-    zeta = factor_pivot(&shim_ws, nw, hpp);
+    zeta = factor_pivot(&shim_ws, 0, nw, hpp);
     if (!(zeta > {P}_SOLVER_DEPENDENCE_TOL * hpp)) return -1;
     factor_append(&shim_ws, nw, zeta);
     for (i = 0; i < (nw + 1) * (nw + 2) / 2; ++i) l[i] = shim_ws.chol[i];

@@ -1994,15 +1994,18 @@ static int factor_working_set(c172p_roll_work *ws, const c172p_roll_mode_data *m
 }
 
 /*
- * y = L^-1 H_Wp in place on ws->rhs (holding H_Wp on entry), and the pivot hpp - y'y that
- * row p would have in the factor of W + p (hpp: its diagonal entry).
+ * y = L^-1 H_Wp in place on ws->rhs (holding H_Wp on entry from row `from` on, y above it:
+ * rows of the factor and of H_Wp that have not changed since it was solved), and the
+ * pivot hpp - y'y that row p would have in the factor of W + p (hpp: its diagonal entry).
+ * Charged as a whole solve whatever `from` is.
  */
-static c172p_roll_real factor_pivot(c172p_roll_work *ws, int nw, c172p_roll_real hpp)
+static c172p_roll_real factor_pivot(c172p_roll_work *ws, int from, int nw,
+    c172p_roll_real hpp)
 {
     int i;
     c172p_roll_real zeta = hpp;
     ws->work += tri_work(nw) + (uint32_t)nw;
-    c172p_roll_chol_lsolve(ws->chol, nw, ws->rhs);
+    c172p_roll_chol_lsolve_from(ws->chol, from, nw, ws->rhs);
     for (i = 0; i < nw; ++i) {
         zeta -= ws->rhs[i] * ws->rhs[i];
     }
@@ -2034,7 +2037,7 @@ static void append_row(c172p_roll_work *ws, const c172p_roll_mode_data *md, int 
         ws->work += ((uint32_t)nw + 1u) * hq_work(md);
         /* scratch ycol: the primal factor's Y is not held */
         h_column(md, ws->wset, nw, p, -1, ws->ycol, ws->rhs);
-        zeta = factor_pivot(ws, nw, hpp);
+        zeta = factor_pivot(ws, 0, nw, hpp);
         if (zeta > C172P_ROLL_SOLVER_DEPENDENCE_TOL * hpp) {
             factor_append(ws, nw, zeta);
         } else {
@@ -2064,7 +2067,7 @@ static int independent_rows(c172p_roll_work *ws, const c172p_roll_mode_data *md,
         c172p_roll_real hpp = hq(md, md->row_q[p], md->row_q[p]), zeta;
         ws->work += ((uint32_t)kept + 1u) * hq_work(md);
         h_column(md, ws->wset, kept, p, -1, ws->ycol, ws->rhs);
-        zeta = factor_pivot(ws, kept, hpp);
+        zeta = factor_pivot(ws, 0, kept, hpp);
         if (zeta > C172P_ROLL_SOLVER_DEPENDENCE_TOL * hpp) {
             factor_append(ws, kept, zeta);
             ws->wset[kept++] = (int16_t)p;
@@ -2663,7 +2666,7 @@ static int add_to_set(c172p_roll_work *ws, const c172p_roll_mode_data *md, int p
     const c172p_roll_real hpp = hq(md, md->row_q[p], md->row_q[p]);
     c172p_roll_real lp = R_(0.0);
     c172p_roll_real *hcol = ws->ycol; /* the primal factor's Y is not in use (chol_holds) */
-    int i;
+    int i, from = 0; /* rhs[0..from) holds y = L^-1 H_Wp of the step before */
     if (!afford(ws, md, ((uint32_t)*nw + 1u) * hq_work(md))) {
         return OUT_OF_WORK;
     }
@@ -2690,10 +2693,12 @@ static int add_to_set(c172p_roll_work *ws, const c172p_roll_mode_data *md, int p
         }
         ws->work += tri_work(*nw) + 4u * (uint32_t)*nw;
         for (i = 0; i < *nw; ++i) { /* y = L^-1 H_Wp (rhs), d = L'^-1 y (dv) */
-            ws->rhs[i] = hcol[i];
-            viol -= ws->rhs[i] * ws->z[i];
+            viol -= hcol[i] * ws->z[i];
         }
-        zeta = factor_pivot(ws, *nw, hpp);
+        for (i = from; i < *nw; ++i) {
+            ws->rhs[i] = hcol[i];
+        }
+        zeta = factor_pivot(ws, from, *nw, hpp);
         for (i = 0; i < *nw; ++i) {
             ws->dv[i] = ws->rhs[i];
         }
@@ -2731,7 +2736,8 @@ static int add_to_set(c172p_roll_work *ws, const c172p_roll_mode_data *md, int p
             ++*nw;
             return 0;
         }
-        remove_row(ws, k, nw);
+        remove_row(ws, k, nw); /* its deletion works on rows k.. of L and of rhs only */
+        from = k;
         for (i = k; i < *nw; ++i) {
             hcol[i] = hcol[i + 1];
         }

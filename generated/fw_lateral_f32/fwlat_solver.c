@@ -2193,15 +2193,18 @@ static int factor_working_set(fwlat_work *ws, const fwlat_mode_data *md, int nw)
 }
 
 /*
- * y = L^-1 H_Wp in place on ws->rhs (holding H_Wp on entry), and the pivot hpp - y'y that
- * row p would have in the factor of W + p (hpp: its diagonal entry).
+ * y = L^-1 H_Wp in place on ws->rhs (holding H_Wp on entry from row `from` on, y above it:
+ * rows of the factor and of H_Wp that have not changed since it was solved), and the
+ * pivot hpp - y'y that row p would have in the factor of W + p (hpp: its diagonal entry).
+ * Charged as a whole solve whatever `from` is.
  */
-static fwlat_real factor_pivot(fwlat_work *ws, int nw, fwlat_real hpp)
+static fwlat_real factor_pivot(fwlat_work *ws, int from, int nw,
+    fwlat_real hpp)
 {
     int i;
     fwlat_real zeta = hpp;
     ws->work += tri_work(nw) + (uint32_t)nw;
-    fwlat_chol_lsolve(ws->chol, nw, ws->rhs);
+    fwlat_chol_lsolve_from(ws->chol, from, nw, ws->rhs);
     for (i = 0; i < nw; ++i) {
         zeta -= ws->rhs[i] * ws->rhs[i];
     }
@@ -2234,7 +2237,7 @@ static void append_row(fwlat_work *ws, const fwlat_mode_data *md, int p, int nw)
         ws->work += ((uint32_t)nw + 1u) * hq_work(md);
         /* scratch ycol: the primal factor's Y is not held */
         h_column(md, ws->wset, nw, p, -1, ws->ycol, ws->rhs);
-        zeta = factor_pivot(ws, nw, hpp);
+        zeta = factor_pivot(ws, 0, nw, hpp);
         if (zeta > FWLAT_SOLVER_DEPENDENCE_TOL * hpp) {
             factor_append(ws, nw, zeta);
         } else {
@@ -2269,7 +2272,7 @@ static int independent_rows(fwlat_work *ws, const fwlat_mode_data *md, int nw)
         }
         ws->work += ((uint32_t)kept + 1u) * hq_work(md);
         h_column(md, ws->wset, kept, p, -1, ws->ycol, ws->rhs);
-        zeta = factor_pivot(ws, kept, hpp);
+        zeta = factor_pivot(ws, 0, kept, hpp);
         if (zeta > FWLAT_SOLVER_DEPENDENCE_TOL * hpp) {
             factor_append(ws, kept, zeta);
             ws->wset[kept++] = (int16_t)p;
@@ -2895,7 +2898,7 @@ static int add_to_set(fwlat_work *ws, const fwlat_mode_data *md, int p, int rech
     const fwlat_real wp = soft_of(md, p, &l1p);
     int p_on = 0; /* p's multiplier passed l1: its slack grows with it */
     fwlat_real *hcol = ws->ycol; /* the primal factor's Y is not in use (chol_holds) */
-    int i;
+    int i, from = 0; /* rhs[0..from) holds y = L^-1 H_Wp of the step before */
     if (!afford(ws, md, ((uint32_t)*nw + 1u) * hq_work(md))) {
         return OUT_OF_WORK;
     }
@@ -2923,10 +2926,12 @@ static int add_to_set(fwlat_work *ws, const fwlat_mode_data *md, int p, int rech
         }
         ws->work += tri_work(*nw) + 4u * (uint32_t)*nw;
         for (i = 0; i < *nw; ++i) { /* y = L^-1 H_Wp (rhs), d = L'^-1 y (dv) */
-            ws->rhs[i] = hcol[i];
-            viol -= ws->rhs[i] * ws->z[i];
+            viol -= hcol[i] * ws->z[i];
         }
-        zeta = factor_pivot(ws, *nw, hpp);
+        for (i = from; i < *nw; ++i) {
+            ws->rhs[i] = hcol[i];
+        }
+        zeta = factor_pivot(ws, from, *nw, hpp);
         for (i = 0; i < *nw; ++i) {
             ws->dv[i] = ws->rhs[i];
         }
@@ -2990,11 +2995,14 @@ static int add_to_set(fwlat_work *ws, const fwlat_mode_data *md, int p, int rech
         }
         if (event == 2) {
             p_on = 1;
+            from = *nw; /* neither L nor H_Wp changed */
             continue;
         }
         if (event == 1) { /* row k's diagonal gains or loses w: update, else refactor */
             switch_row(ws, md, k, *nw);
+            from = k; /* the update leaves the rows above k (and rhs[0..k)) as they were */
             if (ws->chol_holds != FWLAT_CHOL_DUAL) {
+                from = 0;
                 if (!afford(ws, md, factor_work(md, *nw))) {
                     return OUT_OF_WORK;
                 }
@@ -3004,7 +3012,8 @@ static int add_to_set(fwlat_work *ws, const fwlat_mode_data *md, int p, int rech
             }
             continue;
         }
-        remove_row(ws, k, nw);
+        remove_row(ws, k, nw); /* its deletion works on rows k.. of L and of rhs only */
+        from = k;
         for (i = k; i < *nw; ++i) {
             hcol[i] = hcol[i + 1];
         }

@@ -44,6 +44,7 @@ class ActiveSetMixin:
             scale = abs(st["gam"][p]) if abs(st["gam"][p]) > self.one else self.one
             if not viol > self.tol * scale:
                 return 2
+        y, start = hcol, 0  # y[:start]: L^-1 H_Wp of the step before, still valid
         while True:
             st["steps"] += 1
             if st["steps"] > self.active_set_max:
@@ -54,8 +55,8 @@ class ActiveSetMixin:
                 return OUT_OF_WORK
             self.work += tri_work(nw) + 4 * nw
             viol = seqsum(-(hcol * z), start=-st["K"][p] - hpp * lp)
-            y = hcol.copy()
-            zeta = self.factor_pivot(y, hpp)
+            y = np.concatenate((y[:start], hcol[start:]))
+            zeta = self.factor_pivot(y, hpp, start)
             d = y.copy()
             chol_ltsolve_packed(self.chol, nw, d)
             k, tblock, event = -1, self.zero, 0
@@ -95,10 +96,13 @@ class ActiveSetMixin:
                 return 0
             if event == 2:
                 p_on = True
+                start = nw  # neither L nor H_Wp changed
                 continue
             if event == 1:  # row k's diagonal gains or loses w: update, else refactor
                 self.switch_row(W, k)
+                start = k  # the update leaves the rows above k as they were
                 if self.chol_holds != CHOL_DUAL:
+                    start = 0
                     if not self.afford(factor_work(md, nw, self.hq_factor)):
                         return OUT_OF_WORK
                     if not self.factor_working_set(W):
@@ -106,7 +110,7 @@ class ActiveSetMixin:
                 continue
             st["in_set"][W[k]] = False
             st["W"], st["z"] = self.remove_row(W, z, k)
-            hcol = np.delete(hcol, k)
+            hcol, start = np.delete(hcol, k), k  # the deletion works on rows k.. only
 
     def _first_event(self, W, z, d):
         """The soft add_to_set()'s scan: (k, tblock, event) of the first multiplier to reach

@@ -39,10 +39,11 @@ class DualPolishMixin:
         self.chol_holds = CHOL_DUAL if ok else CHOL_NONE
         return ok
 
-    def factor_pivot(self, y, hpp):
-        """Mirror of factor_pivot(): y = L^-1 H_Wp in place, returns hpp - y'y."""
+    def factor_pivot(self, y, hpp, start=0):
+        """Mirror of factor_pivot(): y = L^-1 H_Wp in place (y[:start] solved already),
+        returns hpp - y'y; charged as a whole solve."""
         self.work += tri_work(y.size) + y.size
-        chol_lsolve_packed(self.chol, y.size, y)
+        chol_lsolve_packed(self.chol, y.size, y, start)
         return seqsum(-(y * y), start=hpp)
 
     def factor_append(self, y, zeta):
