@@ -1966,7 +1966,11 @@ static int primal_solve(c172p_roll_work *ws, const c172p_roll_mode_data *md, int
  * L = chol(H_WW) for W = wset[0..nw) (plus w on the diagonal of slack soft rows) into
  * ws->chol, from scratch: the fallback whenever the kept factor may not be valid. H_WW's
  * leading columns are read a column at a time while that pays (column_pays()), the rest
- * entry by entry. Sets ws->chol_holds; -1 if a pivot breaks down.
+ * entry by entry. Sets ws->chol_holds; -1 if a pivot breaks down: not positive, or
+ * (as a joining row's, append_row()) L_jj^2 not above DEPENDENCE_TOL times its diagonal
+ * entry. Rows that repeat rows before them (a delay plant's output rows are its input
+ * rows) leave pivots of a few roundoffs that a bare Cholesky takes as positive; a set
+ * "full" of such rows would then pass for a vertex and prove a feasible QP infeasible.
  */
 static int factor_working_set(c172p_roll_work *ws, const c172p_roll_mode_data *md, int nw)
 {
@@ -1985,9 +1989,19 @@ static int factor_working_set(c172p_roll_work *ws, const c172p_roll_mode_data *m
             ws->chol[C172P_ROLL_TRI(i, k)] = h_rows(md, ws->wset[i], ws->wset[k]);
         }
     }
+    for (j = 0; j < nw; ++j) { /* the diagonal (w included), for the dependence test */
+        ws->rhs[j] = ws->chol[C172P_ROLL_TRI(j, j)];
+    }
     if (c172p_roll_cholesky_from(ws->chol, 0, nw) != 0) {
         ws->chol_holds = C172P_ROLL_CHOL_NONE;
         return -1;
+    }
+    for (j = 0; j < nw; ++j) {
+        const c172p_roll_real ljj = ws->chol[C172P_ROLL_TRI(j, j)];
+        if (!(ljj * ljj > C172P_ROLL_SOLVER_DEPENDENCE_TOL * ws->rhs[j])) {
+            ws->chol_holds = C172P_ROLL_CHOL_NONE;
+            return -1;
+        }
     }
     ws->chol_holds = C172P_ROLL_CHOL_DUAL;
     return 0;

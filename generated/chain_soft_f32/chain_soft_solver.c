@@ -2094,7 +2094,11 @@ static int primal_solve(chain_soft_work *ws, const chain_soft_mode_data *md, int
  * L = chol(H_WW) for W = wset[0..nw) (plus w on the diagonal of slack soft rows) into
  * ws->chol, from scratch: the fallback whenever the kept factor may not be valid. H_WW's
  * leading columns are read a column at a time while that pays (column_pays()), the rest
- * entry by entry. Sets ws->chol_holds; -1 if a pivot breaks down.
+ * entry by entry. Sets ws->chol_holds; -1 if a pivot breaks down: not positive, or
+ * (as a joining row's, append_row()) L_jj^2 not above DEPENDENCE_TOL times its diagonal
+ * entry. Rows that repeat rows before them (a delay plant's output rows are its input
+ * rows) leave pivots of a few roundoffs that a bare Cholesky takes as positive; a set
+ * "full" of such rows would then pass for a vertex and prove a feasible QP infeasible.
  */
 static int factor_working_set(chain_soft_work *ws, const chain_soft_mode_data *md, int nw)
 {
@@ -2119,9 +2123,19 @@ static int factor_working_set(chain_soft_work *ws, const chain_soft_mode_data *m
             ws->chol[CHAIN_SOFT_TRI(j, j)] += soft_of(md, ws->wset[j], &l1);
         }
     }
+    for (j = 0; j < nw; ++j) { /* the diagonal (w included), for the dependence test */
+        ws->rhs[j] = ws->chol[CHAIN_SOFT_TRI(j, j)];
+    }
     if (chain_soft_cholesky_from(ws->chol, 0, nw) != 0) {
         ws->chol_holds = CHAIN_SOFT_CHOL_NONE;
         return -1;
+    }
+    for (j = 0; j < nw; ++j) {
+        const chain_soft_real ljj = ws->chol[CHAIN_SOFT_TRI(j, j)];
+        if (!(ljj * ljj > CHAIN_SOFT_SOLVER_DEPENDENCE_TOL * ws->rhs[j])) {
+            ws->chol_holds = CHAIN_SOFT_CHOL_NONE;
+            return -1;
+        }
     }
     ws->chol_holds = CHAIN_SOFT_CHOL_DUAL;
     return 0;

@@ -2159,7 +2159,11 @@ static int primal_solve(fwlat_work *ws, const fwlat_mode_data *md, int nw,
  * L = chol(H_WW) for W = wset[0..nw) (plus w on the diagonal of slack soft rows) into
  * ws->chol, from scratch: the fallback whenever the kept factor may not be valid. H_WW's
  * leading columns are read a column at a time while that pays (column_pays()), the rest
- * entry by entry. Sets ws->chol_holds; -1 if a pivot breaks down.
+ * entry by entry. Sets ws->chol_holds; -1 if a pivot breaks down: not positive, or
+ * (as a joining row's, append_row()) L_jj^2 not above DEPENDENCE_TOL times its diagonal
+ * entry. Rows that repeat rows before them (a delay plant's output rows are its input
+ * rows) leave pivots of a few roundoffs that a bare Cholesky takes as positive; a set
+ * "full" of such rows would then pass for a vertex and prove a feasible QP infeasible.
  */
 static int factor_working_set(fwlat_work *ws, const fwlat_mode_data *md, int nw)
 {
@@ -2184,9 +2188,19 @@ static int factor_working_set(fwlat_work *ws, const fwlat_mode_data *md, int nw)
             ws->chol[FWLAT_TRI(j, j)] += soft_of(md, ws->wset[j], &l1);
         }
     }
+    for (j = 0; j < nw; ++j) { /* the diagonal (w included), for the dependence test */
+        ws->rhs[j] = ws->chol[FWLAT_TRI(j, j)];
+    }
     if (fwlat_cholesky_from(ws->chol, 0, nw) != 0) {
         ws->chol_holds = FWLAT_CHOL_NONE;
         return -1;
+    }
+    for (j = 0; j < nw; ++j) {
+        const fwlat_real ljj = ws->chol[FWLAT_TRI(j, j)];
+        if (!(ljj * ljj > FWLAT_SOLVER_DEPENDENCE_TOL * ws->rhs[j])) {
+            ws->chol_holds = FWLAT_CHOL_NONE;
+            return -1;
+        }
     }
     ws->chol_holds = FWLAT_CHOL_DUAL;
     return 0;

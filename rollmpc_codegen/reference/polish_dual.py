@@ -27,7 +27,8 @@ COLD_START = "cold start"  # the C's dual_active_set() from = COLD_START: no war
 class DualPolishMixin:
     def factor_working_set(self, W):
         """Mirror of factor_working_set(): chol(H_WW + w of the slack rows) from scratch
-        into ``chol``; sets ``chol_holds``; False on a bad pivot."""
+        into ``chol``; sets ``chol_holds``; False on a bad pivot: not positive, or its
+        square not above ``dep_tol`` times its diagonal entry (a dependent row)."""
         chol = self.chol
         self.work += factor_work(self.md, len(W), self.hq_factor)
         for i in range(len(W)):
@@ -35,7 +36,11 @@ class DualPolishMixin:
             chol[tri:tri + i + 1] = self.H[W[i], W[:i + 1]]
             if self.slack_on[W[i]]:
                 chol[tri + i] = chol[tri + i] + self.soft_w[W[i]]
+        diag = chol[[i * (i + 3) // 2 for i in range(len(W))]].copy()
         ok = cholesky_packed(chol, len(W))
+        if ok:
+            pivots = chol[[i * (i + 3) // 2 for i in range(len(W))]]
+            ok = bool(np.all(pivots * pivots > self.dep_tol * diag))
         self.chol_holds = CHOL_DUAL if ok else CHOL_NONE
         return ok
 
