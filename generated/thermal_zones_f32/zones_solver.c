@@ -1206,6 +1206,37 @@ static void chol_delete(zones_real *l, int k, int n, zones_real *v,
  * (Ew v_in in ws->nu): n (nnz + nt) + nt nnz_in operations, where reading E^-1 M_L' entry
  * by entry cost n |L| reads of E^-1 (nt operations each for an input, twice for a Δu row).
  */
+/*
+ * th += S^-1 e_j v, then S^-1 e_(j+1) w, and nu += Ew e_j v, then Ew e_(j+1) w: each entry
+ * takes the two terms in that order, as two passes one column after the other would give
+ * it, in one pass (S^-1 packed lower: rows j and j + 1 above the diagonal block, then
+ * columns j and j + 1, neighbours in every row below it).
+ */
+static void add_sinv_pair(zones_work *ws, const zones_mode_data *md, int j,
+    zones_real v, zones_real w)
+{
+    const int n = md->n;
+    const zones_real *rj = &md->Sinv_p[ZONES_TRI(j, 0)], *rk = rj + j + 1;
+    int i, o, off = ZONES_TRI(j + 2, j);
+    for (i = 0; i < j; ++i) {
+        ws->th[i] += rj[i] * v;
+        ws->th[i] += rk[i] * w;
+    }
+    ws->th[j] += rj[j] * v;
+    ws->th[j] += rk[j] * w;
+    ws->th[j + 1] += rk[j] * v;
+    ws->th[j + 1] += rk[j + 1] * w;
+    for (i = j + 2; i < n; ++i) {
+        ws->th[i] += md->Sinv_p[off] * v;
+        ws->th[i] += md->Sinv_p[off + 1] * w;
+        off += i + 1;
+    }
+    for (o = 0; o < md->nt; ++o) {
+        ws->nu[o] += md->Ew[o * n + j] * v;
+        ws->nu[o] += md->Ew[o * n + j + 1] * w;
+    }
+}
+
 static void correct(zones_work *ws, const zones_mode_data *md, const int16_t *list,
     int count, const zones_real *mult, int mult_by_row)
 {
@@ -1237,6 +1268,13 @@ static void correct(zones_work *ws, const zones_mode_data *md, const int16_t *li
     for (j = 0; j < n; ++j) {
         const zones_real v = ws->dv[j];
         if (v < R_(0.0) || v > R_(0.0)) {
+            const zones_real w = (j + 1 < n) ? ws->dv[j + 1] : R_(0.0);
+            if (w < R_(0.0) || w > R_(0.0)) { /* columns j and j + 1 in one pass */
+                nin += 2u;
+                add_sinv_pair(ws, md, j, v, w);
+                ++j;
+                continue;
+            }
             ++nin;
             for (i = 0; i < j; ++i) { /* S^-1 is packed lower: row j, then column j */
                 ws->th[i] += md->Sinv_p[ZONES_TRI(j, i)] * v;
