@@ -62,3 +62,26 @@ def test_a_dependent_shifted_set_is_not_a_vertex(tmp_path, build_root):
     W = np.array([18, 22, 26, 30, 32, 34, 36, 38, 40, 42, 44, 46, 48, 52, 56, 60])
     assert np.linalg.matrix_rank(solver.H[np.ix_(W, W)]) < W.size
     assert not solver.factor_working_set(W)
+
+
+def test_the_rows_before_the_breakdown_stand(tmp_path, build_root):
+    """After the breakdown at row j, independent_rows() keeps rows 0..j-1 of the failed
+    factor as they are: the same bits as appending every row again from an empty factor."""
+    rc = random_config(28, prefix="rq28", kind="delay", cond_decade=0)
+    path = tmp_path / "rq28.yaml"
+    path.write_text(rc.yaml())
+    solver = Built(path, "double", build_root).reference().solvers[0]
+    W = np.array([18, 22, 26, 30, 32, 34, 36, 38, 40, 42, 44, 46, 48, 52, 56, 60])
+    assert not solver.factor_working_set(W)
+    j = solver.chol_rows
+    assert 0 < j < W.size
+    head = solver.chol[:j * (j + 1) // 2].copy()
+    solver.work = 0
+    kept = solver.independent_rows(W)
+    reused_work, reused = solver.work, solver.chol[:kept.size * (kept.size + 1) // 2].copy()
+    assert solver.chol[:head.size].tobytes() == head.tobytes()
+    solver.chol_rows, solver.work = 0, 0
+    again = solver.independent_rows(W)  # from an empty factor
+    assert np.array_equal(again, kept)
+    assert solver.chol[:reused.size].tobytes() == reused.tobytes()
+    assert reused_work < solver.work  # the rows that stand are not charged again

@@ -2164,14 +2164,15 @@ static int factor_working_set(chain_soft_work *ws, const chain_soft_mode_data *m
     for (j = 0; j < nw; ++j) { /* the diagonal (w included), for the dependence test */
         ws->rhs[j] = ws->chol[CHAIN_SOFT_TRI(j, j)];
     }
+    ws->chol_holds = CHAIN_SOFT_CHOL_NONE;
+    ws->chol_rows = 0;
     if (chain_soft_cholesky_from(ws->chol, 0, nw) != 0) {
-        ws->chol_holds = CHAIN_SOFT_CHOL_NONE;
         return -1;
     }
-    for (j = 0; j < nw; ++j) {
+    for (j = 0; j < nw; ++j) { /* rows above a dependent one do not read it: they stand */
         const chain_soft_real ljj = ws->chol[CHAIN_SOFT_TRI(j, j)];
         if (!(ljj * ljj > CHAIN_SOFT_SOLVER_DEPENDENCE_TOL * ws->rhs[j])) {
-            ws->chol_holds = CHAIN_SOFT_CHOL_NONE;
+            ws->chol_rows = j;
             return -1;
         }
     }
@@ -2244,13 +2245,15 @@ static void forget_row(chain_soft_work *ws, int r)
  * The rows of wset[0..nw) in order, each kept when its pivot on the rows kept before it
  * exceeds the dependence tolerance times its diagonal (plus w for a slack row), the others
  * leaving (forget_row()); their factor into ws->chol. Returns how many are kept: where a
- * factor from scratch broke down, a linearly independent working set to resume from.
+ * factor from scratch broke down, a linearly independent working set to resume from. Its
+ * first ws->chol_rows rows, factored before the breakdown with the sums an append makes,
+ * are kept as they are.
  */
 static int independent_rows(chain_soft_work *ws, const chain_soft_mode_data *md, int nw)
 {
-    int i, kept = 0;
+    int i, kept = ws->chol_rows;
     ws->chol_holds = CHAIN_SOFT_CHOL_DUAL;
-    for (i = 0; i < nw; ++i) {
+    for (i = kept; i < nw; ++i) {
         const int p = ws->wset[i];
         chain_soft_real hpp = hq(md, md->row_q[p], md->row_q[p]), zeta;
         if (ws->slack_on[p]) {

@@ -104,6 +104,8 @@ typedef struct {
     fwlat_real gam_out_min;                /**< Smallest right-hand side of an output row. */
     int out_slacks_ok;                            /**< K of the output rows is computed. */
     int chol_holds;                               /**< What chol holds: FWLAT_CHOL_NONE, _DUAL or _PRIMAL. */
+    int chol_rows;                                /**< After a dual factor from scratch broke down: its
+                                                       leading rows that are still valid. */
     uint32_t work;                                /**< Work units of the solve so far. */
     uint32_t work_limit;                          /**< What the running part may spend up to (afford()). */
     int stop_rows;                                /**< Rows of wset where polish() ran out of work, */

@@ -37,10 +37,13 @@ class DualPolishMixin:
             if self.slack_on[W[i]]:
                 chol[tri + i] = chol[tri + i] + self.soft_w[W[i]]
         diag = chol[[i * (i + 3) // 2 for i in range(len(W))]].copy()
+        self.chol_rows = 0
         ok = cholesky_packed(chol, len(W))
-        if ok:
+        if ok:  # rows above a dependent one do not read it: they stand (chol_rows)
             pivots = chol[[i * (i + 3) // 2 for i in range(len(W))]]
-            ok = bool(np.all(pivots * pivots > self.dep_tol * diag))
+            weak = np.flatnonzero(~(pivots * pivots > self.dep_tol * diag))
+            ok = weak.size == 0
+            self.chol_rows = 0 if ok else int(weak[0])
         self.chol_holds = CHOL_DUAL if ok else CHOL_NONE
         return ok
 
@@ -76,10 +79,11 @@ class DualPolishMixin:
     def independent_rows(self, W):
         """Mirror of independent_rows(): W's rows in order, each kept when its pivot on the
         rows kept before it exceeds the dependence tolerance times its diagonal (plus w for
-        a slack row), the others leaving; their factor into ``chol``."""
-        kept = []
+        a slack row), the others leaving; their factor into ``chol``. The first
+        ``chol_rows``, factored before a breakdown, are kept as they are."""
+        kept = list(W[:self.chol_rows])
         self.chol_holds = CHOL_DUAL
-        for p in W:
+        for p in W[self.chol_rows:]:
             hpp = self.Hdiag[p] + (self.soft_w[p] if self.slack_on[p] else 0)
             self.work += (len(kept) + 1) * hq_work(self.md, self.hq_factor)
             y = self.H[kept, p].astype(self.chol.dtype)

@@ -97,9 +97,10 @@ class SolverRef(UnconstrainedMixin, RowsMixin, SoftRowsMixin, SweepsMixin, Prima
         self.soft = bool(np.any(self.soft_w > 0))
         self.slack_on = np.zeros(md.m, bool)
         self.wcap = md.w_cap if self.soft else md.n
-        # ws->chol and what it holds (polish_dual.CHOL_*), kept across the polish's steps
+        # ws->chol and what it holds (polish_dual.CHOL_*), kept across the polish's steps;
+        # chol_rows: the rows still valid after a factor from scratch broke down
         self.chol = np.zeros(self.wcap * (self.wcap + 1) // 2, md.Kx.dtype)
-        self.chol_holds = CHOL_NONE
+        self.chol_holds, self.chol_rows = CHOL_NONE, 0
         self.slack_max, self.slack_rows = self.zero, 0
         # the work count of the last solve (ws->work; qp/work.py) and its budget
         self.budget, self.hq_factor = s["work_budget"], s["hq_work_factor"]
