@@ -89,6 +89,19 @@ def test_random_controllers_match_the_reference(params, build_root):
     _closed_loop_matches_reference(params, build_root)
 
 
+# the long fuzz's finds, kept in the quick suite: with N_MAX of 1 and 2 gcc -Warray-bounds
+# saw correct()'s column pairs run past th and dv (the pairs are now emitted from N_MAX 3)
+TINY = [dict(seed=3, n_modes=1, horizon=1, method="hildreth", polish=False, warm_start=True,
+             precision="float"),
+        dict(seed=2, n_modes=1, horizon=2, method="hildreth", polish=False, warm_start=False,
+             precision="double")]
+
+
+@pytest.mark.parametrize("params", TINY, ids=["N1-float", "N2-double"])
+def test_tiny_controllers_compile_warning_free_and_match(params, build_root):
+    _closed_loop_matches_reference(params, build_root)
+
+
 @pytest.mark.slow
 @settings(max_examples=60, **SETTINGS)
 @given(params=controllers)
