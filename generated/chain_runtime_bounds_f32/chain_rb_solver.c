@@ -1141,6 +1141,16 @@ static int row_violated(const chain_rb_work *ws, const chain_rb_mode_data *md,
 }
 
 /*
+ * The dependence test of every pivot of the dual factor (a joining row's, a factor from
+ * scratch's, a downdate's): 1 when its square keeps more than DEPENDENCE_TOL of the row's
+ * diagonal entry, i.e. the row is independent of the rows before it.
+ */
+static int pivot_independent(chain_rb_real square, chain_rb_real diagonal)
+{
+    return square > CHAIN_RB_SOLVER_DEPENDENCE_TOL * diagonal;
+}
+
+/*
  * L L' +- v v' on the trailing block of the packed factor l (order n) from row and column
  * `from` on, v holding the vector's entries from..n-1 (overwritten): the rotations of the
  * classic rank-one update, hyperbolic ones for a downdate. No entry of H is read again.
@@ -1158,7 +1168,7 @@ static int chol_rank_one(chain_rb_real *l, int from, int n, chain_rb_real *v, in
         const chain_rb_real r2 = downdate ? (ljj - vj) * (ljj + vj) : ljj * ljj + vj * vj;
         chain_rb_real r, c, s, ic;
         int off = CHAIN_RB_TRI(j + 1, j); /* column j below the diagonal: stride i + 1 */
-        if (downdate && !(r2 > CHAIN_RB_SOLVER_DEPENDENCE_TOL * (ljj * ljj))) {
+        if (downdate && !pivot_independent(r2, ljj * ljj)) {
             return -1;
         }
         r = CHAIN_RB_SQRT(r2);
@@ -1214,14 +1224,6 @@ static void chol_delete(chain_rb_real *l, int k, int n, chain_rb_real *v,
 }
 
 /*
- * th = th0 - E^-1 M_L' mult over the rows L = list[0..count) with a positive multiplier.
- * The multipliers are first summed by quantity, v = M_L' mult (inputs into ws->dv, outputs
- * into ws->yv, a Δu row into its two inputs), then E^-1 v = S^-1 v_in - Ew' (Ew v_in)
- * + E^-1 G' v_out is accumulated in ws->th column by column over the nonzero entries of v
- * (Ew v_in in ws->nu): n (nnz + nt) + nt nnz_in operations, where reading E^-1 M_L' entry
- * by entry cost n |L| reads of E^-1 (nt operations each for an input, twice for a Δu row).
- */
-/*
  * th += S^-1 e_j v, then S^-1 e_(j+1) w, and nu += Ew e_j v, then Ew e_(j+1) w: each entry
  * takes the two terms in that order, as two passes one column after the other would give
  * it, in one pass (S^-1 packed lower: rows j and j + 1 above the diagonal block, then
@@ -1252,6 +1254,14 @@ static void add_sinv_pair(chain_rb_work *ws, const chain_rb_mode_data *md, int j
     }
 }
 
+/*
+ * th = th0 - E^-1 M_L' mult over the rows L = list[0..count) with a positive multiplier.
+ * The multipliers are first summed by quantity, v = M_L' mult (inputs into ws->dv, outputs
+ * into ws->yv, a Δu row into its two inputs), then E^-1 v = S^-1 v_in - Ew' (Ew v_in)
+ * + E^-1 G' v_out is accumulated in ws->th column by column over the nonzero entries of v
+ * (Ew v_in in ws->nu): n (nnz + nt) + nt nnz_in operations, where reading E^-1 M_L' entry
+ * by entry cost n |L| reads of E^-1 (nt operations each for an input, twice for a Δu row).
+ */
 static void correct(chain_rb_work *ws, const chain_rb_mode_data *md, const int16_t *list,
     int count, const chain_rb_real *mult, int mult_by_row)
 {
@@ -2052,7 +2062,7 @@ static int factor_working_set(chain_rb_work *ws, const chain_rb_mode_data *md, i
     }
     for (j = 0; j < nw; ++j) { /* rows above a dependent one do not read it: they stand */
         const chain_rb_real ljj = ws->chol[CHAIN_RB_TRI(j, j)];
-        if (!(ljj * ljj > CHAIN_RB_SOLVER_DEPENDENCE_TOL * ws->rhs[j])) {
+        if (!pivot_independent(ljj * ljj, ws->rhs[j])) {
             ws->chol_rows = j;
             return -1;
         }
@@ -2106,7 +2116,7 @@ static void append_row(chain_rb_work *ws, const chain_rb_mode_data *md, int p, i
         /* scratch ycol: the primal factor's Y is not held */
         h_column(md, ws->wset, nw, p, -1, ws->ycol, ws->rhs);
         zeta = factor_pivot(ws, 0, nw, hpp);
-        if (zeta > CHAIN_RB_SOLVER_DEPENDENCE_TOL * hpp) {
+        if (pivot_independent(zeta, hpp)) {
             factor_append(ws, nw, zeta);
         } else {
             ws->chol_holds = CHAIN_RB_CHOL_NONE;
@@ -2138,7 +2148,7 @@ static int independent_rows(chain_rb_work *ws, const chain_rb_mode_data *md, int
         ws->work += ((uint32_t)kept + 1u) * hq_work(md);
         h_column(md, ws->wset, kept, p, -1, ws->ycol, ws->rhs);
         zeta = factor_pivot(ws, 0, kept, hpp);
-        if (zeta > CHAIN_RB_SOLVER_DEPENDENCE_TOL * hpp) {
+        if (pivot_independent(zeta, hpp)) {
             factor_append(ws, kept, zeta);
             ws->wset[kept++] = (int16_t)p;
         } else {
@@ -2782,7 +2792,7 @@ static int add_to_set(chain_rb_work *ws, const chain_rb_mode_data *md, int p, in
                 }
             }
         }
-        dependent = *nw == md->n || !(zeta > CHAIN_RB_SOLVER_DEPENDENCE_TOL * hpp);
+        dependent = *nw == md->n || !pivot_independent(zeta, hpp);
         if (dependent && k < 0) {
             return 1;
         }

@@ -1126,6 +1126,16 @@ static int row_violated(const drives_work *ws, const drives_mode_data *md,
 }
 
 /*
+ * The dependence test of every pivot of the dual factor (a joining row's, a factor from
+ * scratch's, a downdate's): 1 when its square keeps more than DEPENDENCE_TOL of the row's
+ * diagonal entry, i.e. the row is independent of the rows before it.
+ */
+static int pivot_independent(drives_real square, drives_real diagonal)
+{
+    return square > DRIVES_SOLVER_DEPENDENCE_TOL * diagonal;
+}
+
+/*
  * L L' +- v v' on the trailing block of the packed factor l (order n) from row and column
  * `from` on, v holding the vector's entries from..n-1 (overwritten): the rotations of the
  * classic rank-one update, hyperbolic ones for a downdate. No entry of H is read again.
@@ -1143,7 +1153,7 @@ static int chol_rank_one(drives_real *l, int from, int n, drives_real *v, int do
         const drives_real r2 = downdate ? (ljj - vj) * (ljj + vj) : ljj * ljj + vj * vj;
         drives_real r, c, s, ic;
         int off = DRIVES_TRI(j + 1, j); /* column j below the diagonal: stride i + 1 */
-        if (downdate && !(r2 > DRIVES_SOLVER_DEPENDENCE_TOL * (ljj * ljj))) {
+        if (downdate && !pivot_independent(r2, ljj * ljj)) {
             return -1;
         }
         r = DRIVES_SQRT(r2);
@@ -1199,14 +1209,6 @@ static void chol_delete(drives_real *l, int k, int n, drives_real *v,
 }
 
 /*
- * th = th0 - E^-1 M_L' mult over the rows L = list[0..count) with a positive multiplier.
- * The multipliers are first summed by quantity, v = M_L' mult (inputs into ws->dv, outputs
- * into ws->yv, a Δu row into its two inputs), then E^-1 v = S^-1 v_in - Ew' (Ew v_in)
- * + E^-1 G' v_out is accumulated in ws->th column by column over the nonzero entries of v
- * (Ew v_in in ws->nu): n (nnz + nt) + nt nnz_in operations, where reading E^-1 M_L' entry
- * by entry cost n |L| reads of E^-1 (nt operations each for an input, twice for a Δu row).
- */
-/*
  * th += S^-1 e_j v, then S^-1 e_(j+1) w, and nu += Ew e_j v, then Ew e_(j+1) w: each entry
  * takes the two terms in that order, as two passes one column after the other would give
  * it, in one pass (S^-1 packed lower: rows j and j + 1 above the diagonal block, then
@@ -1237,6 +1239,14 @@ static void add_sinv_pair(drives_work *ws, const drives_mode_data *md, int j,
     }
 }
 
+/*
+ * th = th0 - E^-1 M_L' mult over the rows L = list[0..count) with a positive multiplier.
+ * The multipliers are first summed by quantity, v = M_L' mult (inputs into ws->dv, outputs
+ * into ws->yv, a Δu row into its two inputs), then E^-1 v = S^-1 v_in - Ew' (Ew v_in)
+ * + E^-1 G' v_out is accumulated in ws->th column by column over the nonzero entries of v
+ * (Ew v_in in ws->nu): n (nnz + nt) + nt nnz_in operations, where reading E^-1 M_L' entry
+ * by entry cost n |L| reads of E^-1 (nt operations each for an input, twice for a Δu row).
+ */
 static void correct(drives_work *ws, const drives_mode_data *md, const int16_t *list,
     int count, const drives_real *mult, int mult_by_row)
 {
@@ -2037,7 +2047,7 @@ static int factor_working_set(drives_work *ws, const drives_mode_data *md, int n
     }
     for (j = 0; j < nw; ++j) { /* rows above a dependent one do not read it: they stand */
         const drives_real ljj = ws->chol[DRIVES_TRI(j, j)];
-        if (!(ljj * ljj > DRIVES_SOLVER_DEPENDENCE_TOL * ws->rhs[j])) {
+        if (!pivot_independent(ljj * ljj, ws->rhs[j])) {
             ws->chol_rows = j;
             return -1;
         }
@@ -2091,7 +2101,7 @@ static void append_row(drives_work *ws, const drives_mode_data *md, int p, int n
         /* scratch ycol: the primal factor's Y is not held */
         h_column(md, ws->wset, nw, p, -1, ws->ycol, ws->rhs);
         zeta = factor_pivot(ws, 0, nw, hpp);
-        if (zeta > DRIVES_SOLVER_DEPENDENCE_TOL * hpp) {
+        if (pivot_independent(zeta, hpp)) {
             factor_append(ws, nw, zeta);
         } else {
             ws->chol_holds = DRIVES_CHOL_NONE;
@@ -2123,7 +2133,7 @@ static int independent_rows(drives_work *ws, const drives_mode_data *md, int nw)
         ws->work += ((uint32_t)kept + 1u) * hq_work(md);
         h_column(md, ws->wset, kept, p, -1, ws->ycol, ws->rhs);
         zeta = factor_pivot(ws, 0, kept, hpp);
-        if (zeta > DRIVES_SOLVER_DEPENDENCE_TOL * hpp) {
+        if (pivot_independent(zeta, hpp)) {
             factor_append(ws, kept, zeta);
             ws->wset[kept++] = (int16_t)p;
         } else {
@@ -2767,7 +2777,7 @@ static int add_to_set(drives_work *ws, const drives_mode_data *md, int p, int re
                 }
             }
         }
-        dependent = *nw == md->n || !(zeta > DRIVES_SOLVER_DEPENDENCE_TOL * hpp);
+        dependent = *nw == md->n || !pivot_independent(zeta, hpp);
         if (dependent && k < 0) {
             return 1;
         }

@@ -14,6 +14,7 @@ import numpy as np
 from ..qp.work import (add_step_work, correct_work, factor_work, hq_work, independent_work,
                        predict_work, scan_work, tri_work)
 from .linalg import chol_ltsolve_packed, seqsum
+from .factor_update import pivot_independent
 from .polish_dual import CHOL_DUAL, COLD_START, OUT_OF_WORK, OUT_OF_WORK_AT_TH0
 
 
@@ -75,7 +76,7 @@ class ActiveSetMixin:
                         ratio = z[i] / d[i]
                         if k < 0 or ratio < tblock:
                             k, tblock = i, ratio
-            dependent = nw == self.wcap or not zeta > self.dep_tol * hpp
+            dependent = nw == self.wcap or not pivot_independent(zeta, hpp, self.dep_tol)
             if dependent and k < 0:
                 return 1
             t = tblock if dependent else viol / zeta

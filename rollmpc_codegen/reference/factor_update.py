@@ -12,6 +12,12 @@ import numpy as np
 from .linalg import _tri_offsets
 
 
+def pivot_independent(square, diagonal, dep_tol):
+    """Mirror of ``pivot_independent()``: a pivot's square keeps more than ``dep_tol`` of
+    the row's diagonal entry (elementwise on arrays)."""
+    return square > dep_tol * diagonal
+
+
 def chol_rank_one(l: np.ndarray, start: int, n: int, v: np.ndarray, downdate: bool,
                   dep_tol, carry: np.ndarray | None = None) -> bool:
     """Mirror of ``chol_rank_one()``: L L' +- v v' on the trailing block from ``start``
@@ -22,7 +28,7 @@ def chol_rank_one(l: np.ndarray, start: int, n: int, v: np.ndarray, downdate: bo
     for j in range(start, n):
         ljj, vj = l[tri[j] + j], v[j]
         r2 = (ljj - vj) * (ljj + vj) if downdate else ljj * ljj + vj * vj
-        if downdate and not r2 > dep_tol * (ljj * ljj):
+        if downdate and not pivot_independent(r2, ljj * ljj, dep_tol):
             return False
         r = np.sqrt(r2)
         c, s, ic = r / ljj, vj / ljj, ljj / r

@@ -12,7 +12,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..qp.work import delete_work, factor_work, hq_work, predict_work, tri_work
-from .factor_update import chol_delete
+from .factor_update import chol_delete, pivot_independent
 from .linalg import cholesky_packed, chol_lsolve_packed, chol_solve_packed, seqsum
 
 # what ws->chol holds (the C's P_CHOL_NONE / _DUAL / _PRIMAL of internal.h.j2)
@@ -41,7 +41,7 @@ class DualPolishMixin:
         ok = cholesky_packed(chol, len(W))
         if ok:  # rows above a dependent one do not read it: they stand (chol_rows)
             pivots = chol[[i * (i + 3) // 2 for i in range(len(W))]]
-            weak = np.flatnonzero(~(pivots * pivots > self.dep_tol * diag))
+            weak = np.flatnonzero(~pivot_independent(pivots * pivots, diag, self.dep_tol))
             ok = weak.size == 0
             self.chol_rows = 0 if ok else int(weak[0])
         self.chol_holds = CHOL_DUAL if ok else CHOL_NONE
@@ -70,7 +70,7 @@ class DualPolishMixin:
             hpp = self.Hdiag[p]
             y = self.H[W, p].astype(self.chol.dtype)
             zeta = self.factor_pivot(y, hpp)
-            if zeta > self.dep_tol * hpp:
+            if pivot_independent(zeta, hpp, self.dep_tol):
                 self.factor_append(y, zeta)
             else:
                 self.chol_holds = CHOL_NONE
@@ -88,7 +88,7 @@ class DualPolishMixin:
             self.work += (len(kept) + 1) * hq_work(self.md, self.hq_factor)
             y = self.H[kept, p].astype(self.chol.dtype)
             zeta = self.factor_pivot(y, hpp)
-            if zeta > self.dep_tol * hpp:
+            if pivot_independent(zeta, hpp, self.dep_tol):
                 self.factor_append(y, zeta)
                 kept.append(p)
             else:
