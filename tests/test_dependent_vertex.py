@@ -42,15 +42,25 @@ QP93_R = [
 ]
 
 
+# the previous working set shifted one stage, as the dual active set resumes it on QP 93:
+# 16 rows (wcap = n) whose H_WW has rank 8
+SHIFTED_SET = np.array([18, 22, 26, 30, 32, 34, 36, 38, 40, 42, 44, 46, 48, 52, 56, 60])
+
+
 def _vec(hexes):
     return np.array([float.fromhex(h) for h in hexes])
 
 
-def test_a_dependent_shifted_set_is_not_a_vertex(tmp_path, build_root):
+def _rq28(tmp_path, build_root) -> Built:
+    """The campaign's config 28 (a delay plant), double."""
     rc = random_config(28, prefix="rq28", kind="delay", cond_decade=0)
     path = tmp_path / "rq28.yaml"
     path.write_text(rc.yaml())
-    built = Built(path, "double", build_root)
+    return Built(path, "double", build_root)
+
+
+def test_a_dependent_shifted_set_is_not_a_vertex(tmp_path, build_root):
+    built = _rq28(tmp_path, build_root)
     c, solver = built.fresh_c(), built.reference().solvers[0]
     for x, r in ((QP92_X, QP92_R), (QP93_X, QP93_R)):
         x, r = _vec(x), _vec(r)
@@ -59,7 +69,7 @@ def test_a_dependent_shifted_set_is_not_a_vertex(tmp_path, build_root):
         assert int(status_c) == int(status_r) == OPTIMAL, (status_c, status_r)
         assert U_c.tobytes() == U_r.astype(U_c.dtype).tobytes()
     # the shifted set the warm start resumes: its factor now breaks down on the repeats
-    W = np.array([18, 22, 26, 30, 32, 34, 36, 38, 40, 42, 44, 46, 48, 52, 56, 60])
+    W = SHIFTED_SET
     assert np.linalg.matrix_rank(solver.H[np.ix_(W, W)]) < W.size
     assert not solver.factor_working_set(W)
 
@@ -67,11 +77,8 @@ def test_a_dependent_shifted_set_is_not_a_vertex(tmp_path, build_root):
 def test_the_rows_before_the_breakdown_stand(tmp_path, build_root):
     """After the breakdown at row j, independent_rows() keeps rows 0..j-1 of the failed
     factor as they are: the same bits as appending every row again from an empty factor."""
-    rc = random_config(28, prefix="rq28", kind="delay", cond_decade=0)
-    path = tmp_path / "rq28.yaml"
-    path.write_text(rc.yaml())
-    solver = Built(path, "double", build_root).reference().solvers[0]
-    W = np.array([18, 22, 26, 30, 32, 34, 36, 38, 40, 42, 44, 46, 48, 52, 56, 60])
+    solver = _rq28(tmp_path, build_root).reference().solvers[0]
+    W = SHIFTED_SET
     assert not solver.factor_working_set(W)
     j = solver.chol_rows
     assert 0 < j < W.size
