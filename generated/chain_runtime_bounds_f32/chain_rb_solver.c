@@ -258,11 +258,29 @@ static chain_rb_real row_const(const chain_rb_work *ws, const chain_rb_mode_data
     return (md->row_sign[r] > 0) ? b->y_max[(q - md->n) % md->ny] : -b->y_min[(q - md->n) % md->ny];
 }
 
+/*
+ * v signed as row r is (+1: an upper bound row, -1: a lower one); v times the product of
+ * two rows' signs. The product is a multiply by +-1 (exact), not a select: the working
+ * set's signs are mixed, and on the host a branch on them was mispredicted often enough
+ * to cost 4-5 % of thermal_zones_rate's worst QP (docs/solver.md, "Branches").
+ */
+static inline chain_rb_real by_sign(const chain_rb_mode_data *md, int r, chain_rb_real v)
+{
+    return (md->row_sign[r] > 0) ? v : -v;
+}
+
+static inline chain_rb_real by_signs(const chain_rb_mode_data *md, int r, int s, chain_rb_real v)
+{
+    const int sign = md->row_sign[r] * md->row_sign[s];
+    return (chain_rb_real)sign * v;
+}
+
 /* E^-1(a, b) for inputs a, b < n, in Woodbury form: E^-1 = S^-1 - Ew' Ew. */
 static inline chain_rb_real einv(const chain_rb_mode_data *md, int a, int b)
 {
     const int n = md->n;
-    const chain_rb_real si = (a >= b) ? md->Sinv_p[CHAIN_RB_TRI(a, b)] : md->Sinv_p[CHAIN_RB_TRI(b, a)];
+    const int hi = (a >= b) ? a : b, lo = (a >= b) ? b : a; /* an index select, not a branch */
+    const chain_rb_real si = md->Sinv_p[CHAIN_RB_TRI(hi, lo)];
     chain_rb_real acc = R_(0.0);
     int o;
     for (o = 0; o < md->nt; ++o) {
@@ -302,7 +320,7 @@ static chain_rb_real hq(const chain_rb_mode_data *md, int a, int b)
 static chain_rb_real h_rows(const chain_rb_mode_data *md, int r, int s)
 {
     const chain_rb_real h = hq(md, md->row_q[r], md->row_q[s]);
-    return (md->row_sign[r] == md->row_sign[s]) ? h : -h;
+    return by_signs(md, r, s, h);
 }
 
 /* H_Wp a column at a time: the polish's and the dual active set's reads (no data, same values) */
@@ -357,7 +375,7 @@ static chain_rb_real h_from_column(const chain_rb_mode_data *md, int r, int p, c
     } else {
         h = col[a];
     }
-    return (md->row_sign[r] == md->row_sign[p]) ? h : -h;
+    return by_signs(md, r, p, h);
 }
 
 /*
@@ -1123,7 +1141,7 @@ static inline chain_rb_real row_excess(const chain_rb_work *ws, const chain_rb_m
 {
     const chain_rb_real v = row_value(ws, md, th, r);
     const chain_rb_real g = ws->gam[r];
-    return (md->row_sign[r] > 0) ? v - g : -v - g;
+    return by_sign(md, r, v) - g;
 }
 
 /* max(1, |gamma_r|): the feasibility tolerance of row r is FEAS_TOL times this. */
@@ -1282,7 +1300,7 @@ static void correct(chain_rb_work *ws, const chain_rb_mode_data *md, const int16
         const int s = list[j], q = md->row_q[s];
         const chain_rb_real mu = mult_by_row ? mult[s] : mult[j];
         if (mu > R_(0.0)) {
-            const chain_rb_real v = (md->row_sign[s] > 0) ? mu : -mu;
+            const chain_rb_real v = by_sign(md, s, mu);
             if (q < n) {
                 ws->dv[q] += v;
             } else {
@@ -1389,7 +1407,6 @@ static int violated_kind(chain_rb_work *ws, const chain_rb_mode_data *md,
     const chain_rb_real *th, const uint8_t *member, int16_t *out, int cap, int outputs)
 {
     const int m = md->m;
-    const int8_t *row_sign = md->row_sign;
     const chain_rb_real *gam = ws->gam;
     const chain_rb_real *values = outputs ? ws->yv : th; /* of quantity q at q - base */
     const int base = outputs ? md->n : 0;
@@ -1404,7 +1421,7 @@ static int violated_kind(chain_rb_work *ws, const chain_rb_mode_data *md,
         /* row_violated() inline: the tolerance is at least FEAS_TOL, so reject early */
         v = values[md->row_q[r] - base];
         g = gam[r];
-        viol = (row_sign[r] > 0) ? v - g : -v - g;
+        viol = by_sign(md, r, v) - g;
         if (!(viol > CHAIN_RB_SOLVER_FEAS_TOL)) {
             continue;
         }

@@ -243,11 +243,29 @@ static uint32_t add_step_work(int nw)
     return 2u * tri_work(nw) + 5u * (uint32_t)nw + ((leave > flip) ? leave : flip);
 }
 
+/*
+ * v signed as row r is (+1: an upper bound row, -1: a lower one); v times the product of
+ * two rows' signs. The product is a multiply by +-1 (exact), not a select: the working
+ * set's signs are mixed, and on the host a branch on them was mispredicted often enough
+ * to cost 4-5 % of thermal_zones_rate's worst QP (docs/solver.md, "Branches").
+ */
+static inline zrate_real by_sign(const zrate_mode_data *md, int r, zrate_real v)
+{
+    return (md->row_sign[r] > 0) ? v : -v;
+}
+
+static inline zrate_real by_signs(const zrate_mode_data *md, int r, int s, zrate_real v)
+{
+    const int sign = md->row_sign[r] * md->row_sign[s];
+    return (zrate_real)sign * v;
+}
+
 /* E^-1(a, b) for inputs a, b < n, in Woodbury form: E^-1 = S^-1 - Ew' Ew. */
 static inline zrate_real einv(const zrate_mode_data *md, int a, int b)
 {
     const int n = md->n;
-    const zrate_real si = (a >= b) ? md->Sinv_p[ZRATE_TRI(a, b)] : md->Sinv_p[ZRATE_TRI(b, a)];
+    const int hi = (a >= b) ? a : b, lo = (a >= b) ? b : a; /* an index select, not a branch */
+    const zrate_real si = md->Sinv_p[ZRATE_TRI(hi, lo)];
     zrate_real acc = R_(0.0);
     int o;
     for (o = 0; o < md->nt; ++o) {
@@ -319,7 +337,7 @@ static zrate_real hq(const zrate_mode_data *md, int a, int b)
 static zrate_real h_rows(const zrate_mode_data *md, int r, int s)
 {
     const zrate_real h = hq(md, md->row_q[r], md->row_q[s]);
-    return (md->row_sign[r] == md->row_sign[s]) ? h : -h;
+    return by_signs(md, r, s, h);
 }
 
 /* H_Wp a column at a time: the polish's and the dual active set's reads (no data, same values) */
@@ -385,7 +403,7 @@ static zrate_real h_from_column(const zrate_mode_data *md, int r, int p, const z
     } else {
         h = col[a];
     }
-    return (md->row_sign[r] == md->row_sign[p]) ? h : -h;
+    return by_signs(md, r, p, h);
 }
 
 /*
@@ -1167,7 +1185,7 @@ static inline zrate_real row_excess(const zrate_work *ws, const zrate_mode_data 
 {
     const zrate_real v = row_value(ws, md, th, r);
     const zrate_real g = ws->gam[r];
-    return (md->row_sign[r] > 0) ? v - g : -v - g;
+    return by_sign(md, r, v) - g;
 }
 
 /* max(1, |gamma_r|): the feasibility tolerance of row r is FEAS_TOL times this. */
@@ -1326,7 +1344,7 @@ static void correct(zrate_work *ws, const zrate_mode_data *md, const int16_t *li
         const int s = list[j], q = md->row_q[s];
         const zrate_real mu = mult_by_row ? mult[s] : mult[j];
         if (mu > R_(0.0)) {
-            const zrate_real v = (md->row_sign[s] > 0) ? mu : -mu;
+            const zrate_real v = by_sign(md, s, mu);
             const int d = q - (n + nyq);
             if (d >= 0) { /* Δu: U_d - U_(d-nu), or U_d in the first stage */
                 ws->dv[d] += v;
@@ -1441,7 +1459,6 @@ static int violated_kind(zrate_work *ws, const zrate_mode_data *md,
     const zrate_real *th, const uint8_t *member, int16_t *out, int cap, int outputs)
 {
     const int m = md->m;
-    const int8_t *row_sign = md->row_sign;
     const zrate_real *gam = ws->gam;
     /* this kind's rows, ascending (md->scan_rows): the other kind is not even read */
     const int16_t *rows = outputs ? &md->scan_rows[md->m_box] : md->scan_rows;
@@ -1454,7 +1471,7 @@ static int violated_kind(zrate_work *ws, const zrate_mode_data *md,
         /* row_violated() inline: the tolerance is at least FEAS_TOL, so reject early */
         v = row_value(ws, md, th, r);
         g = gam[r];
-        viol = (row_sign[r] > 0) ? v - g : -v - g;
+        viol = by_sign(md, r, v) - g;
         if (!(viol > ZRATE_SOLVER_FEAS_TOL)) {
             continue;
         }
