@@ -247,7 +247,7 @@ static uint32_t add_step_work(int nw)
  * v signed as row r is (+1: an upper bound row, -1: a lower one); v times the product of
  * two rows' signs. The product is a multiply by +-1 (exact), not a select: the working
  * set's signs are mixed, and on the host a branch on them was mispredicted often enough
- * to cost 4-5 % of thermal_zones_rate's worst QP (docs/solver.md, "Branches").
+ * to cost 4-5 % of thermal_zones_rate's worst QP (docs/solver.md, "Branches on the host").
  */
 static inline chain_real by_sign(const chain_mode_data *md, int r, chain_real v)
 {
