@@ -22,6 +22,7 @@ from rollmpc_codegen.model.plant import DiscretePlant
 from rollmpc_codegen.pipeline import load_model
 from rollmpc_codegen.qp.feasibility import rest_warnings
 from rollmpc_codegen.qp.footprint import check_fits, predict
+from rollmpc_codegen.qp.nominal_loop import closed_loop_radius, unstable_law_warnings
 from rollmpc_codegen.target.horizons import PARTS
 
 SHIP = ROOT / "tests" / "data" / "newuser" / "ship_heading.yaml"
@@ -333,4 +334,10 @@ def test_bounds_that_only_conflict_together_are_named_together():
 
 @pytest.mark.parametrize("path", EXAMPLES, ids=[p.stem for p in EXAMPLES])
 def test_no_example_warns(path):
-    assert rest_warnings(load_model(path)[0]) == []
+    """Neither warning of generate: bounds unreachable from rest, nor a controller that
+    does not stabilise its model (qp/nominal_loop.py; every example's radius is at most
+    0.995, c172_roll's)."""
+    model = load_model(path)[0]
+    assert rest_warnings(model) == []
+    assert unstable_law_warnings(model) == []
+    assert max(closed_loop_radius(model, j) for j in range(len(model.modes))) < 0.996

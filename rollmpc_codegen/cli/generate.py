@@ -9,7 +9,9 @@ flag of its own, not ``--force``: that one lets rollmpc write into a directory i
 write, a data-safety rule, and a user who asks for a large design must not waive it by
 the same word (nor waive the size check by forcing a directory).  The prediction is
 printed on stdout, before the maths when the maths is slow; design warnings (hard output
-bounds no input can meet from rest, qp/feasibility.py) go to stderr and leave exit 0.
+bounds no input can meet from rest, qp/feasibility.py; a controller that does not
+stabilise its model with no bound active, qp/nominal_loop.py) go to stderr and leave
+exit 0.
 """
 from __future__ import annotations
 
@@ -65,6 +67,7 @@ def _print_footprint(footprint) -> None:
 def run(args) -> int:
     from ..pipeline import generate
     from ..qp.feasibility import rest_warnings
+    from ..qp.nominal_loop import unstable_law_warnings
 
     predicted = []
 
@@ -81,7 +84,7 @@ def run(args) -> int:
         _print_footprint(predicted[0])
     sizes = ", ".join(f"{m['name']}: n={m['n']} m={m['m']}" for m in ctx["modes"])
     print(f"rollmpc: wrote {out}/ ({ctx['precision']}; {sizes})")
-    for warning in rest_warnings(model):
+    for warning in [*unstable_law_warnings(model), *rest_warnings(model)]:
         print(f"rollmpc: warning: {warning}", file=sys.stderr)
     if ctx["precision"] == "float" and not args.no_float_check:
         sys.stdout.flush()

@@ -1,0 +1,52 @@
+"""Design warning at generation: a controller that does not stabilise its own model.
+
+With no bound active the MPC law is linear: the first move of theta0 = Kx x + Kr R, so
+u_0 = K x + (reference terms) with K the first nu rows of Kx.  If A + B K has an
+eigenvalue outside the unit circle, the nominal closed loop diverges wherever the bounds
+are inactive, and no solver setting or bound rescues it.  A cart-pole written as a new
+user would (N = 40, Ts = 10 ms, the terminal weight P = Q; tests/data/newuser/
+cart_pole.yaml) had spectral radius 1.007: every QP was solved OPTIMAL and the cart ran
+130 m off (README, generate's warnings).  An output cost over a short horizon does not
+guarantee stability on an unstable or slow plant; a longer horizon or a larger P does
+(there: N = 80 gave 0.993, P = 100 Q 0.995).
+
+The states of the model: the plant's, then the disturbance states of offset-free tracking,
+then the previous input of Δu weighting (model/plant.py).  The disturbance states are
+constant by construction (eigenvalue 1) and nothing feeds them, so they are left out; the
+previous input stays in (u_prev+ = u_0).  Only the nominal model is judged: not the
+observer (its own Riccati gain) nor the switching between modes.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from ..model.controller import ControllerModel
+
+# rho > 1 + this: outside the unit circle beyond the eigenvalue solver's roundoff, so a
+# marginal mode (an integrator no output weight regulates) does not warn by chance
+UNSTABLE_BEYOND = 1e-9
+
+
+def closed_loop_radius(model: ControllerModel, j: int) -> float:
+    """Spectral radius of mode ``j``'s nominal closed loop A + B K, without the
+    disturbance states."""
+    plant, qp = model.modes[j].plant, model.modes[j].qp
+    a_cl = plant.A + plant.B @ qp.Kx[:qp.nu]
+    first_disturbance = plant.nx - plant.nd - plant.n_prev
+    keep = np.r_[0:first_disturbance, first_disturbance + plant.nd:plant.nx]
+    return float(np.abs(np.linalg.eigvals(a_cl[np.ix_(keep, keep)])).max())
+
+
+def unstable_law_warnings(model: ControllerModel) -> list[str]:
+    """One line per mode whose controller, with no bound active, does not stabilise it."""
+    lines = []
+    for j, mode in enumerate(model.config.modes):
+        rho = closed_loop_radius(model, j)
+        if rho > 1.0 + UNSTABLE_BEYOND:
+            lines.append(
+                f"modes[{j}] ({mode.name}): with no bound active this controller does not "
+                f"stabilise its model (the nominal closed loop has an eigenvalue of "
+                f"magnitude {rho:.6g}, outside the unit circle), so the loop diverges "
+                "wherever the bounds are inactive; lengthen the horizon or raise the "
+                "terminal weight (weights.P)")
+    return lines
