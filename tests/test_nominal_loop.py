@@ -86,3 +86,15 @@ def test_generate_prints_it_on_stderr_and_writes_the_controller(tmp_path, capsys
     captured = capsys.readouterr()
     assert rc == 0 and (out / "cartpole.h").is_file() and "rollmpc: wrote" in captured.out
     assert captured.err == f"rollmpc: warning: {WARNING}\n"
+
+
+def test_simulate_names_it_too(tmp_path, capsys):
+    """The loop that diverges is explained where it is seen: simulate's summary and JSON."""
+    import json
+
+    out = tmp_path / "run.json"
+    rc = cli.main(["simulate", str(CART), "--precision", "double", "--steps", "50",
+                   "--json", str(out)])
+    printed = capsys.readouterr().out
+    assert rc == 0 and f"  warning: {WARNING}\n" in printed
+    assert json.loads(out.read_text())["design_warnings"] == [WARNING]

@@ -95,6 +95,13 @@ def beyond_text(y_max_beyond: dict) -> str:
     return ", ".join(f"{name} {v:.3g}" for name, v in y_max_beyond.items())
 
 
+def print_design_warnings(s: dict) -> None:
+    """generate's warning on a controller that does not stabilise its model
+    (qp/nominal_loop.py): it explains a loop that diverges with every QP solved."""
+    for warning in s["design_warnings"]:
+        print(f"  warning: {warning}")
+
+
 def print_summary(cfg, ctx: dict, s: dict) -> None:
     from ..sim.metrics import time_limit_warning
 
@@ -136,6 +143,7 @@ def print_summary(cfg, ctx: dict, s: dict) -> None:
                                  s["longest_time_limit_run"], cfg.horizon)
     if warning:
         print(f"  warning: {warning}")
+    print_design_warnings(s)
     base = s.get("baseline")
     if base is not None:
         errs = ", ".join(f"{x['settled_error']:.3g}" for x in base["segments"])
@@ -167,6 +175,7 @@ def print_flights(cfg, ctx: dict, s: dict) -> None:
                                  t["longest_time_limit_run"], cfg.horizon)
     if warning:
         print(f"  warning: {warning}")
+    print_design_warnings(s)
 
 
 def run_flights_cli(args) -> int:

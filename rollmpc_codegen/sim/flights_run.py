@@ -18,6 +18,7 @@ from pathlib import Path
 from ..config import ControllerConfig
 from ..host.build import build_host_controller
 from ..pipeline import load_model
+from ..qp.nominal_loop import unstable_law_warnings
 from .flight_plan import FlightPlan
 from .metrics import constraint_violations, longest_run, status_counts
 from .scenario import scenario_reference
@@ -79,5 +80,6 @@ def run_flights(config: str | Path, *, flights: int, seed: int = 0,
     summary = {"config": str(config), "precision": ctx["precision"],
                "solver": dict(ctx["solver"]), "sample_time": cfg.sample_time,
                "horizon": cfg.horizon, "flight_plan": plan.as_dict(), "steps": steps,
+               "design_warnings": unstable_law_warnings(model),
                "flights": entries, "totals": _totals(entries, list(cfg.outputs))}
     return FlightsRun(config=cfg, ctx=ctx, summary=summary)

@@ -15,6 +15,7 @@ from pathlib import Path
 from ..config import ControllerConfig
 from ..host.build import build_host_controller
 from ..pipeline import load_model
+from ..qp.nominal_loop import unstable_law_warnings
 from .metrics import summarize
 from .scenario import plant_mismatch, scenario_reference
 from .simulate import ClosedLoopLog, run_closed_loop, start_phase
@@ -63,6 +64,8 @@ def run_scenario(config: str | Path, *, precision: str | None = None,
                "noise_std": noise_std, "disturbance": disturbance, "mismatch": mismatch,
                "plant_mismatch": None if true_plant is None else true_plant.as_dict(),
                "seed": seed,
+               # a controller that does not stabilise its model explains a diverging loop
+               "design_warnings": unstable_law_warnings(model),
                **summarize(cfg, log)}
     base_log = None
     if baseline == "lqr":
