@@ -259,10 +259,11 @@ static chain_rb_real row_const(const chain_rb_work *ws, const chain_rb_mode_data
 }
 
 /*
- * v signed as row r is (+1: an upper bound row, -1: a lower one); v times the product of
- * two rows' signs. The product is a multiply by +-1 (exact), not a select: the working
- * set's signs are mixed, and on the host a branch on them was mispredicted often enough
- * to cost 4-5 % of thermal_zones_rate's worst QP (docs/solver.md, "Branches on the host").
+ * v signed as row r is (+1: an upper bound row, -1: a lower one), wherever a row's sign
+ * selects v or -v; v times the product of two rows' signs. The product is a multiply by
+ * +-1 (exact), not a select: the working set's signs are mixed, and on the host a branch
+ * on them was mispredicted often enough to cost 4-5 % of thermal_zones_rate's worst QP
+ * (docs/solver.md, "Branches on the host").
  */
 static inline chain_rb_real by_sign(const chain_rb_mode_data *md, int r, chain_rb_real v)
 {
@@ -1821,7 +1822,7 @@ static chain_rb_real signed_multiplier(const chain_rb_work *ws, const chain_rb_m
     for (o = 0; o < md->nt; ++o) {
         g += md->V[o * md->n + q] * ws->nu[o];
     }
-    return (md->row_sign[r] > 0) ? -g : g;
+    return -by_sign(md, r, g);
 }
 
 /*
@@ -1890,7 +1891,7 @@ static int primal_solve_bound(chain_rb_work *ws, const chain_rb_mode_data *md, i
     for (i = 0; i < nw; ++i) {
         const int r = ws->wset[i];
         const chain_rb_real beta = ws->dv[md->row_q[r]];
-        ws->z[i] = (md->row_sign[r] > 0) ? -beta : beta;
+        ws->z[i] = -by_sign(md, r, beta);
     }
     /* d_F = S^-1_FB beta - Uv_F' nu: beta (in dv) is zero outside B, the complement of
      * F = tmp[k..n); ws->rhs is free again */
@@ -2029,7 +2030,7 @@ static int primal_solve(chain_rb_work *ws, const chain_rb_mode_data *md, int nw,
      * last point, which TIME_LIMIT returns (the reference's th on entry) */
     for (i = 0; i < nw; ++i) {
         const int r = ws->wset[i], q = md->row_q[r];
-        ws->th[q] = (md->row_sign[r] > 0) ? row_const(ws, md, r) : -row_const(ws, md, r);
+        ws->th[q] = by_sign(md, r, row_const(ws, md, r));
         ws->dv[q] = ws->th[q] - ws->th0[q];
     }
     primal_order(ws, n, form, update, k, head, newest);

@@ -244,10 +244,11 @@ static uint32_t add_step_work(int nw)
 }
 
 /*
- * v signed as row r is (+1: an upper bound row, -1: a lower one); v times the product of
- * two rows' signs. The product is a multiply by +-1 (exact), not a select: the working
- * set's signs are mixed, and on the host a branch on them was mispredicted often enough
- * to cost 4-5 % of thermal_zones_rate's worst QP (docs/solver.md, "Branches on the host").
+ * v signed as row r is (+1: an upper bound row, -1: a lower one), wherever a row's sign
+ * selects v or -v; v times the product of two rows' signs. The product is a multiply by
+ * +-1 (exact), not a select: the working set's signs are mixed, and on the host a branch
+ * on them was mispredicted often enough to cost 4-5 % of thermal_zones_rate's worst QP
+ * (docs/solver.md, "Branches on the host").
  */
 static inline quadatt_real by_sign(const quadatt_mode_data *md, int r, quadatt_real v)
 {
@@ -1806,7 +1807,7 @@ static quadatt_real signed_multiplier(const quadatt_work *ws, const quadatt_mode
     for (o = 0; o < md->nt; ++o) {
         g += md->V[o * md->n + q] * ws->nu[o];
     }
-    return (md->row_sign[r] > 0) ? -g : g;
+    return -by_sign(md, r, g);
 }
 
 /*
@@ -1875,7 +1876,7 @@ static int primal_solve_bound(quadatt_work *ws, const quadatt_mode_data *md, int
     for (i = 0; i < nw; ++i) {
         const int r = ws->wset[i];
         const quadatt_real beta = ws->dv[md->row_q[r]];
-        ws->z[i] = (md->row_sign[r] > 0) ? -beta : beta;
+        ws->z[i] = -by_sign(md, r, beta);
     }
     /* d_F = S^-1_FB beta - Uv_F' nu: beta (in dv) is zero outside B, the complement of
      * F = tmp[k..n); ws->rhs is free again */
@@ -2014,7 +2015,7 @@ static int primal_solve(quadatt_work *ws, const quadatt_mode_data *md, int nw,
      * last point, which TIME_LIMIT returns (the reference's th on entry) */
     for (i = 0; i < nw; ++i) {
         const int r = ws->wset[i], q = md->row_q[r];
-        ws->th[q] = (md->row_sign[r] > 0) ? md->row_c[r] : -md->row_c[r];
+        ws->th[q] = by_sign(md, r, md->row_c[r]);
         ws->dv[q] = ws->th[q] - ws->th0[q];
     }
     primal_order(ws, n, form, update, k, head, newest);
