@@ -36,11 +36,12 @@ class DualPolishMixin:
             chol[tri:tri + i + 1] = self.H[W[i], W[:i + 1]]
             if self.slack_on[W[i]]:
                 chol[tri + i] = chol[tri + i] + self.soft_w[W[i]]
-        diag = chol[[i * (i + 3) // 2 for i in range(len(W))]].copy()
+        on_diagonal = [i * (i + 3) // 2 for i in range(len(W))]  # packed (i, i)
+        diag = chol[on_diagonal].copy()
         self.chol_rows = 0
         ok = cholesky_packed(chol, len(W))
         if ok:  # rows above a dependent one do not read it: they stand (chol_rows)
-            pivots = chol[[i * (i + 3) // 2 for i in range(len(W))]]
+            pivots = chol[on_diagonal]
             weak = np.flatnonzero(~pivot_independent(pivots * pivots, diag, self.dep_tol))
             ok = weak.size == 0
             self.chol_rows = 0 if ok else int(weak[0])
