@@ -77,6 +77,7 @@ def test_flight_tracks_within_the_bound_and_beats_the_pid(flight):
     header = paths["csv"].read_text().splitlines()[0].split(",")
     assert header[:10] == ["k", "t", "r", "y", "rho", "mode", "u_aileron", "status",
                            "iterations", "solve_us"] and "true_altitude" in header
+    assert header[10] == "work"  # the MPC's work count, after the columns that were there
 
 
 def test_flight_c_equals_the_numpy_reference_bit_for_bit(flight):

@@ -114,6 +114,7 @@ def test_simulate_warns_of_time_limited_samples(tmp_path):
     del data["solver"]  # the default budget: half of Ts at 168 MHz
     limited = tmp_path / "limited.yaml"
     limited.write_text(yaml.safe_dump(data, sort_keys=False))
+    work = {}
     for config, expect in ((limited, True), (path, False)):
         code, out, err = cli(["simulate", str(config), "--quiet", "--json",
                               str(tmp_path / "s.json"), "--build-dir", str(tmp_path / "b")])
@@ -124,6 +125,10 @@ def test_simulate_warns_of_time_limited_samples(tmp_path):
         assert len(warned) == int(expect)
         if expect:
             assert warned[0].strip().startswith(f"warning: {n} of ")
+        work[expect] = json.loads((tmp_path / "s.json").read_text())["work"]
+    # the work line says what the design needs: without a budget some samples need more
+    # than the default one, which the budgeted run's samples never exceed
+    assert work[True]["max"] <= work[True]["budget"] < work[False]["max"]
 
 
 def test_short_segments_flag_the_settled_error(tmp_path):

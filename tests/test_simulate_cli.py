@@ -67,7 +67,7 @@ def test_csv_columns_and_rows(sim_run):
     with open(paths["csv"], newline="") as fh:
         rows = list(csv.reader(fh))
     assert rows[0] == ["k", "t", "r", "y", "rho", "mode", "u_inner", "u_outer", "status",
-                       "iterations", "solve_us"]
+                       "iterations", "solve_us", "work"]
     body = rows[1:]
     assert len(body) == STEPS
     assert [int(r[0]) for r in body] == list(range(STEPS))
@@ -143,7 +143,42 @@ def test_missing_config_and_directory_target(tmp_path, capsys, monkeypatch):
 def test_csv_header_multi_output_and_no_scheduler():
     ctx = {"outputs": ["roll", "pitch"], "actuators": ["a", "b", "c"], "n_schedule": 0}
     assert csv_header(ctx) == ["k", "t", "r_roll", "r_pitch", "y_roll", "y_pitch", "mode",
-                               "u_a", "u_b", "u_c", "status", "iterations", "solve_us"]
+                               "u_a", "u_b", "u_c", "status", "iterations", "solve_us",
+                               "work"]
+
+
+def test_flight_csv_without_the_work_column_still_reads(tmp_path):
+    """`report --flight` reads the columns it replays: a CSV written before the ``work``
+    column was added (its other columns where they were) still reads; one without a column
+    it needs is refused naming it."""
+    from rollmpc_codegen.config import ConfigError
+    from rollmpc_codegen.target.flight_replay import read_flight_inputs
+
+    ctx = {"outputs": ["roll"], "actuators": ["aileron"], "n_schedule": 1}
+    old = [c for c in csv_header(ctx) if c != "work"]
+    path = tmp_path / "old.csv"
+    path.write_text(",".join(old) + "\n0,0.0,5.0,1.5,80.0,0,-2.5,0,0,1.000\n")
+    inputs = read_flight_inputs(path, ctx)
+    assert inputs.u[0, 0] == -2.5 and inputs.y[0, 0] == 1.5 and inputs.status[0] == 0
+    path.write_text(",".join(c for c in old if c != "u_aileron") + "\n0,0.0,5.0,1.5,80.0,0,0,0,1\n")
+    with pytest.raises(ConfigError, match="u_aileron"):
+        read_flight_inputs(path, ctx)
+
+
+def test_work_column_and_summary_agree(sim_run):
+    """The CSV's ``work`` (the solver's deterministic count) and the JSON's ``work``
+    statistics describe the same samples, within the config's budget; the LQR baseline
+    counts none."""
+    _, out, _, paths = sim_run
+    with open(paths["csv"], newline="") as fh:
+        work = np.array([int(r["work"]) for r in csv.DictReader(fh)])
+    s = json.loads(paths["json"].read_text())
+    w = s["work"]
+    assert w["budget"] == s["solver"]["work_budget"] > 0
+    assert w["max"] == work.max() <= w["budget"] and w["median"] == np.median(work) > 0
+    assert w["median"] <= w["p99"] <= w["max"]
+    assert f"solver work per sample (units): median {w['median']:,.0f}" in out
+    assert "work" not in s["baseline"]
 
 
 def test_segments_and_settled_window():

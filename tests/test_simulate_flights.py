@@ -53,6 +53,11 @@ def test_totals_add_up_the_flights(three_flights):
     assert t["flights_with_violations"] == sum(f["constraint_violations"]["total"] > 0
                                                for f in flights)
     assert t["status_counts"].get("time_limit", 0) > 0  # the budget binds on these flights
+    works = [f["work"] for f in flights]
+    assert t["work"]["max"] == max(w["max"] for w in works) <= t["work"]["budget"]
+    assert min(w["median"] for w in works) <= t["work"]["median"] <= max(w["median"]
+                                                                         for w in works)
+    assert t["work"]["budget"] == s["solver"]["work_budget"]
 
 
 def test_a_flight_flies_again_alone_and_as_the_reference(three_flights, tmp_path, capsys):

@@ -22,7 +22,7 @@ from ..flight.aircraft import (DEFAULT_AIRCRAFT, DEFAULT_AIRSPEED_KTS, DEFAULT_A
                                TURBULENCE)
 from .options import (add_build_dir, add_outputs, add_precision, add_quiet, check_outputs,
                       progress_of, require_plot, write_json)
-from ..sim.simulate import csv_header
+from ..sim.simulate import csv_header, work_cell
 from .simulate import solver_text
 
 OUTPUTS = ("csv", "json", "plot")
@@ -78,7 +78,7 @@ def write_flight_csv(path: str | Path, ctx: dict, log) -> Path:
             w.writerow([k, repr(float(c.t[k])), repr(float(c.r[k, 0])), repr(float(c.y[k, 0])),
                         *([repr(float(c.sched[k, 0]))] if ns else []), int(c.mode[k]),
                         repr(float(c.u[k, 0])), int(c.status[k]), int(c.iterations[k]),
-                        f"{c.solve_us[k]:.3f}", repr(float(log.rate_fed[k])),
+                        f"{c.solve_us[k]:.3f}", work_cell(c, k), repr(float(log.rate_fed[k])),
                         *(repr(float(log.aircraft[s][k])) for s in AIRCRAFT_SIGNALS)])
     return path
 

@@ -4,10 +4,12 @@
 Outputs (each optional):
 
 * ``--csv``: one row per sample, columns ``k,t,r,y,rho,mode,u_<actuator>...,status,
-  iterations,solve_us``.  With several outputs the ``r`` and ``y`` columns become
+  iterations,solve_us,work``.  With several outputs the ``r`` and ``y`` columns become
   ``r_<output>`` and ``y_<output>`` for every output (in config order); without a
   scheduler there is no ``rho`` column.  ``mode`` is the 0-based mode index (config
-  order, as in the C API); ``solve_us`` is measured inside the C around the solve.
+  order, as in the C API); ``solve_us`` is measured inside the C around the solve (host time);
+  ``work`` is the solver's deterministic work count, in the units of
+  ``solver.work_budget`` (the same on the host and the MCU: docs/solver.md, "Work budget").
 * ``--json``: the metrics of :mod:`rollmpc_codegen.sim.metrics` (with
   ``baseline`` holding the LQR's when ``--baseline lqr``).
 * ``--plot``: Fig. 2 (:mod:`rollmpc_codegen.sim.figures`).
@@ -54,7 +56,7 @@ def add_parser(sub) -> None:
 
 
 def write_csv(path: str | Path, ctx: dict, log: ClosedLoopLog) -> Path:
-    from ..sim.simulate import csv_header
+    from ..sim.simulate import csv_header, work_cell
 
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
@@ -67,7 +69,8 @@ def write_csv(path: str | Path, ctx: dict, log: ClosedLoopLog) -> Path:
                         *map(repr, map(float, log.y[k])),
                         *map(repr, map(float, log.sched[k][:ns])), int(log.mode[k]),
                         *map(repr, map(float, log.u[k])), int(log.status[k]),
-                        int(log.iterations[k]), f"{log.solve_us[k]:.3f}"])
+                        int(log.iterations[k]), f"{log.solve_us[k]:.3f}",
+                        work_cell(log, k)])
     return path
 
 
@@ -103,7 +106,7 @@ def print_design_warnings(s: dict) -> None:
 
 
 def print_summary(cfg, ctx: dict, s: dict) -> None:
-    from ..sim.metrics import time_limit_warning
+    from ..sim.metrics import time_limit_warning, work_text
 
     names = [m.name for m in cfg.modes]
     y_unit, u_unit = cfg.units.label("outputs"), cfg.units.label("actuators")
@@ -139,6 +142,8 @@ def print_summary(cfg, ctx: dict, s: dict) -> None:
         print(f"  non-optimal: {s['non_optimal']} (longest TIME_LIMIT run "
               f"{s['longest_time_limit_run']}); max iterations: {s['max_iterations']}; "
               f"solve time median {st['median']:.1f} us, max {st['max']:.1f} us")
+    if s.get("work"):
+        print(f"  solver work per sample (units): {work_text(s['work'])}")
     warning = time_limit_warning(s["status_counts"], s["samples"],
                                  s["longest_time_limit_run"], cfg.horizon)
     if warning:
@@ -154,7 +159,7 @@ def print_summary(cfg, ctx: dict, s: dict) -> None:
 
 def print_flights(cfg, ctx: dict, s: dict) -> None:
     """A line per flight, then the totals."""
-    from ..sim.metrics import time_limit_warning
+    from ..sim.metrics import time_limit_warning, work_text
 
     t, y_unit = s["totals"], cfg.units.label("outputs")
     print(f"rollmpc simulate: {t['flights']} random flights of {s['steps']} samples, "
@@ -171,6 +176,8 @@ def print_flights(cfg, ctx: dict, s: dict) -> None:
           f"({t['optimal_percent']:g} %), longest TIME_LIMIT run "
           f"{t['longest_time_limit_run']}; {t['flights_with_violations']} of {t['flights']} "
           f"flights break a hard bound{f' (y by up to {far}{y_unit})' if far else ''}")
+    if t["work"]:
+        print(f"  solver work per sample (units): {work_text(t['work'])}")
     warning = time_limit_warning(t["status_counts"], t["samples"],
                                  t["longest_time_limit_run"], cfg.horizon)
     if warning:

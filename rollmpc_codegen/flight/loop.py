@@ -67,7 +67,8 @@ class MpcRoll:
                                    preview_deg)
         info = self.host.info()
         return float(u[0]), int(status), {"mode": info["mode"], "iterations": info["iterations"],
-                                          "solve_us": info["solve_ticks"] / 1000.0}
+                                          "solve_us": info["solve_ticks"] / 1000.0,
+                                          "work": info["work"]}
 
 
 def fly(aircraft: Aircraft, trim: Trim, controller, reference: FlightReference,
@@ -103,6 +104,10 @@ def fly(aircraft: Aircraft, trim: Trim, controller, reference: FlightReference,
         log.u_raw.append(u)
         log.status[k], log.mode[k] = status, info["mode"]
         log.iterations[k], log.solve_us[k] = info["iterations"], info["solve_us"]
+        if "work" in info:  # the MPC counts its work; the PID baseline does not
+            if log.work is None:
+                log.work = np.zeros(K, np.int64)
+            log.work[k] = info["work"]
         for name, value in (("roll", s.roll_deg), ("roll_rate", s.roll_rate_dps),
                             ("airspeed", s.airspeed_kts),
                             ("airspeed_cmd", reference.airspeed_kts[k]),

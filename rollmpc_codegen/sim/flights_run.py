@@ -15,12 +15,14 @@ from __future__ import annotations
 from dataclasses import dataclass
 from pathlib import Path
 
+import numpy as np
+
 from ..config import ControllerConfig
 from ..host.build import build_host_controller
 from ..pipeline import load_model
 from ..qp.nominal_loop import unstable_law_warnings
 from .flight_plan import FlightPlan
-from .metrics import constraint_violations, longest_run, status_counts
+from .metrics import constraint_violations, longest_run, status_counts, work_stats
 from .scenario import scenario_reference
 from .simulate import run_closed_loop, start_phase
 
@@ -35,7 +37,7 @@ class FlightsRun:
     summary: dict
 
 
-def _totals(entries: list[dict], outputs: list[str]) -> dict:
+def _totals(entries: list[dict], outputs: list[str], work: dict | None) -> dict:
     counts: dict[str, int] = {}
     beyond = dict.fromkeys(outputs, 0.0)
     for e in entries:
@@ -49,7 +51,8 @@ def _totals(entries: list[dict], outputs: list[str]) -> dict:
             "longest_time_limit_run": max(e["longest_time_limit_run"] for e in entries),
             "flights_with_violations": sum(e["constraint_violations"]["total"] > 0
                                            for e in entries),
-            "y_max_beyond": {name: v for name, v in beyond.items() if v > 0}}
+            "y_max_beyond": {name: v for name, v in beyond.items() if v > 0},
+            "work": work}
 
 
 def run_flights(config: str | Path, *, flights: int, seed: int = 0,
@@ -64,7 +67,8 @@ def run_flights(config: str | Path, *, flights: int, seed: int = 0,
     plan = FlightPlan(flights=flights, seed=seed, noise_std=noise_std,
                       disturbance=disturbance, mismatch=mismatch)
     controller = build_host_controller(ctx, Path(build_dir) if build_dir else None)
-    entries = []
+    entries, works = [], []
+    budget = ctx["solver"]["work_budget"]
     for fl in plan.plan(cfg, steps):
         controller.init()
         log = run_closed_loop(cfg, controller, steps=steps, info=controller.info,
@@ -76,10 +80,14 @@ def run_flights(config: str | Path, *, flights: int, seed: int = 0,
             "plant_mismatch": None if fl.mismatch is None else fl.mismatch.as_dict(),
             "samples": int(len(log.t)), "status_counts": status_counts(log.status),
             "longest_time_limit_run": longest_run(log.status),
-            "constraint_violations": constraint_violations(cfg, log)})
+            "constraint_violations": constraint_violations(cfg, log),
+            "work": work_stats(log.work, budget)})
+        works.append(log.work)
     summary = {"config": str(config), "precision": ctx["precision"],
                "solver": dict(ctx["solver"]), "sample_time": cfg.sample_time,
                "horizon": cfg.horizon, "flight_plan": plan.as_dict(), "steps": steps,
                "design_warnings": unstable_law_warnings(model),
-               "flights": entries, "totals": _totals(entries, list(cfg.outputs))}
+               "flights": entries,
+               "totals": _totals(entries, list(cfg.outputs),
+                                 work_stats(np.concatenate(works), budget))}
     return FlightsRun(config=cfg, ctx=ctx, summary=summary)

@@ -187,6 +187,24 @@ def _stats(values: np.ndarray) -> dict:
     return {"median": float(np.median(values)), "max": float(values.max())}
 
 
+def work_stats(work: np.ndarray | None, budget: int) -> dict | None:
+    """The solver's work per sample (its deterministic count, qp/work.py) against its
+    ``budget``: what a design needs, to size ``solver.budget_share`` (the same count on
+    the host and on the MCU; a TIME_LIMIT sample's is where it stopped). None without a
+    count (a baseline)."""
+    if work is None or work.size == 0:
+        return None
+    return {"median": float(np.median(work)), "p99": int(np.percentile(work, 99, method="higher")),
+            "max": int(work.max()), "budget": int(budget)}
+
+
+def work_text(stats: dict) -> str:
+    """The summary line's figures, e.g. ``median 6,720, p99 72,627, max 334,100 of a budget
+    of 42,000``."""
+    return (f"median {stats['median']:,.0f}, p99 {stats['p99']:,.0f}, max {stats['max']:,} "
+            f"of a budget of {stats['budget']:,}")
+
+
 def status_counts(statuses) -> dict:
     """How many solves ended with each status, by its name (``optimal``, ``time_limit``...)."""
     return {STATUS_NAMES.get(int(s), str(int(s))): int(n)
@@ -220,7 +238,8 @@ def time_limit_warning(counts: dict, samples: int, longest: int = 0,
             f"work budget (TIME_LIMIT): their commands are the best point found in time, inside "
             f"the input bounds but not necessarily the output bounds.{outlasted} Give the "
             f"solver more of Ts (solver.budget_share, target.cpu_mhz) or a smaller QP "
-            f"(docs/solver.md, \"Work budget\")")
+            f"(docs/solver.md, \"Work budget\"); `rollmpc simulate` of a copy with a large "
+            f"solver.work_budget prints the work its samples need")
 
 
 def summarize(cfg: ControllerConfig, log: ClosedLoopLog) -> dict:

@@ -16,7 +16,7 @@ from ..config import ControllerConfig
 from ..host.build import build_host_controller
 from ..pipeline import load_model
 from ..qp.nominal_loop import unstable_law_warnings
-from .metrics import summarize
+from .metrics import summarize, work_stats
 from .scenario import plant_mismatch, scenario_reference
 from .simulate import ClosedLoopLog, run_closed_loop, start_phase
 
@@ -66,7 +66,8 @@ def run_scenario(config: str | Path, *, precision: str | None = None,
                "seed": seed,
                # a controller that does not stabilise its model explains a diverging loop
                "design_warnings": unstable_law_warnings(model),
-               **summarize(cfg, log)}
+               **summarize(cfg, log),
+               "work": work_stats(log.work, ctx["solver"]["work_budget"])}
     base_log = None
     if baseline == "lqr":
         from .lqr_baseline import LqrController

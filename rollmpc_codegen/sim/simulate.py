@@ -31,6 +31,7 @@ class ClosedLoopLog:
     mode: np.ndarray = None
     iterations: np.ndarray = None
     solve_us: np.ndarray = None
+    work: np.ndarray | None = None  # the solver's work units (a controller that counts them)
     slack_max: np.ndarray | None = None  # soft output bounds: the plan's largest slack
 
 
@@ -114,6 +115,10 @@ def run_closed_loop(cfg: ControllerConfig, controller, reference: np.ndarray | N
             d = info()
             log.mode[k], log.iterations[k] = d["mode"], d["iterations"]
             log.solve_us[k] = d.get("solve_ticks", 0) / 1000.0
+            if "work" in d:
+                if log.work is None:
+                    log.work = np.zeros(K, np.int64)
+                log.work[k] = d["work"]
             if "slack_max" in d:
                 if log.slack_max is None:
                     log.slack_max = np.zeros(K)
@@ -126,7 +131,8 @@ def run_closed_loop(cfg: ControllerConfig, controller, reference: np.ndarray | N
 
 def csv_header(ctx: dict) -> list[str]:
     """The columns of a closed-loop log (`rollmpc simulate --csv`, and the controller
-    columns of `rollmpc fly --csv` that `rollmpc report --flight` reads back)."""
+    columns of `rollmpc fly --csv` that `rollmpc report --flight` reads back); ``work`` is
+    last, so that the columns before it are where they were before it was added."""
     outputs = ctx["outputs"]
     if len(outputs) == 1:
         r_cols, y_cols = ["r"], ["y"]
@@ -134,4 +140,9 @@ def csv_header(ctx: dict) -> list[str]:
         r_cols, y_cols = [f"r_{o}" for o in outputs], [f"y_{o}" for o in outputs]
     rho = ["rho"] if ctx["n_schedule"] else []
     return (["k", "t", *r_cols, *y_cols, *rho, "mode"]
-            + [f"u_{a}" for a in ctx["actuators"]] + ["status", "iterations", "solve_us"])
+            + [f"u_{a}" for a in ctx["actuators"]] + ["status", "iterations", "solve_us", "work"])
+
+
+def work_cell(log: ClosedLoopLog, k: int) -> str:
+    """Sample k's ``work`` column: blank for a controller that counts none (a baseline)."""
+    return "" if log.work is None else str(int(log.work[k]))

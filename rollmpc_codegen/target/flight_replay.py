@@ -40,7 +40,8 @@ def read_flight_inputs(path: str | Path, ctx: dict, steps: int | None = None) ->
     from ..sim.simulate import csv_header
 
     key = "--flight"
-    columns = csv_header(ctx)
+    # the columns read below (a CSV written before the ``work`` column still reads)
+    columns = [c for c in csv_header(ctx) if c not in ("iterations", "solve_us", "work")]
     try:
         with open(path, newline="") as fh:
             reader = csv.DictReader(fh)
