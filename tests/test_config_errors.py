@@ -268,6 +268,9 @@ CASES = [
                  id="observer-poles-not-list"),
     pytest.param(set_("modes[0].observer.poles", [0.8, 0.8, 0.8, 0.8]),
                  "modes[0].observer.poles", "placement failed", id="observer-poles-repeated"),
+    # 1e-7 apart: placed 0.06 off (was silently accepted)
+    pytest.param(set_("modes[0].observer.poles", [0.8, 0.8000001, 0.8000002, 0.8000003]),
+                 "modes[0].observer.poles", "missed a pole", id="observer-poles-clustered"),
     pytest.param(set_("modes[0].observer.innovation_limit", 0),
                  "modes[0].observer.innovation_limit", "must be > 0", id="innovation-limit-zero"),
     pytest.param(set_("modes[1].observer.innovation_limit", -5.0),

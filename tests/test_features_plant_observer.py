@@ -154,6 +154,24 @@ def test_observer_errors_name_the_key(tmp_path, observer, key, text):
     assert err.key == f"modes[0].{key}" and text in err.problem
 
 
+def test_two_output_placement_is_exact_and_quiet(tmp_path):
+    """With two outputs scipy's robust placement warns that its iteration stopped short
+    (this config did); the poles are placed all the same, so generation is silent and the
+    observer's poles are the six asked for."""
+    import warnings
+
+    from rollmpc_codegen.model.observer import default_poles
+
+    path = edited_config(tmp_path, TANK, "placed", _tank_observer(disturbance="input"))
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        model, _ = load_model(path)
+    mode = model.modes[0]
+    A, C = mode.plant.A, mode.plant.C
+    achieved = np.sort(np.linalg.eigvals(A - mode.observer_gain @ C).real)
+    assert np.allclose(achieved, np.sort(np.real(default_poles(6))), atol=1e-12, rtol=0)
+
+
 @pytest.mark.parametrize("observer, key, text", [
     # the integrator (roll angle = G(s)/s) is a marginal mode no input noise of 0 drives
     ({"kind": "kalman", "Qn": 0, "Rn": 1}, "observer.Qn", "process noise"),

@@ -18,14 +18,20 @@ Both run in the paper's predictor form
 """
 from __future__ import annotations
 
+import warnings
+
 import control
 import numpy as np
+from scipy.optimize import linear_sum_assignment
 
 from ..config import ConfigError, ModeConfig
 from .pbh import defect_text, more_text, pbh_defects, state_names
 from .plant import DiscretePlant
 
 DEFAULT_POLE_RANGE = (0.80, 0.90)
+# how far a placed pole may land from the one asked for: placement rounds to ~1e-14 on
+# distinct poles; clustered ones can land far off (0.06 at 1e-7 apart), a different observer
+PLACEMENT_TOL = 1e-4
 
 
 def default_poles(nx: int) -> tuple[complex, ...]:
@@ -51,13 +57,25 @@ def _placement_gain(plant: DiscretePlant, mode: ModeConfig, key: str):
         if p.imag != 0 and p.conjugate() not in poles:
             raise ConfigError(pkey, f"complex pole {p} needs its conjugate")
     try:
-        K = control.place(plant.A.T, plant.C.T, list(poles))
+        with warnings.catch_warnings():
+            # with several outputs scipy's YT method iterates for the most robust gain and
+            # warns when that iteration stops short; the poles are placed all the same
+            # (checked below), so its warning would only confuse
+            warnings.filterwarnings("ignore", "Convergence was not reached", UserWarning)
+            K = control.place(plant.A.T, plant.C.T, list(poles))
     except Exception as exc:  # scipy raises ValueError for e.g. repeated poles
         raise ConfigError(pkey, f"pole placement failed: {exc}") from None
     L = np.asarray(K).T
     achieved = np.linalg.eigvals(plant.A - L @ plant.C)
     if np.max(np.abs(achieved)) >= 1.0:
         raise ConfigError(pkey, "placement produced an unstable observer")
+    # each pole asked for against the achieved one it pairs with (the closest assignment)
+    dist = np.abs(achieved[:, None] - np.array(poles, complex)[None, :])
+    off = dist[linear_sum_assignment(dist)]
+    if np.max(off) > PLACEMENT_TOL:
+        raise ConfigError(pkey, f"placement missed a pole by {np.max(off):.2g} (poles "
+                          f"{', '.join(f'{p:.4g}' for p in achieved)}): ill-conditioned; "
+                          "choose poles further apart or use kind: kalman")
     return L, poles
 
 
