@@ -268,6 +268,9 @@ CASES = [
                  id="observer-poles-not-list"),
     pytest.param(set_("modes[0].observer.poles", [0.8, 0.8, 0.8, 0.8]),
                  "modes[0].observer.poles", "placement failed", id="observer-poles-repeated"),
+    # a flat list is a diagonal: its length is the output count (was "must be a matrix")
+    pytest.param(set_("modes[0].weights.Q", [1.0, 2.0]), "modes[0].weights.Q",
+                 "must have 1 entries, got 2", id="Q-diagonal-length"),
     # 1e-7 apart: placed 0.06 off (was silently accepted)
     pytest.param(set_("modes[0].observer.poles", [0.8, 0.8000001, 0.8000002, 0.8000003]),
                  "modes[0].observer.poles", "missed a pole", id="observer-poles-clustered"),

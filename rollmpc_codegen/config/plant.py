@@ -46,7 +46,8 @@ def _tf_matrix(tf: Reader, integrator: bool):
     width = len(num_rows[0])
     for i, row in enumerate(num_rows):
         if len(row) != width or not row:
-            raise ConfigError(f"{knum}[{i}]", f"must have {width} elements (one per input)")
+            raise ConfigError(f"{knum}[{i}]", f"has {len(row)} elements where {knum}[0] has "
+                              f"{width}: every row needs one per input")
     common = not _is_rows(den_raw)
     if not common and (len(den_raw) != len(num_rows)
                        or any(not isinstance(row, list) or len(row) != width

@@ -187,8 +187,8 @@ def read_matrix(value: Any, key: str, shape: tuple[int, int] | None = None) -> n
         return read_number(value, key) * np.eye(shape[0])
     if shape is not None and isinstance(value, list) and value and not isinstance(value[0], list):
         # a flat list is a diagonal for square weights
-        if shape[0] == shape[1] and len(value) == shape[0]:
-            return np.diag(read_vector(value, key))
+        if shape[0] == shape[1]:
+            return np.diag(read_vector(value, key, shape[0]))
     if not isinstance(value, list) or not value or not all(isinstance(r, list) for r in value):
         raise ConfigError(key, "must be a matrix given as a list of rows")
     check_length(value, key)

@@ -11,6 +11,10 @@ context, the same one the MPC and its observer use):
   when the system is not square); for the UAV's integrating plant this is the roll angle
   at r with zero roll rate and u_ss = 0.  The command is
   ``u = sat(u_ss - K_j (xhat_j - x_ss))``, clipped to the mode's actuator limits.
+* **Disturbance models** (``observer.disturbance``): the disturbance states are not
+  controllable, so the gain is designed on the other states; the steady state then also
+  cancels the observer's disturbance estimate d, solving
+  ``(A - I) x_ss + B u_ss + A_d d = 0, C x_ss + C_d d = r`` (offset-free, as the MPC).
 * **No preview**: the LQR uses r_{k+1|k}, the first sample of the preview the MPC gets,
   and nothing beyond it.
 * **Same scheduler and observers as the MPC**: eq. (3) with the config's hysteresis on
@@ -31,9 +35,11 @@ from .switched_observer import SwitchedObserver
 
 @dataclass(frozen=True)
 class LqrMode:
-    K: np.ndarray  # (nu, nx) state feedback gain
-    Mx: np.ndarray  # (nx, ny): x_ss = Mx r
-    Mu: np.ndarray  # (nu, ny): u_ss = Mu r
+    K: np.ndarray  # (nu, nk) state feedback gain on the kept (controllable) states
+    keep: np.ndarray  # the state indices but the disturbance states'
+    dist: np.ndarray  # the disturbance states' indices (empty without a model)
+    Mx: np.ndarray  # (nk, ny + nd): x_ss = Mx [r; d]
+    Mu: np.ndarray  # (nu, ny + nd): u_ss = Mu [r; d]
     u_min: np.ndarray
     u_max: np.ndarray
     actuator_index: np.ndarray
@@ -42,15 +48,23 @@ class LqrMode:
 def design_lqr(model: ControllerModel, ctx: dict) -> list[LqrMode]:
     """One saturated LQR tracking law per mode (see the module docstring)."""
     modes = []
-    for mode_cfg, m in zip(model.config.modes, ctx["modes"]):
+    for mode_cfg, m, mode in zip(model.config.modes, ctx["modes"], model.modes):
         A, B, C = (np.array(m[k], float) for k in ("A", "B", "C"))
         nx, nu, ny = A.shape[0], B.shape[1], C.shape[0]
-        K, _, _ = control.dlqr(A, B, C.T @ mode_cfg.Q @ C, mode_cfg.R)
-        target = np.block([[A - np.eye(nx), B], [C, np.zeros((ny, nu))]])
-        rhs = np.vstack([np.zeros((nx, ny)), np.eye(ny)])
+        nd = mode.plant.nd  # the states [plant, d (nd), u_prev]: d sits before u_prev
+        first_d = nx - mode.plant.n_prev - nd
+        dist = np.arange(first_d, first_d + nd)
+        keep = np.setdiff1d(np.arange(nx), dist)
+        Ak, Bk, Ck = A[np.ix_(keep, keep)], B[keep], C[:, keep]
+        K, _, _ = control.dlqr(Ak, Bk, Ck.T @ mode_cfg.Q @ Ck, mode_cfg.R)
+        nk = keep.size
+        target = np.block([[Ak - np.eye(nk), Bk], [Ck, np.zeros((ny, nu))]])
+        rhs = np.block([[np.zeros((nk, ny)), -A[np.ix_(keep, dist)]],
+                        [np.eye(ny), -C[:, dist]]])
         M = np.linalg.pinv(target) @ rhs
-        modes.append(LqrMode(K=np.asarray(K, float), Mx=M[:nx], Mu=M[nx:],
-                             u_min=np.array(m["u_min"], float), u_max=np.array(m["u_max"], float),
+        modes.append(LqrMode(K=np.asarray(K, float), keep=keep, dist=dist, Mx=M[:nk],
+                             Mu=M[nk:], u_min=np.array(m["u_min"], float),
+                             u_max=np.array(m["u_max"], float),
                              actuator_index=np.array(m["actuator_index"], int)))
     return modes
 
@@ -69,8 +83,10 @@ class LqrController:
             self.observer.mode
         lq = self.modes[j]
         r1 = np.asarray(r, float)[:self.ny]  # r_{k+1|k}: no preview beyond one sample
-        x_ss, u_ss = lq.Mx @ r1, lq.Mu @ r1
-        u_mode = np.clip(u_ss - lq.K @ (self.observer.xhat[j] - x_ss), lq.u_min, lq.u_max)
+        xhat = self.observer.xhat[j]
+        target = np.concatenate((r1, xhat[lq.dist]))
+        x_ss, u_ss = lq.Mx @ target, lq.Mu @ target
+        u_mode = np.clip(u_ss - lq.K @ (xhat[lq.keep] - x_ss), lq.u_min, lq.u_max)
         u = np.zeros(self.ctx["n_actuators"])
         u[lq.actuator_index] = u_mode
         self.observer.observe(y, u)

@@ -8,10 +8,13 @@ A random flight (``rollmpc report --flights``) keeps the scenario's segment leng
 draws each level uniformly within the range the scenario spans, inside the output
 bounds (:func:`reference_range`).
 
-Plant: every mode is a *channel* (its continuous model from the config, sampled exactly
-by ZOH); all channels act together and the measured outputs are their sum -- for the UAV,
-the roll angle is the integral of the roll rates produced by both aileron pairs. The
-scheduling signal is the summed pre-integrator output (the roll rate) or the output.
+Plant: when each mode drives its own actuators, every mode is a *channel* (its continuous
+model from the config, sampled exactly by ZOH); all channels act together and the
+measured outputs are their sum -- for the UAV, the roll angle is the integral of the roll
+rates produced by both aileron pairs. When modes share an actuator they are operating
+points of one plant, and the plant is the one the scheduler picks at rest
+(:func:`plant_modes`). The scheduling signal is the summed pre-integrator output (the
+roll rate) or the output.
 With a :class:`~rollmpc_codegen.sim.mismatch.PlantMismatch` each channel is the mode's
 plant perturbed as that module says; the controller's model stays nominal.
 
@@ -26,6 +29,7 @@ import numpy as np
 from ..config import ControllerConfig
 from ..config.schema import PAPER_LEVELS_DEG, PAPER_SEGMENT_S
 from ..model.plant import discretise
+from ..reference.scheduler import scheduled_mode
 from .mismatch import PlantMismatch
 
 # the independent random streams of one seed; "noise" is numpy's default_rng(seed) itself
@@ -111,14 +115,32 @@ class Channel:
     actuators: np.ndarray  # physical actuator indices
 
 
+def plant_modes(cfg: ControllerConfig) -> list[int]:
+    """The modes whose models make the simulated plant.
+
+    Modes that each drive their own actuators are channels of one vehicle (the paper's
+    two aileron pairs, three drives of one axis): the plant is the sum of all of them.
+    Modes that share an actuator are operating points of one plant (one aileron at three
+    airspeeds): summing them would multiply its gain, so the plant is the one model the
+    scheduler picks for the signal at rest (0: the simulated plant starts at rest)."""
+    seen: set[str] = set()
+    for mode in cfg.modes:
+        if seen & set(mode.actuators):
+            sc = cfg.scheduler
+            return [scheduled_mode(sc.initial, 0.0, sc.below, sc.above, sc.band_modes)]
+        seen |= set(mode.actuators)
+    return list(range(len(cfg.modes)))
+
+
 class SimulatedPlant:
-    """Sum of the modes' channels, each sampled exactly (ZOH) at the controller rate;
-    ``mismatch`` perturbs each mode's plant (None: the config's model)."""
+    """The modes' channels (:func:`plant_modes`) summed, each sampled exactly (ZOH) at the
+    controller rate; ``mismatch`` perturbs each mode's plant (None: the config's model)."""
 
     def __init__(self, cfg: ControllerConfig, mismatch: PlantMismatch | None = None):
         self.cfg = cfg
         self.channels = []
-        for j, mode in enumerate(cfg.modes):
+        for j in plant_modes(cfg):
+            mode = cfg.modes[j]
             # the true plant: the config's model, never augmented by a disturbance model
             # (disturbance_model); a discrete state-space plant is used as given
             disc = (discretise(mode, cfg.sample_time, f"modes[{j}]") if mismatch is None
