@@ -125,6 +125,7 @@ def test_simulate_warns_of_time_limited_samples(tmp_path):
         assert len(warned) == int(expect)
         if expect:
             assert warned[0].strip().startswith(f"warning: {n} of ")
+            assert f"non-optimal: {n} (time_limit {n});" in out  # named, not only counted
         work[expect] = json.loads((tmp_path / "s.json").read_text())["work"]
     # the work line says what the design needs: without a budget some samples need more
     # than the default one, which the budgeted run's samples never exceed

@@ -139,8 +139,10 @@ def print_summary(cfg, ctx: dict, s: dict) -> None:
               f"{sb['max_beyond']:.3g}{y_unit} (not violations)")
     st = s["solve_us"]
     if st["median"] is not None:
-        print(f"  non-optimal: {s['non_optimal']} (longest TIME_LIMIT run "
-              f"{s['longest_time_limit_run']}); max iterations: {s['max_iterations']}; "
+        others = ", ".join(f"{name} {n}" for name, n in s["status_counts"].items()
+                           if name != "optimal")  # which statuses they are
+        print(f"  non-optimal: {s['non_optimal']}{f' ({others})' if others else ''}; longest "
+              f"TIME_LIMIT run {s['longest_time_limit_run']}; max iterations: {s['max_iterations']}; "
               f"solve time median {st['median']:.1f} us, max {st['max']:.1f} us")
     if s.get("work"):
         print(f"  solver work per sample (units): {work_text(s['work'])}")
