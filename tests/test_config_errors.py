@@ -267,7 +267,7 @@ CASES = [
     pytest.param(set_("modes[0].observer.poles", 0.8), "modes[0].observer.poles", "list",
                  id="observer-poles-not-list"),
     pytest.param(set_("modes[0].observer.poles", [0.8, 0.8, 0.8, 0.8]),
-                 "modes[0].observer.poles", "placement failed", id="observer-poles-repeated"),
+                 "modes[0].observer.poles", "repeated more often than the mode has outputs", id="observer-poles-repeated"),
     # a flat list is a diagonal: its length is the output count (was "must be a matrix")
     pytest.param(set_("modes[0].weights.Q", [1.0, 2.0]), "modes[0].weights.Q",
                  "must have 1 entries, got 2", id="Q-diagonal-length"),

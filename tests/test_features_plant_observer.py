@@ -109,7 +109,7 @@ def test_tf_matrix_with_integrator_and_feedthrough():
     (lambda tf: tf["num"][0].__setitem__(1, [1, 0, 0]),
      "modes[0].plant.transfer_function.num[0][1]", "feedthrough"),
     (lambda tf: tf["num"][1].append([1.0]), "modes[0].plant.transfer_function.num[1]",
-     "2 elements"),
+     "has 3 elements where modes[0].plant.transfer_function.num[0] has 2"),
 ])
 def test_tf_matrix_errors_name_the_key(tmp_path, edit, key, text):
     path = edited_config(tmp_path, TANK, "bad",
@@ -137,7 +137,7 @@ def test_kalman_gain_is_the_predictor_form_dare_gain():
 @pytest.mark.parametrize("observer, key, text", [
     ({"kind": "kalman", "Qn": 1, "Rn": [[1, 0], [0, 0]]}, "observer.Rn", "positive definite"),
     ({"kind": "kalman", "Qn": [[1, 2], [2, 1]], "Rn": 1}, "observer.Qn", "semidefinite"),
-    ({"kind": "kalman", "Qn": [1, 1, 1], "Rn": 1}, "observer.Qn", "matrix"),
+    ({"kind": "kalman", "Qn": [1, 1, 1], "Rn": 1}, "observer.Qn", "must have 2 entries"),
     ({"kind": "kalman", "Qn": 1}, "observer.Rn", "missing"),
     ({"kind": "kalman", "Qn": 1, "Rn": 1, "poles": [0.5]}, "observer.poles", "kind: poles"),
     ({"kind": "kalman", "Qn": 1, "Rn": 1, "Qd": 1}, "observer.Qd", "disturbance"),

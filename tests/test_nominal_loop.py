@@ -98,3 +98,28 @@ def test_simulate_names_it_too(tmp_path, capsys):
     printed = capsys.readouterr().out
     assert rc == 0 and f"  warning: {WARNING}\n" in printed
     assert json.loads(out.read_text())["design_warnings"] == [WARNING]
+
+
+DOUBLE_INTEGRATOR = {
+    "prefix": "di", "sample_time": 0.1, "horizon": 1, "outputs": ["y"], "actuators": ["u"],
+    "modes": [{"name": "m",
+               "plant": {"state_space": {"A": [[1, 1], [0, 1]], "B": [[0], [1]],
+                                         "C": [[1, 0]], "discrete": True}},
+               "weights": {"Q": 1, "R": 0.1, "P": 1},
+               "bounds": {"u_min": -1, "u_max": 1, "y_min": -2, "y_max": 2}}]}
+
+
+@pytest.mark.parametrize("changes, ignores", [
+    ({}, True),  # N = 1 and C B = 0: y_1 does not depend on u_0
+    ({"horizon": 3}, False),
+    ({"weights": {"Q": 0, "R": 0.1, "P": 0}}, True),  # nothing weighted
+], ids=["N=1, CB=0", "N=3", "Q=P=0"])
+def test_a_law_that_ignores_its_state_is_named(changes, ignores):
+    """A new user's double integrator at N = 1 generated u = 0 for every state, silently;
+    so did Q = P = 0. generate now says so (and not that the loop is unstable)."""
+    data = copy.deepcopy(DOUBLE_INTEGRATOR)
+    for key, value in changes.items():
+        (data["modes"][0] if key == "weights" else data)[key] = value
+    lines = unstable_law_warnings(model_of(data))
+    named = [ln for ln in lines if "does not depend on the state" in ln]
+    assert len(named) == int(ignores) and len(lines) == len(named)

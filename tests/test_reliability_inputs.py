@@ -146,3 +146,20 @@ def test_fast_math_removes_the_nan_checks(build_root, tmp_path):
     if st == NONFINITE_INPUT:
         pytest.skip("this compiler keeps the isfinite() checks under -ffast-math")
     assert st == OPTIMAL  # a NaN state reported as solved: the failure mode we forbid
+
+
+def test_measurement_beyond_the_float_range_is_nonfinite_without_a_numpy_warning(built):
+    """A diverging plant's 1e40 is +inf in float: the C says NONFINITE_INPUT and holds a
+    finite command; the cast says nothing (numpy's overflow warning leaked to the user of
+    `simulate` on an unstable design)."""
+    import warnings
+
+    _, ctx, c = built
+    c.init()
+    r = _warm_up(c)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        status, u = c.step([1e40], [0.0], r)
+    if ctx["precision"] == "float":
+        assert status == NONFINITE_INPUT
+    assert np.all(np.isfinite(u))

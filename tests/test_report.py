@@ -61,7 +61,7 @@ def test_report_json_keys_and_bit_exact(target_tools, tmp_path, build_root, caps
     assert "168 MHz" in text and "bit-exact vs host: yes" in text
     # every replayed step's status (uav_roll's own budget: no TIME_LIMIT), and no warning
     assert rep["statuses"] == {"optimal": 960} and rep["longest_time_limit_run"] == 0
-    assert "solver statuses over optimal 960 of 960 steps" in text and "warning" not in text
+    assert "solver statuses over 960 steps: optimal 960" in text and "warning" not in text
 
 
 def test_summary_names_the_longest_time_limit_run():
@@ -81,7 +81,8 @@ def test_summary_names_the_longest_time_limit_run():
            "statuses": {"optimal": 60, "time_limit": 40}, "goals": {}}
     short = summary_text(dict(rep, longest_time_limit_run=29))
     long = summary_text(dict(rep, longest_time_limit_run=30))
-    assert "of 100 steps (longest TIME_LIMIT run 29)" in short and "outlasted" not in short
+    assert "over 100 steps: optimal 60, time_limit 40 (longest TIME_LIMIT run 29)" in short
+    assert "outlasted" not in short
     assert "The longest run, 30 samples, outlasted the last plan (it covers 29)" in long
 
 
@@ -185,3 +186,19 @@ def test_kernel_charges_cover_their_cycles(target_tools):
         assert r["per_chol_op"] <= CYCLES_PER_WORK_UNIT * CHOL_UNITS_PER_OP[0] / CHOL_UNITS_PER_OP[1]
         assert r["per_tri_op"] <= CYCLES_PER_WORK_UNIT * TRI_UNITS_PER_OP[0] / TRI_UNITS_PER_OP[1]
     assert rows[-1]["per_chol_op"] < rows[0]["per_chol_op"]  # the blocked kernel pays at size
+
+
+def test_instances_equal_but_for_the_sign_of_nan():
+    """report's instance check takes a NaN for a NaN whatever its sign (x86 makes -NaN
+    where the M4F makes +NaN: "bit-exact vs host: NO (0 mismatches)" on a diverged run),
+    and any other difference as one."""
+    from rollmpc_codegen.target.replay import same_state
+
+    f4 = np.dtype(np.float32)
+    host = np.array([1.0, np.nan, 3.0], f4).tobytes() + b"\x01\x00"
+    neg = np.frombuffer(host[4:8], np.uint32)[0] | np.uint32(0x80000000)
+    target = host[:4] + np.uint32(neg).tobytes() + host[8:]
+    assert host != target and same_state(host, target, f4)
+    assert not same_state(host, target[:8] + np.float32(3.5).tobytes() + host[12:], f4)
+    assert not same_state(host, host[:-1] + b"\x02", f4)  # a byte past the last real
+    assert same_state(host, host, f4) and not same_state(host, host[:-2], f4)

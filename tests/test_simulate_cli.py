@@ -206,3 +206,24 @@ def test_constraint_violations_are_counted():
     assert {k: cv[k] for k in ("u", "inactive_actuator_nonzero", "y", "total")} == {
         "u": 1, "inactive_actuator_nonzero": 1, "y": 1, "total": 3}
     assert cv["y_max_beyond"] == {"roll": 1.0}  # 1 deg below -270
+
+
+def test_overshoot_counts_the_outputs_whose_reference_steps():
+    """A servo's speed swings while its position steps: the segment's overshoot is the
+    position's, not the speed's excursion in other units (overshoot_by_output has both)."""
+    from rollmpc_codegen.sim.metrics import _segment_metrics
+    from rollmpc_codegen.sim.simulate import ClosedLoopLog
+
+    K = 400
+    r = np.zeros((K, 2))
+    r[100:, 0] = 1.0  # theta steps at k = 100; omega's reference stays 0
+    y = r.copy()
+    y[100:, 0] += 0.05 * np.exp(-np.arange(K - 100) / 20.0)  # 0.05 past the new level
+    y[100:150, 1] = 0.9  # the speed of the move
+    log = ClosedLoopLog(t=np.arange(K) * 0.01, r=r, y=y, sched=np.zeros((K, 0)),
+                        u=np.zeros((K, 1)))
+    seg = _segment_metrics(log, 100, K, True, 10, 0.01, ("theta", "omega"))
+    assert seg["overshoot"] == pytest.approx(0.05)
+    assert seg["overshoot_by_output"]["omega"] == pytest.approx(0.9)
+    still = _segment_metrics(log, 0, 100, False, 10, 0.01, ("theta", "omega"))
+    assert still["overshoot"] == 0.0  # no step: the largest excursion, none here

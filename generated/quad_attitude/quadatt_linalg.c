@@ -348,7 +348,7 @@ int quadatt_cholesky(quadatt_real *a, int n)
  *
  * b[0..from) must already hold y (they do not depend on the rows below), so a factor
  * that kept its first rows keeps that part of its solves. Four rows at a time, then two;
- * each y_i is the sequential sum b_i - sum_{k<i} L_ik y_k divided by L_ii.
+ * each y_i is the sequential sum b_i - (sum over k < i of L_ik y_k) divided by L_ii.
  * Cost: (n^2 - n - from^2 + from) / 2 multiply-adds and n - from divisions.
  * @param l Packed lower Cholesky factor.
  * @param from First row to solve.

@@ -101,8 +101,8 @@ def summary_text(rep: dict) -> str:
                      f"{rep['work_budget']:,} units")
     counts = rep.get("statuses", {})
     longest = rep.get("longest_time_limit_run", 0)
-    lines.append("  solver statuses over " + ", ".join(f"{n} {c}" for n, c in counts.items())
-                 + f" of {sum(counts.values())} steps"
+    lines.append(f"  solver statuses over {sum(counts.values())} steps: "
+                 + ", ".join(f"{n} {c}" for n, c in counts.items())
                  + (f" (longest TIME_LIMIT run {longest})" if longest else ""))
     warning = time_limit_warning(counts, sum(counts.values()), longest, rep["horizon"])
     if warning:

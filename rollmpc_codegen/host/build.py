@@ -69,6 +69,14 @@ def compile_shared(ctx: dict, src_dir: Path, build_dir: Path, compiler: str = "g
         return publish(tmp, out, lib_name, key)
 
 
+def c_values(values, dtype) -> np.ndarray:
+    """``values`` as a contiguous array of the C's real type. In float a value beyond its
+    range becomes +-inf, which the C reports (NONFINITE_INPUT, docs/reliability.md): the
+    cast is the documented path, so numpy's overflow warning would only alarm."""
+    with np.errstate(over="ignore"):
+        return np.ascontiguousarray(values, dtype)
+
+
 @dataclass
 class HostController:
     """A loaded host build of one generated controller."""
@@ -102,15 +110,15 @@ class HostController:
         array behind it (keep it alive across the call)."""
         if sched is None or not len(sched):
             return self.ffi.NULL, None
-        arr = np.ascontiguousarray(sched, self.dtype)
+        arr = c_values(sched, self.dtype)
         return self._ptr(arr), arr
 
     def init(self) -> None:
         self._fn["init"](self.ctrl)
 
     def step(self, y, sched, r) -> tuple[int, np.ndarray]:
-        y = np.ascontiguousarray(y, self.dtype)
-        r = np.ascontiguousarray(r, self.dtype)
+        y = c_values(y, self.dtype)
+        r = c_values(r, self.dtype)
         sp, _keep = self._sched_ptr(sched)
         u = np.zeros(self.ctx["n_actuators"], self.dtype)
         status = self._fn["step"](self.ctrl, self._ptr(y), sp, self._ptr(r), self._ptr(u))
@@ -118,14 +126,14 @@ class HostController:
 
     def observe(self, y, sched, u_applied) -> int:
         """``P_observe``: track the plant under another controller's command."""
-        y = np.ascontiguousarray(y, self.dtype)
-        u = np.ascontiguousarray(u_applied, self.dtype)
+        y = c_values(y, self.dtype)
+        u = c_values(u_applied, self.dtype)
         sp, _keep = self._sched_ptr(sched)
         return self._fn["observe"](self.ctrl, self._ptr(y), sp, self._ptr(u))
 
     def solve_qp(self, mode: int, x, r) -> tuple[int, np.ndarray, int]:
-        x = np.ascontiguousarray(x, self.dtype)
-        r = np.ascontiguousarray(r, self.dtype)
+        x = c_values(x, self.dtype)
+        r = c_values(r, self.dtype)
         n = self.ctx["modes"][mode]["n"] if 0 <= mode < len(self.ctx["modes"]) else 1
         U = np.zeros(max(n, 1), self.dtype)
         its = self.ffi.new("int *")
@@ -136,7 +144,7 @@ class HostController:
         """A P_real pointer to a copy of ``values`` (None -> NULL), and the copy."""
         if values is None:
             return self.ffi.NULL, None
-        arr = np.ascontiguousarray(np.atleast_1d(values), self.dtype)
+        arr = c_values(np.atleast_1d(values), self.dtype)
         return self._ptr(arr), arr
 
     def set_bounds(self, mode: int, u_min, u_max, y_min, y_max) -> int:

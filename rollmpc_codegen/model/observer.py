@@ -64,7 +64,11 @@ def _placement_gain(plant: DiscretePlant, mode: ModeConfig, key: str):
             warnings.filterwarnings("ignore", "Convergence was not reached", UserWarning)
             K = control.place(plant.A.T, plant.C.T, list(poles))
     except Exception as exc:  # scipy raises ValueError for e.g. repeated poles
-        raise ConfigError(pkey, f"pole placement failed: {exc}") from None
+        why = str(exc)
+        if "repeated more than rank(B)" in why:  # scipy's B is C' here: say it in our terms
+            why = (f"a pole is repeated more often than the mode has outputs "
+                   f"({plant.ny}); make the poles distinct")
+        raise ConfigError(pkey, f"pole placement failed: {why}") from None
     L = np.asarray(K).T
     achieved = np.linalg.eigvals(plant.A - L @ plant.C)
     if np.max(np.abs(achieved)) >= 1.0:

@@ -25,6 +25,9 @@ from ..model.controller import ControllerModel
 # rho > 1 + this: outside the unit circle beyond the eigenvalue solver's roundoff, so a
 # marginal mode (an integrator no output weight regulates) does not warn by chance
 UNSTABLE_BEYOND = 1e-9
+# a state-feedback gain no larger than this everywhere is zero: the exact zeros of C B = 0
+# or Q = P = 0 survive condensing as zeros or roundoff of this size
+ZERO_GAIN = 1e-15
 
 
 def closed_loop_radius(model: ControllerModel, j: int) -> float:
@@ -37,10 +40,27 @@ def closed_loop_radius(model: ControllerModel, j: int) -> float:
     return float(np.abs(np.linalg.eigvals(a_cl[np.ix_(keep, keep)])).max())
 
 
+def state_feedback_is_zero(model: ControllerModel, j: int) -> bool:
+    """Mode ``j``'s first move does not depend on the state: no weighted output responds
+    to the inputs within the horizon (a horizon shorter than the plant's delay from input
+    to output, or Q = P = 0), so the controller commands the same whatever the plant does
+    (found on a new user's double integrator at N = 1, where C B = 0)."""
+    qp = model.modes[j].qp
+    return not np.any(np.abs(qp.Kx[:qp.nu]) > ZERO_GAIN)
+
+
 def unstable_law_warnings(model: ControllerModel) -> list[str]:
-    """One line per mode whose controller, with no bound active, does not stabilise it."""
+    """One line per mode whose controller, with no bound active, does not stabilise it,
+    or does not read its state at all."""
     lines = []
     for j, mode in enumerate(model.config.modes):
+        if state_feedback_is_zero(model, j):
+            lines.append(
+                f"modes[{j}] ({mode.name}): the first move does not depend on the state: no "
+                "weighted output responds to the inputs within the horizon, so the "
+                "controller ignores the plant; lengthen the horizon past the plant's delay "
+                "from input to output, or give weights.Q / weights.P a nonzero weight")
+            continue
         rho = closed_loop_radius(model, j)
         if rho > 1.0 + UNSTABLE_BEYOND:
             lines.append(

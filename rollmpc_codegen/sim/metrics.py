@@ -96,6 +96,7 @@ def _segment_metrics(log: ClosedLoopLog, start: int, end: int, last: bool, horiz
     err = np.abs(log.y[lo:hi] - log.r[lo:hi]).max(axis=0)
     cut = end if last else max(start + 1, end - horizon)
     overs, pcts, settle = [], [], []
+    stepped = [r_new[o] != r_old[o] for o in range(len(outputs))]
     for o in range(len(outputs)):
         step = r_new[o] - r_old[o]
         dev = log.y[start:cut, o] - r_new[o]
@@ -116,7 +117,10 @@ def _segment_metrics(log: ClosedLoopLog, start: int, end: int, last: bool, horiz
            "reference": float(r_new[0]) if len(outputs) == 1 else r_new.tolist(),
            "step": float(r_new[0] - r_old[0]) if len(outputs) == 1 else (r_new - r_old).tolist(),
            "settled_error": float(err.max()),
-           "overshoot": float(max(overs)),
+           # over the outputs whose reference steps here: another output's excursion is
+           # in its own units (overshoot_by_output has it)
+           "overshoot": float(max(o for o, s in zip(overs, stepped) if s)
+                              if any(stepped) else max(overs)),
            "overshoot_pct": pcts[0] if len(outputs) == 1 else pcts,
            "settling_time_s": (settle[0] if len(outputs) == 1 else
                                (None if None in settle else max(settle)))}
