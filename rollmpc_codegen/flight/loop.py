@@ -104,10 +104,7 @@ def fly(aircraft: Aircraft, trim: Trim, controller, reference: FlightReference,
         log.u_raw.append(u)
         log.status[k], log.mode[k] = status, info["mode"]
         log.iterations[k], log.solve_us[k] = info["iterations"], info["solve_us"]
-        if "work" in info:  # the MPC counts its work; the PID baseline does not
-            if log.work is None:
-                log.work = np.zeros(K, np.int64)
-            log.work[k] = info["work"]
+        log.record_work(k, info)  # the MPC counts its work; the PID baseline does not
         for name, value in (("roll", s.roll_deg), ("roll_rate", s.roll_rate_dps),
                             ("airspeed", s.airspeed_kts),
                             ("airspeed_cmd", reference.airspeed_kts[k]),

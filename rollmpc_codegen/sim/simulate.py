@@ -34,6 +34,13 @@ class ClosedLoopLog:
     work: np.ndarray | None = None  # the solver's work units (a controller that counts them)
     slack_max: np.ndarray | None = None  # soft output bounds: the plan's largest slack
 
+    def record_work(self, k: int, info: dict) -> None:
+        """Sample k's work count from the controller's ``info``, when it counts one."""
+        if "work" in info:
+            if self.work is None:
+                self.work = np.zeros(len(self.t), np.int64)
+            self.work[k] = info["work"]
+
 
 def progress_printer(total: int, label: str, stream=None):
     """A callback(k) that prints a progress bar to stderr: redrawn in place about every 5 %
@@ -115,10 +122,7 @@ def run_closed_loop(cfg: ControllerConfig, controller, reference: np.ndarray | N
             d = info()
             log.mode[k], log.iterations[k] = d["mode"], d["iterations"]
             log.solve_us[k] = d.get("solve_ticks", 0) / 1000.0
-            if "work" in d:
-                if log.work is None:
-                    log.work = np.zeros(K, np.int64)
-                log.work[k] = d["work"]
+            log.record_work(k, d)
             if "slack_max" in d:
                 if log.slack_max is None:
                     log.slack_max = np.zeros(K)
