@@ -142,8 +142,10 @@ def print_summary(cfg, ctx: dict, s: dict) -> None:
         others = ", ".join(f"{name} {n}" for name, n in s["status_counts"].items()
                            if name != "optimal")  # which statuses they are
         print(f"  non-optimal: {s['non_optimal']}{f' ({others})' if others else ''}; longest "
-              f"TIME_LIMIT run {s['longest_time_limit_run']}; max iterations: {s['max_iterations']}; "
-              f"solve time median {st['median']:.1f} us, max {st['max']:.1f} us")
+              f"TIME_LIMIT run {s['longest_time_limit_run']}; "
+              f"max iterations: {s['max_iterations']}; "
+              f"host solve time median {st['median']:.1f} us, max {st['max']:.1f} us (wall clock: "
+              "preemption included; the work line and `rollmpc report` are deterministic)")
     if s.get("work"):
         print(f"  solver work per sample (units): {work_text(s['work'])}")
     warning = time_limit_warning(s["status_counts"], s["samples"],
