@@ -11,6 +11,15 @@
 #if ROLLMPC_N_OUTPUTS != 1 || ROLLMPC_N_SCHEDULE > 1
 #error "rollctl expects a single-output roll controller (roll angle; roll rate schedule)"
 #endif
+#if ROLLMPC_N_SCHEDULE == 1
+#if ROLLMPC_SCHEDULE_SIGNAL_ROLL_RATE != 1
+#error "rollctl feeds the roll rate as the scheduling signal: this controller is scheduled on another signal"
+#endif
+#endif
+#if ROLLCTL_RATE_HZ * ROLLMPC_SAMPLE_PERIOD_US + ROLLMPC_SAMPLE_PERIOD_US / 2u < 1000000u \
+    || ROLLCTL_RATE_HZ * ROLLMPC_SAMPLE_PERIOD_US > 1000000u + ROLLMPC_SAMPLE_PERIOD_US / 2u
+#error "ROLLCTL_RATE_HZ is not 1 / the controller's sample time (ROLLMPC_SAMPLE_PERIOD_US)"
+#endif
 
 static rollmpc_real clamp_servo(rollmpc_real v)
 {

@@ -23,8 +23,10 @@
 extern "C" {
 #endif
 
-/** Control rate: must equal 1 / sample_time of the generated controller. */
-#define ROLLCTL_RATE_HZ 100
+/** Control rate: 1 / sample_time of the generated controller (rollctl.c checks an override). */
+#ifndef ROLLCTL_RATE_HZ
+#define ROLLCTL_RATE_HZ (1000000u / ROLLMPC_SAMPLE_PERIOD_US)
+#endif
 
 /** Servo travel in degrees (the actuator bounds of the YAML config, +/-). */
 #ifndef ROLLCTL_SERVO_LIMIT_DEG

@@ -39,10 +39,13 @@ class Status(IntEnum):
                   "estimate (sweeps), clamped")
     NONFINITE_INPUT = (4, "non-finite input; last command held",
                        "NaN/Inf in `y`, `sched`, `r` (or `x`)",
-                       "last command held (`P_solve_qp`: 0)")
+                       "last command held, made the active mode's: its actuators clamped "
+                       "into its input bounds, the others 0 (`P_observe` may have switched the "
+                       "mode since) (`P_solve_qp`: 0)")
     NUMERICAL = (5, "non-finite intermediate result; safe fallback", "a non-finite intermediate",
                  "clamped unconstrained solution, else 0")
-    BAD_ARGUMENT = (6, "bad argument", "NULL pointer or bad mode index", "last command held")
+    BAD_ARGUMENT = (6, "bad argument", "NULL pointer or bad mode index",
+                    "last command held, as for status 4")
     BAD_BOUNDS = (7, "bad bounds; nothing changed", "`P_set_bounds` only: NaN, a non-finite "
                   "configured bound, lower >= upper, or input bounds without 0", "nothing changed",
                   True)

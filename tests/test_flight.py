@@ -183,6 +183,19 @@ def test_fly_bad_input_is_one_line_exit_2(args, word, build_root):
     assert rc == 2 and stderr.count("\n") == 1 and word in stderr, stderr
 
 
+@needs_jsbsim
+def test_fly_refuses_bounds_past_the_aircraft_travel(tmp_path, build_root):
+    """u_max past the C172's aileron travel is refused before the flight, naming the key
+    (it stopped 40 s into a flight with a traceback-like CommandError, exit 1)."""
+    data = yaml.safe_load(C172.read_text())
+    data["modes"][1]["bounds"]["u_max"] = 15.0  # the travel ends at 14.997 deg
+    path = tmp_path / "wide.yaml"
+    path.write_text(yaml.safe_dump(data, sort_keys=False))
+    rc, _, stderr = cli(["fly", str(path), "--quiet", "--build-dir", str(build_root)])
+    assert rc == 2 and stderr.count("\n") == 1, stderr
+    assert "modes[1].bounds.u_max: 15 deg is past the c172p's aileron travel" in stderr
+
+
 def test_fly_without_jsbsim_says_how_to_install(monkeypatch):
     from rollmpc_codegen import extras
 

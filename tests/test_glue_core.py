@@ -13,6 +13,7 @@ import pytest
 import yaml
 
 from conftest import ROOT, UAV, require_tool, variant_config
+from rollmpc_codegen.status import NONFINITE_INPUT
 from glue_harness import (ENGAGED, FROZEN, GLUE, LOCKED_OUT, LOCKOUT, NO_PARAMS, NONFINITE, SOLVER,
                           STALE_CMD, STALE_RATE, STALE_ROLL, WARMING, Faults, Glue,
                           build_glue, closed_loop)
@@ -62,6 +63,28 @@ def test_observe_is_bit_exact_against_the_reference(uav):
             ref_status, u_ref = ref.step(y, s, r)
             assert status == ref_status and u_c.tobytes() == u_ref.astype(c.dtype).tobytes(), k
     assert c.info()["mode_switches"] == ref.mode_switches > 0
+
+
+def test_a_held_command_is_the_active_modes_after_observe_switches(uav):
+    """P_observe() switches to the outer pair; the next sample's measurement is NaN, so
+    P_step holds its last command, which drove the inner pair at its limit: the held
+    command is the outer mode's (the inner pair 0, the outer within its bounds), as the
+    README promises of every command, C and reference bit for bit (a firmware engineer's
+    test found the inner pair held at 15 deg by a mode that does not drive it)."""
+    c, ref = uav.fresh_c(), uav.reference()
+    r = np.full(uav.ctx["horizon"], -40.0)
+    for k in range(5):  # a -40 deg demand from rest: the inner pair saturates
+        _, u = c.step([-0.1 * k], [0.0], r)
+        ref.step([-0.1 * k], [0.0], r)
+    assert u[0] != 0 and u[1] == 0
+    assert c.observe([-0.5], [40.0], u) == ref.observe([-0.5], [40.0], u)
+    assert ref.mode == 1  # a 40 deg/s roll rate: the outer pair's band
+    status, held = c.step([np.nan], [40.0], r)
+    ref_status, ref_held = ref.step([np.nan], [40.0], r)
+    lo, hi = (np.asarray(uav.ctx["modes"][1][k], float) for k in ("u_min", "u_max"))
+    assert status == ref_status == NONFINITE_INPUT
+    assert held[0] == 0 and lo[0] <= held[1] <= hi[0]
+    assert held.tobytes() == ref_held.astype(c.dtype).tobytes()
 
 
 def test_no_parameters_no_output(glue_lib):
@@ -294,3 +317,36 @@ def test_glue_builds_for_cortex_m4f_with_the_dwt_timestamp(tmp_path):
     dump = subprocess.run(["arm-none-eabi-objdump", "-d", str(tmp_path / "rollmpc_controller.o")],
                           capture_output=True, text=True).stdout
     assert ".word\t0xe0001000" in dump
+
+
+@pytest.mark.parametrize("tree, defines, error", [
+    # c172_roll is scheduled on the airspeed; the glue feeds the roll rate
+    ("c172_roll_f32", ["-DROLLGLUE_PREFIX=c172p_roll", "-DROLLGLUE_PREFIX_UPPER=C172P_ROLL",
+                       '-DROLLGLUE_HEADER="c172p_roll.h"'], "scheduled on another signal"),
+    # the UAV runs at 10 ms: a 50 Hz task would run its model at the wrong sample time
+    ("uav_roll_f32", ["-DROLLGLUE_SAMPLE_HZ=50u"], "not 1 / the controller's sample time"),
+], ids=["airspeed schedule", "50 Hz for a 10 ms controller"])
+def test_the_glue_refuses_a_controller_it_would_feed_wrongly(tree, defines, error, tmp_path):
+    """A firmware engineer's airspeed-scheduled design compiled silently against the glue,
+    which feeds the roll rate as its schedule, and a 20 ms design against its fixed
+    100 Hz: both now stop at compile time, naming why."""
+    from glue_harness import GLUE, WARNINGS
+
+    gen = ROOT / "generated" / tree
+    cmd = ["gcc", "-c", *WARNINGS, *defines, f"-I{gen}", f"-I{GLUE}", "-o",
+           str(tmp_path / "g.o"), str(GLUE / "rollglue.c")]
+    proc = subprocess.run(cmd, capture_output=True, text=True)
+    assert proc.returncode != 0 and error in proc.stderr, proc.stderr
+
+
+def test_the_glue_rate_defaults_to_the_controller_sample_time(tmp_path):
+    """Without ROLLGLUE_SAMPLE_HZ the glue runs at 1 / the controller's sample time."""
+    from glue_harness import GLUE, WARNINGS
+
+    gen = ROOT / "generated" / "uav_roll_f32"
+    probe = tmp_path / "rate.c"
+    probe.write_text('#include "rollglue.h"\nunsigned rate(void) { return ROLLGLUE_SAMPLE_HZ; }\n'
+                     "#if ROLLGLUE_SAMPLE_HZ != 100u\n#error wrong rate\n#endif\n")
+    proc = subprocess.run(["gcc", "-c", *WARNINGS, f"-I{gen}", f"-I{GLUE}", "-o",
+                           str(tmp_path / "r.o"), str(probe)], capture_output=True, text=True)
+    assert proc.returncode == 0, proc.stderr

@@ -227,3 +227,19 @@ def test_overshoot_counts_the_outputs_whose_reference_steps():
     assert seg["overshoot_by_output"]["omega"] == pytest.approx(0.9)
     still = _segment_metrics(log, 0, 100, False, 10, 0.01, ("theta", "omega"))
     assert still["overshoot"] == 0.0  # no step: the largest excursion, none here
+
+
+def test_a_closed_pipe_ends_quietly(monkeypatch, capsys):
+    """`rollmpc simulate ... | head -1`: the reader leaves; the tool stops with 141 (128 +
+    SIGPIPE) and no 'error: BrokenPipeError' line."""
+    from rollmpc_codegen.cli import main as cli_main
+
+    def closed(_args):
+        raise BrokenPipeError(32, "Broken pipe")  # what print() raises once head has left
+
+    args = cli_main.parser().parse_args(["simulate", str(UAV)])
+    args.func = closed
+    parsed = type("Parsed", (), {"parse_args": lambda self, argv: args})()
+    monkeypatch.setattr(cli_main, "parser", lambda: parsed)
+    assert cli_main.main(["simulate", str(UAV)]) == 141
+    assert capsys.readouterr().err == ""

@@ -8,6 +8,7 @@
  * Out: "u_inner u_outer status failsafe_events mode" after every sample, u as hex floats
  *      (%a, exact), flushed, so a test can drive the loop through a pipe.
  */
+#include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include "rollctl_hal.h"
@@ -46,7 +47,7 @@ int rollctl_hal_wait_tick(void)
     imu_roll = v[0];
     imu_rate = v[1];
     roll_cmd = v[2];
-    imu_ok = (int)v[3] != 0;
+    imu_ok = fabs(v[3]) >= 1; /* (int)v[3] != 0 without the cast: NaN is UB there, invalid here */
     for (preview_n = 0; preview_n < ROLLMPC_HORIZON; ++preview_n) {
         const double x = strtod(p, &end);
         if (end == p) {

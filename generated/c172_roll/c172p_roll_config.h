@@ -27,6 +27,11 @@ typedef double c172p_roll_real;
 typedef char c172p_roll_double_tree_built_with_single_precision_constants[
     ((long)16777217.0 == 16777217L) ? 1 : -1];
 
+/** Sample time in microseconds (rounded): a task must call c172p_roll_step() at this period. */
+#define C172P_ROLL_SAMPLE_PERIOD_US 10000u
+/** The scheduling signal by name, for glue code that feeds one signal to check it. */
+#define C172P_ROLL_SCHEDULE_SIGNAL_AIRSPEED 1
+
 /* Problem sizes (maxima over the modes size the work arrays). */
 #define C172P_ROLL_HORIZON 100
 #define C172P_ROLL_N_MODES 3

@@ -193,6 +193,32 @@ static void follow_schedule(c172p_roll_ctrl *c, const c172p_roll_real *sched)
     }
 }
 
+/*
+ * The held command made the active mode's. c172p_roll_observe() can switch the mode after
+ * the last c172p_roll_step(), leaving in u_last the other mode's actuators or values past
+ * this mode's input bounds: this mode's actuators keep their last values clamped into its
+ * bounds and every other actuator gets 0, so that a held command obeys the same rules as
+ * a solved one (an identity after a c172p_roll_step() of this mode).
+ */
+static void hold_for_mode(c172p_roll_ctrl *c)
+{
+    const c172p_roll_mode_data *md = &c172p_roll_modes[c->mode];
+    c172p_roll_real held[C172P_ROLL_N_ACTUATORS];
+    int i;
+    for (i = 0; i < C172P_ROLL_N_ACTUATORS; ++i) {
+        held[i] = R_(0.0);
+    }
+    for (i = 0; i < md->nu; ++i) {
+        const c172p_roll_real lo = md->u_min[i];
+        const c172p_roll_real hi = md->u_max[i];
+        const c172p_roll_real v = c->u_last[md->actuator_index[i]];
+        held[md->actuator_index[i]] = (v < lo) ? lo : ((v > hi) ? hi : v);
+    }
+    for (i = 0; i < C172P_ROLL_N_ACTUATORS; ++i) {
+        c->u_last[i] = held[i];
+    }
+}
+
 int c172p_roll_step(c172p_roll_ctrl *c, const c172p_roll_real *y, const c172p_roll_real *sched,
     const c172p_roll_real *r, c172p_roll_real *u)
 {
@@ -204,6 +230,7 @@ int c172p_roll_step(c172p_roll_ctrl *c, const c172p_roll_real *y, const c172p_ro
     }
     inputs_ok = y != 0 && r != 0 && (C172P_ROLL_N_SCHEDULE == 0 || sched != 0);
     if (!inputs_ok) {
+        hold_for_mode(c);
         for (i = 0; i < C172P_ROLL_N_ACTUATORS; ++i) {
             u[i] = c->u_last[i];
         }
@@ -212,6 +239,7 @@ int c172p_roll_step(c172p_roll_ctrl *c, const c172p_roll_real *y, const c172p_ro
     }
     if (!c172p_roll_all_finite(y, C172P_ROLL_N_OUTPUTS) || !c172p_roll_all_finite(sched, C172P_ROLL_N_SCHEDULE)
         || !c172p_roll_all_finite(r, C172P_ROLL_HORIZON * C172P_ROLL_N_OUTPUTS)) {
+        hold_for_mode(c);
         for (i = 0; i < C172P_ROLL_N_ACTUATORS; ++i) {
             u[i] = c->u_last[i];
         }

@@ -18,6 +18,11 @@ typedef float c172p_roll_real;
 /** Largest dual multiplier before the QP is declared infeasible. */
 #define C172P_ROLL_LAMBDA_LIMIT 1.0e30f
 
+/** Sample time in microseconds (rounded): a task must call c172p_roll_step() at this period. */
+#define C172P_ROLL_SAMPLE_PERIOD_US 10000u
+/** The scheduling signal by name, for glue code that feeds one signal to check it. */
+#define C172P_ROLL_SCHEDULE_SIGNAL_AIRSPEED 1
+
 /* Problem sizes (maxima over the modes size the work arrays). */
 #define C172P_ROLL_HORIZON 100
 #define C172P_ROLL_N_MODES 3

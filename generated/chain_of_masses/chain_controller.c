@@ -145,6 +145,32 @@ static void follow_schedule(chain_ctrl *c, const chain_real *sched)
     (void)sched;
 }
 
+/*
+ * The held command made the active mode's. chain_observe() can switch the mode after
+ * the last chain_step(), leaving in u_last the other mode's actuators or values past
+ * this mode's input bounds: this mode's actuators keep their last values clamped into its
+ * bounds and every other actuator gets 0, so that a held command obeys the same rules as
+ * a solved one (an identity after a chain_step() of this mode).
+ */
+static void hold_for_mode(chain_ctrl *c)
+{
+    const chain_mode_data *md = &chain_modes[c->mode];
+    chain_real held[CHAIN_N_ACTUATORS];
+    int i;
+    for (i = 0; i < CHAIN_N_ACTUATORS; ++i) {
+        held[i] = R_(0.0);
+    }
+    for (i = 0; i < md->nu; ++i) {
+        const chain_real lo = md->u_min[i];
+        const chain_real hi = md->u_max[i];
+        const chain_real v = c->u_last[md->actuator_index[i]];
+        held[md->actuator_index[i]] = (v < lo) ? lo : ((v > hi) ? hi : v);
+    }
+    for (i = 0; i < CHAIN_N_ACTUATORS; ++i) {
+        c->u_last[i] = held[i];
+    }
+}
+
 int chain_step(chain_ctrl *c, const chain_real *y, const chain_real *sched,
     const chain_real *r, chain_real *u)
 {
@@ -156,6 +182,7 @@ int chain_step(chain_ctrl *c, const chain_real *y, const chain_real *sched,
     }
     inputs_ok = y != 0 && r != 0 && (CHAIN_N_SCHEDULE == 0 || sched != 0);
     if (!inputs_ok) {
+        hold_for_mode(c);
         for (i = 0; i < CHAIN_N_ACTUATORS; ++i) {
             u[i] = c->u_last[i];
         }
@@ -164,6 +191,7 @@ int chain_step(chain_ctrl *c, const chain_real *y, const chain_real *sched,
     }
     if (!chain_all_finite(y, CHAIN_N_OUTPUTS) || !chain_all_finite(sched, CHAIN_N_SCHEDULE)
         || !chain_all_finite(r, CHAIN_HORIZON * CHAIN_N_OUTPUTS)) {
+        hold_for_mode(c);
         for (i = 0; i < CHAIN_N_ACTUATORS; ++i) {
             u[i] = c->u_last[i];
         }

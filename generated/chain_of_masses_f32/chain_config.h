@@ -18,6 +18,9 @@ typedef float chain_real;
 /** Largest dual multiplier before the QP is declared infeasible. */
 #define CHAIN_LAMBDA_LIMIT 1.0e30f
 
+/** Sample time in microseconds (rounded): a task must call chain_step() at this period. */
+#define CHAIN_SAMPLE_PERIOD_US 500000u
+
 /* Problem sizes (maxima over the modes size the work arrays). */
 #define CHAIN_HORIZON 10
 #define CHAIN_N_MODES 1

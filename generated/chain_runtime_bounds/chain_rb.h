@@ -36,12 +36,13 @@ typedef enum {
      *  diverged. Command: the unconstrained optimum (active set) or the best estimate
      *  (sweeps), clamped. */
     CHAIN_RB_INFEASIBLE = 3,
-    /** NaN/Inf in `y`, `sched`, `r` (or `x`). Command: last command held
-     *  (`chain_rb_solve_qp`: 0). */
+    /** NaN/Inf in `y`, `sched`, `r` (or `x`). Command: last command held, made the active
+     *  mode's: its actuators clamped into its input bounds, the others 0
+     *  (`chain_rb_observe` may have switched the mode since) (`chain_rb_solve_qp`: 0). */
     CHAIN_RB_NONFINITE_INPUT = 4,
     /** A non-finite intermediate. Command: clamped unconstrained solution, else 0. */
     CHAIN_RB_NUMERICAL = 5,
-    /** NULL pointer or bad mode index. Command: last command held. */
+    /** NULL pointer or bad mode index. Command: last command held, as for status 4. */
     CHAIN_RB_BAD_ARGUMENT = 6,
     /** `chain_rb_set_bounds` only: NaN, a non-finite configured bound, lower >= upper, or
      *  input bounds without 0. Command: nothing changed. */

@@ -27,6 +27,9 @@ typedef double chain_rb_real;
 typedef char chain_rb_double_tree_built_with_single_precision_constants[
     ((long)16777217.0 == 16777217L) ? 1 : -1];
 
+/** Sample time in microseconds (rounded): a task must call chain_rb_step() at this period. */
+#define CHAIN_RB_SAMPLE_PERIOD_US 500000u
+
 /* Problem sizes (maxima over the modes size the work arrays). */
 #define CHAIN_RB_HORIZON 10
 #define CHAIN_RB_N_MODES 1

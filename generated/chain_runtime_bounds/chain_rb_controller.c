@@ -156,6 +156,33 @@ static void follow_schedule(chain_rb_ctrl *c, const chain_rb_real *sched)
     (void)sched;
 }
 
+/*
+ * The held command made the active mode's. chain_rb_observe() can switch the mode after
+ * the last chain_rb_step(), leaving in u_last the other mode's actuators or values past
+ * this mode's input bounds: this mode's actuators keep their last values clamped into its
+ * bounds and every other actuator gets 0, so that a held command obeys the same rules as
+ * a solved one (an identity after a chain_rb_step() of this mode).
+ */
+static void hold_for_mode(chain_rb_ctrl *c)
+{
+    const chain_rb_mode_data *md = &chain_rb_modes[c->mode];
+    const chain_rb_bounds *b = &c->bounds[c->mode];
+    chain_rb_real held[CHAIN_RB_N_ACTUATORS];
+    int i;
+    for (i = 0; i < CHAIN_RB_N_ACTUATORS; ++i) {
+        held[i] = R_(0.0);
+    }
+    for (i = 0; i < md->nu; ++i) {
+        const chain_rb_real lo = b->u_min[i];
+        const chain_rb_real hi = b->u_max[i];
+        const chain_rb_real v = c->u_last[md->actuator_index[i]];
+        held[md->actuator_index[i]] = (v < lo) ? lo : ((v > hi) ? hi : v);
+    }
+    for (i = 0; i < CHAIN_RB_N_ACTUATORS; ++i) {
+        c->u_last[i] = held[i];
+    }
+}
+
 int chain_rb_step(chain_rb_ctrl *c, const chain_rb_real *y, const chain_rb_real *sched,
     const chain_rb_real *r, chain_rb_real *u)
 {
@@ -167,6 +194,7 @@ int chain_rb_step(chain_rb_ctrl *c, const chain_rb_real *y, const chain_rb_real 
     }
     inputs_ok = y != 0 && r != 0 && (CHAIN_RB_N_SCHEDULE == 0 || sched != 0);
     if (!inputs_ok) {
+        hold_for_mode(c);
         for (i = 0; i < CHAIN_RB_N_ACTUATORS; ++i) {
             u[i] = c->u_last[i];
         }
@@ -175,6 +203,7 @@ int chain_rb_step(chain_rb_ctrl *c, const chain_rb_real *y, const chain_rb_real 
     }
     if (!chain_rb_all_finite(y, CHAIN_RB_N_OUTPUTS) || !chain_rb_all_finite(sched, CHAIN_RB_N_SCHEDULE)
         || !chain_rb_all_finite(r, CHAIN_RB_HORIZON * CHAIN_RB_N_OUTPUTS)) {
+        hold_for_mode(c);
         for (i = 0; i < CHAIN_RB_N_ACTUATORS; ++i) {
             u[i] = c->u_last[i];
         }
@@ -318,11 +347,8 @@ int chain_rb_set_bounds(chain_rb_ctrl *c, int mode, const chain_rb_real *u_min,
         b->y_min[i] = y_min[i];
         b->y_max[i] = y_max[i];
     }
-    if (mode == c->mode) { /* the held command obeys the new input bounds too */
-        for (i = 0; i < md->nu; ++i) {
-            chain_rb_real *v = &c->u_last[md->actuator_index[i]];
-            *v = (*v < b->u_min[i]) ? b->u_min[i] : ((*v > b->u_max[i]) ? b->u_max[i] : *v);
-        }
+    if (mode == c->mode) {
+        hold_for_mode(c); /* the held command obeys the new input bounds too */
     }
     return CHAIN_RB_OPTIMAL;
 }

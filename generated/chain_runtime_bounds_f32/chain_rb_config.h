@@ -18,6 +18,9 @@ typedef float chain_rb_real;
 /** Largest dual multiplier before the QP is declared infeasible. */
 #define CHAIN_RB_LAMBDA_LIMIT 1.0e30f
 
+/** Sample time in microseconds (rounded): a task must call chain_rb_step() at this period. */
+#define CHAIN_RB_SAMPLE_PERIOD_US 500000u
+
 /* Problem sizes (maxima over the modes size the work arrays). */
 #define CHAIN_RB_HORIZON 10
 #define CHAIN_RB_N_MODES 1

@@ -27,6 +27,9 @@ typedef double chain_soft_real;
 typedef char chain_soft_double_tree_built_with_single_precision_constants[
     ((long)16777217.0 == 16777217L) ? 1 : -1];
 
+/** Sample time in microseconds (rounded): a task must call chain_soft_step() at this period. */
+#define CHAIN_SOFT_SAMPLE_PERIOD_US 500000u
+
 /* Problem sizes (maxima over the modes size the work arrays). */
 #define CHAIN_SOFT_HORIZON 10
 #define CHAIN_SOFT_N_MODES 1

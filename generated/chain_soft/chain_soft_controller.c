@@ -149,6 +149,32 @@ static void follow_schedule(chain_soft_ctrl *c, const chain_soft_real *sched)
     (void)sched;
 }
 
+/*
+ * The held command made the active mode's. chain_soft_observe() can switch the mode after
+ * the last chain_soft_step(), leaving in u_last the other mode's actuators or values past
+ * this mode's input bounds: this mode's actuators keep their last values clamped into its
+ * bounds and every other actuator gets 0, so that a held command obeys the same rules as
+ * a solved one (an identity after a chain_soft_step() of this mode).
+ */
+static void hold_for_mode(chain_soft_ctrl *c)
+{
+    const chain_soft_mode_data *md = &chain_soft_modes[c->mode];
+    chain_soft_real held[CHAIN_SOFT_N_ACTUATORS];
+    int i;
+    for (i = 0; i < CHAIN_SOFT_N_ACTUATORS; ++i) {
+        held[i] = R_(0.0);
+    }
+    for (i = 0; i < md->nu; ++i) {
+        const chain_soft_real lo = md->u_min[i];
+        const chain_soft_real hi = md->u_max[i];
+        const chain_soft_real v = c->u_last[md->actuator_index[i]];
+        held[md->actuator_index[i]] = (v < lo) ? lo : ((v > hi) ? hi : v);
+    }
+    for (i = 0; i < CHAIN_SOFT_N_ACTUATORS; ++i) {
+        c->u_last[i] = held[i];
+    }
+}
+
 int chain_soft_step(chain_soft_ctrl *c, const chain_soft_real *y, const chain_soft_real *sched,
     const chain_soft_real *r, chain_soft_real *u)
 {
@@ -160,6 +186,7 @@ int chain_soft_step(chain_soft_ctrl *c, const chain_soft_real *y, const chain_so
     }
     inputs_ok = y != 0 && r != 0 && (CHAIN_SOFT_N_SCHEDULE == 0 || sched != 0);
     if (!inputs_ok) {
+        hold_for_mode(c);
         for (i = 0; i < CHAIN_SOFT_N_ACTUATORS; ++i) {
             u[i] = c->u_last[i];
         }
@@ -168,6 +195,7 @@ int chain_soft_step(chain_soft_ctrl *c, const chain_soft_real *y, const chain_so
     }
     if (!chain_soft_all_finite(y, CHAIN_SOFT_N_OUTPUTS) || !chain_soft_all_finite(sched, CHAIN_SOFT_N_SCHEDULE)
         || !chain_soft_all_finite(r, CHAIN_SOFT_HORIZON * CHAIN_SOFT_N_OUTPUTS)) {
+        hold_for_mode(c);
         for (i = 0; i < CHAIN_SOFT_N_ACTUATORS; ++i) {
             u[i] = c->u_last[i];
         }

@@ -18,6 +18,9 @@ typedef float chain_soft_real;
 /** Largest dual multiplier before the QP is declared infeasible. */
 #define CHAIN_SOFT_LAMBDA_LIMIT 1.0e30f
 
+/** Sample time in microseconds (rounded): a task must call chain_soft_step() at this period. */
+#define CHAIN_SOFT_SAMPLE_PERIOD_US 500000u
+
 /* Problem sizes (maxima over the modes size the work arrays). */
 #define CHAIN_SOFT_HORIZON 10
 #define CHAIN_SOFT_N_MODES 1

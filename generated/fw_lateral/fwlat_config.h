@@ -27,6 +27,9 @@ typedef double fwlat_real;
 typedef char fwlat_double_tree_built_with_single_precision_constants[
     ((long)16777217.0 == 16777217L) ? 1 : -1];
 
+/** Sample time in microseconds (rounded): a task must call fwlat_step() at this period. */
+#define FWLAT_SAMPLE_PERIOD_US 20000u
+
 /* Problem sizes (maxima over the modes size the work arrays). */
 #define FWLAT_HORIZON 40
 #define FWLAT_N_MODES 1

@@ -18,6 +18,9 @@ typedef float fwlat_real;
 /** Largest dual multiplier before the QP is declared infeasible. */
 #define FWLAT_LAMBDA_LIMIT 1.0e30f
 
+/** Sample time in microseconds (rounded): a task must call fwlat_step() at this period. */
+#define FWLAT_SAMPLE_PERIOD_US 20000u
+
 /* Problem sizes (maxima over the modes size the work arrays). */
 #define FWLAT_HORIZON 40
 #define FWLAT_N_MODES 1

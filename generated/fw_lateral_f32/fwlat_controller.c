@@ -149,6 +149,32 @@ static void follow_schedule(fwlat_ctrl *c, const fwlat_real *sched)
     (void)sched;
 }
 
+/*
+ * The held command made the active mode's. fwlat_observe() can switch the mode after
+ * the last fwlat_step(), leaving in u_last the other mode's actuators or values past
+ * this mode's input bounds: this mode's actuators keep their last values clamped into its
+ * bounds and every other actuator gets 0, so that a held command obeys the same rules as
+ * a solved one (an identity after a fwlat_step() of this mode).
+ */
+static void hold_for_mode(fwlat_ctrl *c)
+{
+    const fwlat_mode_data *md = &fwlat_modes[c->mode];
+    fwlat_real held[FWLAT_N_ACTUATORS];
+    int i;
+    for (i = 0; i < FWLAT_N_ACTUATORS; ++i) {
+        held[i] = R_(0.0);
+    }
+    for (i = 0; i < md->nu; ++i) {
+        const fwlat_real lo = md->u_min[i];
+        const fwlat_real hi = md->u_max[i];
+        const fwlat_real v = c->u_last[md->actuator_index[i]];
+        held[md->actuator_index[i]] = (v < lo) ? lo : ((v > hi) ? hi : v);
+    }
+    for (i = 0; i < FWLAT_N_ACTUATORS; ++i) {
+        c->u_last[i] = held[i];
+    }
+}
+
 int fwlat_step(fwlat_ctrl *c, const fwlat_real *y, const fwlat_real *sched,
     const fwlat_real *r, fwlat_real *u)
 {
@@ -160,6 +186,7 @@ int fwlat_step(fwlat_ctrl *c, const fwlat_real *y, const fwlat_real *sched,
     }
     inputs_ok = y != 0 && r != 0 && (FWLAT_N_SCHEDULE == 0 || sched != 0);
     if (!inputs_ok) {
+        hold_for_mode(c);
         for (i = 0; i < FWLAT_N_ACTUATORS; ++i) {
             u[i] = c->u_last[i];
         }
@@ -168,6 +195,7 @@ int fwlat_step(fwlat_ctrl *c, const fwlat_real *y, const fwlat_real *sched,
     }
     if (!fwlat_all_finite(y, FWLAT_N_OUTPUTS) || !fwlat_all_finite(sched, FWLAT_N_SCHEDULE)
         || !fwlat_all_finite(r, FWLAT_HORIZON * FWLAT_N_OUTPUTS)) {
+        hold_for_mode(c);
         for (i = 0; i < FWLAT_N_ACTUATORS; ++i) {
             u[i] = c->u_last[i];
         }

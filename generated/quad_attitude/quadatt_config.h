@@ -27,6 +27,9 @@ typedef double quadatt_real;
 typedef char quadatt_double_tree_built_with_single_precision_constants[
     ((long)16777217.0 == 16777217L) ? 1 : -1];
 
+/** Sample time in microseconds (rounded): a task must call quadatt_step() at this period. */
+#define QUADATT_SAMPLE_PERIOD_US 10000u
+
 /* Problem sizes (maxima over the modes size the work arrays). */
 #define QUADATT_HORIZON 30
 #define QUADATT_N_MODES 1

@@ -18,6 +18,9 @@ typedef float quadatt_real;
 /** Largest dual multiplier before the QP is declared infeasible. */
 #define QUADATT_LAMBDA_LIMIT 1.0e30f
 
+/** Sample time in microseconds (rounded): a task must call quadatt_step() at this period. */
+#define QUADATT_SAMPLE_PERIOD_US 10000u
+
 /* Problem sizes (maxima over the modes size the work arrays). */
 #define QUADATT_HORIZON 30
 #define QUADATT_N_MODES 1

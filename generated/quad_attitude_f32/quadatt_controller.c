@@ -145,6 +145,32 @@ static void follow_schedule(quadatt_ctrl *c, const quadatt_real *sched)
     (void)sched;
 }
 
+/*
+ * The held command made the active mode's. quadatt_observe() can switch the mode after
+ * the last quadatt_step(), leaving in u_last the other mode's actuators or values past
+ * this mode's input bounds: this mode's actuators keep their last values clamped into its
+ * bounds and every other actuator gets 0, so that a held command obeys the same rules as
+ * a solved one (an identity after a quadatt_step() of this mode).
+ */
+static void hold_for_mode(quadatt_ctrl *c)
+{
+    const quadatt_mode_data *md = &quadatt_modes[c->mode];
+    quadatt_real held[QUADATT_N_ACTUATORS];
+    int i;
+    for (i = 0; i < QUADATT_N_ACTUATORS; ++i) {
+        held[i] = R_(0.0);
+    }
+    for (i = 0; i < md->nu; ++i) {
+        const quadatt_real lo = md->u_min[i];
+        const quadatt_real hi = md->u_max[i];
+        const quadatt_real v = c->u_last[md->actuator_index[i]];
+        held[md->actuator_index[i]] = (v < lo) ? lo : ((v > hi) ? hi : v);
+    }
+    for (i = 0; i < QUADATT_N_ACTUATORS; ++i) {
+        c->u_last[i] = held[i];
+    }
+}
+
 int quadatt_step(quadatt_ctrl *c, const quadatt_real *y, const quadatt_real *sched,
     const quadatt_real *r, quadatt_real *u)
 {
@@ -156,6 +182,7 @@ int quadatt_step(quadatt_ctrl *c, const quadatt_real *y, const quadatt_real *sch
     }
     inputs_ok = y != 0 && r != 0 && (QUADATT_N_SCHEDULE == 0 || sched != 0);
     if (!inputs_ok) {
+        hold_for_mode(c);
         for (i = 0; i < QUADATT_N_ACTUATORS; ++i) {
             u[i] = c->u_last[i];
         }
@@ -164,6 +191,7 @@ int quadatt_step(quadatt_ctrl *c, const quadatt_real *y, const quadatt_real *sch
     }
     if (!quadatt_all_finite(y, QUADATT_N_OUTPUTS) || !quadatt_all_finite(sched, QUADATT_N_SCHEDULE)
         || !quadatt_all_finite(r, QUADATT_HORIZON * QUADATT_N_OUTPUTS)) {
+        hold_for_mode(c);
         for (i = 0; i < QUADATT_N_ACTUATORS; ++i) {
             u[i] = c->u_last[i];
         }

@@ -27,6 +27,9 @@ typedef double qtank_real;
 typedef char qtank_double_tree_built_with_single_precision_constants[
     ((long)16777217.0 == 16777217L) ? 1 : -1];
 
+/** Sample time in microseconds (rounded): a task must call qtank_step() at this period. */
+#define QTANK_SAMPLE_PERIOD_US 5000000u
+
 /* Problem sizes (maxima over the modes size the work arrays). */
 #define QTANK_HORIZON 20
 #define QTANK_N_MODES 1

@@ -145,6 +145,32 @@ static void follow_schedule(qtank_ctrl *c, const qtank_real *sched)
     (void)sched;
 }
 
+/*
+ * The held command made the active mode's. qtank_observe() can switch the mode after
+ * the last qtank_step(), leaving in u_last the other mode's actuators or values past
+ * this mode's input bounds: this mode's actuators keep their last values clamped into its
+ * bounds and every other actuator gets 0, so that a held command obeys the same rules as
+ * a solved one (an identity after a qtank_step() of this mode).
+ */
+static void hold_for_mode(qtank_ctrl *c)
+{
+    const qtank_mode_data *md = &qtank_modes[c->mode];
+    qtank_real held[QTANK_N_ACTUATORS];
+    int i;
+    for (i = 0; i < QTANK_N_ACTUATORS; ++i) {
+        held[i] = R_(0.0);
+    }
+    for (i = 0; i < md->nu; ++i) {
+        const qtank_real lo = md->u_min[i];
+        const qtank_real hi = md->u_max[i];
+        const qtank_real v = c->u_last[md->actuator_index[i]];
+        held[md->actuator_index[i]] = (v < lo) ? lo : ((v > hi) ? hi : v);
+    }
+    for (i = 0; i < QTANK_N_ACTUATORS; ++i) {
+        c->u_last[i] = held[i];
+    }
+}
+
 int qtank_step(qtank_ctrl *c, const qtank_real *y, const qtank_real *sched,
     const qtank_real *r, qtank_real *u)
 {
@@ -156,6 +182,7 @@ int qtank_step(qtank_ctrl *c, const qtank_real *y, const qtank_real *sched,
     }
     inputs_ok = y != 0 && r != 0 && (QTANK_N_SCHEDULE == 0 || sched != 0);
     if (!inputs_ok) {
+        hold_for_mode(c);
         for (i = 0; i < QTANK_N_ACTUATORS; ++i) {
             u[i] = c->u_last[i];
         }
@@ -164,6 +191,7 @@ int qtank_step(qtank_ctrl *c, const qtank_real *y, const qtank_real *sched,
     }
     if (!qtank_all_finite(y, QTANK_N_OUTPUTS) || !qtank_all_finite(sched, QTANK_N_SCHEDULE)
         || !qtank_all_finite(r, QTANK_HORIZON * QTANK_N_OUTPUTS)) {
+        hold_for_mode(c);
         for (i = 0; i < QTANK_N_ACTUATORS; ++i) {
             u[i] = c->u_last[i];
         }

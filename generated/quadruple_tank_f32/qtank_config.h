@@ -18,6 +18,9 @@ typedef float qtank_real;
 /** Largest dual multiplier before the QP is declared infeasible. */
 #define QTANK_LAMBDA_LIMIT 1.0e30f
 
+/** Sample time in microseconds (rounded): a task must call qtank_step() at this period. */
+#define QTANK_SAMPLE_PERIOD_US 5000000u
+
 /* Problem sizes (maxima over the modes size the work arrays). */
 #define QTANK_HORIZON 20
 #define QTANK_N_MODES 1

@@ -36,12 +36,13 @@ typedef enum {
      *  diverged. Command: the unconstrained optimum (active set) or the best estimate
      *  (sweeps), clamped. */
     ZONES_INFEASIBLE = 3,
-    /** NaN/Inf in `y`, `sched`, `r` (or `x`). Command: last command held (`zones_solve_qp`:
-     *  0). */
+    /** NaN/Inf in `y`, `sched`, `r` (or `x`). Command: last command held, made the active
+     *  mode's: its actuators clamped into its input bounds, the others 0 (`zones_observe`
+     *  may have switched the mode since) (`zones_solve_qp`: 0). */
     ZONES_NONFINITE_INPUT = 4,
     /** A non-finite intermediate. Command: clamped unconstrained solution, else 0. */
     ZONES_NUMERICAL = 5,
-    /** NULL pointer or bad mode index. Command: last command held. */
+    /** NULL pointer or bad mode index. Command: last command held, as for status 4. */
     ZONES_BAD_ARGUMENT = 6,
     /** The solve reached `solver.work_budget` (`zones_last_info()->work`) before the KKT
      *  conditions held; the next sample continues from the working set it reached. Command:

@@ -145,6 +145,32 @@ static void follow_schedule(zones_ctrl *c, const zones_real *sched)
     (void)sched;
 }
 
+/*
+ * The held command made the active mode's. zones_observe() can switch the mode after
+ * the last zones_step(), leaving in u_last the other mode's actuators or values past
+ * this mode's input bounds: this mode's actuators keep their last values clamped into its
+ * bounds and every other actuator gets 0, so that a held command obeys the same rules as
+ * a solved one (an identity after a zones_step() of this mode).
+ */
+static void hold_for_mode(zones_ctrl *c)
+{
+    const zones_mode_data *md = &zones_modes[c->mode];
+    zones_real held[ZONES_N_ACTUATORS];
+    int i;
+    for (i = 0; i < ZONES_N_ACTUATORS; ++i) {
+        held[i] = R_(0.0);
+    }
+    for (i = 0; i < md->nu; ++i) {
+        const zones_real lo = md->u_min[i];
+        const zones_real hi = md->u_max[i];
+        const zones_real v = c->u_last[md->actuator_index[i]];
+        held[md->actuator_index[i]] = (v < lo) ? lo : ((v > hi) ? hi : v);
+    }
+    for (i = 0; i < ZONES_N_ACTUATORS; ++i) {
+        c->u_last[i] = held[i];
+    }
+}
+
 int zones_step(zones_ctrl *c, const zones_real *y, const zones_real *sched,
     const zones_real *r, zones_real *u)
 {
@@ -156,6 +182,7 @@ int zones_step(zones_ctrl *c, const zones_real *y, const zones_real *sched,
     }
     inputs_ok = y != 0 && r != 0 && (ZONES_N_SCHEDULE == 0 || sched != 0);
     if (!inputs_ok) {
+        hold_for_mode(c);
         for (i = 0; i < ZONES_N_ACTUATORS; ++i) {
             u[i] = c->u_last[i];
         }
@@ -164,6 +191,7 @@ int zones_step(zones_ctrl *c, const zones_real *y, const zones_real *sched,
     }
     if (!zones_all_finite(y, ZONES_N_OUTPUTS) || !zones_all_finite(sched, ZONES_N_SCHEDULE)
         || !zones_all_finite(r, ZONES_HORIZON * ZONES_N_OUTPUTS)) {
+        hold_for_mode(c);
         for (i = 0; i < ZONES_N_ACTUATORS; ++i) {
             u[i] = c->u_last[i];
         }

@@ -18,6 +18,9 @@ typedef float zones_real;
 /** Largest dual multiplier before the QP is declared infeasible. */
 #define ZONES_LAMBDA_LIMIT 1.0e30f
 
+/** Sample time in microseconds (rounded): a task must call zones_step() at this period. */
+#define ZONES_SAMPLE_PERIOD_US 5000000u
+
 /* Problem sizes (maxima over the modes size the work arrays). */
 #define ZONES_HORIZON 20
 #define ZONES_N_MODES 1

@@ -18,6 +18,9 @@ typedef float zrate_real;
 /** Largest dual multiplier before the QP is declared infeasible. */
 #define ZRATE_LAMBDA_LIMIT 1.0e30f
 
+/** Sample time in microseconds (rounded): a task must call zrate_step() at this period. */
+#define ZRATE_SAMPLE_PERIOD_US 5000000u
+
 /* Problem sizes (maxima over the modes size the work arrays). */
 #define ZRATE_HORIZON 20
 #define ZRATE_N_MODES 1

@@ -145,6 +145,32 @@ static void follow_schedule(zrate_ctrl *c, const zrate_real *sched)
     (void)sched;
 }
 
+/*
+ * The held command made the active mode's. zrate_observe() can switch the mode after
+ * the last zrate_step(), leaving in u_last the other mode's actuators or values past
+ * this mode's input bounds: this mode's actuators keep their last values clamped into its
+ * bounds and every other actuator gets 0, so that a held command obeys the same rules as
+ * a solved one (an identity after a zrate_step() of this mode).
+ */
+static void hold_for_mode(zrate_ctrl *c)
+{
+    const zrate_mode_data *md = &zrate_modes[c->mode];
+    zrate_real held[ZRATE_N_ACTUATORS];
+    int i;
+    for (i = 0; i < ZRATE_N_ACTUATORS; ++i) {
+        held[i] = R_(0.0);
+    }
+    for (i = 0; i < md->nu; ++i) {
+        const zrate_real lo = md->u_min[i];
+        const zrate_real hi = md->u_max[i];
+        const zrate_real v = c->u_last[md->actuator_index[i]];
+        held[md->actuator_index[i]] = (v < lo) ? lo : ((v > hi) ? hi : v);
+    }
+    for (i = 0; i < ZRATE_N_ACTUATORS; ++i) {
+        c->u_last[i] = held[i];
+    }
+}
+
 int zrate_step(zrate_ctrl *c, const zrate_real *y, const zrate_real *sched,
     const zrate_real *r, zrate_real *u)
 {
@@ -156,6 +182,7 @@ int zrate_step(zrate_ctrl *c, const zrate_real *y, const zrate_real *sched,
     }
     inputs_ok = y != 0 && r != 0 && (ZRATE_N_SCHEDULE == 0 || sched != 0);
     if (!inputs_ok) {
+        hold_for_mode(c);
         for (i = 0; i < ZRATE_N_ACTUATORS; ++i) {
             u[i] = c->u_last[i];
         }
@@ -164,6 +191,7 @@ int zrate_step(zrate_ctrl *c, const zrate_real *y, const zrate_real *sched,
     }
     if (!zrate_all_finite(y, ZRATE_N_OUTPUTS) || !zrate_all_finite(sched, ZRATE_N_SCHEDULE)
         || !zrate_all_finite(r, ZRATE_HORIZON * ZRATE_N_OUTPUTS)) {
+        hold_for_mode(c);
         for (i = 0; i < ZRATE_N_ACTUATORS; ++i) {
             u[i] = c->u_last[i];
         }

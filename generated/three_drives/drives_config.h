@@ -27,6 +27,11 @@ typedef double drives_real;
 typedef char drives_double_tree_built_with_single_precision_constants[
     ((long)16777217.0 == 16777217L) ? 1 : -1];
 
+/** Sample time in microseconds (rounded): a task must call drives_step() at this period. */
+#define DRIVES_SAMPLE_PERIOD_US 20000u
+/** The scheduling signal by name, for glue code that feeds one signal to check it. */
+#define DRIVES_SCHEDULE_SIGNAL_SPEED 1
+
 /* Problem sizes (maxima over the modes size the work arrays). */
 #define DRIVES_HORIZON 25
 #define DRIVES_N_MODES 3

@@ -193,6 +193,32 @@ static void follow_schedule(drives_ctrl *c, const drives_real *sched)
     }
 }
 
+/*
+ * The held command made the active mode's. drives_observe() can switch the mode after
+ * the last drives_step(), leaving in u_last the other mode's actuators or values past
+ * this mode's input bounds: this mode's actuators keep their last values clamped into its
+ * bounds and every other actuator gets 0, so that a held command obeys the same rules as
+ * a solved one (an identity after a drives_step() of this mode).
+ */
+static void hold_for_mode(drives_ctrl *c)
+{
+    const drives_mode_data *md = &drives_modes[c->mode];
+    drives_real held[DRIVES_N_ACTUATORS];
+    int i;
+    for (i = 0; i < DRIVES_N_ACTUATORS; ++i) {
+        held[i] = R_(0.0);
+    }
+    for (i = 0; i < md->nu; ++i) {
+        const drives_real lo = md->u_min[i];
+        const drives_real hi = md->u_max[i];
+        const drives_real v = c->u_last[md->actuator_index[i]];
+        held[md->actuator_index[i]] = (v < lo) ? lo : ((v > hi) ? hi : v);
+    }
+    for (i = 0; i < DRIVES_N_ACTUATORS; ++i) {
+        c->u_last[i] = held[i];
+    }
+}
+
 int drives_step(drives_ctrl *c, const drives_real *y, const drives_real *sched,
     const drives_real *r, drives_real *u)
 {
@@ -204,6 +230,7 @@ int drives_step(drives_ctrl *c, const drives_real *y, const drives_real *sched,
     }
     inputs_ok = y != 0 && r != 0 && (DRIVES_N_SCHEDULE == 0 || sched != 0);
     if (!inputs_ok) {
+        hold_for_mode(c);
         for (i = 0; i < DRIVES_N_ACTUATORS; ++i) {
             u[i] = c->u_last[i];
         }
@@ -212,6 +239,7 @@ int drives_step(drives_ctrl *c, const drives_real *y, const drives_real *sched,
     }
     if (!drives_all_finite(y, DRIVES_N_OUTPUTS) || !drives_all_finite(sched, DRIVES_N_SCHEDULE)
         || !drives_all_finite(r, DRIVES_HORIZON * DRIVES_N_OUTPUTS)) {
+        hold_for_mode(c);
         for (i = 0; i < DRIVES_N_ACTUATORS; ++i) {
             u[i] = c->u_last[i];
         }

@@ -18,6 +18,11 @@ typedef float drives_real;
 /** Largest dual multiplier before the QP is declared infeasible. */
 #define DRIVES_LAMBDA_LIMIT 1.0e30f
 
+/** Sample time in microseconds (rounded): a task must call drives_step() at this period. */
+#define DRIVES_SAMPLE_PERIOD_US 20000u
+/** The scheduling signal by name, for glue code that feeds one signal to check it. */
+#define DRIVES_SCHEDULE_SIGNAL_SPEED 1
+
 /* Problem sizes (maxima over the modes size the work arrays). */
 #define DRIVES_HORIZON 25
 #define DRIVES_N_MODES 3

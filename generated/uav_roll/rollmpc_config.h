@@ -27,6 +27,11 @@ typedef double rollmpc_real;
 typedef char rollmpc_double_tree_built_with_single_precision_constants[
     ((long)16777217.0 == 16777217L) ? 1 : -1];
 
+/** Sample time in microseconds (rounded): a task must call rollmpc_step() at this period. */
+#define ROLLMPC_SAMPLE_PERIOD_US 10000u
+/** The scheduling signal by name, for glue code that feeds one signal to check it. */
+#define ROLLMPC_SCHEDULE_SIGNAL_ROLL_RATE 1
+
 /* Problem sizes (maxima over the modes size the work arrays). */
 #define ROLLMPC_HORIZON 100
 #define ROLLMPC_N_MODES 2

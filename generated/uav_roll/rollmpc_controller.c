@@ -193,6 +193,32 @@ static void follow_schedule(rollmpc_ctrl *c, const rollmpc_real *sched)
     }
 }
 
+/*
+ * The held command made the active mode's. rollmpc_observe() can switch the mode after
+ * the last rollmpc_step(), leaving in u_last the other mode's actuators or values past
+ * this mode's input bounds: this mode's actuators keep their last values clamped into its
+ * bounds and every other actuator gets 0, so that a held command obeys the same rules as
+ * a solved one (an identity after a rollmpc_step() of this mode).
+ */
+static void hold_for_mode(rollmpc_ctrl *c)
+{
+    const rollmpc_mode_data *md = &rollmpc_modes[c->mode];
+    rollmpc_real held[ROLLMPC_N_ACTUATORS];
+    int i;
+    for (i = 0; i < ROLLMPC_N_ACTUATORS; ++i) {
+        held[i] = R_(0.0);
+    }
+    for (i = 0; i < md->nu; ++i) {
+        const rollmpc_real lo = md->u_min[i];
+        const rollmpc_real hi = md->u_max[i];
+        const rollmpc_real v = c->u_last[md->actuator_index[i]];
+        held[md->actuator_index[i]] = (v < lo) ? lo : ((v > hi) ? hi : v);
+    }
+    for (i = 0; i < ROLLMPC_N_ACTUATORS; ++i) {
+        c->u_last[i] = held[i];
+    }
+}
+
 int rollmpc_step(rollmpc_ctrl *c, const rollmpc_real *y, const rollmpc_real *sched,
     const rollmpc_real *r, rollmpc_real *u)
 {
@@ -204,6 +230,7 @@ int rollmpc_step(rollmpc_ctrl *c, const rollmpc_real *y, const rollmpc_real *sch
     }
     inputs_ok = y != 0 && r != 0 && (ROLLMPC_N_SCHEDULE == 0 || sched != 0);
     if (!inputs_ok) {
+        hold_for_mode(c);
         for (i = 0; i < ROLLMPC_N_ACTUATORS; ++i) {
             u[i] = c->u_last[i];
         }
@@ -212,6 +239,7 @@ int rollmpc_step(rollmpc_ctrl *c, const rollmpc_real *y, const rollmpc_real *sch
     }
     if (!rollmpc_all_finite(y, ROLLMPC_N_OUTPUTS) || !rollmpc_all_finite(sched, ROLLMPC_N_SCHEDULE)
         || !rollmpc_all_finite(r, ROLLMPC_HORIZON * ROLLMPC_N_OUTPUTS)) {
+        hold_for_mode(c);
         for (i = 0; i < ROLLMPC_N_ACTUATORS; ++i) {
             u[i] = c->u_last[i];
         }

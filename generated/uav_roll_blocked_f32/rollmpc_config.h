@@ -18,6 +18,11 @@ typedef float rollmpc_real;
 /** Largest dual multiplier before the QP is declared infeasible. */
 #define ROLLMPC_LAMBDA_LIMIT 1.0e30f
 
+/** Sample time in microseconds (rounded): a task must call rollmpc_step() at this period. */
+#define ROLLMPC_SAMPLE_PERIOD_US 10000u
+/** The scheduling signal by name, for glue code that feeds one signal to check it. */
+#define ROLLMPC_SCHEDULE_SIGNAL_ROLL_RATE 1
+
 /* Problem sizes (maxima over the modes size the work arrays). */
 #define ROLLMPC_HORIZON 100
 #define ROLLMPC_N_MODES 2

@@ -45,6 +45,14 @@ def main(argv: list[str] | None = None) -> int:
     except KeyboardInterrupt:
         print("rollmpc: interrupted", file=sys.stderr)
         return 130
+    except BrokenPipeError:  # `rollmpc ... | head`: the reader left, as the shell expects
+        import os
+
+        try:  # the interpreter's flush at exit would fail on the closed pipe again
+            os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+        except (OSError, ValueError):  # no real file descriptor (a captured stdout)
+            pass
+        return 141  # 128 + SIGPIPE
     except Exception as exc:  # a tool failed: one line (ROLLMPC_DEBUG=1 re-raises)
         import os
 

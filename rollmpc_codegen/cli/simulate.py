@@ -98,6 +98,13 @@ def beyond_text(y_max_beyond: dict) -> str:
     return ", ".join(f"{name} {v:.3g}" for name, v in y_max_beyond.items())
 
 
+def non_optimal_text(counts: dict, before: str = "", after: str = "") -> str:
+    """The statuses other than optimal with their counts, e.g. ``time_limit 63``, between
+    ``before`` and ``after``; empty when every sample was optimal."""
+    others = ", ".join(f"{name} {n}" for name, n in counts.items() if name != "optimal")
+    return f"{before}{others}{after}" if others else ""
+
+
 def print_design_warnings(s: dict) -> None:
     """generate's warning on a controller that does not stabilise its model
     (qp/nominal_loop.py): it explains a loop that diverges with every QP solved."""
@@ -139,9 +146,8 @@ def print_summary(cfg, ctx: dict, s: dict) -> None:
               f"{sb['max_beyond']:.3g}{y_unit} (not violations)")
     st = s["solve_us"]
     if st["median"] is not None:
-        others = ", ".join(f"{name} {n}" for name, n in s["status_counts"].items()
-                           if name != "optimal")  # which statuses they are
-        print(f"  non-optimal: {s['non_optimal']}{f' ({others})' if others else ''}; longest "
+        print(f"  non-optimal: {s['non_optimal']}{non_optimal_text(s['status_counts'], ' (', ')')}"
+              f"; longest "
               f"TIME_LIMIT run {s['longest_time_limit_run']}; "
               f"max iterations: {s['max_iterations']}; "
               f"host solve time median {st['median']:.1f} us, max {st['max']:.1f} us (wall clock: "
@@ -172,7 +178,8 @@ def print_flights(cfg, ctx: dict, s: dict) -> None:
         cv = f["constraint_violations"]
         far = beyond_text(cv["y_max_beyond"])
         print(f"  flight {f['flight']} (seed {f['seed']}): optimal "
-              f"{f['status_counts'].get('optimal', 0)} of {f['samples']}, longest TIME_LIMIT "
+              f"{f['status_counts'].get('optimal', 0)} of {f['samples']}"
+              f"{non_optimal_text(f['status_counts'], ' (', ')')}, longest TIME_LIMIT "
               f"run {f['longest_time_limit_run']}; constraint violations {cv['total']}"
               f"{f' (y by up to {far}{y_unit})' if far else ''}")
     far = beyond_text(t["y_max_beyond"])

@@ -52,6 +52,20 @@ def aileron_bounds(cfg: ControllerConfig) -> tuple[float, float]:
     return (max(float(m.u_min[0]) for m in cfg.modes), min(float(m.u_max[0]) for m in cfg.modes))
 
 
+def check_travel(cfg: ControllerConfig, aircraft: str, travel_deg) -> None:
+    """Every mode's aileron bounds within the aircraft's travel, before a flight rather
+    than at the first command past it, 40 s into one (a new user's u_max = 15 deg on a
+    travel ending at 14.997)."""
+    lo, hi = travel_deg
+    for j, mode in enumerate(cfg.modes):
+        for side, value in (("u_min", float(mode.u_min[0])), ("u_max", float(mode.u_max[0]))):
+            if not lo <= value <= hi:
+                raise ConfigError(f"modes[{j}].bounds.{side}",
+                                  f"{value:g} deg is past the {aircraft}'s aileron travel "
+                                  f"({lo:g} .. {hi:g} deg): the MPC could command a deflection "
+                                  "the aircraft does not have")
+
+
 def run_flight(config: str | Path, *, aircraft: str = DEFAULT_AIRCRAFT,
                airspeed_kts: float = DEFAULT_AIRSPEED_KTS,
                altitude_ft: float = DEFAULT_ALTITUDE_FT, turbulence: str = "none",
@@ -81,6 +95,7 @@ def run_flight(config: str | Path, *, aircraft: str = DEFAULT_AIRCRAFT,
 
     def one_flight(controller, label: str) -> tuple[FlightLog, Trim, Aircraft]:
         ac = Aircraft(aircraft, ts / FDM_STEPS_PER_SAMPLE)
+        check_travel(cfg, aircraft, ac.travel_deg)
         trim = ac.trim(airspeed_kts, altitude_ft)
         ac.set_turbulence(turbulence, seed)
         log = fly(ac, trim, controller, ref, ts, cfg.horizon, noise_std=noise_std,

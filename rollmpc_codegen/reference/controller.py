@@ -71,11 +71,20 @@ class ControllerRef:
             return status
         self.bounds[mode] = dict(zip(("u_min", "u_max", "y_min", "y_max"), new))
         self._apply_bounds(mode)
-        if mode == self.mode:  # the held command obeys the new input bounds
-            lo, hi, act = new[0], new[1], md.actuator_index
-            v = self.u_last[act]
-            self.u_last[act] = np.where(v < lo, lo, np.where(v > hi, hi, v))
+        if mode == self.mode:
+            self.hold_for_mode()  # the held command obeys the new input bounds
         return OPTIMAL
+
+    def hold_for_mode(self):
+        """Mirror of hold_for_mode(): u_last made the active mode's (after P_observe()
+        switched the mode it may be another's): its actuators clamped into its live input
+        bounds, every other actuator 0."""
+        md, solver = self.md[self.mode], self.solvers[self.mode]
+        held = np.zeros_like(self.u_last)
+        v = self.u_last[md.actuator_index]
+        held[md.actuator_index] = np.where(v < solver.u_min, solver.u_min,
+                                           np.where(v > solver.u_max, solver.u_max, v))
+        self.u_last = held
 
     def _schedule(self, s):
         """The mode ``schedule()`` of the C returns for signal ``s`` (no state change)."""
@@ -142,6 +151,7 @@ class ControllerRef:
         r = np.asarray(r, dt)
         if not (np.all(np.isfinite(y)) and np.all(np.isfinite(sched))
                 and np.all(np.isfinite(r))):
+            self.hold_for_mode()
             u = self.u_last.copy()
             for j, md in enumerate(self.md):
                 self._observe(md, self.xhat[j], y, u, False)

@@ -21,6 +21,17 @@
 #if ROLLGLUE_N_ACT > ROLLGLUE_MAX_CHANNELS
 #error "more actuators than addressable output channels"
 #endif
+#if ROLLGLUE_K(_N_SCHEDULE) == 1
+#if ROLLGLUE_K(_SCHEDULE_SIGNAL_ROLL_RATE) != 1
+#error "rollglue feeds the roll rate as the scheduling signal: this controller is scheduled on another signal (docs/integration.md)"
+#endif
+#endif
+/* the glue's rate is the controller's: 1 / its sample time, to the nearest Hz (a tree
+   generated before _SAMPLE_PERIOD_US existed fails here too: regenerate it) */
+#if ROLLGLUE_SAMPLE_HZ * ROLLGLUE_K(_SAMPLE_PERIOD_US) + ROLLGLUE_K(_SAMPLE_PERIOD_US) / 2u < 1000000u \
+    || ROLLGLUE_SAMPLE_HZ * ROLLGLUE_K(_SAMPLE_PERIOD_US) > 1000000u + ROLLGLUE_K(_SAMPLE_PERIOD_US) / 2u
+#error "ROLLGLUE_SAMPLE_HZ is not 1 / the controller's sample time (its _SAMPLE_PERIOD_US)"
+#endif
 
 #define ROLLGLUE_SAMPLE_S (1.0f / (float)ROLLGLUE_SAMPLE_HZ)
 

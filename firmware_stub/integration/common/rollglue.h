@@ -49,10 +49,11 @@ extern "C" {
 #define ROLLGLUE_N_ACT ROLLGLUE_K(_N_ACTUATORS)
 /** Servos per actuator: a pair of ailerons on two channels (left, right) or on one. */
 #define ROLLGLUE_SIDES 2
-/** Sample rate of the generated controller, Hz: every adapter runs rollglue_step() at it
- *  (override for a config with another sample time). */
+/** Sample rate of the generated controller, Hz: every adapter runs rollglue_step() at it.
+ *  By default 1 / the controller's own sample time (its _SAMPLE_PERIOD_US); rollglue.c
+ *  refuses an override that is not. */
 #ifndef ROLLGLUE_SAMPLE_HZ
-#define ROLLGLUE_SAMPLE_HZ 100u
+#define ROLLGLUE_SAMPLE_HZ (1000000u / ROLLGLUE_K(_SAMPLE_PERIOD_US))
 #endif
 /** Servo output channels the glue can address (PX4 uses 8, ArduPilot up to 32). */
 #define ROLLGLUE_MAX_CHANNELS 32

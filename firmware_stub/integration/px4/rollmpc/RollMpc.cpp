@@ -49,7 +49,7 @@ RollMpc::~RollMpc()
 bool RollMpc::init()
 {
 	apply_params();
-	ScheduleOnInterval(10_ms); // the controller's sample time, fixed at generation
+	ScheduleOnInterval(1000000U / ROLLGLUE_SAMPLE_HZ); // us: the controller's sample time, fixed at generation
 	return true;
 }
 
