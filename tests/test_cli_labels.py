@@ -57,6 +57,8 @@ def _log(cfg, K: int = 30) -> ClosedLoopLog:
            "y(k) = roll and"], []),
     (CHAIN, ["output y, reference r", "input u", "y(k) = p1, p2, p3, p4, p5, p6 and"],
      ["deg", "roll"]),
+    # schedule_source: output: simulate feeds the roll angle as the airspeed, and says so
+    (ROOT / "examples" / "c172_roll.yaml", ["roll as airspeed [deg]"], ["airspeed rho"]),
 ])
 def test_plot_labels_use_names_and_units(tmp_path, monkeypatch, config, texts, absent):
     pytest.importorskip("matplotlib", reason="install with: pip install 'rollmpc-codegen[plot]'")

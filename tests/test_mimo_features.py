@@ -183,6 +183,20 @@ def test_bench_cli_on_chain(tmp_path):
     assert result["replay_max_abs_diff_vs_closed_loop"] <= 1e-12
 
 
+def test_test_vectors_default_to_the_whole_scenario(tmp_path):
+    """Without --steps the program records the config's scenario, not a fixed 6000 (which
+    held a 1000-sample scenario's last reference for 5000 more); --steps 0 is refused."""
+    from rollmpc_codegen.config import load
+    from rollmpc_codegen.sim.scenario import scenario_reference
+
+    out = tmp_path / "tv"
+    assert main(["testvectors", str(CHAIN), "--precision", "float", "-o", str(out)]) == 0
+    source = next(out.glob("*_test_vectors.c")).read_text()
+    assert f"#define STEPS {len(scenario_reference(load(CHAIN)))}\n" in source
+    assert main(["testvectors", str(CHAIN), "-o", str(tmp_path / "none"), "--steps", "0"]) == 2
+    assert not (tmp_path / "none").exists()
+
+
 def test_host_c_test_program_passes_on_chain(tmp_path):
     out = tmp_path / "tv"
     assert main(["testvectors", str(CHAIN), "--precision", "float", "-o", str(out),

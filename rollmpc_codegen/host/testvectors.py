@@ -52,8 +52,9 @@ def qp_cases_from_log(model, ctx, log, xs, count: int = 12) -> list[dict]:
 
 
 def write_test_vectors(config: str | Path, out_dir: str | Path, precision: str | None = None,
-                       steps: int = 6000, force: bool = False) -> Path:
-    """Generated sources + ``<prefix>_test_vectors.c`` in ``out_dir`` (codegen/output.py)."""
+                       steps: int | None = None, force: bool = False) -> Path:
+    """Generated sources + ``<prefix>_test_vectors.c`` in ``out_dir`` (codegen/output.py):
+    ``steps`` closed-loop samples (None: the whole scenario)."""
     check_output_dir(out_dir, force)
     model, ctx = load_model(config, precision)
     ref_ctrl = ControllerRef(ctx, [m.data for m in model.modes])
@@ -73,7 +74,7 @@ def write_test_vectors(config: str | Path, out_dir: str | Path, precision: str |
     reference = scenario_reference(model.config)  # (samples, n_outputs)
     files = render_sources(ctx)
     files[f"{ctx['prefix']}_test_vectors.c"] = render_template(
-        ctx, "host/test_vectors.c.j2", steps=steps, ref_len=len(reference),
+        ctx, "host/test_vectors.c.j2", steps=len(log.t), ref_len=len(reference),
         ref=reference.ravel().astype(dt),
         y=log.y.astype(dt), sched=log.sched.astype(dt),
         u=np.array(log.u_raw, dtype=dt), status=log.status,

@@ -111,7 +111,11 @@ def _draw_schedule(ax_s, cfg: ControllerConfig, runs, colors) -> None:
         ax_s.axhline(v, color="0.5", linewidth=0.8)
         for e in (-eps, eps):
             ax_s.axhline(v + e, color="0.7", linewidth=0.6, linestyle=":")
-    ax_s.set_ylabel(f"{sc.signal} rho{cfg.units.label('schedule')}")
+    if cfg.simulation.schedule_source == "output":  # simulate has no such signal: it fed
+        fed, unit = f"{cfg.outputs[0]} as {sc.signal}", cfg.units.label("outputs")
+    else:
+        fed, unit = f"{sc.signal} rho", cfg.units.label("schedule")
+    ax_s.set_ylabel(f"{fed}{unit}")
     ax_s.grid(alpha=0.3)
     ax_m = ax_s.twinx()
     names = [m.name for m in cfg.modes]
@@ -122,7 +126,7 @@ def _draw_schedule(ax_s, cfg: ControllerConfig, runs, colors) -> None:
                     [f"{j + 1}: {n}" for j, n in enumerate(names)])
     ax_m.set_ylim(0.5, len(names) + 0.5 + 0.6 * len(names))
     ax_m.set_ylabel("mode j")
-    ax_s.set_title(f"(b) {sc.signal} rho(k) (solid: band thresholds of eq. 3, dotted: "
+    ax_s.set_title(f"(b) {fed}(k) (solid: band thresholds of eq. 3, dotted: "
                    "+/- epsilon) and switching mode j(k)", loc="left", fontsize=10)
     h1, l1 = ax_s.get_legend_handles_labels()
     h2, l2 = ax_m.get_legend_handles_labels()
