@@ -32,6 +32,9 @@
     || ROLLGLUE_SAMPLE_HZ * ROLLGLUE_K(_SAMPLE_PERIOD_US) > 1000000u + ROLLGLUE_K(_SAMPLE_PERIOD_US) / 2u
 #error "ROLLGLUE_SAMPLE_HZ is not 1 / the controller's sample time (its _SAMPLE_PERIOD_US)"
 #endif
+#if ROLLGLUE_SAMPLE_HZ < 1u
+#error "the glue steps at a whole number of Hz: a sample time over 1 s is not one"
+#endif
 
 #define ROLLGLUE_SAMPLE_S (1.0f / (float)ROLLGLUE_SAMPLE_HZ)
 
