@@ -55,6 +55,17 @@ class DiscretePlant:
         return self.A.shape[0]
 
     @property
+    def disturbance_states(self) -> np.ndarray:
+        """Indices of the nd disturbance states: after the plant's, before u_prev's."""
+        first = self.nx - self.n_prev - self.nd
+        return np.arange(first, first + self.nd)
+
+    @property
+    def non_disturbance_states(self) -> np.ndarray:
+        """Indices of every state but the disturbance states (constant: nothing feeds them)."""
+        return np.setdiff1d(np.arange(self.nx), self.disturbance_states)
+
+    @property
     def nu(self) -> int:
         return self.B.shape[1]
 

@@ -35,8 +35,7 @@ def closed_loop_radius(model: ControllerModel, j: int) -> float:
     disturbance states."""
     plant, qp = model.modes[j].plant, model.modes[j].qp
     a_cl = plant.A + plant.B @ qp.Kx[:qp.nu]
-    first_disturbance = plant.nx - plant.nd - plant.n_prev
-    keep = np.r_[0:first_disturbance, first_disturbance + plant.nd:plant.nx]
+    keep = plant.non_disturbance_states
     return float(np.abs(np.linalg.eigvals(a_cl[np.ix_(keep, keep)])).max())
 
 

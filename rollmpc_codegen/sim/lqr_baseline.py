@@ -50,11 +50,8 @@ def design_lqr(model: ControllerModel, ctx: dict) -> list[LqrMode]:
     modes = []
     for mode_cfg, m, mode in zip(model.config.modes, ctx["modes"], model.modes):
         A, B, C = (np.array(m[k], float) for k in ("A", "B", "C"))
-        nx, nu, ny = A.shape[0], B.shape[1], C.shape[0]
-        nd = mode.plant.nd  # the states [plant, d (nd), u_prev]: d sits before u_prev
-        first_d = nx - mode.plant.n_prev - nd
-        dist = np.arange(first_d, first_d + nd)
-        keep = np.setdiff1d(np.arange(nx), dist)
+        nu, ny = B.shape[1], C.shape[0]
+        dist, keep = mode.plant.disturbance_states, mode.plant.non_disturbance_states
         Ak, Bk, Ck = A[np.ix_(keep, keep)], B[keep], C[:, keep]
         K, _, _ = control.dlqr(Ak, Bk, Ck.T @ mode_cfg.Q @ Ck, mode_cfg.R)
         nk = keep.size
