@@ -15,6 +15,7 @@ from functools import cached_property
 import numpy as np
 
 from .canonical import canonical_json, config_digest
+from .keys import section_keys
 
 SOLVER_METHODS = ("hildreth", "hildreth_plus", "hildreth_plus_prime")
 PRECISIONS = ("double", "float")
@@ -348,26 +349,24 @@ class ControllerConfig:
 
 
 # --------------------------------------------------------------------------- keys
-# The keys each YAML section accepts; the reader reports any other key before it reads
-# anything of that section.
-TOP_KEYS = ("prefix", "precision", "sample_time", "horizon", "control_horizon",
-            "move_blocking", "outputs", "actuators", "modes", "scheduler", "runtime_bounds",
-            "solver", "simulation", "units", "target")
-MODE_KEYS = ("name", "actuators", "plant", "weights", "bounds", "observer", "control_horizon",
-             "move_blocking")
-PLANT_KEYS = ("transfer_function", "state_space", "integrator")
-TRANSFER_FUNCTION_KEYS = ("num", "den")
-STATE_SPACE_KEYS = ("A", "B", "C", "D", "discrete")
-WEIGHT_KEYS = ("Q", "R", "P", "R_delta")
-BOUND_KEYS = ("u_min", "u_max", "y_min", "y_max", "du_min", "du_max", "soft")
-SOFT_KEYS = ("y_min", "y_max")  # bounds.soft
-PENALTY_KEYS = ("l1", "l2")  # bounds.soft.y_min / y_max
-OBSERVER_KEYS = ("kind", "poles", "Qn", "Rn", "Qd", "disturbance", "innovation_limit")
-SHORTHAND_KEYS = ("lower", "upper", "inside", "outside")  # scheduler: the two-mode form
-SCHEDULER_KEYS = ("signal", "bands", "epsilon", "initial") + SHORTHAND_KEYS
-BAND_KEYS = ("mode", "below", "epsilon")
+# The keys each YAML section accepts, declared with their defaults and meanings in keys.py
+# (docs/config.md is generated from there); the reader reports any other key before it
+# reads anything of that section.
+TOP_KEYS = section_keys("")
+MODE_KEYS = section_keys("modes[]")
+PLANT_KEYS = section_keys("modes[].plant")
+TRANSFER_FUNCTION_KEYS = section_keys("modes[].plant.transfer_function")
+STATE_SPACE_KEYS = section_keys("modes[].plant.state_space")
+WEIGHT_KEYS = section_keys("modes[].weights")
+BOUND_KEYS = section_keys("modes[].bounds")
+SOFT_KEYS = section_keys("modes[].bounds.soft")
+PENALTY_KEYS = section_keys("modes[].bounds.soft.<side>")  # bounds.soft.y_min / y_max
+OBSERVER_KEYS = section_keys("modes[].observer")
+SHORTHAND_KEYS = section_keys("scheduler", group="shorthand")  # the two-mode form
+SCHEDULER_KEYS = section_keys("scheduler")
+BAND_KEYS = section_keys("scheduler.bands[]")
 SOLVER_KEYS = tuple(f.name for f in fields(SolverConfig))  # one key per setting
-SIMULATION_KEYS = ("schedule_source", "reference")
-REFERENCE_KEYS = ("levels", "segment")  # simulation.reference
+SIMULATION_KEYS = section_keys("simulation")
+REFERENCE_KEYS = section_keys("simulation.reference")
 UNITS_KEYS = tuple(f.name for f in fields(UnitsConfig))
 TARGET_KEYS = tuple(f.name for f in fields(TargetConfig))
