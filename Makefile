@@ -16,7 +16,7 @@ CSTRICT := -std=c99 -O2 -ffp-contract=off -Wall -Wextra -Wpedantic -Wconversion 
            -Wdouble-promotion -Werror
 
 .PHONY: all venv demo generate test ctest check-long clean firmware size report figures \
-        reliability flight-matrix mutation
+        reliability flight-matrix mutation docs measurements
 
 all: test
 
@@ -108,6 +108,16 @@ flight-matrix: venv
 ## reliability: measure the figures of docs/reliability.md into build/reliability/*.json
 reliability: venv
 	$(PY) -m rollmpc_codegen.verify --out build/reliability
+
+## docs: docs/config.md from the schema (rollmpc_codegen/config/keys.py; a test pins it)
+docs: venv
+	$(PY) -m rollmpc_codegen.config.doc > docs/config.md
+
+## measurements: every example's report, simulate and bench rows -> docs/measurements.md
+##   (each row with its command and commit; ~40 min on 2 shared cores; MEASURE_ARGS=--only X)
+MEASURE_ARGS ?=
+measurements: venv
+	nice -n 10 $(PY) -m rollmpc_codegen.verify.measurements $(MEASURE_ARGS)
 
 clean:
 	rm -rf build
