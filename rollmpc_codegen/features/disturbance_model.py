@@ -1,6 +1,6 @@
 """Offset-free tracking: a mode's prediction model augmented with constant disturbances.
 
-``modes[].observer.disturbance`` (docs/features.md, "Observer options"):
+``modes[].observer.disturbance`` (docs/features.md, "Kalman observer and offset-free tracking"):
 
 * ``input``: one disturbance per mode input, acting like the input,
   ``x+ = A x + B (u + d)``, ``y = C x``  (nd = nu);

@@ -10,7 +10,7 @@ of left-aileron deflection, the MPC's actuator and bounds.
     the direction of e
 
 as PX4 computes ``roll_u`` (s^2 on the PI, s on the feed-forward). Gains for the c172p
-(docs/flight.md, "The PID baseline"): FEED_FORWARD is the inverse of the roll rate one
+(docs/flight.md, "The baseline"): FEED_FORWARD is the inverse of the roll rate one
 degree of aileron holds against roll damping at 90 kts (-L_da / L_p of the identified
 model: 25.6 / 6.08 = 4.2 deg/s per deg); TIME_CONSTANT_S, MAX_RATE_DPS, RATE_P and RATE_I
 come from a grid search on flights at 90 kts (calm air, and moderate turbulence with two

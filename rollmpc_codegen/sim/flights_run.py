@@ -3,7 +3,7 @@ on the host, each summarized, and what they add up to.
 
 One scenario says little about a design whose solver can stop at its work budget: where a
 run of TIME_LIMIT samples starts depends on the reference, and a long one can let an output
-past a hard bound (docs/solver.md, "quad_attitude against its budget"). Flights with
+past a hard bound (docs/solver.md, "Limits"). Flights with
 random levels within the output bounds show how often. Per flight: the statuses, the
 longest run of TIME_LIMIT samples, the hard-constraint violations (sim/metrics.py); over
 all of them the same, and how many flights broke a hard bound. The host C's statuses are
