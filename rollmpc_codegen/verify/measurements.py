@@ -88,7 +88,8 @@ def _report(row: dict) -> dict:
             "steps": sum(counts.values()), "statuses": counts,
             "longest_time_limit_run": d["longest_time_limit_run"],
             "bit_exact": bool(d["bit_exact_vs_host"] and d.get("state_bit_exact", True)),
-            "worst_flight": d.get("worst_flight"), "toolchain": d["toolchain"]}
+            "worst_flight": d.get("worst_flight"), "toolchain": d["toolchain"],
+            "flights": (d.get("perturbations") or {}).get("flights")}
 
 
 def _simulate(row: dict) -> dict:
@@ -120,7 +121,7 @@ def _bench(row: dict) -> dict:
 
 
 def _horizons(row: dict) -> dict:
-    d = row["data"]
+    d = row["data"]["horizons"]
     return {"rows": d["rows"], "refused": [r["horizon"] for r in d["refused"]],
             "limit": d["fitted_horizon_limit"], "budget": d["budget"]}
 
@@ -200,19 +201,19 @@ def main(argv: list[str] | None = None) -> int:
     def log(text: str) -> None:
         print(text, file=sys.stderr, flush=True)
 
+    def keep(section: dict, rows: dict[str, dict]) -> None:
+        """Record the rows and write both files at once: a later failure loses nothing."""
+        section.update({k: {**stamp, **{f: v[f] for f in ("command", "seconds", "figures")}}
+                        for k, v in rows.items()})
+        store.write_text(json.dumps(doc, indent=1, sort_keys=True) + "\n")
+        args.out.write_text(render(doc))
+
     for name in names:
         log(f"{name}:")
-        rows = measure_example(name, kinds, log)
-        doc["examples"].setdefault(name, {}).update(
-            {k: {**stamp, **{f: v[f] for f in ("command", "seconds", "figures")}}
-             for k, v in rows.items()})
+        keep(doc["examples"].setdefault(name, {}), measure_example(name, kinds, log))
     if args.only is None or "uav_roll" in names:
         log("uav_roll (paper config):")
-        rows = measure_paper_config(kinds, log)
-        doc["paper"].update({k: {**stamp, **{f: v[f] for f in ("command", "seconds", "figures")}}
-                             for k, v in rows.items()})
-    store.write_text(json.dumps(doc, indent=1, sort_keys=True) + "\n")
-    args.out.write_text(render(doc))
+        keep(doc["paper"], measure_paper_config(kinds, log))
     log(f"wrote {args.out} and {store}")
     return 0
 

@@ -129,7 +129,7 @@ def flights_table(paper: dict) -> str:
     return _table(
         ["flights × steps", "worst step [cycles] (flight, step)", "share of Ts",
          "median step", "cycles per work unit, max", "OPTIMAL", "bit-exact vs host"],
-        [[f"20 × {_int(f['steps'] // 20)}",
+        [[f"{f['flights']} × {_int(f['steps'] // f['flights'])}",
           f"{_int(f['worst'])} ({f['worst_flight']}, {f['worst_step']})",
           f"{f['worst_share']:.1f} % at {f['cpu_mhz']:g} MHz", _int(f["median"]),
           f"{f['cycles_per_unit']:.2f}", f"{_pct(f['optimal'], f['steps'])} ({_int(f['optimal'])} of {_int(f['steps'])})",
