@@ -114,7 +114,8 @@ docs: venv
 	$(PY) -m rollmpc_codegen.config.doc > docs/config.md
 
 ## measurements: every example's report, simulate and bench rows -> docs/measurements.md
-##   (each row with its command and commit; ~40 min on 2 shared cores; MEASURE_ARGS=--only X)
+##   (each row with its command and commit; 8-40 min on 2 shared cores, with the load;
+##   MEASURE_ARGS="--only X,Y" for some examples, --render to re-render the JSON)
 MEASURE_ARGS ?=
 measurements: venv
 	nice -n 10 $(PY) -m rollmpc_codegen.verify.measurements $(MEASURE_ARGS)

@@ -190,10 +190,15 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--only", help="comma-separated examples to re-measure (default: all)")
     p.add_argument("--skip", default="", help=f"comma-separated kinds of {','.join(KINDS)}")
     p.add_argument("--out", type=Path, default=OUT, help="the Markdown (its .json beside it)")
+    p.add_argument("--render", action="store_true",
+                   help="only render the Markdown again from the JSON, measuring nothing")
     args = p.parse_args(argv)
+    store = args.out.with_suffix(".json")
+    if args.render:
+        args.out.write_text(render(json.loads(store.read_text())))
+        return 0
     kinds = set(KINDS) - set(filter(None, args.skip.split(",")))
     names = args.only.split(",") if args.only else examples()
-    store = args.out.with_suffix(".json")
     doc = json.loads(store.read_text()) if store.exists() else {"examples": {}, "paper": {}}
     stamp = {"commit": commit(), "date": datetime.date.today().isoformat(),
              "machine": machine()}

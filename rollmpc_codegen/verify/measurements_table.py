@@ -9,13 +9,17 @@ HEADER = """\
 from docs/measurements.json. Do not edit: re-measure. -->
 
 The current figures of every example, each measured by the command in its row, at the
-commit in its row ({commits}; {dates}; {machine}). Re-measure everything with `make
-measurements` (about {minutes} min here, nice'd), or some examples with `python -m
-rollmpc_codegen.verify.measurements --only uav_roll,fw_lateral`, which keeps the other
-rows. Cycle counts are the emulator's (deterministic, ±20 % against real silicon:
-target.md, "How it is measured"); host times are wall-clock and compared only as ratios
-within one run. The controller statuses of `report` are the host build's, which the
-emulated target matches bit for bit. `F` is the JSON file each command writes.
+commit in its row.
+
+- Measured at {commits}, on {dates}, on {machine}: {minutes} min of commands, nice'd.
+- Re-measure everything with `make measurements`, or some examples with `python -m
+  rollmpc_codegen.verify.measurements --only uav_roll,fw_lateral`, which keeps the other
+  rows (`--skip bench` leaves out the host timings).
+- Cycle counts are the emulator's: deterministic, and ±20 % against real silicon
+  (target.md, "How it is measured"). Host times are wall-clock, and compared only as
+  ratios within one run.
+- The statuses of `report` are the host build's, which the emulated target matches bit
+  for bit. `F` is the JSON file each command writes.
 """
 
 
@@ -161,7 +165,8 @@ def render(doc: dict) -> str:
     minutes = round(sum(r["seconds"] for r in rows) / 60)
     toolchain = next((k["report"]["figures"]["toolchain"] for k in doc["examples"].values()
                       if "report" in k), "")
-    parts = [HEADER.format(commits="commit " + ", ".join(f"`{c}`" for c in commits),
+    parts = [HEADER.format(commits=("commit " if len(commits) == 1 else "commits ")
+                           + ", ".join(f"`{c}`" for c in commits),
                            dates=" to ".join(dict.fromkeys([dates[0], dates[-1]])),
                            machine=", ".join(machines), minutes=minutes)]
     examples = dict(sorted(doc["examples"].items()))
