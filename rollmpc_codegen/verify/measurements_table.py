@@ -52,79 +52,70 @@ def _tail(row: dict) -> list[str]:
     return [f"`{row['commit']}`", f"`{row['command']}`"]
 
 
-def target_table(examples: dict) -> str:
-    rows = []
-    for name, kinds in examples.items():
-        if "report" not in kinds:
-            continue
-        r = kinds["report"]
-        f = r["figures"]
-        rows.append([
-            name, f"{f['horizon']}, {f['sample_time']:g} s", _int(f["flash"]),
+def _per_example(examples: dict, kind: str, head: list[str], cells) -> str:
+    """One row per example that has a ``kind`` row: its name, ``cells(figures)``, the
+    commit and the command."""
+    return _table(["example", *head], [[name, *cells(kinds[kind]["figures"]),
+                                         *_tail(kinds[kind])]
+                                        for name, kinds in examples.items() if kind in kinds])
+
+
+def _of(part: int, whole: int) -> str:
+    return f"{_pct(part, whole)} ({_int(part)} of {_int(whole)})"
+
+
+def _report_cells(f: dict) -> list[str]:
+    return [f"{f['horizon']}, {f['sample_time']:g} s", _int(f["flash"]),
             f"{_int(f['ram'])} ({_int(f['ctrl'])})", _int(f["stack"]),
             f"{_int(f['worst'])} ({f['worst_step']})",
             f"{f['worst_share']:.1f} % at {f['cpu_mhz']:g} MHz", _int(f["median"]),
-            f"{f['cycles_per_unit']:.2f}",
-            f"{_pct(f['optimal'], f['steps'])} ({_int(f['optimal'])} of {_int(f['steps'])})",
-            str(f["longest_time_limit_run"]), "yes" if f["bit_exact"] else "**no**", *_tail(r)])
-    return _table(["example", "N, Ts", "flash [B]", "static RAM [B] (instance)", "stack [B]",
-                   "worst step [cycles] (step)", "worst, share of Ts",
-                   "median step [cycles]", "cycles per work unit, max", "OPTIMAL",
-                   "longest TIME_LIMIT run", "bit-exact vs host"], rows)
+            f"{f['cycles_per_unit']:.2f}", _of(f["optimal"], f["steps"]),
+            str(f["longest_time_limit_run"]), "yes" if f["bit_exact"] else "**no**"]
+
+
+def target_table(examples: dict) -> str:
+    return _per_example(examples, "report", [
+        "N, Ts", "flash [B]", "static RAM [B] (instance)", "stack [B]",
+        "worst step [cycles] (step)", "worst, share of Ts", "median step [cycles]",
+        "cycles per work unit, max", "OPTIMAL", "longest TIME_LIMIT run",
+        "bit-exact vs host"], _report_cells)
+
+
+def _work(w: dict) -> str:
+    return f"{_int(w['median'])} / {_int(w['p99'])} / {_int(w['max'])}"
+
+
+def _closed_loop_cells(f: dict) -> list[str]:
+    beyond = max(f["y_max_beyond"].values(), default=0.0)
+    return [_int(f["samples"]), _pct(f["optimal"], f["samples"]), _statuses(f["statuses"]),
+            str(f["longest_time_limit_run"]), _num(f["max_settled_error"]),
+            f"{f['hard_violations']}" + (f" (by up to {_num(beyond)})" if beyond else ""),
+            f"{_work(f['work'])} of {_int(f['work']['budget'])}"]
 
 
 def closed_loop_table(examples: dict) -> str:
-    rows = []
-    for name, kinds in examples.items():
-        if "simulate" not in kinds:
-            continue
-        r = kinds["simulate"]
-        f = r["figures"]
-        w = f["work"]
-        beyond = max(f["y_max_beyond"].values(), default=0.0)
-        rows.append([
-            name, _int(f["samples"]), _pct(f["optimal"], f["samples"]),
-            _statuses(f["statuses"]), str(f["longest_time_limit_run"]),
-            _num(f["max_settled_error"]),
-            f"{f['hard_violations']}" + (f" (by up to {_num(beyond)})" if beyond else ""),
-            f"{_int(w['median'])} / {_int(w['p99'])} / {_int(w['max'])} of {_int(w['budget'])}",
-            *_tail(r)])
-    return _table(["example", "samples", "OPTIMAL", "statuses", "longest TIME_LIMIT run",
-                   "max settled error [output units]", "hard-bound violations",
-                   "work per sample: median / p99 / max of the budget [units]"], rows)
+    return _per_example(examples, "simulate", [
+        "samples", "OPTIMAL", "statuses", "longest TIME_LIMIT run",
+        "max settled error [output units]", "hard-bound violations",
+        "work per sample: median / p99 / max of the budget [units]"], _closed_loop_cells)
 
 
 def unbudgeted_table(examples: dict) -> str:
-    rows = []
-    for name, kinds in examples.items():
-        if "unbudgeted" not in kinds:
-            continue
-        r = kinds["unbudgeted"]
-        f = r["figures"]
-        rows.append([
-            name, f"{_int(f['median'])} / {_int(f['p99'])} / {_int(f['max'])}",
-            _int(f["budget"]), f"{f['above_budget']} of {_int(f['samples'])}",
-            _pct(f["optimal"], f["samples"]), *_tail(r)])
-    return _table(["example", "work per sample: median / p99 / max [units]",
-                   "the example's budget", "samples above it", "OPTIMAL without a budget"],
-                  rows)
+    return _per_example(examples, "unbudgeted", [
+        "work per sample: median / p99 / max [units]", "the example's budget",
+        "samples above it", "OPTIMAL without a budget"],
+        lambda f: [_work(f), _int(f["budget"]), f"{f['above_budget']} of {_int(f['samples'])}",
+                   _pct(f["optimal"], f["samples"])])
 
 
 def bench_table(examples: dict) -> str:
-    rows = []
-    for name, kinds in examples.items():
-        if "bench" not in kinds:
-            continue
-        r = kinds["bench"]
-        f = r["figures"]
-        rows.append([
-            name, _int(f["qps"]),
-            f"{f['ours_median_us']:.2f} / {f['ours_max_us']:.1f}",
-            f"{f['daqp_median_us']:.2f} / {f['daqp_max_us']:.1f}",
-            f"{f['median_ratio']:.2f}", f"{f['max_ratio']:.2f}", _statuses(f["statuses"]),
-            *_tail(r)])
-    return _table(["example", "QPs", "ours: median / max [µs]", "DAQP C: median / max [µs]",
-                   "median, ours / DAQP", "max, ours / DAQP", "our statuses"], rows)
+    return _per_example(examples, "bench", [
+        "QPs", "ours: median / max [µs]", "DAQP C: median / max [µs]", "median, ours / DAQP",
+        "max, ours / DAQP", "our statuses"],
+        lambda f: [_int(f["qps"]), f"{f['ours_median_us']:.2f} / {f['ours_max_us']:.1f}",
+                   f"{f['daqp_median_us']:.2f} / {f['daqp_max_us']:.1f}",
+                   f"{f['median_ratio']:.2f}", f"{f['max_ratio']:.2f}",
+                   _statuses(f["statuses"])])
 
 
 def flights_table(paper: dict) -> str:
@@ -136,7 +127,7 @@ def flights_table(paper: dict) -> str:
         [[f"{f['flights']} × {_int(f['steps'] // f['flights'])}",
           f"{_int(f['worst'])} ({f['worst_flight']}, {f['worst_step']})",
           f"{f['worst_share']:.1f} % at {f['cpu_mhz']:g} MHz", _int(f["median"]),
-          f"{f['cycles_per_unit']:.2f}", f"{_pct(f['optimal'], f['steps'])} ({_int(f['optimal'])} of {_int(f['steps'])})",
+          f"{f['cycles_per_unit']:.2f}", _of(f["optimal"], f["steps"]),
           "yes" if f["bit_exact"] else "**no**", *_tail(r)]])
 
 
