@@ -22,14 +22,14 @@ import yaml
 from .config import ConfigError, ControllerConfig, parse
 from .config.diagnostics import emit
 from .config.reader import unknown_key
+from .config.schema import MODE_KEYS
 
 WEIGHT_KEYS = ("Q", "R", "P", "R_delta")  # Mode keywords that go to ``weights``
 BOUND_KEYS = ("u_min", "u_max", "y_min", "y_max", "du_min", "du_max", "soft")  # to ``bounds``
 BOUND_PAIRS = {"u_bounds": ("u_min", "u_max"), "y_bounds": ("y_min", "y_max"),
                "du_bounds": ("du_min", "du_max")}  # (lower, upper) shorthands
 PASSED_KEYS = ("control_horizon", "move_blocking")  # to the mode's YAML mapping as they are
-MODE_KEYWORDS = ("actuators", "integrator", "weights", "bounds", "observer", *WEIGHT_KEYS,
-                 *BOUND_KEYS, *BOUND_PAIRS, *PASSED_KEYS)  # what Mode() takes
+MODE_KEYWORDS = (*MODE_KEYS, "integrator", *WEIGHT_KEYS, *BOUND_KEYS, *BOUND_PAIRS)  # Mode()'s
 
 
 def yaml_data(value: Any) -> Any:
@@ -135,10 +135,8 @@ class Mode:
                 self.bounds[key] = value
             elif key in BOUND_PAIRS:
                 self.pairs[key] = value
-            elif key in PASSED_KEYS:
+            else:
                 self.options[key] = value
-            else:  # named here: parse would suggest a YAML key, not the keyword meant
-                raise ConfigError(f"Mode({name!r}).{key}", unknown_key(key, MODE_KEYWORDS))
 
     def entry(self, index: int, sample_time: Any, actuators) -> dict:
         """This mode as the YAML mapping ``modes[index]``."""
@@ -151,6 +149,9 @@ class Mode:
                     raise ConfigError(f"{key}.bounds", f"{pair} must be a pair ({lo}, {hi}), "
                                       f"got {value!r}")
                 bounds[lo], bounds[hi] = value
+        for name in self.options:  # named here: parse would not suggest the API's keywords
+            if name not in PASSED_KEYS:
+                raise ConfigError(f"{key}.{name}", unknown_key(name, MODE_KEYWORDS))
         plant = plant_entry(self.plant, sample_time, f"{key}.plant")
         if self.integrator is not None:
             plant["integrator"] = self.integrator

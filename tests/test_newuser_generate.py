@@ -23,6 +23,7 @@ from rollmpc_codegen.pipeline import load_model
 from rollmpc_codegen.qp.feasibility import rest_warnings
 from rollmpc_codegen.qp.footprint import check_fits, predict
 from rollmpc_codegen.qp.nominal_loop import closed_loop_radius, unstable_law_warnings
+from rollmpc_codegen.qp.sanity import design_warnings
 from rollmpc_codegen.target.horizons import PARTS
 
 SHIP = ROOT / "tests" / "data" / "newuser" / "ship_heading.yaml"
@@ -347,4 +348,5 @@ def test_no_example_warns(path):
     model = load_model(path)[0]
     assert rest_warnings(model) == []
     assert unstable_law_warnings(model) == []
+    assert design_warnings(model) == []  # nor the sanity checks (docs/checks.md)
     assert max(closed_loop_radius(model, j) for j in range(len(model.modes))) < 0.996

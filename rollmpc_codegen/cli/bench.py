@@ -6,8 +6,9 @@ from __future__ import annotations
 import sys
 
 from ..config import ConfigError
-from .options import (add_build_dir, add_command, add_config, add_outputs, add_precision, add_quiet, check_outputs,
-                      check_steps, progress_of, require_plot, write_json)
+from .options import (add_build_dir, add_command, add_config, add_outputs, add_precision,
+                      add_quiet, check_outputs, check_steps, progress_of, require_plot,
+                      write_json)
 
 # the rows of host.bench (ROWS, OURS_AND_PEERS, PAPER_VARIANTS); only the parser's help
 # text repeats them (building the parser must not import the library)

@@ -5,9 +5,9 @@ as a short summary on stdout (with ``--flights``, a line per flight), or with
 from __future__ import annotations
 
 from ..config.errors import ConfigError
-from .options import (add_build_dir, add_command, add_config, add_outputs, add_perturbations, add_precision, add_quiet,
-                      check_flights, check_perturbations, check_steps, progress_of,
-                      write_json)
+from .options import (add_build_dir, add_command, add_config, add_outputs, add_perturbations,
+                      add_precision, add_quiet, check_flights, check_perturbations, check_steps,
+                      progress_of, write_json)
 
 
 def add_parser(sub) -> None:

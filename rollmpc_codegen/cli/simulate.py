@@ -25,9 +25,9 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 from ..config import ConfigError
-from .options import (add_build_dir, add_command, add_config, add_outputs, add_perturbations, add_precision, add_quiet,
-                      check_flights, check_outputs, check_perturbations, check_steps,
-                      progress_of, require_plot, write_json)
+from .options import (add_build_dir, add_command, add_config, add_outputs, add_perturbations,
+                      add_precision, add_quiet, check_flights, check_outputs,
+                      check_perturbations, check_steps, progress_of, require_plot, write_json)
 
 if TYPE_CHECKING:
     from ..sim.simulate import ClosedLoopLog

@@ -151,9 +151,10 @@ def run_bench(config, *, precision: str | None = None,
               steps: int | None = None, build_dir: str | Path | None = None,
               progress=None) -> BenchResult:
     """Table 2 for ``config`` (a file, a ControllerConfig or a Design; see the module
-    docstring) on the rows ``variants`` (default: :func:`default_variants`), with the paper's variants too when ``paper``, and quadprog,
-    the reference, always; ``max_qps`` samples the QPs in blocks, ``steps`` shortens the
-    recorded scenario, ``build_dir`` holds the host builds (default: a cache in $TMPDIR)."""
+    docstring) on the rows ``variants`` (default: :func:`default_variants`), with the
+    paper's variants too when ``paper``, and quadprog, the reference, always; ``max_qps``
+    samples the QPs in blocks, ``steps`` shortens the recorded scenario, ``build_dir``
+    holds the host builds (default: a cache in $TMPDIR)."""
     keys = table_rows([*(default_variants() if variants is None else variants),
                        *(PAPER_VARIANTS if paper else ())])
     for key in keys:

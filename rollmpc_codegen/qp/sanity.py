@@ -60,8 +60,8 @@ def sample_time_warnings(cfg: ControllerConfig) -> list[DesignWarning]:
         "sample_time_coarse", "sample_time",
         f"sample_time {seconds_text(cfg.sample_time)} is {rad:.3g} rad at the plant's fastest "
         f"pole (modes[{j}] {cfg.modes[j].name}: {pole_text(s)}): {what}, so the controller "
-        f"can neither see nor act on that mode; sample at most {seconds_text(RESOLVED_RAD / abs(s))} "
-        f"(|s| Ts = pi), better ten times faster")]
+        "can neither see nor act on that mode; sample at most "
+        f"{seconds_text(RESOLVED_RAD / abs(s))} (|s| Ts = pi), better ten times faster")]
 
 
 def horizon_warnings(model: ControllerModel) -> list[DesignWarning]:
@@ -79,9 +79,10 @@ def horizon_warnings(model: ControllerModel) -> list[DesignWarning]:
             found.append(DesignWarning(
                 "horizon_short", "horizon",
                 f"modes[{j}] ({mode.name}): the horizon N Ts = {seconds_text(span)} is 1/"
-                f"{tau / span:,.0f} of the slowest closed-loop time constant ({seconds_text(tau)}, "
-                f"z = {slowest:.6g}): the plans see a sliver of the response; lengthen the "
-                "horizon or the sample time (is sample_time in seconds?)"))
+                f"{tau / span:,.0f} of the slowest closed-loop time constant "
+                f"({seconds_text(tau)}, z = {slowest:.6g}): the plans see a sliver of the "
+                "response; lengthen the horizon or the sample time (is sample_time in "
+                "seconds?)"))
     return found
 
 

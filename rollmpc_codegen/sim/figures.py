@@ -1,7 +1,8 @@
 """The paper's figures as PNGs (matplotlib, Agg backend).
 
 * Fig. 2 (:func:`plot_closed_loop`, ``rollmpc simulate --plot``): panel (a) the output y
-  and the reference r with the output bounds (dash-dot, in the output's colour), with the actuator commands u in a subplot beneath; panel (b), with
+  and the reference r with the output bounds (dash-dot, in the output's colour), with
+  the actuator commands u in a subplot beneath; panel (b), with
   two modes or more only, the scheduling signal rho (the UAV's roll rate) with the eq. (3)
   thresholds, and the active mode on a second axis.  An optional baseline (the saturated
   LQR) is drawn dashed.  The labels use the config's output, actuator and signal names,

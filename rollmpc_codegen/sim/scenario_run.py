@@ -44,7 +44,8 @@ def run_scenario(config, *, precision: str | None = None,
                  mismatch: float = 0.0, seed: int = 0, baseline: str | None = None,
                  build_dir: str | Path | None = None, progress=None) -> ScenarioRun:
     """Simulate ``steps`` samples (default: the whole scenario) of the generated C for
-    ``config`` (a file, a ControllerConfig or a Design: pipeline.load_config), with seeded measurement noise, a constant input disturbance and a plant
+    ``config`` (a file, a ControllerConfig or a Design: pipeline.load_config), with
+    seeded measurement noise, a constant input disturbance and a plant
     mismatch of up to ``mismatch`` (a fraction, sim/mismatch.py) (``run_closed_loop``);
     ``baseline="lqr"`` also runs the saturated LQR."""
     if baseline is not None and baseline not in BASELINES:

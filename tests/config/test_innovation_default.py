@@ -10,8 +10,8 @@ import numpy as np
 import pytest
 import yaml
 
-from conftest import ROOT, UAV
-from rollmpc_codegen.config import ConfigError, load, parse
+from conftest import ROOT, UAV, config_error
+from rollmpc_codegen.config import load, parse
 from rollmpc_codegen.config.schema import INNOVATION_LIMIT_SPANS
 from rollmpc_codegen.model.reach import output_reach
 from rollmpc_codegen.pipeline import build_model
@@ -60,10 +60,9 @@ def test_an_output_no_input_moves_still_asks_for_the_key():
                 "C": [[1.0, 1.0], [0.0, 0.0]]}},  # 'idle' reads nothing: always 0
                 "weights": {"Q": 1, "R": 1}, "bounds": {"u_min": -1, "u_max": 1}}],
             "simulation": {"reference": {"levels": [[1, 0]], "segment": 1}}}
-    with pytest.raises(ConfigError) as exc:
-        build_model(parse(data))
-    assert exc.value.key == "modes[0].observer.innovation_limit"
-    assert exc.value.problem == (
+    exc = config_error(data, lambda d: build_model(parse(d)))
+    assert exc.key == "modes[0].observer.innovation_limit"
+    assert exc.problem == (
         "has no default for output 'idle': no finite bound, a scenario reference of 0 and "
         "no input that moves it within the horizon give it no range; give one (.inf: "
         "never clip)")

@@ -12,7 +12,7 @@ import sys
 import pytest
 import yaml
 
-from conftest import ROOT
+from conftest import ROOT, config_error
 from rollmpc_codegen.config import ConfigError, parse
 from rollmpc_codegen.pipeline import build_model
 from rollmpc_codegen.qp.sanity import design_warnings
@@ -46,10 +46,9 @@ def codes(found) -> list[tuple[str, str]]:
 def test_a_sample_time_in_microseconds_written_as_seconds_names_sample_time(simulation):
     """sample_time: 50 for 50 us was blamed on simulation.reference.segment, or without a
     scenario on a controllability pole (s = -1.511)."""
-    with pytest.raises(ConfigError) as exc:
-        parse(buck(sample_time=50, simulation=simulation))
-    assert exc.value.key == "sample_time"
-    assert exc.value.problem == (
+    exc = config_error(buck(sample_time=50, simulation=simulation), parse)
+    assert exc.key == "sample_time"
+    assert exc.problem == (
         "50 s is 3.37e+05 rad at the fastest pole of modes[0] (ccm: s = -378.8 ± 6731j, "
         "|s| Ts should be below about 3.14): the plant settles or turns many times within "
         "one sample; sample_time is in seconds; meant 5e-05 (50 us)?")
