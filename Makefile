@@ -29,11 +29,15 @@ $(VENV)/.installed: pyproject.toml
 venv: $(VENV)/.installed
 
 ## demo: generate the paper's controller (double and float) and run the 60 s scenario
-demo: venv generate
+##   (the paper's controller only: `make generate` regenerates every example)
+DEMO := uav_roll
+demo: venv
+	$(ROLLMPC) generate examples/$(DEMO).yaml -o generated/$(DEMO) --precision double
+	$(ROLLMPC) generate examples/$(DEMO).yaml -o generated/$(DEMO)_f32 --precision float
 	@mkdir -p build/demo
-	$(ROLLMPC) simulate examples/uav_roll.yaml --csv build/demo/uav_roll.csv \
-	    --json build/demo/uav_roll.json --plot build/demo/uav_roll.png --baseline lqr
-	@echo "demo: see build/demo/uav_roll.png, build/demo/uav_roll.json"
+	$(ROLLMPC) simulate examples/$(DEMO).yaml --csv build/demo/$(DEMO).csv \
+	    --json build/demo/$(DEMO).json --plot build/demo/$(DEMO).png --baseline lqr
+	@echo "demo: see build/demo/$(DEMO).png, build/demo/$(DEMO).json"
 
 ## generate: regenerate the committed generated/ trees from examples/
 generate: venv

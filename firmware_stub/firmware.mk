@@ -7,6 +7,13 @@
 #
 # Flags: the target flags of `rollmpc report` (bit-exact with the host float build), the
 # project's strict warnings, PX4's C warnings and ArduPilot's frame limit, all -Werror.
+#
+# The linked image is checked against the design's target: section, which generate writes
+# into FW_GEN's <prefix>_context.json (flash: text + data; static RAM: data + bss): beyond
+# target.flash_kib or target.ram_kib the build fails and removes the image (the double
+# tree of uav_roll linked 471 KiB of flash for a 256 KiB part without a word).  Override
+# with FW_FLASH_KIB= / FW_RAM_KIB= (empty: no check), or FW_FORCE_SIZE=1 to keep the image
+# with a warning.
 
 FW_DIR ?= firmware_stub
 FW_GEN ?= generated/uav_roll_f32
@@ -23,6 +30,13 @@ FW_WARN := -std=c99 -Wall -Wextra -Wpedantic -Wconversion -Wshadow -Wdouble-prom
     -Wfloat-equal -Wcast-align -Wstrict-prototypes -Wbad-function-cast -Wnested-externs \
     -fno-common -Wframe-larger-than=1300
 FW_INC := -I$(FW_GEN) -I$(FW_DIR)
+
+FW_CONTEXT := $(firstword $(wildcard $(FW_GEN)/*_context.json))
+# the number after "<key>": in the context (null, or no context: empty, no check)
+fw_target = $(if $(FW_CONTEXT),$(shell sed -n 's/^ *"$(1)": *\([0-9][0-9.]*\).*/\1/p' $(FW_CONTEXT) | head -n 1))
+FW_FLASH_KIB ?= $(call fw_target,flash_kib)
+FW_RAM_KIB ?= $(call fw_target,ram_kib)
+FW_FORCE_SIZE ?=
 
 FW_ELF := $(FW_BUILD)/rollctl_m4f.elf
 FW_HOST := $(FW_BUILD)/rollctl_host
@@ -52,6 +66,19 @@ $(FW_ELF): $(FW_OBJ) $(FW_DIR)/m4f/stm32f4_generic.ld
 	$(ARM_CC) $(FW_MCU) -nostartfiles --specs=nano.specs -Wl,--gc-sections \
 	    -T $(FW_DIR)/m4f/stm32f4_generic.ld -Wl,-Map=$(FW_BUILD)/rollctl_m4f.map \
 	    -o $@ $(FW_OBJ) -lm
+	@$(ARM_SIZE) $@ | awk -v flash_kib="$(FW_FLASH_KIB)" -v ram_kib="$(FW_RAM_KIB)" \
+	    -v force="$(FW_FORCE_SIZE)" -v gen="$(FW_GEN)" 'NR == 2 { \
+	    flash = $$1 + $$2; ram = $$2 + $$3; bad = 0; \
+	    what = force == "" ? "error" : "warning"; \
+	    if (flash_kib != "" && flash > flash_kib * 1024) { bad = 1; \
+	        printf "firmware: %s: flash %d B (%.1f KiB) above target.flash_kib = %s of %s\n", \
+	            what, flash, flash / 1024, flash_kib, gen > "/dev/stderr" } \
+	    if (ram_kib != "" && ram > ram_kib * 1024) { bad = 1; \
+	        printf "firmware: %s: static RAM %d B (%.1f KiB) above target.ram_kib = %s of %s\n", \
+	            what, ram, ram / 1024, ram_kib, gen > "/dev/stderr" } \
+	    if (bad && force == "") { \
+	        print "firmware: a double tree? generate --precision float; FW_FORCE_SIZE=1 keeps the image" > "/dev/stderr"; \
+	        exit 1 } }' || { rm -f $@; exit 1; }
 	@echo "firmware: $@"
 
 size: $(FW_ELF)

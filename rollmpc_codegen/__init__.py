@@ -12,7 +12,8 @@ from .model.blas_kernels import pin_kernels as _pin_kernels
 _pin_kernels()  # before any module of ours imports NumPy: model/blas_kernels.py says why
 
 # name -> the module that defines it (PEP 562: loaded when first asked for)
-_LAZY = {"Design": "api", "Mode": "api", "CompiledController": "api", "ConfigError": "config"}
+_LAZY = {"Design": "api", "Mode": "api", "CompiledController": "api", "ConfigError": "config",
+         "DesignWarning": "config", "RollmpcWarning": "config"}
 __all__ = ["__version__", *_LAZY]
 
 

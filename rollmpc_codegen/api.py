@@ -20,11 +20,16 @@ import numpy as np
 import yaml
 
 from .config import ConfigError, ControllerConfig, parse
+from .config.diagnostics import emit
+from .config.reader import unknown_key
+from .config.schema import MODE_KEYS
 
 WEIGHT_KEYS = ("Q", "R", "P", "R_delta")  # Mode keywords that go to ``weights``
 BOUND_KEYS = ("u_min", "u_max", "y_min", "y_max", "du_min", "du_max", "soft")  # to ``bounds``
 BOUND_PAIRS = {"u_bounds": ("u_min", "u_max"), "y_bounds": ("y_min", "y_max"),
                "du_bounds": ("du_min", "du_max")}  # (lower, upper) shorthands
+PASSED_KEYS = ("control_horizon", "move_blocking")  # to the mode's YAML mapping as they are
+MODE_KEYWORDS = (*MODE_KEYS, "integrator", *WEIGHT_KEYS, *BOUND_KEYS, *BOUND_PAIRS)  # Mode()'s
 
 
 def yaml_data(value: Any) -> Any:
@@ -144,6 +149,9 @@ class Mode:
                     raise ConfigError(f"{key}.bounds", f"{pair} must be a pair ({lo}, {hi}), "
                                       f"got {value!r}")
                 bounds[lo], bounds[hi] = value
+        for name in self.options:  # named here: parse would not suggest the API's keywords
+            if name not in PASSED_KEYS:
+                raise ConfigError(f"{key}.{name}", unknown_key(name, MODE_KEYWORDS))
         plant = plant_entry(self.plant, sample_time, f"{key}.plant")
         if self.integrator is not None:
             plant["integrator"] = self.integrator
@@ -193,7 +201,7 @@ class Design:
             Path(path).write_text(text)
         return text
 
-    def _config(self, precision: str | None) -> ControllerConfig:
+    def config_for(self, precision: str | None) -> ControllerConfig:
         """The config, with the precision overridden as ``--precision`` does."""
         if precision is None or precision == self.config.precision:
             return self.config
@@ -203,27 +211,66 @@ class Design:
         """(model, context) of the pipeline, computed once per precision."""
         from .pipeline import load_model_from_config
 
-        cfg = self._config(precision)
+        cfg = self.config_for(precision)
         if cfg.precision not in self._built:
             self._built[cfg.precision] = load_model_from_config(cfg)
         return self._built[cfg.precision]
 
     def generate(self, out_dir: str | Path, precision: str | None = None,
-                 force: bool = False, force_size: bool = False) -> Path:
-        """Write the generated C into ``out_dir`` (the files of ``rollmpc generate``, and
-        its rules: only rollmpc's own files are replaced; ``force`` as ``--force``; a
-        design beyond its target is refused before the maths unless ``force_size``, as
-        ``--force-size``)."""
-        from .codegen.output import check_output_dir, write_output
-        from .codegen.render import render_sources
-        from .qp.footprint import check_fits, predict
+                 force: bool = False, force_size: bool = False, float_check: bool = True,
+                 build_dir: str | Path | None = None):
+        """Write the generated C into ``out_dir``: the files of ``rollmpc generate`` and
+        its rules (only rollmpc's own files are replaced; ``force`` as ``--force``; a
+        design beyond its target is refused before the maths unless ``force_size``), its
+        design warnings and, for a float build unless ``float_check`` is False, its float
+        check.  Returns the :class:`~rollmpc_codegen.host.generate_run.GenerateRun`
+        (path-like: its directory; ``warnings``, ``footprint``, ``float_check``); each
+        warning also goes to Python's ``warnings`` as a RollmpcWarning."""
+        from .host.generate_run import run_generate
 
-        check_output_dir(out_dir, force)
-        cfg = self._config(precision)
-        if not force_size:
-            check_fits(cfg, predict(cfg))
-        write_output(render_sources(self.build(precision)[1]), out_dir, force)
-        return Path(out_dir)
+        run = run_generate(self, out_dir, precision=precision, force=force,
+                           force_size=force_size)
+        self._built.setdefault(run.ctx["precision"], (run.model, run.ctx))
+        if run.ctx["precision"] == "float" and float_check:
+            run.check_float(build_dir)
+        emit(run.warnings)
+        return run
+
+    def simulate(self, **options):
+        """``rollmpc simulate``: :func:`~rollmpc_codegen.sim.scenario_run.run_scenario`
+        with its keywords (``precision, steps, noise_std, disturbance, mismatch, seed,
+        baseline, build_dir``), or with ``flights=K``
+        :func:`~rollmpc_codegen.sim.flights_run.run_flights`; the run's ``summary`` is
+        the ``--json`` document, its ``warnings`` what the CLI prints (also warned)."""
+        if options.get("flights"):
+            from .sim.flights_run import run_flights
+
+            run = run_flights(self, **options)
+        else:
+            from .sim.scenario_run import run_scenario
+
+            options.pop("flights", None)
+            run = run_scenario(self, **options)
+        emit(run.warnings)
+        return run
+
+    def bench(self, **options):
+        """``rollmpc bench``: :func:`~rollmpc_codegen.host.bench.run_bench` with its
+        keywords (``precision, variants, paper, max_qps, repeat, steps, build_dir``)."""
+        from .host.bench import run_bench
+
+        return run_bench(self, **options)
+
+    def report(self, **options) -> dict:
+        """``rollmpc report``: :func:`~rollmpc_codegen.target.report.run_report` with its
+        keywords; the report dict, its ``verdicts``, ``passed`` and ``checks`` (the
+        warnings, also warned)."""
+        from .config.diagnostics import DesignWarning
+        from .target.report import run_report
+
+        rep = run_report(self, **options)
+        emit([DesignWarning(**w) for w in rep.get("checks", [])])
+        return rep
 
     def compile(self, precision: str | None = None, build_dir: str | Path | None = None,
                 compiler: str = "gcc", opt: str = "-O2") -> "CompiledController":

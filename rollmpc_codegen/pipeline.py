@@ -5,6 +5,7 @@ config/ (validated dataclasses) -> model/ (plant, observer; features/ augment it
 """
 from __future__ import annotations
 
+import dataclasses
 from pathlib import Path
 from typing import Callable
 
@@ -16,10 +17,12 @@ from .codegen.context import build_context
 from .codegen.output import check_output_dir, write_output
 from .codegen.render import render_sources
 from .config import ConfigError, ControllerConfig, ModeConfig
+from .config.checks import check_representable
 from .features import input_rate
 from .features.disturbance_model import prediction_model
 from .model.controller import ControllerModel, ModeModel
 from .model.plant import DiscretePlant
+from .model.reach import innovation_limit
 from .qp.arrays import REAL, STORED_ARRAYS
 from .qp import footprint
 from .qp.condense import condense, predictions
@@ -62,9 +65,10 @@ def _per_mode(cfg: ControllerConfig, step, *args) -> list:
 def _build_model(cfg: ControllerConfig, before_maths) -> ControllerModel:
     check_sizes(cfg)  # the size limits (int16 rows, states, memory), before any maths
     plants = _per_mode(cfg, _prediction_plant)
+    limits = _per_mode(cfg, _innovation_limit, plants)
     if before_maths is not None:
         before_maths(cfg)
-    return ControllerModel(config=cfg, modes=tuple(_per_mode(cfg, _mode_model, plants)))
+    return ControllerModel(config=cfg, modes=tuple(_per_mode(cfg, _mode_model, plants, limits)))
 
 
 def _prediction_plant(cfg: ControllerConfig, mode: ModeConfig, key: str) -> DiscretePlant:
@@ -75,13 +79,21 @@ def _prediction_plant(cfg: ControllerConfig, mode: ModeConfig, key: str) -> Disc
     return plant
 
 
+def _innovation_limit(cfg: ControllerConfig, mode: ModeConfig, key: str,
+                      plant: DiscretePlant) -> np.ndarray:
+    """The mode's innovation limits, those the config leaves to the model derived from
+    its reach (model/reach.py), before the dense maths."""
+    return innovation_limit(mode, plant, cfg.horizon, f"{key}.observer.innovation_limit",
+                            cfg.outputs)
+
+
 def _mode_model(cfg: ControllerConfig, mode: ModeConfig, key: str,
-                plant: DiscretePlant) -> ModeModel:
+                plant: DiscretePlant, limit: np.ndarray) -> ModeModel:
     """One mode's QP, observer and stored data."""
     qp = condense(plant, mode, cfg.horizon, key)
     L, poles = input_rate.observer_gain(plant, mode, key)
     act_index = [cfg.actuators.index(a) for a in mode.actuators]
-    data = mode_data(mode.name, act_index, plant, L, mode.innovation_limit, qp, mode.u_min,
+    data = mode_data(mode.name, act_index, plant, L, limit, qp, mode.u_min,
                      mode.u_max, cfg.precision, mode.soft_l1, mode.soft_l2)
     for array in STORED_ARRAYS:
         value = getattr(data, array.name)
@@ -97,9 +109,37 @@ def load_model_from_config(cfg: ControllerConfig) -> tuple[ControllerModel, dict
     return model, build_context(model)
 
 
-def load_model(config_path: str | Path, precision: str | None = None) -> tuple[ControllerModel, dict]:
-    """Validate the config file and compute every static matrix; returns (model, context)."""
-    return load_model_from_config(config_mod.load(config_path, precision))
+def load_config(config, precision: str | None = None) -> ControllerConfig:
+    """The validated config of a YAML file, a :class:`ControllerConfig` or a
+    :class:`~rollmpc_codegen.api.Design`, with ``precision`` overriding its own as
+    ``--precision`` does: what every library run (simulate, bench, report) accepts."""
+    config_for = getattr(config, "config_for", None)  # a Design
+    if callable(config_for):
+        return config_for(precision)
+    if isinstance(config, ControllerConfig):
+        if precision is None or precision == config.precision:
+            return config
+        cfg = dataclasses.replace(config, precision=precision)
+        check_representable(precision, cfg.sample_time, cfg.modes, cfg.scheduler, cfg.solver)
+        return cfg
+    return config_mod.load(config, precision)
+
+
+def config_label(config) -> str:
+    """How a run's JSON names its config: the file, or the design of the Python API."""
+    if isinstance(config, (str, Path)):
+        return str(config)
+    return f"{load_config(config).prefix} (Python API)"
+
+
+def load_model(config, precision: str | None = None) -> tuple[ControllerModel, dict]:
+    """Validate the config (a file, a ControllerConfig or a Design: :func:`load_config`)
+    and compute every static matrix; returns (model, context).  A Design's are built
+    once per precision."""
+    build = getattr(config, "build", None)
+    if callable(build):
+        return build(precision)
+    return load_model_from_config(load_config(config, precision))
 
 
 def generate_config(cfg: ControllerConfig, out_dir: str | Path, force: bool = False,
@@ -128,12 +168,12 @@ def generate_config(cfg: ControllerConfig, out_dir: str | Path, force: bool = Fa
     return model, ctx
 
 
-def generate(config_path: str | Path, out_dir: str | Path, precision: str | None = None,
+def generate(config, out_dir: str | Path, precision: str | None = None,
              force: bool = False, force_size: bool = False,
              announce: Callable[[Footprint], None] | None = None
              ) -> tuple[ControllerModel, dict]:
-    """Render the controller for the config file ``config_path`` into ``out_dir``
-    (the keywords of :func:`generate_config`)."""
+    """Render the controller for ``config`` (a file, a ControllerConfig or a Design:
+    :func:`load_config`) into ``out_dir`` (the keywords of :func:`generate_config`)."""
     check_output_dir(out_dir, force)  # a bad output path costs no maths
-    return generate_config(config_mod.load(config_path, precision), out_dir, force,
-                           force_size, announce)
+    return generate_config(load_config(config, precision), out_dir, force, force_size,
+                           announce)

@@ -288,10 +288,8 @@ CASES = [
     pytest.param(set_("modes[0].observer.innovation_limit", "big"),
                  "modes[0].observer.innovation_limit", "must be a number",
                  id="innovation-limit-string"),
-    pytest.param(both(drop("modes[0].bounds.y_min"), drop("modes[0].bounds.y_max"),
-                      set_("simulation", {"reference": {"levels": [0], "segment": 10}})),
-                 "modes[0].observer.innovation_limit", "no default for output 'roll'",
-                 id="innovation-limit-no-range"),
+    # an output with no bound and a zero reference takes its default from the model now
+    # (tests/config/test_innovation_default.py has the case nothing bounds)
     # ---- names
     pytest.param(set_("modes[0].actuators", ["middle"]), "modes[0].actuators[0]",
                  "unknown actuator", id="mode-unknown-actuator"),

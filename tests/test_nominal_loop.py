@@ -46,7 +46,9 @@ def model_of(data: dict):
 def test_the_cart_pole_warns_with_its_radius():
     model = model_of(cart())
     assert closed_loop_radius(model, 0) == pytest.approx(1.00715, abs=5e-6)
-    assert unstable_law_warnings(model) == [WARNING]
+    assert [w.message for w in unstable_law_warnings(model)] == [WARNING]
+    assert [(w.code, w.key) for w in unstable_law_warnings(model)] == [
+        ("unstable_nominal_loop", "modes[0].weights.P")]
 
 
 @pytest.mark.parametrize("changes", REMEDIES.values(), ids=REMEDIES.keys())
@@ -120,6 +122,6 @@ def test_a_law_that_ignores_its_state_is_named(changes, ignores):
     data = copy.deepcopy(DOUBLE_INTEGRATOR)
     for key, value in changes.items():
         (data["modes"][0] if key == "weights" else data)[key] = value
-    lines = unstable_law_warnings(model_of(data))
+    lines = [w.message for w in unstable_law_warnings(model_of(data))]
     named = [ln for ln in lines if "does not depend on the state" in ln]
     assert len(named) == int(ignores) and len(lines) == len(named)

@@ -79,8 +79,14 @@ def test_summary_names_the_longest_time_limit_run():
            "worst_step_mode": 0, "worst_step_cycles": 1, "worst_step_instructions": 1,
            "median_step_cycles": 1, "cpu_mhz_needed": 1.0, "sample_time": 0.01,
            "statuses": {"optimal": 60, "time_limit": 40}, "goals": {}}
-    short = summary_text(dict(rep, longest_time_limit_run=29))
-    long = summary_text(dict(rep, longest_time_limit_run=30))
+    from rollmpc_codegen.config import load
+    from rollmpc_codegen.target.verdicts import conclude
+
+    def text(longest: int) -> str:  # the report's warnings are concluded from its figures
+        return summary_text(conclude(dict(rep, longest_time_limit_run=longest), load(UAV),
+                                     "float"))
+
+    short, long = text(29), text(30)
     assert "over 100 steps: optimal 60, time_limit 40 (longest TIME_LIMIT run 29)" in short
     assert "outlasted" not in short
     assert "The longest run, 30 samples, outlasted the last plan (it covers 29)" in long

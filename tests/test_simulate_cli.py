@@ -222,10 +222,11 @@ def test_overshoot_counts_the_outputs_whose_reference_steps():
     y[100:150, 1] = 0.9  # the speed of the move
     log = ClosedLoopLog(t=np.arange(K) * 0.01, r=r, y=y, sched=np.zeros((K, 0)),
                         u=np.zeros((K, 1)))
-    seg = _segment_metrics(log, 100, K, True, 10, 0.01, ("theta", "omega"))
+    both = np.ones(2, bool)  # both outputs weighted
+    seg = _segment_metrics(log, 100, K, True, 10, 0.01, ("theta", "omega"), both)
     assert seg["overshoot"] == pytest.approx(0.05)
     assert seg["overshoot_by_output"]["omega"] == pytest.approx(0.9)
-    still = _segment_metrics(log, 0, 100, False, 10, 0.01, ("theta", "omega"))
+    still = _segment_metrics(log, 0, 100, False, 10, 0.01, ("theta", "omega"), both)
     assert still["overshoot"] == 0.0  # no step: the largest excursion, none here
 
 

@@ -344,4 +344,6 @@ def test_a_budget_below_the_unconstrained_step_is_refused():
     cfg = dataclasses.replace(cfg, solver=dataclasses.replace(cfg.solver, work_budget=100))
     with pytest.raises(ConfigError) as exc:
         load_model_from_config(cfg)
-    assert exc.value.key == "solver.work_budget" and "unconstrained" in exc.value.problem
+    assert exc.value.key == "solver.work_budget"
+    assert "a step without active bounds may charge" in exc.value.problem  # and what fits:
+    assert "; what fits: " in exc.value.problem and "solver.work_budget >= " in exc.value.problem

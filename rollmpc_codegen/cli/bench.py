@@ -6,8 +6,9 @@ from __future__ import annotations
 import sys
 
 from ..config import ConfigError
-from .options import (add_build_dir, add_outputs, add_precision, add_quiet, check_outputs,
-                      check_steps, progress_of, require_plot, write_json)
+from .options import (add_build_dir, add_command, add_config, add_outputs, add_precision,
+                      add_quiet, check_outputs, check_steps, progress_of, require_plot,
+                      write_json)
 
 # the rows of host.bench (ROWS, OURS_AND_PEERS, PAPER_VARIANTS); only the parser's help
 # text repeats them (building the parser must not import the library)
@@ -21,9 +22,13 @@ PAPER_HELP = ("also run the paper's variants hildreth, hildreth_plus, hildreth_p
 
 
 def add_parser(sub) -> None:
-    b = sub.add_parser("bench", help="Table 2: replay the scenario's QPs through the "
-                       "generated solver variants and the PyPI peers")
-    b.add_argument("config")
+    b = add_command(sub, "bench", "time the design's QPs: our solver against DAQP, quadprog "
+                    "and OSQP", "Records the QPs of the config's scenario and replays them "
+                    "through the generated solver (and, with --paper or --variants, its other "
+                    "variants) and the installed peers, all checked against quadprog; prints "
+                    "a markdown table of solve times, iterations and accuracy (the paper's "
+                    "Table 2 on examples/uav_roll.yaml).")
+    add_config(b)
     add_precision(b)
     add_outputs(b, json="write the table and the machine description as JSON",
                 plot="per-QP solve times (Fig. 3 style) as a PNG")

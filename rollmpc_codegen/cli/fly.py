@@ -20,8 +20,8 @@ from pathlib import Path
 from ..config.errors import ConfigError
 from ..flight.aircraft import (DEFAULT_AIRCRAFT, DEFAULT_AIRSPEED_KTS, DEFAULT_ALTITUDE_FT,
                                TURBULENCE)
-from .options import (add_build_dir, add_outputs, add_precision, add_quiet, check_outputs,
-                      progress_of, require_plot, write_json)
+from .options import (add_build_dir, add_command, add_config, add_outputs, add_precision,
+                      add_quiet, check_outputs, progress_of, require_plot, write_json)
 from ..sim.simulate import csv_header, work_cell
 from .simulate import solver_text
 
@@ -29,9 +29,11 @@ OUTPUTS = ("csv", "json", "plot")
 
 
 def add_parser(sub) -> None:
-    f = sub.add_parser("fly", help="fly the generated C on a JSBSim aircraft (needs the "
-                       "flight extra)")
-    f.add_argument("config")
+    f = add_command(sub, "fly", "fly the generated C on a JSBSim aircraft (needs the flight "
+                    "extra)", "Closes the loop of the generated roll controller on a nonlinear "
+                    "6-DOF JSBSim aircraft in turbulence, with IMU noise and latency, "
+                    "optionally beside a PX4-style PID (docs/flight.md).")
+    add_config(f)
     f.add_argument("--aircraft", default=DEFAULT_AIRCRAFT,
                    help=f"a JSBSim aircraft of the jsbsim wheel (default {DEFAULT_AIRCRAFT})")
     f.add_argument("--airspeed", type=float, default=DEFAULT_AIRSPEED_KTS,
@@ -51,7 +53,8 @@ def add_parser(sub) -> None:
                    "30) or a CSV file with columns t,roll[,airspeed]")
     add_precision(f)
     add_outputs(f, csv="per-sample log (the controller's inputs and the aircraft)",
-                json="summary metrics", plot="Fig. 2 style PNG")
+                json="write the flight metrics as JSON",
+                plot="write the flight as a PNG: bank, reference, aileron")
     f.add_argument("--baseline", choices=["none", "pid"], default="none",
                    help="also fly the PX4-style PID on the same flight (plotted dashed)")
     add_quiet(f, "no progress bar")

@@ -7,12 +7,14 @@ from pathlib import Path
 
 from ..config.errors import ConfigError
 from ..flight.aircraft import DEFAULT_AIRCRAFT, DEFAULT_ALTITUDE_FT
-from .options import add_quiet
+from .options import add_command, add_quiet
 
 
 def add_parser(sub) -> None:
-    i = sub.add_parser("identify", help="write a roll controller config from a JSBSim "
-                       "aircraft (needs the flight extra)")
+    i = add_command(sub, "identify", "write a roll controller config from a JSBSim aircraft "
+                    "(needs the flight extra)", "Trims the aircraft at each airspeed, "
+                    "linearises it and writes a config with one mode per airspeed, switched "
+                    "on the measured airspeed (docs/flight.md).")
     i.add_argument("--aircraft", default=DEFAULT_AIRCRAFT,
                    help=f"a JSBSim aircraft of the jsbsim wheel (default {DEFAULT_AIRCRAFT})")
     i.add_argument("--airspeed", type=float, action="append", required=True,

@@ -1,4 +1,4 @@
-"""``rollmpc`` command line: generate, simulate, bench, report, testvectors.
+"""``rollmpc`` command line: generate, simulate, bench, report, testvectors, identify, fly.
 
 Expected failures print one line ``rollmpc: error: ...`` and exit with 2 (bad input:
 config or arguments) or 1 (a tool failed, e.g. the C compiler); never a traceback.
@@ -27,9 +27,21 @@ class OneLineArgumentParser(argparse.ArgumentParser):
         self.exit(EXIT_BAD_INPUT, f"rollmpc: error: {' '.join(message.split())}\n")
 
 
+DESCRIPTION = ("rollmpc turns a YAML description of a (switched) linear MPC controller into "
+               "static C99 for a microcontroller, and checks that C: on the host, in closed "
+               "loop, against other QP solvers and on an emulated Cortex-M4F.  "
+               "`rollmpc COMMAND --help` describes each command.")
+
+
 def parser() -> argparse.ArgumentParser:
-    ap = OneLineArgumentParser(prog="rollmpc", description=__doc__.splitlines()[0])
-    sub = ap.add_subparsers(dest="command", required=True)
+    from .. import __version__
+    from .options import EXIT_CODES
+
+    ap = OneLineArgumentParser(prog="rollmpc", description=DESCRIPTION,
+                               epilog=f"{EXIT_CODES}; 3 `rollmpc report`: a verdict failed")
+    ap.add_argument("--version", action="version", version=f"rollmpc {__version__}")
+    sub = ap.add_subparsers(dest="command", required=True, metavar="COMMAND",
+                            title="commands")
     for subcommand in SUBCOMMANDS:
         subcommand.add_parser(sub)
     return ap

@@ -12,6 +12,22 @@ from pathlib import Path
 from ..config import PRECISIONS, ConfigError
 
 
+def add_command(sub, name: str, summary: str, description: str, epilog: str = ""):
+    """A subcommand's parser: ``summary`` is its line in ``rollmpc --help``,
+    ``description`` the paragraph of ``rollmpc NAME --help`` (every option has a help)."""
+    return sub.add_parser(name, help=summary, description=f"{summary[0].upper()}{summary[1:]}. "
+                          f"{description}", epilog=epilog or EXIT_CODES)
+
+
+EXIT_CODES = ("exit codes: 0 done; 1 a tool failed (the C compiler, ...); 2 bad input (the "
+              "config or an argument: one line naming the key)")
+
+
+def add_config(p: argparse.ArgumentParser) -> None:
+    p.add_argument("config", help="the design: a YAML configuration (README, "
+                   "\"Configuration schema\")")
+
+
 def add_precision(p: argparse.ArgumentParser) -> None:
     p.add_argument("--precision", choices=PRECISIONS, default=None,
                    help="override the config's precision")

@@ -5,15 +5,23 @@ as a short summary on stdout (with ``--flights``, a line per flight), or with
 from __future__ import annotations
 
 from ..config.errors import ConfigError
-from .options import (add_build_dir, add_outputs, add_perturbations, add_precision, add_quiet,
-                      check_flights, check_perturbations, check_steps, progress_of,
-                      write_json)
+from .options import (add_build_dir, add_command, add_config, add_outputs, add_perturbations,
+                      add_precision, add_quiet, check_flights, check_perturbations, check_steps,
+                      progress_of, write_json)
 
 
 def add_parser(sub) -> None:
-    rp = sub.add_parser("report", help="flash, RAM, stack and cycles on an emulated "
-                        "Cortex-M4F, bit-exact against the host build")
-    rp.add_argument("config")
+    rp = add_command(sub, "report", "flash, RAM, stack and cycles on an emulated Cortex-M4F, "
+                     "bit-exact against the host build", "Cross-compiles the controller with "
+                     "the firmware flags, replays the config's scenario (or random flights, or "
+                     "a recorded flight) on an emulated Cortex-M4F, checks every output bit "
+                     "for bit against the host build and counts the cycles of the hardest and "
+                     "sampled steps; judges them against sample_time at target.cpu_mhz and "
+                     "flash and RAM against the target: section.",
+                     epilog="exit codes: 0 every verdict met; 3 a verdict failed (Ts, flash, "
+                     "RAM, instance, bit-exactness), or with --check the report warned; 1 a "
+                     "tool failed; 2 bad input (docs/checks.md, \"Exit codes\")")
+    add_config(rp)
     add_precision(rp)
     add_outputs(rp, json="write the report as JSON")
     rp.add_argument("--horizons", default=None,
@@ -43,6 +51,9 @@ def add_parser(sub) -> None:
     rp.add_argument("--peer", choices=["daqp"], default=None,
                     help="also replay the scenario's QPs through DAQP's own C, single "
                     "precision, on the same emulated target, and set the two side by side")
+    rp.add_argument("--check", action="store_true",
+                    help="exit 3 on a warning too (TIME_LIMIT steps, a double build on the "
+                    "single-precision target), not only on a failed verdict")
     add_quiet(rp)
     add_build_dir(rp)
     rp.set_defaults(func=run)
@@ -61,8 +72,6 @@ def parse_horizons(text: str) -> list[int]:
 
 def summary_text(rep: dict) -> str:
     """Short human summary with the verdict at the config's clock and sample time."""
-    from ..sim.metrics import time_limit_warning
-
     b = rep["budget"]
     verdict = "fits" if b["worst_fits"] else "DOES NOT fit"
     top = ", ".join(f"{r['function']} {100 * r['share']:.0f}%"
@@ -104,12 +113,14 @@ def summary_text(rep: dict) -> str:
     lines.append(f"  solver statuses over {sum(counts.values())} steps: "
                  + ", ".join(f"{n} {c}" for n, c in counts.items())
                  + (f" (longest TIME_LIMIT run {longest})" if longest else ""))
-    warning = time_limit_warning(counts, sum(counts.values()), longest, rep["horizon"])
-    if warning:
-        lines.append(f"  warning: {warning}")
     if rep["goals"]:
         goals = ", ".join(f"{k}: {'met' if v else 'MISSED'}" for k, v in rep["goals"].items())
         lines.append(f"  memory goals (the config's target: section): {goals}")
+    lines += [f"  warning: {w['message']}" for w in rep.get("checks", [])]
+    if "verdicts" in rep:
+        failed = [k for k, v in rep["verdicts"].items() if not v]
+        lines.append(f"  verdict: {'FAILED (' + ', '.join(failed) + ')' if failed else 'passed'}"
+                     f" ({', '.join(rep['verdicts'])})")
     return "\n".join(lines)
 
 
@@ -190,4 +201,15 @@ def run(args) -> int:
               f"({f['mismatching_samples']} samples differ)")
     if args.json:
         write_json(args.json, result)
-    return 0
+    return exit_code(result, args.check)
+
+
+def exit_code(rep: dict, check: bool) -> int:
+    """0, or EXIT_VERDICT_FAILED when a verdict failed, or with ``--check`` when the
+    report warned (docs/checks.md, "Exit codes"); --horizons tabulates: 0."""
+    from ..target.verdicts import EXIT_VERDICT_FAILED
+
+    if "horizons" in rep:
+        return 0
+    failed = not rep["passed"] or (check and bool(rep["checks"]))
+    return EXIT_VERDICT_FAILED if failed else 0

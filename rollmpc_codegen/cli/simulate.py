@@ -25,9 +25,9 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 from ..config import ConfigError
-from .options import (add_build_dir, add_outputs, add_perturbations, add_precision, add_quiet,
-                      check_flights, check_outputs, check_perturbations, check_steps,
-                      progress_of, require_plot, write_json)
+from .options import (add_build_dir, add_command, add_config, add_outputs, add_perturbations,
+                      add_precision, add_quiet, check_flights, check_outputs,
+                      check_perturbations, check_steps, progress_of, require_plot, write_json)
 
 if TYPE_CHECKING:
     from ..sim.simulate import ClosedLoopLog
@@ -36,10 +36,19 @@ OUTPUTS = ("csv", "json", "plot")
 
 
 def add_parser(sub) -> None:
-    s = sub.add_parser("simulate", help="closed loop of the generated C on the paper scenario")
-    s.add_argument("config")
+    s = add_command(sub, "simulate", "closed loop of the generated C on the config's scenario",
+                    "Compiles the controller on the host and closes the loop on the config's "
+                    "own plant models over its simulation.reference (levels held segment "
+                    "seconds each; the paper's roll steps when absent), optionally with "
+                    "measurement noise, an input disturbance and a mismatched plant; prints "
+                    "the tracking, constraint, status and work figures and the warnings "
+                    "(docs/checks.md).  --flights flies random references instead.")
+    add_config(s)
     add_precision(s)
-    add_outputs(s, csv="per-sample log", json="summary metrics", plot="Fig. 2 style PNG")
+    add_outputs(s, csv="write one row per sample (columns: docs in the module)",
+                json="write the summary metrics and warnings as JSON",
+                plot="write the closed loop as a PNG: outputs with references and bounds, "
+                "inputs with limits, the scheduling signal")
     s.add_argument("--baseline", choices=["none", "lqr"], default="none",
                    help="also simulate an LQR-with-saturation baseline (plotted alongside)")
     add_perturbations(s)
@@ -93,9 +102,11 @@ def solver_text(ctx: dict) -> str:
     return f"{ctx['solver']['method']}{' + polish' if ctx['solver']['polish'] else ''}"
 
 
-def beyond_text(y_max_beyond: dict) -> str:
-    """How far each output passed a hard bound, e.g. ``roll 23.5, pitch 6.21``."""
-    return ", ".join(f"{name} {v:.3g}" for name, v in y_max_beyond.items())
+def beyond_text(cfg, y_max_beyond: dict) -> str:
+    """How far each output passed a hard bound, with its unit, e.g. ``roll 23.5 deg,
+    climb 6.21 m/s``."""
+    return ", ".join(f"{name} {v:.3g}{_unit(cfg, [name])}".replace(" [", " ").replace("]", "")
+                     for name, v in y_max_beyond.items())
 
 
 def non_optimal_text(counts: dict, before: str = "", after: str = "") -> str:
@@ -105,38 +116,62 @@ def non_optimal_text(counts: dict, before: str = "", after: str = "") -> str:
     return f"{before}{others}{after}" if others else ""
 
 
-def print_design_warnings(s: dict) -> None:
-    """generate's warning on a controller that does not stabilise its model
-    (qp/nominal_loop.py): it explains a loop that diverges with every QP solved."""
-    for warning in s["design_warnings"]:
-        print(f"  warning: {warning}")
+def print_warnings(found) -> None:
+    """The run's warnings (ScenarioRun.warnings: its own, then generate's), one line
+    each; ``*`` marks the short segments the first names."""
+    for w in found:
+        print(f"  warning: {'* ' if w.code == 'short_segment' else ''}{w.message}")
 
 
-def print_summary(cfg, ctx: dict, s: dict) -> None:
-    from ..sim.metrics import time_limit_warning, work_text
+def _unit(cfg, names) -> str:
+    """`` [u]`` when every output of ``names`` has the unit u, else ""."""
+    units = dict(zip(cfg.outputs, cfg.units.outputs or ("",) * cfg.n_outputs))
+    found = {units[n] for n in names}
+    return f" [{found.pop()}]" if len(found) == 1 and "" not in found else ""
+
+
+def _settled(value: float, seg: dict) -> str:  # *: the window includes the preview
+    return f"{value:.3g}" + ("*" if seg["settled_window_includes_preview"] else "")
+
+
+def print_tracking(cfg, s: dict) -> None:
+    """Settled error and overshoot per segment: one line each when every output is
+    weighted and they share a unit (or none has one), else a line per output with its
+    unit, an unweighted one marked as left out of the max."""
+    weighted, segments = s["weighted_outputs"], s["segments"]
+    unit = _unit(cfg, weighted)
+    top = "-" if s["max_settled_error"] is None else f"{s['max_settled_error']:.3g}"
+    if len(weighted) == cfg.n_outputs and (unit or not any(cfg.units.outputs)):
+        errs = ", ".join(_settled(x["settled_error"], x) for x in segments)
+        print(f"  settled |y - r| per segment{unit}: {errs} (max {top})")
+        over = ", ".join(f"{x['overshoot']:.3g}" for x in segments)
+        print(f"  overshoot per segment{unit}: {over}")
+        return
+    for name in cfg.outputs:
+        errs = ", ".join(_settled(x["settled_error_by_output"][name], x) for x in segments)
+        over = ", ".join(f"{x['overshoot_by_output'][name]:.3g}" for x in segments)
+        note = "" if name in weighted else " (Q = P = 0: not weighted, not in the max)"
+        print(f"  {name}{_unit(cfg, [name])}{note}: settled |y - r| per segment {errs}; "
+              f"overshoot {over}")
+    print(f"  max settled |y - r| of the weighted outputs{unit}: {top}")
+
+
+def print_summary(cfg, ctx: dict, s: dict, found=()) -> None:
+    from ..sim.metrics import work_text
 
     names = [m.name for m in cfg.modes]
     y_unit, u_unit = cfg.units.label("outputs"), cfg.units.label("actuators")
     print(f"rollmpc simulate: {s['samples']} samples ({s['duration_s']:g} s), "
           f"{ctx['precision']}, solver {solver_text(ctx)}")
-    errs = ", ".join(f"{x['settled_error']:.3g}"  # *: the window includes the preview
-                     + ("*" if x["settled_window_includes_preview"] else "")
-                     for x in s["segments"])
-    top = s["max_settled_error"]
-    print(f"  settled |y - r| per segment{y_unit}: {errs} "
-          f"(max {'-' if top is None else f'{top:.3g}'})")
-    for warning in s["warnings"]:  # * marks the segments it names
-        print(f"  warning: * {warning}")
-    over = ", ".join(f"{x['overshoot']:.3g}" for x in s["segments"])
-    print(f"  overshoot per segment{y_unit}: {over}")
+    print_tracking(cfg, s)
     modes = ", ".join(f"{n} {s['by_mode'][n]['samples']}" for n in names)
     print(f"  switches: {s['switches']} (samples per mode: {modes})")
     umax = ", ".join(f"{a} {v:g}" for a, v in s["max_abs_u"].items())
     cv = s["constraint_violations"]
-    far = beyond_text(cv["y_max_beyond"])
+    far = beyond_text(cfg, cv["y_max_beyond"])
     print(f"  max |u|{u_unit}: {umax}; constraint violations: {cv['total']} "
           f"(u {cv['u']}, inactive {cv['inactive_actuator_nonzero']}, y {cv['y']}"
-          f"{f' by up to {far}{y_unit}' if far else ''}; hard "
+          f"{f' by up to {far}' if far else ''}; hard "
           f"bounds, beyond {s['violation_tolerance']:g} max(1, |bound|))")
     if s.get("soft_bounds"):
         sb = s["soft_bounds"]
@@ -154,46 +189,38 @@ def print_summary(cfg, ctx: dict, s: dict) -> None:
               "preemption included; the work line and `rollmpc report` are deterministic)")
     if s.get("work"):
         print(f"  solver work per sample (units): {work_text(s['work'])}")
-    warning = time_limit_warning(s["status_counts"], s["samples"],
-                                 s["longest_time_limit_run"], cfg.horizon)
-    if warning:
-        print(f"  warning: {warning}")
-    print_design_warnings(s)
+    print_warnings(found)
     base = s.get("baseline")
     if base is not None:
         errs = ", ".join(f"{x['settled_error']:.3g}" for x in base["segments"])
-        print(f"  LQR baseline: settled |y - r| per segment{y_unit}: {errs}; "
-              f"switches {base['switches']}; "
+        print(f"  LQR baseline: settled |y - r| per segment{_unit(cfg, s['weighted_outputs'])}: "
+              f"{errs}; switches {base['switches']}; "
               f"constraint violations {base['constraint_violations']['total']}")
 
 
-def print_flights(cfg, ctx: dict, s: dict) -> None:
-    """A line per flight, then the totals."""
-    from ..sim.metrics import time_limit_warning, work_text
+def print_flights(cfg, ctx: dict, s: dict, found=()) -> None:
+    """A line per flight, then the totals and the warnings (FlightsRun.warnings)."""
+    from ..sim.metrics import work_text
 
-    t, y_unit = s["totals"], cfg.units.label("outputs")
+    t = s["totals"]
     print(f"rollmpc simulate: {t['flights']} random flights of {s['steps']} samples, "
           f"{ctx['precision']}, solver {solver_text(ctx)}")
     for f in s["flights"]:
         cv = f["constraint_violations"]
-        far = beyond_text(cv["y_max_beyond"])
+        far = beyond_text(cfg, cv["y_max_beyond"])
         print(f"  flight {f['flight']} (seed {f['seed']}): optimal "
               f"{f['status_counts'].get('optimal', 0)} of {f['samples']}"
               f"{non_optimal_text(f['status_counts'], ' (', ')')}, longest TIME_LIMIT "
               f"run {f['longest_time_limit_run']}; constraint violations {cv['total']}"
-              f"{f' (y by up to {far}{y_unit})' if far else ''}")
-    far = beyond_text(t["y_max_beyond"])
+              f"{f' (y by up to {far})' if far else ''}")
+    far = beyond_text(cfg, t["y_max_beyond"])
     print(f"  all flights: optimal {t['status_counts'].get('optimal', 0)} of {t['samples']} "
           f"({t['optimal_percent']:g} %), longest TIME_LIMIT run "
           f"{t['longest_time_limit_run']}; {t['flights_with_violations']} of {t['flights']} "
-          f"flights break a hard bound{f' (y by up to {far}{y_unit})' if far else ''}")
+          f"flights break a hard bound{f' (y by up to {far})' if far else ''}")
     if t["work"]:
         print(f"  solver work per sample (units): {work_text(t['work'])}")
-    warning = time_limit_warning(t["status_counts"], t["samples"],
-                                 t["longest_time_limit_run"], cfg.horizon)
-    if warning:
-        print(f"  warning: {warning}")
-    print_design_warnings(s)
+    print_warnings(found)
 
 
 def run_flights_cli(args) -> int:
@@ -205,7 +232,7 @@ def run_flights_cli(args) -> int:
                          build_dir=args.build_dir, progress=progress_of(args))
     if args.json:
         write_json(args.json, result.summary)
-    print_flights(result.config, result.ctx, result.summary)
+    print_flights(result.config, result.ctx, result.summary, result.warnings)
     if args.json:
         print(f"rollmpc: wrote {args.json}")
     sys.stdout.flush()
@@ -235,7 +262,7 @@ def run(args) -> int:
         plot_closed_loop(args.plot, result.config, result.log, result.baseline_log,
                          title=f"{Path(args.config).name}: closed loop of the generated C "
                                f"({ctx['precision']}, {solver_text(ctx)})")
-    print_summary(result.config, ctx, result.summary)
+    print_summary(result.config, ctx, result.summary, result.warnings)
     for opt in OUTPUTS:
         if getattr(args, opt):
             print(f"rollmpc: wrote {getattr(args, opt)}")

@@ -2,12 +2,16 @@
 (:func:`rollmpc_codegen.host.testvectors.write_test_vectors`)."""
 from __future__ import annotations
 
-from .options import add_force, add_precision, check_steps
+from .options import add_command, add_config, add_force, add_precision, check_steps
 
 
 def add_parser(sub) -> None:
-    t = sub.add_parser("testvectors", help="emit the host C test program with reference vectors")
-    t.add_argument("config")
+    t = add_command(sub, "testvectors", "emit the host C test program with reference vectors",
+                    "Writes the generated controller and a C test program whose vectors "
+                    "(the config's scenario, QPs at each mode's bounds) come from the NumPy "
+                    "reference; build it with any C99 compiler and run it, no Python needed "
+                    "(make ctest).")
+    add_config(t)
     t.add_argument("-o", "--output", required=True, help="output directory")
     add_force(t)
     add_precision(t)

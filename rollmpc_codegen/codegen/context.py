@@ -16,9 +16,10 @@ from ..features.runtime_bounds import context_bounds
 from ..model.controller import ControllerModel
 from ..qp.arrays import REAL, declared_for
 from ..qp.sizes import working_set_lengths
+from ..qp.budget import check_work_budget
 from ..qp.work import (ADD_BATCH, CHOL_UNITS_PER_OP, GUESS_SAMPLE_MIN, PREDICT_UNITS_PER_OP,
                        PRIMAL_CALL_OPS, PRIMAL_CALL_UNITS, PRIMAL_SIXTHS_PER_OP,
-                       TRI_UNITS_PER_OP, check_work_budget)
+                       TRI_UNITS_PER_OP)
 from ..status import UNKNOWN_MESSAGE, context_statuses
 
 
@@ -79,6 +80,10 @@ def build_context(model: ControllerModel) -> dict:
     return {
         "generator": {"name": "rollmpc-codegen", "version": __version__},
         "config_hash": cfg.config_hash,
+        # not read by the templates: the part the firmware build checks the linked image
+        # against (firmware_stub/firmware.mk), null where the target: section is silent
+        "target": {"cpu_mhz": cfg.target.cpu_mhz, "flash_kib": cfg.target.flash_kib,
+                   "ram_kib": cfg.target.ram_kib},
         "prefix": cfg.prefix,
         "PREFIX": cfg.prefix.upper(),
         "precision": cfg.precision,

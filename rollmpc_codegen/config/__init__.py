@@ -6,7 +6,8 @@ downstream re-validates raw YAML; the later stages (plant, mpc, observer) raise
 ``ConfigError`` too when a *mathematical* property fails (an uncontrollable mode,
 an indefinite Hessian, ...), always naming the key that caused it.
 
-Modules: ``errors`` (ConfigError), ``schema`` (dataclasses, choices, limits, every
+Modules: ``errors`` (ConfigError), ``diagnostics`` (DesignWarning, the warnings every
+front end prints), ``schema`` (dataclasses, choices, limits, every
 default), ``reader`` (typed reading with key paths), ``yaml_loader`` (:func:`load`),
 ``controller`` (:func:`parse`, the top level), one parser per section (``plant``,
 ``mode``, ``scheduler``, ``solver``, ``simulation``, ``target``) and ``checks`` (across
@@ -23,6 +24,7 @@ from typing import Any
 
 _HOME = {  # public name -> the module that declares it
     "ConfigError": "errors",
+    **dict.fromkeys(("DesignWarning", "RollmpcWarning"), "diagnostics"),
     "load": "yaml_loader",
     "parse": "controller",
     **dict.fromkeys(("ControllerConfig", "ModeConfig", "PlantConfig", "SchedulerConfig",

@@ -16,7 +16,8 @@ from .schema import (DEFAULT_PRECISION, DEFAULT_PREFIX, MAX_ROWS, MODE_KEYS, PRE
                      PREFIX_PATTERN, RESERVED_PREFIXES, SCHEDULER_KEYS, SIMULATION_KEYS,
                      SOLVER_KEYS, TARGET_KEYS, TOP_KEYS, UNITS_KEYS, ControllerConfig,
                      UnitsConfig)
-from .simulation import parse_simulation, parse_units
+from .sample_time import check_sample_time
+from .simulation import check_segment, parse_simulation, parse_units
 from .solver import parse_solver
 from .target import parse_target
 
@@ -44,13 +45,14 @@ def parse(data: Any) -> ControllerConfig:
         raise ConfigError("modes", "must be a non-empty list of modes")
     # before the modes: an output without bounds takes its default innovation limit from
     # the scenario's reference levels
-    simulation = parse_simulation(r.sub("simulation", SIMULATION_KEYS, {}), len(outputs),
-                                  sample_time)
+    simulation = parse_simulation(r.sub("simulation", SIMULATION_KEYS, {}), len(outputs))
     default_blocks = blocks_of(r.raw("control_horizon", None), r.raw("move_blocking", None),
                                horizon, "")
     modes = tuple(parse_mode(Reader(m, f"modes[{i}]", MODE_KEYS), outputs, actuators, horizon,
                              default_blocks, simulation.levels(len(outputs)))
                   for i, m in enumerate(raw_modes))
+    check_sample_time(sample_time, modes)  # a wrong unit, before anything is blamed for it
+    check_segment(simulation, sample_time)
     check_horizon(horizon, modes)
     check_unique_names(modes)
     if len(modes) == 1:

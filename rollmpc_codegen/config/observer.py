@@ -6,7 +6,8 @@ import numpy as np
 
 from .errors import ConfigError
 from .reader import Reader, check_length, read_number, read_vector
-from .schema import DISTURBANCE_MODELS, OBSERVER_KINDS, ModeConfig, default_innovation_limit
+from .schema import (DERIVED_FROM_MODEL, DISTURBANCE_MODELS, OBSERVER_KINDS, ModeConfig,
+                     default_innovation_limit)
 
 
 def _poles(o: Reader) -> tuple[complex, ...]:
@@ -59,7 +60,9 @@ def parse_innovation_limit(o: Reader | None, key: str, outputs: tuple[str, ...],
                            levels: np.ndarray) -> np.ndarray:
     """``modes[].observer.innovation_limit`` (``key``; ``o`` None: no observer section): a
     scalar for every output or one entry per output, > 0, ``.inf`` never clips; by default
-    schema.default_innovation_limit of the mode's output bounds and the scenario's levels."""
+    schema.default_innovation_limit of the mode's output bounds and the scenario's levels,
+    and DERIVED_FROM_MODEL (NaN) for an output they give no range: the pipeline fills it
+    from what the inputs can make the output reach (model/reach.py)."""
     if o is not None and o.has("innovation_limit"):
         limit = read_vector(o.raw("innovation_limit"), key, len(outputs), allow_inf=True)
         for a, value in enumerate(limit):
@@ -67,10 +70,7 @@ def parse_innovation_limit(o: Reader | None, key: str, outputs: tuple[str, ...],
                 raise ConfigError(key, f"must be > 0 (.inf: never clip), got {value} for "
                                   f"output {outputs[a]!r}")
         return limit
+    # where nothing in the config gives a range, the model's reach does (pipeline.py,
+    # model/reach.py): NaN until then
     limit = default_innovation_limit(y_min, y_max, levels)
-    for a, value in enumerate(limit):
-        if not value > 0.0:
-            raise ConfigError(key, f"has no default for output {outputs[a]!r}: no finite "
-                              "bound and a scenario reference of 0 give it no range; give "
-                              "one (.inf: never clip)")
-    return limit
+    return np.where(limit > 0.0, limit, DERIVED_FROM_MODEL)

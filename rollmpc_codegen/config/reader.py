@@ -34,7 +34,7 @@ class Reader:
         self.keys = keys
         for name in data:  # the first unknown key as written
             if name not in keys:
-                raise ConfigError(self.key(str(name)), _unknown_key(str(name), keys))
+                raise ConfigError(self.key(str(name)), unknown_key(str(name), keys))
 
     def key(self, name: str) -> str:
         return f"{self.path}.{name}" if self.path else name
@@ -115,7 +115,7 @@ class Reader:
         return Reader(value, self.key(name), keys)
 
 
-def _unknown_key(name: str, keys: tuple[str, ...]) -> str:
+def unknown_key(name: str, keys: tuple[str, ...]) -> str:
     """The problem of an unknown key: the closest known key, else the known keys if few."""
     close = difflib.get_close_matches(name, keys, n=1)
     if close:

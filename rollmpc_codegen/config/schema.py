@@ -82,6 +82,9 @@ PAPER_SEGMENT_S = 10.0
 # modes[].observer.innovation_limit: the default is this many spans of the output's
 # expected range (default_innovation_limit)
 INNOVATION_LIMIT_SPANS = 10.0
+# ...and where the config gives an output no range (no finite bound, a zero reference), the
+# parser leaves this mark and the pipeline derives the limit from the model (model/reach.py)
+DERIVED_FROM_MODEL = math.nan
 
 
 def storage_range(precision: str) -> tuple[float, float]:
@@ -102,7 +105,7 @@ def default_innovation_limit(y_min: np.ndarray, y_max: np.ndarray,
     expected range, the hull of 0 (the estimate after P_init), its finite bounds and, when
     a side is unbounded, the scenario's reference ``levels`` (levels x outputs).  While the
     measurement and the prediction both lie in that range, no innovation exceeds its span.
-    0 where nothing gives a range (the parser then asks for the key)."""
+    0 where nothing gives a range (the model's reach then gives one, model/reach.py)."""
     out = np.empty(len(y_min))
     for a, bounds in enumerate(zip(y_min, y_max)):
         values = [0.0, *(b for b in bounds if math.isfinite(b))]
@@ -171,7 +174,8 @@ class ModeConfig:
     soft_l1: np.ndarray | None = None  # (ny, 2)
     soft_l2: np.ndarray | None = None  # (ny, 2)
     # observer.innovation_limit: per output, |y - C x̂| beyond it is clipped to it (+inf:
-    # never); the parser fills in default_innovation_limit
+    # never); the parser fills in default_innovation_limit, DERIVED_FROM_MODEL (NaN) where
+    # only the model gives a range (the pipeline derives those entries, model/reach.py)
     innovation_limit: np.ndarray | None = None  # (ny,)
 
     @property

@@ -7,18 +7,29 @@ from .reader import Reader, check_length, read_vector
 from .schema import NO_UNIT, REFERENCE_KEYS, SCHEDULE_SOURCES, SimulationConfig, UnitsConfig
 
 
-def parse_simulation(sim: Reader, n_outputs: int, sample_time: float) -> SimulationConfig:
-    """``simulation``: the scheduling signal's source and the reference scenario."""
+def parse_simulation(sim: Reader, n_outputs: int) -> SimulationConfig:
+    """``simulation``: the scheduling signal's source and the reference scenario (its
+    segment against the sample time: :func:`check_segment`, once the sample time is
+    known to be plausible)."""
     schedule_source = sim.string("schedule_source", SimulationConfig.schedule_source,
                                  choices=SCHEDULE_SOURCES)
-    levels, segment = (_reference(sim.sub("reference", REFERENCE_KEYS), n_outputs,
-                                  sample_time) if sim.has("reference") else (None, None))
+    levels, segment = (_reference(sim.sub("reference", REFERENCE_KEYS), n_outputs)
+                       if sim.has("reference") else (None, None))
     return SimulationConfig(schedule_source=schedule_source, reference_levels=levels,
                             reference_segment_s=segment)
 
 
-def _reference(r: Reader, n_outputs: int,
-               sample_time: float) -> tuple[tuple[tuple[float, ...], ...], float]:
+def check_segment(simulation: SimulationConfig, sample_time: float) -> None:
+    """A reference level must last a sample at least.  Checked after
+    config/sample_time.py, so that a sample time in the wrong unit is blamed on
+    ``sample_time``, not on the segment it outlasts."""
+    segment = simulation.reference_segment_s
+    if segment is not None and round(segment / sample_time) < 1:
+        raise ConfigError("simulation.reference.segment", f"must be at least sample_time "
+                          f"({sample_time})")
+
+
+def _reference(r: Reader, n_outputs: int) -> tuple[tuple[tuple[float, ...], ...], float]:
     """``simulation.reference``: levels (a scalar is applied to every output) and segment."""
     raw = r.raw("levels")
     if not isinstance(raw, list) or not raw:
@@ -26,10 +37,7 @@ def _reference(r: Reader, n_outputs: int,
     check_length(raw, r.key("levels"))
     levels = tuple(tuple(read_vector(v, f"{r.key('levels')}[{i}]", n_outputs))
                    for i, v in enumerate(raw))
-    segment = r.number("segment", positive=True)
-    if round(segment / sample_time) < 1:
-        raise ConfigError(r.key("segment"), f"must be at least sample_time ({sample_time})")
-    return levels, segment
+    return levels, r.number("segment", positive=True)
 
 
 def parse_units(u: Reader, outputs: tuple[str, ...],

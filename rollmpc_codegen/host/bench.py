@@ -36,7 +36,7 @@ from .bench_replay import Replay, fastest_of, replay_c, replay_peer, variant_con
 from .bench_summary import reduced_set_check, row_summary
 from .build import EXACT_MATH, build_host_controller
 from ..extras import installed, require_module
-from ..pipeline import load_model
+from ..pipeline import config_label, load_model
 from ..qp.peers import DaqpPeer, OsqpPeer, QuadprogPeer, c_stdout_silenced
 from ..sim.scenario import scenario_reference
 from ..sim.simulate import start_phase
@@ -145,15 +145,16 @@ class BenchResult:
         return self.summary["rows"]
 
 
-def run_bench(config: str | Path, *, precision: str | None = None,
+def run_bench(config, *, precision: str | None = None,
               variants: Iterable[str] | None = None, paper: bool = False,
               max_qps: int | None = None, repeat: int = 1, include_transient: bool = False,
               steps: int | None = None, build_dir: str | Path | None = None,
               progress=None) -> BenchResult:
-    """Table 2 for ``config`` (see the module docstring) on the rows ``variants`` (default:
-    :func:`default_variants`), with the paper's variants too when ``paper``, and quadprog,
-    the reference, always; ``max_qps`` samples the QPs in blocks, ``steps`` shortens the
-    recorded scenario, ``build_dir`` holds the host builds (default: a cache in $TMPDIR)."""
+    """Table 2 for ``config`` (a file, a ControllerConfig or a Design; see the module
+    docstring) on the rows ``variants`` (default: :func:`default_variants`), with the
+    paper's variants too when ``paper``, and quadprog, the reference, always; ``max_qps``
+    samples the QPs in blocks, ``steps`` shortens the recorded scenario, ``build_dir``
+    holds the host builds (default: a cache in $TMPDIR)."""
     keys = table_rows([*(default_variants() if variants is None else variants),
                        *(PAPER_VARIANTS if paper else ())])
     for key in keys:
@@ -205,7 +206,7 @@ def run_bench(config: str | Path, *, precision: str | None = None,
         rows.append(row_summary(key, label, timer, rep, ref, seq, idx, model))
     summary = {
         "machine": machine_info(),
-        "config": str(config),
+        "config": config_label(config),
         "precision": ctx["precision"],
         "sample_time": cfg.sample_time,
         "horizon": cfg.horizon,

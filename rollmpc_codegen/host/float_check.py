@@ -36,10 +36,12 @@ import numpy as np
 
 from ..codegen.context import build_context
 from ..config import ControllerConfig
+from ..config.diagnostics import DesignWarning
 from ..model.controller import ControllerModel
 from ..pipeline import load_model_from_config
 from ..qp.exact import relative_error
 from ..status import OPTIMAL, STATUS_NAMES
+from ..target.build import SOFT_DOUBLE_FACTOR
 from ..verify.float_floor import widened
 from .bench_record import record_qp_sequence
 from .build import build_host_controller
@@ -96,8 +98,19 @@ class FloatCheck:
                             if name != STATUS_NAMES[OPTIMAL])
             what.append(f"{self.float_not_optimal} QPs that double solves are not OPTIMAL "
                         f"in float ({bad})")
+        low, high = SOFT_DOUBLE_FACTOR
         return (f"warning: float is not accurate enough for this design: {'; '.join(what)}; "
-                "use --precision double (docs/reliability.md, \"Float\")")
+                "use --precision double (docs/reliability.md, \"Float\"), at a cost on the "
+                f"target: the Cortex-M4F computes in single precision only, so double is "
+                f"soft-float, {low}-{high} times the float build's cycles (median to worst "
+                "step, docs/checks.md); `rollmpc report --precision double` measures it")
+
+    def design_warning(self) -> DesignWarning | None:
+        """:meth:`warning` as the DesignWarning ``generate`` returns (None when float
+        serves the design)."""
+        text = self.warning()
+        return None if text is None else DesignWarning(
+            "float_inaccurate", "precision", text.removeprefix("warning: "))
 
 
 def double_twin(cfg: ControllerConfig) -> ControllerConfig:

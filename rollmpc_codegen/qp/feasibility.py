@@ -25,9 +25,11 @@ from __future__ import annotations
 import numpy as np
 from scipy.optimize import linprog
 
+from ..config.diagnostics import DesignWarning
 from ..model.controller import ControllerModel
 
 FEASIBLE, INFEASIBLE = 0, 2  # linprog's statuses
+UNREACHABLE = "bound_unreachable_from_rest"  # the warnings' code
 
 
 def _solve(objective: np.ndarray, L: np.ndarray, rhs: np.ndarray):
@@ -52,7 +54,7 @@ def _first_infeasible_step(qp, hard: np.ndarray) -> int:
     return hi
 
 
-def rest_warning(model: ControllerModel, j: int) -> str | None:
+def rest_warning(model: ControllerModel, j: int) -> DesignWarning | None:
     """The warning of mode ``j``, or None when its QP is feasible from rest."""
     cfg, mode, qp = model.config, model.config.modes[j], model.modes[j].qp
     hard = np.ones(len(qp.c), bool) if qp.soft_l2 is None else ~(qp.soft_l2 > 0)
@@ -77,17 +79,20 @@ def rest_warning(model: ControllerModel, j: int) -> str | None:
             unit = f" {units[o]}" if units and units[o] else ""
             verb, side, most, got = ((">=", "y_min", "at most", high) if lower
                                      else ("<=", "y_max", "at least", low))
-            return (f"modes[{j}] ({mode.name}): {names[o]} {verb} {bound:g}{unit} "
-                    f"(bounds.{side}) cannot be met from rest: at prediction step {k} the "
-                    f"inputs within their bounds reach {names[o]} = {got:.4g}{unit} {most}, "
-                    "so the QP near rest is INFEASIBLE; widen the bound or make it soft "
-                    "(bounds.soft)")
-    return (f"modes[{j}] ({mode.name}): the output bounds cannot all be met from rest: at "
-            f"prediction step {k} no input within its bounds meets them together, so the "
-            "QP near rest is INFEASIBLE; widen them or make them soft (bounds.soft)")
+            return DesignWarning(
+                UNREACHABLE, f"modes[{j}].bounds.{side}",
+                f"modes[{j}] ({mode.name}): {names[o]} {verb} {bound:g}{unit} (bounds.{side}) "
+                f"cannot be met from rest: at prediction step {k} the inputs within their "
+                f"bounds reach {names[o]} = {got:.4g}{unit} {most}, so the QP near rest is "
+                "INFEASIBLE; widen the bound or make it soft (bounds.soft)")
+    return DesignWarning(
+        UNREACHABLE, f"modes[{j}].bounds",
+        f"modes[{j}] ({mode.name}): the output bounds cannot all be met from rest: at "
+        f"prediction step {k} no input within its bounds meets them together, so the QP near "
+        "rest is INFEASIBLE; widen them or make them soft (bounds.soft)")
 
 
-def rest_warnings(model: ControllerModel) -> list[str]:
-    """One line per mode whose hard output bounds no input can meet from rest."""
+def rest_warnings(model: ControllerModel) -> list[DesignWarning]:
+    """One warning per mode whose hard output bounds no input can meet from rest."""
     found = (rest_warning(model, j) for j in range(len(model.modes)))
     return [w for w in found if w is not None]

@@ -17,14 +17,17 @@ beyond its ``target:`` section:
 * **cycles**: an *estimate* of a step with no active bound (the unconstrained solution,
   the row checks, every observer), which every step costs at least; steps with active
   bounds cost more (the paper config's worst is 19 times its median, quad_attitude's 12
-  times: ``rollmpc report`` measures them).  :data:`CYCLES_PER_MAC` and
-  :data:`CYCLES_PER_ROW` are a fit (least squares, relative, rounded to err high) on the
-  median steps measured on the emulated M4F (docs/target.md, "Before generation"):
-  uav_roll at N = 25, 50, 100, 200, uav_roll_blocked, quad_attitude, and of
-  chain_of_masses the steps whose output rows the cheap bound certifies; each within 9 %.
-  Not counted: the output rows' N^2/2 prediction when that bound cannot certify them
-  (chain_of_masses' median step pays it: 1.7 times the estimate) and a step's fixed
-  calls (uav_roll at N = 25: 8 % low).
+  times: ``rollmpc report`` measures them).  It is stated in the solver's own work units
+  too, the count its budget is in (work.free_step_work: exact for a held reference whose
+  output rows the cheap bound certifies), and the cycles come from those units:
+  :data:`CYCLES_PER_FREE_UNIT` per unit plus :data:`FIXED_STEP_CYCLES` of a step's
+  costs outside the solver's count (P_step, the scheduler, the observers, the first
+  move), a relative least-squares fit on the median steps measured on the emulated M4F
+  (docs/checks.md, "One figure per step"): uav_roll at N = 25, 50, 100, 200,
+  uav_roll_blocked, quad_attitude, chain_of_masses' certified steps and the two designs
+  of tests/data/newuser (buck.yaml, ship_heading.yaml); each within 13 %.  Not counted:
+  the output rows' prediction when the bound cannot certify them (the buck at N = 12
+  pays it on its median step, 514 units instead of 408: the estimate is 21 % low there).
 * **limits**: ``target.flash_kib`` and ``target.ram_kib`` (when absent,
   schema.DEFAULT_FLASH_LIMIT_KIB / DEFAULT_RAM_LIMIT_KIB), and the cycles of one sample
   time at ``target.cpu_mhz``.  The safety limits of :func:`.sizes.check_sizes` come first
@@ -36,8 +39,10 @@ from dataclasses import dataclass
 
 from ..config import ConfigError, ControllerConfig
 from ..config.schema import DEFAULT_FLASH_LIMIT_KIB, DEFAULT_RAM_LIMIT_KIB
+from .fits import at_least, what_fits
 from .sizes import (ModeSizes, condensing_bytes, largest_mode, mode_sizes, stored_bytes,
                     struct_bytes)
+from .work import free_step_work, work_budget_of
 
 # the text of every generated function on the M4F at -O2 (-ffunction-sections, none
 # dropped): 29,804 to 33,552 B over the examples with the four-row back substitution and
@@ -46,8 +51,8 @@ from .sizes import (ModeSizes, condensing_bytes, largest_mode, mode_sizes, store
 # then 32 KiB, until the solver grew past it: measure again when the templates grow
 # (tests/test_code_allowance.py).
 CODE_FLASH_BYTES = 36 * 1024
-CYCLES_PER_MAC = 10  # per multiply-add of the step's linear algebra (a fit, see above)
-CYCLES_PER_ROW = 60  # per constraint row checked
+CYCLES_PER_FREE_UNIT = 9  # per work unit of a step without active bounds (a fit, above)
+FIXED_STEP_CYCLES = 2_700  # per step, outside the solver's count
 # dense condensing matrices beyond this take about a second (N = 150 for the paper's
 # plant on this machine): the prediction is then printed before the maths, not after
 SLOW_MATHS_BYTES = 1 << 20
@@ -64,6 +69,8 @@ class Footprint:
     flash_bytes: int  # the float build: data + CODE_FLASH_BYTES
     ram_bytes: int  # the float build's P_ctrl
     step_cycles: int  # estimated unconstrained step of the float build
+    step_units: int  # the same step in the solver's work units (held reference)
+    work_budget: int  # the solver's budget in those units
     flash_limit: int
     ram_limit: int
     cycle_budget: int
@@ -81,8 +88,9 @@ class Footprint:
         lines = [f"predicted on the target (float build): flash "
                  f"{of(self.flash_bytes, self.flash_limit, self.flash_declared)}, RAM "
                  f"{of(self.ram_bytes, self.ram_limit, self.ram_declared)}, a step without "
-                 f"active bounds about {_rounded(self.step_cycles):,} of the "
-                 f"{self.cycle_budget:,} cycles of a sample (an estimate; active bounds "
+                 f"active bounds about {rounded(self.step_cycles):,} of the "
+                 f"{self.cycle_budget:,} cycles of a sample and {self.step_units:,} of the "
+                 f"solver's {self.work_budget:,} work units (an estimate; active bounds "
                  "cost more)"]
         if self.precision != "float":
             lines.append(f"this {self.precision} build: data {self.data_bytes / KIB:.1f} "
@@ -90,21 +98,16 @@ class Footprint:
         return lines
 
 
-def _rounded(value: int) -> int:
+def rounded(value: int) -> int:
     """Three significant digits: the estimate is not better."""
     return int(round(value, 2 - len(str(abs(int(value))))))
 
 
 def step_cycles(sizes: tuple[ModeSizes, ...]) -> int:
-    """Estimated cycles of a step without active bounds: the active mode's unconstrained
-    solution (Kx x, the reference terms, the free response Phi x and its weighting) and
-    row checks, the largest over the modes, plus every mode's observer update."""
-    def qp_work(s: ModeSizes) -> int:
-        macs = s.n * s.nx + 2 * s.n * s.ny + s.N * s.ny * (s.nx + s.ny)
-        return CYCLES_PER_MAC * macs + CYCLES_PER_ROW * s.m
-
-    observers = sum(s.nx * (s.nx + s.nu + s.ny) for s in sizes)
-    return max(qp_work(s) for s in sizes) + CYCLES_PER_MAC * observers
+    """Estimated cycles of a step without active bounds: the work units of the costliest
+    mode's free step (work.free_step_work) at CYCLES_PER_FREE_UNIT, and the step's fixed
+    costs (module docstring)."""
+    return CYCLES_PER_FREE_UNIT * max(free_step_work(s) for s in sizes) + FIXED_STEP_CYCLES
 
 
 def predict(cfg: ControllerConfig) -> Footprint:
@@ -116,11 +119,16 @@ def predict(cfg: ControllerConfig) -> Footprint:
         ctrl_bytes=struct_bytes(cfg, sizes),
         flash_bytes=stored_bytes(cfg, sizes, "float") + CODE_FLASH_BYTES,
         ram_bytes=struct_bytes(cfg, sizes, "float"), step_cycles=step_cycles(sizes),
+        step_units=max(free_step_work(s) for s in sizes), work_budget=work_budget_of(cfg),
         flash_limit=int(KIB * (target.flash_kib or DEFAULT_FLASH_LIMIT_KIB)),
         ram_limit=int(KIB * (target.ram_kib or DEFAULT_RAM_LIMIT_KIB)),
         cycle_budget=cfg.cycles_per_sample, flash_declared=target.flash_kib is not None,
         ram_declared=target.ram_kib is not None, largest_mode=largest_mode(sizes),
         slow=sum(condensing_bytes(s) for s in sizes) > SLOW_MATHS_BYTES)
+
+
+def _cycles_fit(cfg: ControllerConfig) -> bool:
+    return step_cycles(tuple(mode_sizes(cfg, m) for m in cfg.modes)) <= cfg.cycles_per_sample
 
 
 def check_fits(cfg: ControllerConfig, fp: Footprint) -> None:
@@ -141,10 +149,14 @@ def check_fits(cfg: ControllerConfig, fp: Footprint) -> None:
                f"instance ({fp.largest_mode}), above "
                f"{limit('ram_kib', fp.ram_limit, fp.ram_declared)}")
     elif fp.step_cycles > fp.cycle_budget:
-        why = (f"would take about {_rounded(fp.step_cycles):,} cycles for a step without "
-               f"active bounds (an estimate; {fp.largest_mode}), above the "
-               f"{fp.cycle_budget:,} of one sample (sample_time {cfg.sample_time:g} s at "
-               f"target.cpu_mhz = {cfg.target.cpu_mhz:g})")
+        mhz = fp.step_cycles / (cfg.sample_time * 1e6)
+        ts = fp.step_cycles / (cfg.target.cpu_mhz * 1e6)
+        fits = what_fits(cfg, _cycles_fit, [f"target.cpu_mhz >= {at_least(mhz)}",
+                                            f"sample_time >= {at_least(ts)}"])
+        why = (f"would take about {rounded(fp.step_cycles):,} cycles ({fp.step_units:,} work "
+               f"units) for a step without active bounds (an estimate; {fp.largest_mode}), "
+               f"above the {fp.cycle_budget:,} of one sample (sample_time {cfg.sample_time:g} "
+               f"s at target.cpu_mhz = {cfg.target.cpu_mhz:g}); {fits}")
     if why is not None:
         raise ConfigError("horizon", f"too large for the target: the float build {why}; "
                           "--force-size generates it anyway")

@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..config.diagnostics import DesignWarning
 from ..model.controller import ControllerModel
 
 # rho > 1 + this: outside the unit circle beyond the eigenvalue solver's roundoff, so a
@@ -30,13 +31,18 @@ UNSTABLE_BEYOND = 1e-9
 ZERO_GAIN = 1e-15
 
 
-def closed_loop_radius(model: ControllerModel, j: int) -> float:
-    """Spectral radius of mode ``j``'s nominal closed loop A + B K, without the
+def closed_loop_eigenvalues(model: ControllerModel, j: int) -> np.ndarray:
+    """The eigenvalues of mode ``j``'s nominal closed loop A + B K, without the
     disturbance states."""
     plant, qp = model.modes[j].plant, model.modes[j].qp
     a_cl = plant.A + plant.B @ qp.Kx[:qp.nu]
     keep = plant.non_disturbance_states
-    return float(np.abs(np.linalg.eigvals(a_cl[np.ix_(keep, keep)])).max())
+    return np.linalg.eigvals(a_cl[np.ix_(keep, keep)])
+
+
+def closed_loop_radius(model: ControllerModel, j: int) -> float:
+    """Spectral radius of mode ``j``'s nominal closed loop (closed_loop_eigenvalues)."""
+    return float(np.abs(closed_loop_eigenvalues(model, j)).max())
 
 
 def state_feedback_is_zero(model: ControllerModel, j: int) -> bool:
@@ -48,24 +54,26 @@ def state_feedback_is_zero(model: ControllerModel, j: int) -> bool:
     return not np.any(np.abs(qp.Kx[:qp.nu]) > ZERO_GAIN)
 
 
-def unstable_law_warnings(model: ControllerModel) -> list[str]:
-    """One line per mode whose controller, with no bound active, does not stabilise it,
-    or does not read its state at all."""
+def unstable_law_warnings(model: ControllerModel) -> list[DesignWarning]:
+    """One warning per mode whose controller, with no bound active, does not stabilise
+    it (``unstable_nominal_loop``), or does not read its state at all (``state_ignored``)."""
     lines = []
     for j, mode in enumerate(model.config.modes):
         if state_feedback_is_zero(model, j):
-            lines.append(
+            lines.append(DesignWarning(
+                "state_ignored", "horizon",
                 f"modes[{j}] ({mode.name}): the first move does not depend on the state: no "
                 "weighted output responds to the inputs within the horizon, so the "
                 "controller ignores the plant; lengthen the horizon past the plant's delay "
-                "from input to output, or give weights.Q / weights.P a nonzero weight")
+                "from input to output, or give weights.Q / weights.P a nonzero weight"))
             continue
         rho = closed_loop_radius(model, j)
         if rho > 1.0 + UNSTABLE_BEYOND:
-            lines.append(
+            lines.append(DesignWarning(
+                "unstable_nominal_loop", f"modes[{j}].weights.P",
                 f"modes[{j}] ({mode.name}): with no bound active this controller does not "
                 f"stabilise its model (the nominal closed loop has an eigenvalue of "
                 f"magnitude {rho:.6g}, outside the unit circle), so the loop diverges "
                 "wherever the bounds are inactive; lengthen the horizon or raise the "
-                "terminal weight (weights.P)")
+                "terminal weight (weights.P)"))
     return lines

@@ -6,15 +6,14 @@ against ``solver.work_budget`` before it starts, with the same formulas as an up
 (``templates/solver/work.c.j2``).  This module is their Python side, with the C's names:
 the reference (:mod:`rollmpc_codegen.reference`) charges the same numbers at the same
 places, and the generator derives the default budget from the sample time and the clock
-and checks that a budget leaves room for the unconstrained step.
+and checks that a budget leaves room for the unconstrained step (budget.py).
 
 ``m`` below is a mode's stored sizes (:class:`~rollmpc_codegen.qp.storage.ModeData`:
 n, m, n_yq, ny, nu, nx, nt).  All arithmetic is on unsigned 32-bit integers in the C; the
-generator keeps every bound below 2**31 (:func:`check_work_budget`).
+generator keeps every bound below 2**31 (budget.py, :func:`check_work_budget`).
 """
 from __future__ import annotations
 
-from ..config.errors import ConfigError
 from ..config.schema import DEFAULT_CPU_MHZ, WORK_BUDGET_AUTO
 
 # Estimated Cortex-M4F cycles per work unit, declared once: `rollmpc report --precision
@@ -24,6 +23,10 @@ from ..config.schema import DEFAULT_CPU_MHZ, WORK_BUDGET_AUTO
 # "Work budget"). Small steps ran at 21-24 (fixed costs per call: thermal_zones' largest,
 # <= 11.7 k units, at 20.1-21.2); PRIMAL_CALL_UNITS brings them to <= 19.8 (3313d1b).
 CYCLES_PER_WORK_UNIT = 20.0
+# ...and the fewest measured on a heavy step (uav_roll's max 12.55, docs/target.md): a
+# budget that takes longer than a sample period even at this rate misses its deadline
+# whenever a solve spends it (qp/sanity.py warns)
+FEWEST_CYCLES_PER_WORK_UNIT = 12.0
 WORK_LIMIT = 2**31  # every count and bound stays below it (uint32 in the C)
 UNBOUNDED_WORK = WORK_LIMIT - 1  # the largest budget: in effect none
 # rows the dual active set adds per scan of every row (it pays the scan and the corrected
@@ -227,28 +230,27 @@ def largest_unit(m, wcap: int, factor: int) -> int:
                6 * (primal_work(m, m.n, m.n, 0, True) + 1), add_step_work(wcap))
 
 
+def free_step_work(m, certified: bool = True) -> int:
+    """What a solve charges when no bound is active and the reference is held over the
+    horizon (the scenario between its steps): th0 in one run, the slacks, the output
+    certificate (with output rows) and, when that fails, the output prediction, then
+    finish().  The same step that footprint.py estimates in cycles: one figure in both
+    (docs/checks.md, "One figure per step"); base_work() is its worst case."""
+    rows = m.has_output_rows
+    return (unconstrained_work(m, 0, 1, rows) + 2 * m.m + (m.n + m.m if rows else 0)
+            + (0 if certified or not rows else m.m + predict_work(m)) + finish_work(m))
+
+
 def auto_work_budget(sample_time: float, share: float, cpu_mhz: float = DEFAULT_CPU_MHZ) -> int:
     """``solver.work_budget: auto``: ``share`` of the sample time at ``cpu_mhz``, in units."""
     return int(sample_time * share * cpu_mhz * 1e6 / CYCLES_PER_WORK_UNIT)
 
 
-def check_work_budget(cfg, modes, factor: int) -> int:
-    """The budget of ``cfg`` (a ControllerConfig) in work units, checked against the
-    unconstrained step of every mode (its ModeData in ``modes``): a budget below it could
-    not even return the clamped unconstrained optimum."""
+def work_budget_of(cfg) -> int:
+    """The work budget of ``cfg`` (a ControllerConfig) in units: the given one, or auto's
+    (without the polish, the paper's variants: none, their sweep cap bounds them)."""
     s = cfg.solver
-    budget = int(s.work_budget) if s.work_budget != WORK_BUDGET_AUTO else (
-        auto_work_budget(cfg.sample_time, s.budget_share, cfg.target.cpu_mhz) if s.polish
-        else UNBOUNDED_WORK)  # the paper's variants: their sweep cap bounds the work
-    need = max(base_work(m, m.has_output_rows) for m in modes)
-    for m in modes:
-        if largest_unit(m, m.w_cap, factor) >= WORK_LIMIT:
-            raise ConfigError("solver", f"mode {m.name}: its QP (n = {m.n}, m = {m.m}) is too "
-                              f"large to count its work in 32 bits")
-    if budget < need or budget >= WORK_LIMIT:
-        how = (f"auto: {s.budget_share:g} of Ts = {cfg.sample_time:g} s at {cfg.target.cpu_mhz:g} "
-               f"MHz, {CYCLES_PER_WORK_UNIT:g} cycles per unit" if s.work_budget == WORK_BUDGET_AUTO
-               else "given")
-        raise ConfigError("solver.work_budget", f"{budget} work units ({how}) must be at least "
-                          f"the {need} of the unconstrained step and below {WORK_LIMIT}")
-    return budget
+    if s.work_budget != WORK_BUDGET_AUTO:
+        return int(s.work_budget)
+    return (auto_work_budget(cfg.sample_time, s.budget_share, cfg.target.cpu_mhz) if s.polish
+            else UNBOUNDED_WORK)

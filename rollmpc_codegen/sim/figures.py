@@ -1,11 +1,12 @@
 """The paper's figures as PNGs (matplotlib, Agg backend).
 
 * Fig. 2 (:func:`plot_closed_loop`, ``rollmpc simulate --plot``): panel (a) the output y
-  and the reference r, with the actuator commands u in a subplot beneath; panel (b), with
+  and the reference r with the output bounds (dash-dot, in the output's colour), with
+  the actuator commands u in a subplot beneath; panel (b), with
   two modes or more only, the scheduling signal rho (the UAV's roll rate) with the eq. (3)
   thresholds, and the active mode on a second axis.  An optional baseline (the saturated
   LQR) is drawn dashed.  The labels use the config's output, actuator and signal names,
-  with units only where the config's ``units`` gives them.
+  with units only where the config's ``units`` gives them (per output when they differ).
 * Fig. 3 (:func:`plot_solve_times`, ``rollmpc bench --plot``): every QP's solve time per
   solver against the sample index, log scale.
 """
@@ -79,13 +80,31 @@ def _draw_outputs(ax_y, cfg: ControllerConfig, log: ClosedLoopLog, runs, colors)
         for label, run, style in runs:
             ax_y.plot(run.t, run.y[:, o], color=colors[o % len(colors)], **style,
                       label=f"y ({name}), {label}")
-    units = cfg.units  # labels only: no unit unless the config's `units` gives one
-    outputs = ", ".join(cfg.outputs)
-    ax_y.set_ylabel(f"output y, reference r{units.label('outputs')}")
-    ax_y.set_title(f"(a) tracking output y(k) = {outputs} and reference r(k)", loc="left",
-                   fontsize=10)
+        for v in _output_bounds(cfg, o):  # every mode's finite bounds of this output
+            ax_y.axhline(v, color=colors[o % len(colors)], linewidth=0.8, linestyle="-.",
+                         alpha=0.7)
+    outputs = ", ".join(cfg.outputs)  # units label only: none unless `units` gives them
+    ax_y.set_ylabel(f"output y, reference r{_output_units(cfg)}")
+    ax_y.set_title(f"(a) tracking output y(k) = {outputs} and reference r(k) (dash-dot: "
+                   "output bounds)", loc="left", fontsize=10)
     ax_y.legend(loc="upper left", fontsize=8, ncol=2)
     ax_y.grid(alpha=0.3)
+
+
+def _output_bounds(cfg: ControllerConfig, o: int) -> list[float]:
+    """The distinct finite bounds (hard or soft) of output ``o`` over the modes."""
+    return sorted({float(v) for m in cfg.modes for v in (m.y_min[o], m.y_max[o])
+                   if np.isfinite(v)})
+
+
+def _output_units(cfg: ControllerConfig) -> str:
+    """`` [u]`` for a unit every output shares, ``(roll deg, climb m/s)`` for mixed ones,
+    "" without units."""
+    shared = cfg.units.label("outputs")
+    if shared or not any(cfg.units.outputs):
+        return shared
+    return " (" + ", ".join(f"{n} {u}" if u else n
+                            for n, u in zip(cfg.outputs, cfg.units.outputs)) + ")"
 
 
 def _draw_inputs(ax_u, cfg: ControllerConfig, runs, colors) -> None:

@@ -12,17 +12,19 @@ the same options flies the same flights with their cycles.
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
 from ..config import ControllerConfig
+from ..config.diagnostics import DesignWarning, messages
 from ..host.build import build_host_controller
-from ..pipeline import load_model
-from ..qp.nominal_loop import unstable_law_warnings
+from ..pipeline import config_label, load_model
+from ..qp.sanity import design_warnings
 from .flight_plan import FlightPlan
 from .metrics import constraint_violations, longest_run, status_counts, work_stats
+from .run_checks import infeasible_check, time_limit_check
 from .scenario import scenario_reference
 from .simulate import run_closed_loop, start_phase
 
@@ -30,11 +32,12 @@ from .simulate import run_closed_loop, start_phase
 @dataclass
 class FlightsRun:
     """``summary`` is the JSON document: the settings, ``flights`` (one entry each) and
-    ``totals``."""
+    ``totals``; ``warnings`` what the CLI prints under them (also ``summary["checks"]``)."""
 
     config: ControllerConfig
     ctx: dict
     summary: dict
+    warnings: list[DesignWarning] = field(default_factory=list)
 
 
 def _totals(entries: list[dict], outputs: list[str], work: dict | None) -> dict:
@@ -55,19 +58,20 @@ def _totals(entries: list[dict], outputs: list[str], work: dict | None) -> dict:
             "work": work}
 
 
-def run_flights(config: str | Path, *, flights: int, seed: int = 0,
+def run_flights(config, *, flights: int, seed: int = 0,
                 precision: str | None = None, steps: int | None = None,
                 noise_std: float = 0.0, disturbance: float = 0.0, mismatch: float = 0.0,
                 build_dir: str | Path | None = None, progress=None) -> FlightsRun:
     """Fly ``flights`` random flights of ``steps`` samples each (default: the scenario's
-    length) through one host build, from P_init() each, flight i seeded ``seed + i``."""
+    length) through one host build, from P_init() each, flight i seeded ``seed + i``;
+    ``config`` a file, a ControllerConfig or a Design (pipeline.load_config)."""
     model, ctx = load_model(config, precision)
     cfg = model.config
     steps = steps if steps is not None else len(scenario_reference(cfg))
     plan = FlightPlan(flights=flights, seed=seed, noise_std=noise_std,
                       disturbance=disturbance, mismatch=mismatch)
     controller = build_host_controller(ctx, Path(build_dir) if build_dir else None)
-    entries, works = [], []
+    entries, works, statuses, modes = [], [], [], []
     budget = ctx["solver"]["work_budget"]
     for fl in plan.plan(cfg, steps):
         controller.init()
@@ -83,11 +87,20 @@ def run_flights(config: str | Path, *, flights: int, seed: int = 0,
             "constraint_violations": constraint_violations(cfg, log),
             "work": work_stats(log.work, budget)})
         works.append(log.work)
-    summary = {"config": str(config), "precision": ctx["precision"],
+        statuses.append(log.status)
+        modes.append(log.mode)
+    design = design_warnings(model)
+    summary = {"config": config_label(config), "precision": ctx["precision"],
                "solver": dict(ctx["solver"]), "sample_time": cfg.sample_time,
                "horizon": cfg.horizon, "flight_plan": plan.as_dict(), "steps": steps,
-               "design_warnings": unstable_law_warnings(model),
+               "design_warnings": messages(design),
                "flights": entries,
                "totals": _totals(entries, list(cfg.outputs),
                                  work_stats(np.concatenate(works), budget))}
-    return FlightsRun(config=cfg, ctx=ctx, summary=summary)
+    t = summary["totals"]
+    found = [*time_limit_check(t["status_counts"], t["samples"], t["longest_time_limit_run"],
+                               cfg.horizon),
+             *infeasible_check(cfg, np.concatenate(statuses), np.concatenate(modes),
+                               t["y_max_beyond"]), *design]
+    summary["checks"] = [w.as_dict() for w in found]
+    return FlightsRun(config=cfg, ctx=ctx, summary=summary, warnings=found)

@@ -15,7 +15,10 @@ Definitions (also in docs/paper-reproduction.md):
   anticipation, so its settled error is flagged (``settled_window_includes_preview``),
   left out of ``max_settled_error`` and named in ``warnings``.
 * **Settled error**: max |y - r| over the settled window (in the output's unit: deg for
-  the UAV; the config's optional ``units`` only labels it).
+  the UAV; the config's optional ``units`` only labels it), over the *weighted* outputs
+  (:func:`weighted_outputs`: Q or P nonzero in some mode): an output the cost ignores is
+  tracked by nobody, so its error (a buck's inductor current, Q = 0, against a scalar
+  reference level) says nothing of the design; ``settled_error_by_output`` has each.
 * **Settling time**: time from the step after which |y - r| stays within 2 % of the
   step size up to the anticipation cut-off (None if it never does; 0 without a step).
 * **Overshoot**: how far y goes past the new reference, in the direction of the step,
@@ -88,15 +91,24 @@ def short_segment_warnings(segments: list[dict], horizon: int, ts: float) -> lis
             "and is left out of the max (lengthen simulation.reference.segment)"]
 
 
+def weighted_outputs(cfg: ControllerConfig) -> np.ndarray:
+    """Per output, whether some mode's cost weights it (a nonzero diagonal entry of Q or
+    P); every output when none is (nothing to prefer)."""
+    weighted = np.zeros(cfg.n_outputs, bool)
+    for mode in cfg.modes:
+        weighted |= (np.diag(mode.Q) != 0) | (np.diag(mode.P) != 0)
+    return weighted if weighted.any() else np.ones(cfg.n_outputs, bool)
+
+
 def _segment_metrics(log: ClosedLoopLog, start: int, end: int, last: bool, horizon: int,
-                     ts: float, outputs: tuple[str, ...]) -> dict:
+                     ts: float, outputs: tuple[str, ...], weighted: np.ndarray) -> dict:
     r_new = log.r[start]
     r_old = log.r[start - 1] if start > 0 else log.r[start]
     lo, hi = settled_window(start, end, last, horizon)
     err = np.abs(log.y[lo:hi] - log.r[lo:hi]).max(axis=0)
     cut = end if last else max(start + 1, end - horizon)
     overs, pcts, settle = [], [], []
-    stepped = [r_new[o] != r_old[o] for o in range(len(outputs))]
+    stepped = [r_new[o] != r_old[o] and weighted[o] for o in range(len(outputs))]
     for o in range(len(outputs)):
         step = r_new[o] - r_old[o]
         dev = log.y[start:cut, o] - r_new[o]
@@ -116,11 +128,11 @@ def _segment_metrics(log: ClosedLoopLog, start: int, end: int, last: bool, horiz
            "settled_window_includes_preview": not preview_free(start, end, last, horizon),
            "reference": float(r_new[0]) if len(outputs) == 1 else r_new.tolist(),
            "step": float(r_new[0] - r_old[0]) if len(outputs) == 1 else (r_new - r_old).tolist(),
-           "settled_error": float(err.max()),
-           # over the outputs whose reference steps here: another output's excursion is
-           # in its own units (overshoot_by_output has it)
-           "overshoot": float(max(o for o, s in zip(overs, stepped) if s)
-                              if any(stepped) else max(overs)),
+           "settled_error": float(err[weighted].max()),
+           # over the weighted outputs whose reference steps here: another output's
+           # excursion is in its own units (overshoot_by_output has it)
+           "overshoot": float(max(o for o, s in zip(overs, stepped) if s) if any(stepped)
+                              else max(o for o, w in zip(overs, weighted) if w)),
            "overshoot_pct": pcts[0] if len(outputs) == 1 else pcts,
            "settling_time_s": (settle[0] if len(outputs) == 1 else
                                (None if None in settle else max(settle)))}
@@ -250,7 +262,8 @@ def summarize(cfg: ControllerConfig, log: ClosedLoopLog) -> dict:
     """Every metric of the JSON summary (one controller's log)."""
     ts, N = cfg.sample_time, cfg.horizon
     segs = reference_segments(log.r)
-    segments = [_segment_metrics(log, a, b, i == len(segs) - 1, N, ts, cfg.outputs)
+    weighted = weighted_outputs(cfg)
+    segments = [_segment_metrics(log, a, b, i == len(segs) - 1, N, ts, cfg.outputs, weighted)
                 for i, (a, b) in enumerate(segs)]
     for i, s in enumerate(segments):
         s["index"] = i
@@ -273,6 +286,7 @@ def summarize(cfg: ControllerConfig, log: ClosedLoopLog) -> dict:
         "duration_s": float(len(log.t) * ts),
         "segments": segments,
         "max_settled_error": max(clean, default=None),
+        "weighted_outputs": [name for name, w in zip(cfg.outputs, weighted) if w],
         "warnings": short_segment_warnings(segments, N, ts),
         "max_overshoot": max(s["overshoot"] for s in segments),
         "switches": int(switch_k.size),

@@ -9,14 +9,16 @@ of :mod:`rollmpc_codegen.sim.lqr_baseline`, run on the same scenario.
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 
 from ..config import ControllerConfig
+from ..config.diagnostics import DesignWarning, messages
 from ..host.build import build_host_controller
-from ..pipeline import load_model
-from ..qp.nominal_loop import unstable_law_warnings
+from ..pipeline import config_label, load_model
+from ..qp.sanity import design_warnings
 from .metrics import summarize, work_stats
+from .run_checks import scenario_checks
 from .scenario import plant_mismatch, scenario_reference
 from .simulate import ClosedLoopLog, run_closed_loop, start_phase
 
@@ -26,21 +28,24 @@ BASELINES = ("lqr",)
 @dataclass
 class ScenarioRun:
     """One closed loop: ``summary`` is the JSON document (the run's settings and every
-    metric, with ``baseline`` holding the baseline's), the logs are per sample."""
+    metric, with ``baseline`` holding the baseline's), the logs are per sample,
+    ``warnings`` what the CLI prints under its summary (also ``summary["checks"]``)."""
 
     config: ControllerConfig
     ctx: dict
     log: ClosedLoopLog
     summary: dict
     baseline_log: ClosedLoopLog | None = None
+    warnings: list[DesignWarning] = field(default_factory=list)
 
 
-def run_scenario(config: str | Path, *, precision: str | None = None,
+def run_scenario(config, *, precision: str | None = None,
                  steps: int | None = None, noise_std: float = 0.0, disturbance: float = 0.0,
                  mismatch: float = 0.0, seed: int = 0, baseline: str | None = None,
                  build_dir: str | Path | None = None, progress=None) -> ScenarioRun:
     """Simulate ``steps`` samples (default: the whole scenario) of the generated C for
-    ``config``, with seeded measurement noise, a constant input disturbance and a plant
+    ``config`` (a file, a ControllerConfig or a Design: pipeline.load_config), with
+    seeded measurement noise, a constant input disturbance and a plant
     mismatch of up to ``mismatch`` (a fraction, sim/mismatch.py) (``run_closed_loop``);
     ``baseline="lqr"`` also runs the saturated LQR."""
     if baseline is not None and baseline not in BASELINES:
@@ -58,14 +63,15 @@ def run_scenario(config: str | Path, *, precision: str | None = None,
 
     controller = build_host_controller(ctx, Path(build_dir) if build_dir else None)
     log = run(controller, f"simulate ({ctx['precision']})")
-    summary = {"config": str(config), "precision": ctx["precision"],
+    design = design_warnings(model)
+    summary = {"config": config_label(config), "precision": ctx["precision"],
                "solver": dict(ctx["solver"]), "modes": [m.name for m in cfg.modes],
                "sample_time": cfg.sample_time, "horizon": cfg.horizon,
                "noise_std": noise_std, "disturbance": disturbance, "mismatch": mismatch,
                "plant_mismatch": None if true_plant is None else true_plant.as_dict(),
                "seed": seed,
-               # a controller that does not stabilise its model explains a diverging loop
-               "design_warnings": unstable_law_warnings(model),
+               # generate's warnings (a loop that diverges where no bound is active, ...)
+               "design_warnings": messages(design),
                **summarize(cfg, log),
                "work": work_stats(log.work, ctx["solver"]["work_budget"])}
     base_log = None
@@ -74,4 +80,7 @@ def run_scenario(config: str | Path, *, precision: str | None = None,
 
         base_log = run(LqrController(model, ctx), "LQR baseline")
         summary["baseline"] = {"kind": "lqr_saturated", **summarize(cfg, base_log)}
-    return ScenarioRun(config=cfg, ctx=ctx, log=log, summary=summary, baseline_log=base_log)
+    found = scenario_checks(cfg, summary, log.status, log.mode, design)
+    summary["checks"] = [w.as_dict() for w in found]
+    return ScenarioRun(config=cfg, ctx=ctx, log=log, summary=summary, baseline_log=base_log,
+                       warnings=found)

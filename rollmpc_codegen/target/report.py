@@ -25,16 +25,17 @@ from pathlib import Path
 from .. import config as config_mod
 from ..extras import installed
 from ..host.build_cache import private_root
-from ..pipeline import load_model
+from ..pipeline import load_config, load_model
 from . import flight_replay
 from ..sim.flight_plan import FlightPlan
 from .horizons import horizon_table
 from .measure import measure
+from .verdicts import conclude
 
 TARGET_MODULES = (("unicorn", "unicorn"), ("capstone", "capstone"), ("elftools", "pyelftools"))
 
 
-def run_report(config: str | Path, *, precision: str | None = None,
+def run_report(config, *, precision: str | None = None,
                horizons: Iterable[int] | None = None, steps: int | None = None,
                flights: int = 0, seed: int = 0, noise_std: float = 0.0,
                disturbance: float = 0.0, mismatch: float = 0.0,
@@ -42,8 +43,10 @@ def run_report(config: str | Path, *, precision: str | None = None,
                extra_cflags: tuple[str, ...] = (), build_dir: str | Path | None = None,
                flight: str | Path | None = None, peer: str | None = None,
                progress=None) -> dict:
-    """The report of ``config`` (the keys of :func:`rollmpc_codegen.target.measure.measure`),
-    or with ``horizons`` ``{"horizons": horizon_table(...)}``.
+    """The report of ``config`` (a file, a ControllerConfig or a Design:
+    pipeline.load_config): the keys of :func:`rollmpc_codegen.target.measure.measure`
+    with its ``verdicts``, ``passed`` and ``checks`` (verdicts.py), or with ``horizons``
+    ``{"horizons": horizon_table(...)}`` (a file or a Design).
 
     ``steps`` samples of the scenario, or of each of ``flights`` random flights, are
     replayed (default: the scenario's length); ``seed``, ``noise_std``, ``disturbance``
@@ -73,21 +76,34 @@ def run_report(config: str | Path, *, precision: str | None = None,
         raise config_mod.ConfigError("--peer", f"one of {', '.join(PEERS)}, on the scenario "
                                      "only (not with --horizons, --flights or --flight)")
     if horizons:
-        config_mod.load(config, precision)  # validate before the long run
-        return {"horizons": horizon_table(Path(config), sorted(set(horizons)), precision, root,
+        path = yaml_file(config, root)
+        load_config(path, precision)  # validate before the long run
+        return {"horizons": horizon_table(path, sorted(set(horizons)), precision, root,
                                           progress, **options)}
     model, ctx = load_model(config, precision)
     if flight is None:
         report = measure(model, ctx, root, progress=progress, **options)
         if peer is not None:
             report["peer"] = peer_cycles(model, ctx, root, steps, progress)
-        return report
+        return conclude(report, model.config, precision)
     inputs = flight_replay.read_flight_inputs(flight, ctx, steps)
     record = flight_replay.record_flight(ctx, inputs, root, progress, host_repeats)
     report = measure(model, ctx, root, progress=progress, record=record, **options)
     report["flight"] = {"path": str(flight), "samples": len(inputs.y),
                         **flight_replay.commands_match(inputs, record)}
-    return report
+    return conclude(report, model.config, precision)
+
+
+def yaml_file(config, root: Path) -> Path:
+    """``--horizons`` edits the YAML: a file as it is, a Design as its to_yaml() in
+    ``root``; a bare ControllerConfig has no YAML form."""
+    if isinstance(config, (str, Path)):
+        return Path(config)
+    if not callable(getattr(config, "to_yaml", None)):
+        raise config_mod.ConfigError("horizons", "needs a config file or a Design")
+    path = Path(root) / "design.yaml"
+    config.to_yaml(path)
+    return path
 
 
 PEERS = ("daqp",)

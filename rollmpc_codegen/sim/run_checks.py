@@ -1,0 +1,89 @@
+"""The warnings of a run (``simulate``, ``simulate --flights``, ``report``) as
+DesignWarnings (docs/checks.md): what the CLI prints under its summary and what the
+library returns on ``.warnings`` (and in the JSON as ``checks``).
+
+* ``short_segment``: a segment too short for a settled window without the preview
+  (metrics.short_segment_warnings);
+* ``time_limit``: samples stopped at the work budget (metrics.time_limit_warning);
+* ``infeasible_samples``: samples whose QP was INFEASIBLE (without any, but with an
+  output past a hard bound: ``hard_bound_passed``).  Hard output bounds under
+  noise, a disturbance or a mismatched plant: a drone whose vertical speed is bounded hard
+  flew 135 of 500 samples INFEASIBLE and 3.99 m/s past the bound with only the TIME_LIMIT
+  warning.  An INFEASIBLE command keeps the input bounds only; soft bounds
+  (``bounds.soft``) keep the QP feasible and name the excursion instead.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from ..config import ControllerConfig
+from ..config.diagnostics import DesignWarning
+from ..status import INFEASIBLE, STATUS_NAMES
+from .metrics import time_limit_warning
+
+INFEASIBLE_NAME = STATUS_NAMES[INFEASIBLE]
+
+
+def time_limit_check(counts: dict, samples: int, longest: int,
+                     horizon: int) -> list[DesignWarning]:
+    text = time_limit_warning(counts, samples, longest, horizon)
+    return [] if text is None else [DesignWarning("time_limit", "solver.budget_share", text)]
+
+
+def _soft_hint(cfg: ControllerConfig, j: int) -> str:
+    """``modes[j].bounds.soft: {y_max: {l1: 0, l2: 1000}}`` for the mode's hard finite sides."""
+    mode = cfg.modes[j]
+    soft = np.zeros((cfg.n_outputs, 2), bool) if mode.soft_l2 is None else mode.soft_l2 > 0
+    sides = [name for side, (name, bound) in enumerate((("y_min", mode.y_min),
+                                                        ("y_max", mode.y_max)))
+             if np.any(np.isfinite(bound) & ~soft[:, side])]
+    inner = ", ".join(f"{s}: {{l1: 0, l2: 1000}}" for s in sides)
+    return f"modes[{j}].bounds.soft: {{{inner}}}"
+
+
+def _beyond(cfg: ControllerConfig, y_beyond: dict) -> str:
+    unit = dict(zip(cfg.outputs, cfg.units.outputs or ("",) * cfg.n_outputs))
+    return ", ".join(f"{name} {v:.3g}{' ' + unit[name] if unit[name] else ''}"
+                     for name, v in y_beyond.items())
+
+
+def infeasible_check(cfg: ControllerConfig, statuses: np.ndarray, modes: np.ndarray,
+                     y_beyond: dict) -> list[DesignWarning]:
+    """``infeasible_samples``, or without them ``hard_bound_passed`` (module docstring):
+    ``statuses`` and ``modes`` per sample, ``y_beyond`` how far each output passed a hard
+    bound (metrics.constraint_violations)."""
+    bad = np.asarray(statuses) == INFEASIBLE
+    far = _beyond(cfg, y_beyond)
+    if not bad.any():
+        if not far:
+            return []
+        j = int(np.bincount(np.asarray(modes), minlength=len(cfg.modes)).argmax())
+        return [DesignWarning(
+            "hard_bound_passed", f"modes[{j}].bounds.soft",
+            f"the outputs passed a hard bound by up to {far}: a plan keeps the bounds on the "
+            "model (a TIME_LIMIT one not even there), not on a plant that noise, disturbance "
+            "or mismatch take elsewhere. Tighten the bound by that margin or make it soft, e.g. "
+            f"{_soft_hint(cfg, j)} (docs/features.md, \"Soft output bounds\")")]
+    counts = np.bincount(np.asarray(modes)[bad], minlength=len(cfg.modes))
+    j = int(counts.argmax())
+    passed = f", and the outputs passed them by up to {far}" if far else ""
+    return [DesignWarning(
+        "infeasible_samples", f"modes[{j}].bounds.soft",
+        f"{int(bad.sum())} of {bad.size} samples ({100 * bad.mean():.1f} %) were INFEASIBLE "
+        f"(most in modes[{j}] {cfg.modes[j].name}): no input within its bounds met the hard "
+        f"output bounds from where noise, disturbance or mismatch took the plant{passed}; "
+        "an INFEASIBLE command keeps the input bounds only. Make the output bounds soft, e.g. "
+        f"{_soft_hint(cfg, j)} (docs/features.md, \"Soft output bounds\")")]
+
+
+def scenario_checks(cfg: ControllerConfig, summary: dict, statuses: np.ndarray,
+                    modes: np.ndarray, design: list[DesignWarning]) -> list[DesignWarning]:
+    """Every warning of one closed loop (``summary``: metrics.summarize's), then the
+    design's (qp/sanity.py)."""
+    found = [DesignWarning("short_segment", "simulation.reference.segment", text)
+             for text in summary["warnings"]]
+    found += time_limit_check(summary["status_counts"], summary["samples"],
+                              summary["longest_time_limit_run"], cfg.horizon)
+    found += infeasible_check(cfg, statuses, modes,
+                              summary["constraint_violations"]["y_max_beyond"])
+    return found + list(design)
