@@ -9,12 +9,13 @@ here, and so does every later stage (codegen/context.py: the precision's toleran
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, fields
+from dataclasses import dataclass, field, fields
 from functools import cached_property
 
 import numpy as np
 
-from .canonical import canonical_json, config_digest
+from .canonical import OMIT_AT_DEFAULT, canonical_json, config_digest
+from .constraint_types import SignalConstraint, TerminalConfig
 
 SOLVER_METHODS = ("hildreth", "hildreth_plus", "hildreth_plus_prime")
 PRECISIONS = ("double", "float")
@@ -172,6 +173,10 @@ class ModeConfig:
     # observer.innovation_limit: per output, |y - C x̂| beyond it is clipped to it (+inf:
     # never); the parser fills in default_innovation_limit
     innovation_limit: np.ndarray | None = None  # (ny,)
+    # modes[].constraints (features/signals.py): constrained signals and mixed rows, one
+    # scalar signal each, and the terminal constraint
+    signals: tuple[SignalConstraint, ...] = field(default=(), metadata=OMIT_AT_DEFAULT)
+    terminal: TerminalConfig | None = field(default=None, metadata=OMIT_AT_DEFAULT)
 
     @property
     def has_rate_bounds(self) -> bool:
@@ -354,7 +359,7 @@ TOP_KEYS = ("prefix", "precision", "sample_time", "horizon", "control_horizon",
             "move_blocking", "outputs", "actuators", "modes", "scheduler", "runtime_bounds",
             "solver", "simulation", "units", "target")
 MODE_KEYS = ("name", "actuators", "plant", "weights", "bounds", "observer", "control_horizon",
-             "move_blocking")
+             "move_blocking", "constraints")
 PLANT_KEYS = ("transfer_function", "state_space", "integrator")
 TRANSFER_FUNCTION_KEYS = ("num", "den")
 STATE_SPACE_KEYS = ("A", "B", "C", "D", "discrete")
@@ -362,6 +367,11 @@ WEIGHT_KEYS = ("Q", "R", "P", "R_delta")
 BOUND_KEYS = ("u_min", "u_max", "y_min", "y_max", "du_min", "du_max", "soft")
 SOFT_KEYS = ("y_min", "y_max")  # bounds.soft
 PENALTY_KEYS = ("l1", "l2")  # bounds.soft.y_min / y_max
+CONSTRAINT_KEYS = ("signals", "mixed", "terminal")  # modes[].constraints
+SIGNAL_KEYS = ("C", "D", "min", "max", "stages", "soft")  # constraints.signals.<name>
+MIXED_KEYS = ("E", "F", "g", "stages", "soft")  # constraints.mixed.<name>
+TERMINAL_KEYS = ("kind", "H", "h", "soft")  # constraints.terminal
+TERMINAL_KINDS = ("lqr_invariant", "polytope", "equality")
 OBSERVER_KEYS = ("kind", "poles", "Qn", "Rn", "Qd", "disturbance", "innovation_limit")
 SHORTHAND_KEYS = ("lower", "upper", "inside", "outside")  # scheduler: the two-mode form
 SCHEDULER_KEYS = ("signal", "bands", "epsilon", "initial") + SHORTHAND_KEYS
