@@ -18,7 +18,10 @@ at time N (:mod:`.signals`) whose row carries r_N in its right-hand side (``Zr``
 
 With the set, the plan shifted one sample and finished by the terminal law is feasible
 for the next sample whenever the last plan was (recursive feasibility): the terminal set
-changes which plans are allowed, not the cost.  Soft bounds are left out of the set.
+changes which plans are allowed, not the cost.  Soft bounds are left out of the set, and
+so are its facets on the reference alone (the steady state's margin: no plan can meet
+them), so a reference beyond 99 % of an output bound makes the set approximate, not
+the QP infeasible.
 """
 from __future__ import annotations
 
@@ -45,6 +48,10 @@ def terminal_signals(mode: ModeConfig, plant: DiscretePlant, N: int, key: str
     nx, ny = plant.nx, plant.ny
     if t.kind == "lqr_invariant":
         Hx, Hr, h = maximal_admissible_set(mode, plant, N, law, tkey)
+        # a facet on the reference (and disturbance) alone is no row the plan can meet:
+        # the steady state's margin, left out (a reference beyond it is not refused)
+        on_plan = np.abs(Hx[:, law.keep]).max(axis=1, initial=0.0) > 1e-9
+        Hx, Hr, h = Hx[on_plan], Hr[on_plan], h[on_plan]
         lo = np.full(h.size, -np.inf)
     else:
         nxp = nx - plant.nd - plant.n_prev  # the plant's states come first

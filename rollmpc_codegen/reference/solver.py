@@ -243,7 +243,9 @@ class SolverRef(SignalsMixin, UnconstrainedMixin, RowsMixin, SoftRowsMixin, Swee
             if diverged:
                 status = INFEASIBLE
                 break
+            before = self.work
             th = self.correct(th0, S, lam[S])
+            corrected = self.work - before  # what the C's second correct() charges too
             if self.polish_on:
                 code, th_p, act, its = self.polish(self.seed_from_multipliers(lam, S), lam,
                                                    th0, K, gam)
@@ -255,7 +257,7 @@ class SolverRef(SignalsMixin, UnconstrainedMixin, RowsMixin, SoftRowsMixin, Swee
                                                           + 2 * scan_work(md) + 2 * md.m):
                     th, status = self.fallback_point(th0), TIME_LIMIT
                     break
-                self.work += correct_work(md, S.size)  # the C corrects again: same th
+                self.work += corrected  # the C corrects again: same th, same cost
             exc, scale = self.row_excess(th, gam)
             viol = exc > self.tol * scale
             if self.soft:
