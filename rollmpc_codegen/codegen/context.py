@@ -23,6 +23,24 @@ from ..qp.work import (ADD_BATCH, CHOL_UNITS_PER_OP, GUESS_SAMPLE_MIN, PREDICT_U
 from ..status import UNKNOWN_MESSAGE, context_statuses
 
 
+# Flags of features added after designs were generated, all False there: the context
+# (and its JSON) carries them only where a design uses one, so every other design's files
+# keep their bytes; the templates and the context's readers see these defaults
+# (:func:`rendering_context`).
+LATER_FEATURES = {"has_signal_rows": False, "has_signal_reference": False,
+                  "has_soft_signal_rows": False}
+
+
+def later_features(flags: dict) -> dict:
+    """``flags`` (keys of LATER_FEATURES), or none of them when all are False."""
+    return flags if any(flags.values()) else {}
+
+
+def rendering_context(ctx: dict) -> dict:
+    """The context with LATER_FEATURES' defaults: what the templates render."""
+    return {**LATER_FEATURES, **ctx}
+
+
 def _solver_flags(method: str) -> dict:
     """The paper's three variants as compile-time switches of one solver."""
     return {
@@ -47,6 +65,13 @@ def build_context(model: ControllerModel) -> dict:
         # soft output rows in some mode (soft_constraints.py): slack states in the solver,
         # the slack in the info struct, working sets beyond n rows (else the C is unchanged)
         "has_soft_rows": any(mm.data.has_soft_rows for mm in model.modes),
+        # general constraints (features/signals.py): the signal row kind (qp/rows.py),
+        # its reference term (terminal sets) and its soft bounds; else the C is unchanged
+        **later_features({
+            "has_signal_rows": any(mm.data.has_signal_rows for mm in model.modes),
+            "has_signal_reference": any(mm.data.has_signal_reference for mm in model.modes),
+            "has_soft_signal_rows": any(mm.data.has_soft_signal_rows for mm in model.modes),
+        }),
     }
     modes = []
     for mm in model.modes:
@@ -127,6 +152,8 @@ def build_context(model: ControllerModel) -> dict:
             "n_max": n_max, "m_max": max(m["m"] for m in modes),
             "nyq_max": max(m["nyq"] for m in modes),
             "nt_max": max(m["nt"] for m in modes),
+            **({"nzq_max": max(m["nzq"] for m in modes)}
+               if features.get("has_signal_rows") else {}),
             "w_max": w_max, "chol_max": lengths["chol"],
             "wset_max": lengths["wset"], "tmp_max": lengths["tmp"],
             # ws->ycol: the primal polish's Y (nt columns of n), or the dual's H_Wp (w)

@@ -11,7 +11,7 @@ from pathlib import Path
 import jinja2
 import numpy as np
 
-from .context import context_json
+from .context import context_json, rendering_context
 
 # generated file name (without prefix) -> template
 GENERATED_FILES = {
@@ -86,12 +86,14 @@ def render_sources(ctx: dict) -> dict[str, str]:
     env = environment(ctx["precision"])
     out = {}
     for name, template in GENERATED_FILES.items():
-        out[name.format(p=ctx["prefix"])] = env.get_template(template).render(ctx)
+        out[name.format(p=ctx["prefix"])] = env.get_template(template).render(
+            rendering_context(ctx))
     out[f"{ctx['prefix']}_context.json"] = context_json(ctx)
     return out
 
 
 def render_template(ctx: dict, template: str, **extra) -> str:
     """Render one auxiliary template (host timer, C test harness) with the context."""
-    return environment(ctx["precision"]).get_template(template).render(ctx, **extra)
+    return environment(ctx["precision"]).get_template(template).render(
+        rendering_context(ctx), **extra)
 

@@ -10,6 +10,7 @@ from typing import Any
 
 import numpy as np
 
+from .constraints import signal_row_count
 from .errors import ConfigError
 from .schema import (BOUND_KEYS, MAX_ROWS, WEIGHT_KEYS, ModeConfig, SchedulerConfig,
                      SimulationConfig, SolverConfig, storage_range)
@@ -27,10 +28,13 @@ def output_rows(horizon: int, mode: ModeConfig) -> int:
 
 def qp_rows(horizon: int, mode: ModeConfig) -> int:
     """The constraint rows of the mode's QP (condense._constraints): 2 nu per move (stage
-    or block), the :func:`output_rows`, and one per finite Δu bound on stages 0..N-1."""
+    or block), the :func:`output_rows`, one per finite Δu bound on stages 0..N-1, and the
+    constrained signals' (a terminal set's rows are known only once it is computed:
+    qp/sizes.py)."""
     moves = horizon if mode.blocks is None else len(mode.blocks)
     return (moves * 2 * len(mode.actuators) + output_rows(horizon, mode)
-            + horizon * (_finite(mode.du_min) + _finite(mode.du_max)))
+            + horizon * (_finite(mode.du_min) + _finite(mode.du_max))
+            + signal_row_count(mode.signals))
 
 
 def check_horizon(horizon: int, modes: tuple[ModeConfig, ...]) -> None:

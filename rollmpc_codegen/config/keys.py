@@ -81,6 +81,9 @@ SECTIONS = (
         Key("control_horizon", "the top level's", "this mode's Nc (overrides the top "
             "level; `control_horizon: N` switches blocking off)"),
         Key("move_blocking", "the top level's", "this mode's block lengths"),
+        Key("constraints", "none", "general constraints beyond the bounds: signals the "
+            "outputs do not measure, mixed state-input rows, a terminal set "
+            "(`modes[].constraints` below)"),
     )),
     Section("modes[].plant", "Exactly one of `transfer_function` and `state_space`.", (
         Key("transfer_function", "–", "`{{num, den}}`: a continuous SISO transfer function, or "
@@ -137,6 +140,46 @@ SECTIONS = (
             "multipliers the hard bound needs, the soft plan is the hard one (exact penalty)"),
         Key("l2", REQUIRED, "quadratic penalty, > 0 to soften that output; l1 = l2 = 0 keeps "
             "it hard (features.md, \"Soft output bounds\")"),
+    )),
+    Section("modes[].constraints", "General linear constraints, each a row on a signal: a "
+            "linear combination of the plant's states x and the mode's inputs u at one time "
+            "(features.md, \"General constraints\"). x is the state_space plant's as written, "
+            "then its integrators; a transfer-function plant's states are the generator's, "
+            "so there only inputs can be named.", (
+        Key("signals", "none", "`{{name: {{C, D, min, max, stages, soft}}}}`: z = C x + D u held "
+            "in [min, max], measured or not (`modes[].constraints.signals.<name>`)"),
+        Key("mixed", "none", "`{{name: {{E, F, g, stages, soft}}}}`: the rows E x + F u <= g, one "
+            "signal `name[i]` each"),
+        Key("terminal", "none", "`lqr_invariant`, `equality` or `{{kind: polytope, H, h}}`: a "
+            "constraint on x_N in deviation from the steady state of r_N "
+            "(`modes[].constraints.terminal`)"),
+    )),
+    Section("modes[].constraints.signals.<name>", "One scalar constrained signal z = C x + D u.", (
+        Key("C", "0", "one coefficient per plant state (with integrators, their columns may be "
+            "left out)"),
+        Key("D", "0", "one coefficient per mode input; with it the rows are at times 0..N-1, "
+            "without it at 1..N"),
+        Key("min", "none", "lower bound; at least one of min and max"),
+        Key("max", "none", "upper bound"),
+        Key("stages", "all", "`[first, last]` or one time k: the times the bound holds at"),
+        Key("soft", "hard", "`{{l1, l2}}`: both finite sides soft, J += l1 s + l2 s² per slack"),
+    )),
+    Section("modes[].constraints.mixed.<name>", "Rows E x + F u <= g (upper bounds only: "
+            "write -E, -F, -g for a lower one).", (
+        Key("E", "0", "rows x plant states"),
+        Key("F", "0", "rows x mode inputs; at least one of E and F"),
+        Key("g", REQUIRED, "one right-hand side per row"),
+        Key("stages", "all", "as for a signal"),
+        Key("soft", "hard", "as for a signal"),
+    )),
+    Section("modes[].constraints.terminal", "A constraint on the predicted x_N, in deviation "
+            "from the steady state x_s that holds r_N (features.md, \"Terminal constraints\"); "
+            "`terminal: lqr_invariant` is short for `{{kind: lqr_invariant}}`.", (
+        Key("kind", REQUIRED, "`lqr_invariant` (the maximal admissible set of the terminal "
+            "LQR, computed), `polytope` (H (x_N - x_s) <= h) or `equality` (x_N = x_s)"),
+        Key("H", "–", "polytope only: rows x plant states"),
+        Key("h", "–", "polytope only: one right-hand side per row, >= 0"),
+        Key("soft", "hard", "`{{l1, l2}}`: every terminal row soft alike"),
     )),
     Section("modes[].observer", "The mode's estimator; every mode's observer runs every "
             "sample.", (

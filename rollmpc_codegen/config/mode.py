@@ -6,10 +6,11 @@ import numpy as np
 
 from ..features.move_blocking import blocks_of, is_blocked
 from .errors import ConfigError
+from .constraints import parse_constraints
 from .observer import parse_innovation_limit, parse_observer
 from .plant import parse_plant
 from .reader import IDENTIFIER, Reader, check_psd, read_matrix, read_vector
-from .schema import (BOUND_KEYS, OBSERVER_KEYS, PENALTY_KEYS, PLANT_KEYS, SOFT_KEYS, UNBOUNDED,
+from .schema import (BOUND_KEYS, CONSTRAINT_KEYS, OBSERVER_KEYS, PENALTY_KEYS, PLANT_KEYS, SOFT_KEYS, UNBOUNDED,
                      WEIGHT_KEYS, ModeConfig)
 
 
@@ -55,7 +56,9 @@ def parse_mode(r: Reader, outputs: tuple[str, ...], actuators: tuple[str, ...], 
     blocks = blocks_of(r.raw("control_horizon", None), r.raw("move_blocking", None), horizon,
                        r.path)
     blocks = default_blocks if blocks is None else blocks
-    return ModeConfig(name=name, actuators=acts, plant=plant,
+    constraints = (parse_constraints(r.sub("constraints", CONSTRAINT_KEYS), plant, nu, ny,
+                                     horizon) if r.has("constraints") else {})
+    return ModeConfig(**constraints, name=name, actuators=acts, plant=plant,
                       blocks=blocks if is_blocked(blocks) else None,
                       observer_poles=observer.pop("poles", None),
                       **weights, **bounds, **observer)

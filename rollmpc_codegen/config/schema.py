@@ -9,12 +9,13 @@ here, and so does every later stage (codegen/context.py: the precision's toleran
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, fields
+from dataclasses import dataclass, field, fields
 from functools import cached_property
 
 import numpy as np
 
-from .canonical import canonical_json, config_digest
+from .canonical import OMIT_AT_DEFAULT, canonical_json, config_digest
+from .constraint_types import SignalConstraint, TerminalConfig
 from .keys import section_keys
 
 SOLVER_METHODS = ("hildreth", "hildreth_plus", "hildreth_plus_prime")
@@ -177,6 +178,10 @@ class ModeConfig:
     # never); the parser fills in default_innovation_limit, DERIVED_FROM_MODEL (NaN) where
     # only the model gives a range (the pipeline derives those entries, model/reach.py)
     innovation_limit: np.ndarray | None = None  # (ny,)
+    # modes[].constraints (features/signals.py): constrained signals and mixed rows, one
+    # scalar signal each, and the terminal constraint
+    signals: tuple[SignalConstraint, ...] = field(default=(), metadata=OMIT_AT_DEFAULT)
+    terminal: TerminalConfig | None = field(default=None, metadata=OMIT_AT_DEFAULT)
 
     @property
     def has_rate_bounds(self) -> bool:
@@ -365,6 +370,11 @@ WEIGHT_KEYS = section_keys("modes[].weights")
 BOUND_KEYS = section_keys("modes[].bounds")
 SOFT_KEYS = section_keys("modes[].bounds.soft")
 PENALTY_KEYS = section_keys("modes[].bounds.soft.<side>")  # bounds.soft.y_min / y_max
+CONSTRAINT_KEYS = section_keys("modes[].constraints")
+SIGNAL_KEYS = section_keys("modes[].constraints.signals.<name>")
+MIXED_KEYS = section_keys("modes[].constraints.mixed.<name>")
+TERMINAL_KEYS = section_keys("modes[].constraints.terminal")
+TERMINAL_KINDS = ("lqr_invariant", "polytope", "equality")
 OBSERVER_KEYS = section_keys("modes[].observer")
 SHORTHAND_KEYS = section_keys("scheduler", group="shorthand")  # the two-mode form
 SCHEDULER_KEYS = section_keys("scheduler")

@@ -31,6 +31,8 @@ import dataclasses
 
 import numpy as np
 
+from ..qp.rows import INPUT, OUTPUT, ROW_KINDS
+
 
 def row_penalties(l1: np.ndarray | None, l2: np.ndarray | None, row_kind, row_index,
                   row_sign, ny: int) -> tuple[np.ndarray | None, np.ndarray | None]:
@@ -41,7 +43,7 @@ def row_penalties(l1: np.ndarray | None, l2: np.ndarray | None, row_kind, row_in
     if l2 is None:
         return None, None
     kind, index, sign = map(np.asarray, (row_kind, row_index, row_sign))
-    out = kind == 1
+    out = kind == OUTPUT.code
     j = np.where(out, index % ny, 0)
     side = (sign > 0).astype(int)
     return np.where(out, l1[j, side], 0.0), np.where(out, l2[j, side], 0.0)
@@ -55,10 +57,13 @@ def storage(l1: np.ndarray, l2: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 
 
 def working_set_cap(n: int, row_kind, row_index, row_l2) -> int:
-    """n plus the (output, stage) pairs with a soft row: at most one side of a pair is
-    active, and only tight soft rows and hard rows compete for U's n degrees of freedom."""
-    soft = (np.asarray(row_kind) == 1) & (np.asarray(row_l2) > 0.0)
-    return n + int(np.unique(np.asarray(row_index)[soft]).size)
+    """n plus the quantities with a soft row ((output, stage) and (signal, time) pairs): at
+    most one side of a pair is active, and only tight soft rows and hard rows compete for
+    U's n degrees of freedom."""
+    kind, index = np.asarray(row_kind), np.asarray(row_index)
+    soft = np.asarray(row_l2) > 0.0
+    return n + sum(int(np.unique(index[soft & (kind == k.code)]).size)
+                   for k in ROW_KINDS if k.soft)
 
 
 def slacks(lam: np.ndarray, row_l1: np.ndarray, row_w: np.ndarray) -> np.ndarray:
@@ -92,7 +97,8 @@ def explicit_qp(qp):
         qp, E=E, Einv=np.linalg.inv(E), F=np.vstack((qp.F, np.zeros((ns, qp.F.shape[1])))),
         Kx=np.vstack((qp.Kx, pad)), Kr=np.vstack((qp.Kr, np.zeros((ns, qp.Kr.shape[1])))),
         L=L, W=np.vstack((qp.W, pad)), c=np.concatenate((qp.c, np.zeros(ns))),
-        row_kind=np.concatenate((qp.row_kind, np.zeros(ns, np.int32))),
+        Wr=None if qp.Wr is None else np.vstack((qp.Wr, np.zeros((ns, qp.Wr.shape[1])))),
+        row_kind=np.concatenate((qp.row_kind, np.full(ns, INPUT.code, np.int32))),
         row_index=np.concatenate((qp.row_index, n + np.arange(ns, dtype=np.int32))),
         row_sign=np.concatenate((qp.row_sign, -np.ones(ns, np.int32))),
         Gx=Gx, f_const=np.concatenate((np.zeros(n), qp.soft_l1[soft])),

@@ -97,6 +97,11 @@ MODE_SIZES = (
                "pred_out (those with constraint rows, or all of them)."),
     StoredSize("w_cap", "Working-set capacity: n + soft (output, stage) pairs.",
                feature="has_soft_rows"),
+    StoredSize("nzq", "Signal quantities: (signal, time) pairs with rows (0: none).",
+               feature="has_signal_rows"),
+    StoredSize("nsig", "Constrained signals (general constraints).", feature="has_signal_rows"),
+    StoredSize("z_pred_ops", "Multiply-adds of predict_signals(): the work it is charged.",
+               feature="has_signal_rows"),
 )
 
 STORED_ARRAYS = (
@@ -149,12 +154,41 @@ STORED_ARRAYS = (
                 blame="bounds.soft"),  # neutral: every bound hard
     StoredArray("soft_w", REAL, ("2*ny",), "1/(2 l2) of a soft bound, 0 for a hard one.",
                 feature="has_soft_rows", blame="bounds.soft"),
+    # general constraints (features/signals.py, qp/signal_storage.py): null without
+    StoredArray("z_markov", REAL, ("nsig", "N*nu"), "signal Markov parameters, the longest "
+                "lag first (as markov_by_output).", feature="has_signal_rows",
+                only_if="has_signal_rows", blame="constraints"),
+    StoredArray("z_sig", "int16_t", ("nzq",), "the signal of each signal quantity.",
+                feature="has_signal_rows", only_if="has_signal_rows"),
+    StoredArray("z_stage", "int16_t", ("nzq",), "its Markov stage (inputs 0..stage reach it).",
+                feature="has_signal_rows", only_if="has_signal_rows"),
+    StoredArray("Zx", REAL, ("nzq", "nx"), "free response of each signal quantity.",
+                feature="has_signal_rows", only_if="has_signal_rows", blame="constraints"),
+    StoredArray("Zr", REAL, ("nzq", "ny"), "its reference term on r of its time (terminal "
+                "sets).", feature="has_signal_reference", only_if="has_signal_reference",
+                blame="constraints.terminal"),
+    StoredArray("EinvZt", REAL, ("n", "nzq"), "E^-1 Gz'.", feature="has_signal_rows",
+                only_if="has_signal_rows", blame="constraints"),
+    StoredArray("ZEinvZt_p", REAL, ("nzq",), "Gz E^-1 Gz'.", packed=True,
+                feature="has_signal_rows", only_if="has_signal_rows", blame="constraints"),
+    StoredArray("GEinvZt", REAL, ("nyq", "nzq"), "Gamma E^-1 Gz' (null: no output rows).",
+                feature="has_signal_rows", only_if="has_output_and_signal_rows",
+                blame="constraints"),
+    StoredArray("z_bound", REAL, ("nzq",), "|(Gz th)_j| <= z_bound[j] max|th|.",
+                feature="has_signal_rows", only_if="has_signal_rows", blame="constraints"),
+    StoredArray("z_soft_l1", REAL, ("2*nsig",), "soft signal penalty l1 (index 2 j + side).",
+                feature="has_soft_signal_rows", only_if="has_soft_signal_rows",
+                blame="constraints"),
+    StoredArray("z_soft_w", REAL, ("2*nsig",), "1/(2 l2) of a soft signal bound, 0 for a "
+                "hard one.", feature="has_soft_signal_rows", only_if="has_soft_signal_rows",
+                blame="constraints"),
 )
 
 
 def declared_for(features: dict) -> tuple[tuple[StoredSize, ...], tuple[StoredArray, ...]]:
     """The sizes and arrays of P_mode_data given the top-level context flags ``features``."""
     def exists(item) -> bool:
-        return item.feature is None or bool(features[item.feature])
+        # a flag added later is absent where it would be False (codegen.context.LATER_FEATURES)
+        return item.feature is None or bool(features.get(item.feature, False))
 
     return tuple(filter(exists, MODE_SIZES)), tuple(filter(exists, STORED_ARRAYS))

@@ -27,8 +27,11 @@ import numpy as np
 import scipy.linalg
 
 from ..features import input_rate, move_blocking, soft_constraints
+from ..features.signals import ModelSignal, SignalBlock, on_model, signal_block
+from ..features.terminal_set import terminal_signals
 from ..config import ConfigError, ModeConfig
 from ..model.plant import DiscretePlant
+from .rows import INPUT, OUTPUT, RATE, SIGNAL
 
 
 @dataclass(frozen=True)
@@ -50,8 +53,9 @@ class CondensedQP:
     L: np.ndarray  # (m, n) eq. (6)
     W: np.ndarray  # (m, nx)
     c: np.ndarray  # (m,)
-    row_kind: np.ndarray  # (m,) 0 = input box row, 1 = output row, 2 = Δu row
-    row_index: np.ndarray  # (m,) index into U (box, Δu: u_i - u_{i-nu}) or into Y (output)
+    row_kind: np.ndarray  # (m,) the RowKind code (qp/rows.py)
+    row_index: np.ndarray  # (m,) the quantity within its kind: U (box, Δu: u_i - u_{i-nu}),
+    #                        Y (output) or the signal block's (signal)
     row_sign: np.ndarray  # (m,) -1 for a lower bound row, +1 for an upper bound row
     # offset-free tracking: R weights U - Ut x (Ut = the disturbance-cancelling input
     # target per stage, disturbance_model); None = 0, the paper's eq. (5)
@@ -66,6 +70,10 @@ class CondensedQP:
     soft_l2: np.ndarray | None = None  # (m,)
     # constant part of the gradient (soft_constraints.explicit_qp: l1 of the slacks)
     f_const: np.ndarray | None = None  # (n,)
+    # general constraints (features/signals.py): the signal quantities, and the rows'
+    # reference term L U <= c + W x + Wr R (terminal sets; None = 0)
+    signals: SignalBlock | None = None
+    Wr: np.ndarray | None = None  # (m, N ny)
 
     @property
     def n(self) -> int:
@@ -105,9 +113,14 @@ class CondensedQP:
     def theta0(self, x: np.ndarray, R: np.ndarray) -> np.ndarray:
         return self.Kx @ x + self.Kr @ R
 
-    def gamma(self, x: np.ndarray) -> np.ndarray:
-        """Right-hand side c + W x of eq. (6)."""
-        return self.c + self.W @ x
+    def gamma(self, x: np.ndarray, R: np.ndarray | None = None, dtype=np.float64) -> np.ndarray:
+        """Right-hand side c + W x of eq. (6), plus Wr R where rows follow the reference
+        (R: the preview; required then)."""
+        x = np.asarray(x, dtype=dtype)
+        b = self.c.astype(dtype) + self.W.astype(dtype) @ x
+        if self.Wr is not None:
+            b = b + self.Wr.astype(dtype) @ np.asarray(R, dtype=dtype)
+        return b
 
 
 def solve_refined(E: np.ndarray, B: np.ndarray, iterations: int = 3) -> np.ndarray:
@@ -209,14 +222,51 @@ def condense(plant: DiscretePlant, mode: ModeConfig, N: int, key: str) -> Conden
     L, W, c, kind, index, sign = _constraints(mode, Phi, Gamma, N, nu, ny)
     soft_l1, soft_l2 = soft_constraints.row_penalties(mode.soft_l1, mode.soft_l2, kind, index,
                                                       sign, ny)
-    return CondensedQP(soft_l1=soft_l1, soft_l2=soft_l2, N=N, nx=nx, nu=nu, ny=ny, Phi=Phi, Gamma=Gamma, markov=markov,
-                       Omega=Omega, Psi=Psi, E=E, Einv=Einv, F=F, Kx=Kx, Kr=Kr,
-                       L=L, W=W, c=c, row_kind=kind, row_index=index, row_sign=sign, Ut=Ut,
-                       Gx=Gx, blocks=mode.blocks)
+    rows = dict(L=L, W=W, c=c, row_kind=kind, row_index=index, row_sign=sign,
+                soft_l1=soft_l1, soft_l2=soft_l2)
+    if mode.signals or mode.terminal is not None:
+        rows = _with_signal_rows(rows, signal_block(model_signals(mode, plant, N, key), plant,
+                                                    N, ny, mode.blocks), N * ny)
+    return CondensedQP(N=N, nx=nx, nu=nu, ny=ny, Phi=Phi, Gamma=Gamma, markov=markov,
+                       Omega=Omega, Psi=Psi, E=E, Einv=Einv, F=F, Kx=Kx, Kr=Kr, Ut=Ut,
+                       Gx=Gx, blocks=mode.blocks, **rows)
+
+
+def model_signals(mode: ModeConfig, plant: DiscretePlant, N: int, key: str
+                  ) -> tuple[ModelSignal, ...]:
+    """Every signal of the mode (features/signals.py): its constrained signals and mixed
+    rows, then its terminal constraint's facets (features/terminal_set.py)."""
+    out = tuple(on_model(s, plant, plant.nu) for s in mode.signals)
+    if mode.terminal is not None:
+        out += terminal_signals(mode, plant, N, key)
+    return out
+
+
+def _with_signal_rows(rows: dict, block: SignalBlock, nyq: int) -> dict:
+    """eq. (6)'s rows followed by the signal block's (kind SIGNAL), with their soft
+    penalties and, where a row follows the reference, the Wr term."""
+    m, ms = rows["c"].size, block.c.size
+    soft = rows["soft_l2"] is not None or bool(np.any(block.l2 > 0))
+
+    def penalties(name, own):
+        base = rows[name] if rows[name] is not None else np.zeros(m)
+        return np.concatenate((base, own)) if soft else None
+
+    return {
+        "L": np.vstack((rows["L"], block.L)), "W": np.vstack((rows["W"], block.W)),
+        "c": np.concatenate((rows["c"], block.c)),
+        "row_kind": np.concatenate((rows["row_kind"], np.full(ms, SIGNAL.code, np.int32))),
+        "row_index": np.concatenate((rows["row_index"], block.index)),
+        "row_sign": np.concatenate((rows["row_sign"], block.sign)),
+        "soft_l1": penalties("soft_l1", block.l1), "soft_l2": penalties("soft_l2", block.l2),
+        "signals": block,
+        "Wr": (np.vstack((np.zeros((m, nyq)), block.Wr)) if block.has_reference else None),
+    }
 
 
 def _constraints(mode: ModeConfig, Phi, Gamma, N: int, nu: int, ny: int):
-    """Eq. (6) rows, stage by stage: [-u_i, +u_i, -du_i, +du_i, -y_i, +y_i], i = 0..N.
+    """Eq. (6) rows of the input, Δu and output kinds (qp/rows.py), stage by stage:
+    [-u_i, +u_i, -du_i, +du_i, -y_i, +y_i], i = 0..N.
 
     u exists for stages 0..N-1; y rows exist for stages 1..N (y_0 depends on x only, so
     its rows are dropped) and only for finite bounds.  Δu rows (kind 2, finite
@@ -247,7 +297,7 @@ def _constraints(mode: ModeConfig, Phi, Gamma, N: int, nu: int, ny: int):
                     q = block_at[stage] * nu + j
                     e = np.zeros(n)
                     e[q] = s
-                    add(e, np.zeros(nx), s * bounds[j], 0, q, s)
+                    add(e, np.zeros(nx), s * bounds[j], INPUT.code, q, s)
             if mode.du_min is not None:
                 for s, bounds in ((-1, mode.du_min), (1, mode.du_max)):
                     for j in range(nu):
@@ -261,14 +311,14 @@ def _constraints(mode: ModeConfig, Phi, Gamma, N: int, nu: int, ny: int):
                             w[nx - nu + j] = s
                         else:
                             e[q - nu] = -s
-                        add(e, w, s * bounds[j], 2, q, s)
+                        add(e, w, s * bounds[j], RATE.code, q, s)
         if stage >= 1:
             for s, bounds in ((-1, mode.y_min), (1, mode.y_max)):
                 for j in range(ny):
                     if not np.isfinite(bounds[j]):
                         continue
                     k = (stage - 1) * ny + j
-                    add(s * Gamma[k], -s * Phi[k], s * bounds[j], 1, k, s)
+                    add(s * Gamma[k], -s * Phi[k], s * bounds[j], OUTPUT.code, k, s)
     return (np.array(rows_L), np.array(rows_W), np.array(rows_c),
             np.array(kind, dtype=np.int32), np.array(index, dtype=np.int32),
             np.array(sign, dtype=np.int32))

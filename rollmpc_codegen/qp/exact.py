@@ -26,6 +26,7 @@ import scipy.linalg
 import scipy.optimize
 
 from ..features import soft_constraints
+from .rows import INPUT
 
 LD = np.longdouble
 
@@ -57,10 +58,9 @@ def qp_data(qp, x: np.ndarray, r: np.ndarray) -> QPData:
     with soft output rows, the QP with explicit slacks (soft_constraints.explicit_qp)."""
     n_u = qp.n
     qp = soft_constraints.explicit_qp(qp)
-    xl = np.asarray(x, dtype=LD)
     f = qp.gradient(x, r, LD)  # with the input target and the Δu terms (CondensedQP.gradient)
-    b = qp.c.astype(LD) + qp.W.astype(LD) @ xl
-    return QPData(E=qp.E, f=f, L=qp.L, b=b, box=np.asarray(qp.row_kind) == 0, n_u=n_u)
+    b = qp.gamma(x, r, LD)  # c + W x, and Wr R where rows follow the reference
+    return QPData(E=qp.E, f=f, L=qp.L, b=b, box=np.asarray(qp.row_kind) == INPUT.code, n_u=n_u)
 
 
 def _independent_rows(L: np.ndarray, rows: np.ndarray) -> np.ndarray:

@@ -27,6 +27,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .condense import CondensedQP
+from .rows import INPUT
 from ..features.soft_constraints import explicit_qp
 
 DAQP_INF = 1e30
@@ -34,8 +35,9 @@ DAQP_INF = 1e30
 
 def qp_vectors(qp: CondensedQP, x: np.ndarray, r: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """(f, b) of one QP: f = F (Phi x - R) (eq. 5; minus 2 Psi Ut x with an offset-free
-    input target, CondensedQP.gradient) and b = c + W x (eq. 6)."""
-    return qp.gradient(x, r), qp.gamma(x)
+    input target, CondensedQP.gradient) and b = c + W x (eq. 6; + Wr R where rows follow
+    the reference)."""
+    return qp.gradient(x, r), qp.gamma(x, r)
 
 
 @dataclass
@@ -93,7 +95,7 @@ class TwoSidedForm:
                 continue
             direction = qp.L[up] if up >= 0 else -qp.L[lo]
             nz = np.flatnonzero(direction)
-            if (kind == 0 and nz.size == 1 and direction[nz[0]] == 1.0
+            if (kind == INPUT.code and nz.size == 1 and direction[nz[0]] == 1.0
                     and self.bound_upper[nz[0]] < 0 and self.bound_lower[nz[0]] < 0):
                 self.bound_upper[nz[0]], self.bound_lower[nz[0]] = up, lo
             else:

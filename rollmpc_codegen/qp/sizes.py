@@ -27,6 +27,7 @@ import numpy as np
 
 from ..config import ConfigError, ControllerConfig, ModeConfig
 from ..config.checks import output_rows, qp_rows
+from ..config.constraints import signal_row_count
 from ..config.schema import (MAX_CONDENSING_BYTES, MAX_ROWS, MAX_STATES, MAX_STORED_BYTES,
                               MAX_STRUCT_BYTES)
 from .arrays import REAL, declared_for
@@ -51,10 +52,25 @@ class ModeSizes:
     w_cap: int  # working-set capacity: n + soft (output, stage) pairs
     has_output_rows: bool
     ny_pred: int  # outputs predicted on line: those with constraint rows
+    # general constraints (features/signals.py); an LQR-invariant terminal set's facets
+    # are known only once it is computed, and left out
+    nzq: int = 0
+    nsig: int = 0
+    z_pred_ops: int = 0
+    has_signal_reference: bool = False
+    has_soft_signal_rows: bool = False
 
     @property
     def n_yq(self) -> int:
         return self.N * self.ny
+
+    @property
+    def has_signal_rows(self) -> bool:
+        return self.nzq > 0
+
+    @property
+    def has_output_and_signal_rows(self) -> bool:
+        return self.has_output_rows and self.has_signal_rows
 
 
 def plant_order(mode: ModeConfig, ny: int) -> int:
@@ -79,17 +95,46 @@ def mode_sizes(cfg: ControllerConfig, mode: ModeConfig) -> ModeSizes:
     soft = (0 if mode.soft_l2 is None else
             N * int(np.sum(np.any(mode.soft_l2 > 0.0, axis=1) & bounded)))
     m = qp_rows(N, mode)
+    sig = signal_sizes(mode, N, nu, plant_order(mode, ny))
     return ModeSizes(N=N, nx=plant_order(mode, ny) + nd + n_prev, nu=nu, ny=ny, n=n,
-                     m=m, m_box=m - output_rows(N, mode),
+                     m=m + sig.pop("terminal_rows"), m_box=m - output_rows(N, mode)
+                     - signal_row_count(mode.signals),
                      nt=ny if np.linalg.eigvalsh(mode.P).min() > 0 else 0,
-                     w_cap=n + soft, has_output_rows=bool(np.any(bounded)),
-                     ny_pred=int(np.sum(bounded)))
+                     w_cap=n + soft + sig.pop("soft_quantities"),
+                     has_output_rows=bool(np.any(bounded)),
+                     ny_pred=int(np.sum(bounded)), **sig)
+
+
+def signal_sizes(mode: ModeConfig, N: int, nu: int, nxp: int) -> dict:
+    """The signal block's sizes (features/signals.py), from the config: every constrained
+    signal's times, and a terminal polytope's or equality's facets (an LQR-invariant
+    set's are unknown before it is computed: none counted)."""
+    times = [(s.first, s.last, bool(np.any(s.D)), bool(np.any(s.soft_l2 > 0)))
+             for s in mode.signals]
+    t, terminal_rows = mode.terminal, 0
+    if t is not None and t.kind != "lqr_invariant":
+        facets = nxp if t.kind == "equality" else t.h.size
+        times += [(N, N, False, t.soft_l2 > 0)] * facets
+        terminal_rows = facets * (2 if t.kind == "equality" else 1)
+    nzq = sum(last - first + 1 for first, last, _, _ in times)
+    ops = sum((k + (1 if feed else 0)) * nu for first, last, feed, _ in times
+              for k in range(first, last + 1))
+    return {"nzq": nzq, "nsig": len(times), "z_pred_ops": ops,
+            "has_signal_reference": t is not None,
+            "has_soft_signal_rows": any(soft for *_, soft in times),
+            "terminal_rows": terminal_rows,
+            "soft_quantities": sum(last - first + 1 for first, last, _, soft in times if soft)}
 
 
 def features_of(cfg: ControllerConfig) -> dict:
     """The top-level context flags that decide which arrays exist (codegen/context.py)."""
+    signal_soft = any(np.any(s.soft_l2 > 0) for m in cfg.modes for s in m.signals) or any(
+        m.terminal is not None and m.terminal.soft_l2 > 0 for m in cfg.modes)
     return {"move_blocking": any(m.blocks is not None for m in cfg.modes),
-            "has_soft_rows": any(m.soft_l2 is not None for m in cfg.modes)}
+            "has_soft_rows": any(m.soft_l2 is not None for m in cfg.modes) or signal_soft,
+            "has_signal_rows": any(m.signals or m.terminal is not None for m in cfg.modes),
+            "has_signal_reference": any(m.terminal is not None for m in cfg.modes),
+            "has_soft_signal_rows": signal_soft}
 
 
 def working_set_lengths(w: int) -> dict[str, int]:
@@ -129,7 +174,7 @@ def struct_bytes(cfg: ControllerConfig, sizes: tuple[ModeSizes, ...],
     in ``precision`` (default: the config's)."""
     real = real_bytes(precision or cfg.precision)
     top = {name: max(getattr(s, name) for s in sizes)
-           for name in ("nx", "nu", "n", "m", "n_yq", "w_cap")}
+           for name in ("nx", "nu", "n", "m", "n_yq", "w_cap", "nzq")}
     nx, n, m, nyq, w = top["nx"], top["n"], top["m"], top["n_yq"], top["w_cap"]
     nt = max(1, max(s.nt for s in sizes))
     k, ny = len(cfg.modes), cfg.n_outputs
@@ -137,7 +182,8 @@ def struct_bytes(cfg: ControllerConfig, sizes: tuple[ModeSizes, ...],
     reals = (2 * n + 2 * nyq + 2 * m + 3 * w + lengths["chol"] + max(nt * n, w)
              + nt * (nt + 1) // 2
              + nt + nx + ny  # the work arrays
-             + k * (nx + m) + len(cfg.actuators) + n)  # xhat, lam, u_last, U
+             + k * (nx + m) + len(cfg.actuators) + n  # xhat, lam, u_last, U
+             + 2 * top["nzq"])  # the signals' prediction and free response
     if cfg.runtime_bounds:  # the live bounds of every mode, and the solver's copy
         reals += (k + 1) * 2 * (top["nu"] + ny)
     # run, set, wset, tmp, and plan_mode and plan_age
@@ -160,11 +206,12 @@ def check_sizes(cfg: ControllerConfig) -> None:
             raise ConfigError(f"modes[{i}].plant", f"its prediction model would have up to "
                               f"{s.nx} states; at most {MAX_STATES} supported")
         # the C's int16 row quantities: U, then N ny outputs, then n Δu differences
-        quantities = s.n + s.n_yq + (s.n if mode.has_rate_bounds else 0)
+        # (signals after the Δu quantities' place, whether the mode has Δu rows or not)
+        quantities = s.n + s.n_yq + (s.n if mode.has_rate_bounds or s.nzq else 0) + s.nzq
         if quantities > MAX_ROWS:
             raise ConfigError("horizon", f"too long: modes[{i}] would have {quantities} row "
-                              f"quantities (n + N ny, plus n with Δu bounds); at most "
-                              f"{MAX_ROWS} supported")
+                              f"quantities (n + N ny, plus n with Δu bounds, plus the "
+                              f"signals'); at most {MAX_ROWS} supported")
         if condensing_bytes(s) > MAX_CONDENSING_BYTES:
             raise ConfigError("horizon", f"too long: condensing modes[{i}] would need "
                               f"{condensing_bytes(s):,} bytes of dense N x N matrices; at "

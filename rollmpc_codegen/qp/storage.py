@@ -54,30 +54,17 @@ from functools import cached_property
 import numpy as np
 
 from ..features import move_blocking, soft_constraints
+from ..features import signals as signal_rows
+from .packed import packed_lower, unpack_lower  # noqa: F401  (storage.unpack_lower: callers)
+from .signal_storage import signal_storage
 from .arrays import STORED_ARRAYS
 from .condense import CondensedQP, solve_refined
+from .rows import OUTPUT, SIGNAL, is_predicted, kind_of_quantity, quantities
 from ..model.plant import DiscretePlant
 
 
 def dtype_of(precision: str):
     return np.float64 if precision == "double" else np.float32
-
-
-def packed_lower(S: np.ndarray) -> np.ndarray:
-    """Row-major packed lower triangle: element (i, j), j <= i, at i(i+1)/2 + j."""
-    n = S.shape[0]
-    return np.concatenate([S[i, :i + 1] for i in range(n)]) if n else np.zeros(0)
-
-
-def unpack_lower(p: np.ndarray, n: int) -> np.ndarray:
-    """Symmetric matrix from its packed lower triangle (same dtype)."""
-    S = np.zeros((n, n), dtype=p.dtype)
-    idx = 0
-    for i in range(n):
-        S[i, :i + 1] = p[idx:idx + i + 1]
-        S[:i + 1, i] = p[idx:idx + i + 1]
-        idx += i + 1
-    return S
 
 
 @dataclass(frozen=True)
@@ -127,6 +114,21 @@ class ModeData:
     soft_l1: np.ndarray | None = None  # None: without soft bounds
     soft_w: np.ndarray | None = None
     w_cap: int = 0  # working-set capacity: n, plus the soft (output, stage) pairs
+    # general constraints (features/signals.py): the signal quantities; 0 / None without
+    nzq: int = 0  # (signal, time) quantities
+    nsig: int = 0  # scalar signals
+    z_pred_ops: int = 0  # multiply-adds of predict_signals()
+    z_markov: np.ndarray | None = None
+    z_sig: np.ndarray | None = None
+    z_stage: np.ndarray | None = None
+    Zx: np.ndarray | None = None
+    Zr: np.ndarray | None = None
+    EinvZt: np.ndarray | None = None
+    ZEinvZt_p: np.ndarray | None = None
+    GEinvZt: np.ndarray | None = None
+    z_bound: np.ndarray | None = None
+    z_soft_l1: np.ndarray | None = None
+    z_soft_w: np.ndarray | None = None
 
     def __post_init__(self):
         for array in STORED_ARRAYS:
@@ -140,9 +142,41 @@ class ModeData:
         return self.V.shape[0]
 
     @property
+    def row_kinds(self) -> np.ndarray:
+        """The RowKind code of every row (qp/rows.py), from its quantity."""
+        return kind_of_quantity(self.row_q, self.n, self.n_yq)
+
+    @property
     def output_rows(self) -> np.ndarray:
         """Which rows bound an output quantity (n <= q < n + nyq)."""
-        return (self.row_q >= self.n) & (self.row_q < self.n + self.n_yq)
+        return self.row_kinds == OUTPUT.code
+
+    @property
+    def signal_rows(self) -> np.ndarray:
+        """Which rows bound a signal quantity (q >= 2 n + nyq)."""
+        return self.row_kinds == SIGNAL.code
+
+    @property
+    def predicted_rows(self) -> np.ndarray:
+        """Rows whose quantity the C predicts on line (output and signal rows)."""
+        return is_predicted(self.row_kinds)
+
+    @property
+    def has_signal_rows(self) -> bool:
+        return self.nzq > 0
+
+    @property
+    def has_signal_reference(self) -> bool:
+        """Some signal row follows the reference (a terminal set: Zr)."""
+        return self.Zr is not None
+
+    @property
+    def has_output_and_signal_rows(self) -> bool:
+        return self.has_output_rows and self.has_signal_rows
+
+    @property
+    def has_soft_signal_rows(self) -> bool:
+        return self.z_soft_w is not None
 
     @property
     def has_output_rows(self) -> bool:
@@ -173,24 +207,30 @@ class ModeData:
 
     @property
     def scan_rows(self) -> np.ndarray:
-        """The rows by kind, for violated_kind(): the rows that are not output rows (input
-        and Δu bounds), ascending, then the output rows, ascending. A scan of one kind
-        then reads only its own rows, in the order a scan of every row meets them."""
-        out = self.output_rows
-        return np.concatenate((np.flatnonzero(~out), np.flatnonzero(out))).astype(np.int32)
+        """The rows by kind, for violated_kind(): the rows that are not predicted (input
+        and Δu bounds), ascending, then the predicted ones (output and signal rows),
+        ascending. A scan of one kind then reads only its own rows, in the order a scan
+        of every row meets them."""
+        pred = self.predicted_rows
+        return np.concatenate((np.flatnonzero(~pred), np.flatnonzero(pred))).astype(np.int32)
 
     @property
     def m_box(self) -> int:
-        """The rows that are not output rows: the first m_box of scan_rows."""
-        return int(np.count_nonzero(~self.output_rows))
+        """The rows that are not predicted: the first m_box of scan_rows."""
+        return int(np.count_nonzero(~self.predicted_rows))
 
     def soft_rows(self) -> tuple[np.ndarray, np.ndarray]:
         """(l1, w) of every row, as the C's soft_of() reads them (0 for hard rows)."""
         l1, w = np.zeros(self.m, self.Kx.dtype), np.zeros(self.m, self.Kx.dtype)
+        side = (self.row_sign > 0).astype(int)
         if self.soft_w is not None:
             out = self.output_rows
-            idx = 2 * ((self.row_q[out] - self.n) % self.ny) + (self.row_sign[out] > 0)
+            idx = 2 * ((self.row_q[out] - self.n) % self.ny) + side[out]
             l1[out], w[out] = self.soft_l1[idx], self.soft_w[idx]
+        if self.z_soft_w is not None:
+            sig = self.signal_rows
+            idx = 2 * self.z_sig[self.row_q[sig] - SIGNAL.base(self.n, self.n_yq)] + side[sig]
+            l1[sig], w[sig] = self.z_soft_l1[idx], self.z_soft_w[idx]
         return l1, w
 
     @property
@@ -213,7 +253,7 @@ def mode_data(name: str, actuator_index, plant: DiscretePlant, obs_gain: np.ndar
     dt = dtype_of(precision)
     N, ny, nu = qp.N, qp.ny, qp.nu
     EinvGt = solve_refined(qp.E, qp.Gamma.T)  # full double accuracy (see solve_refined)
-    has_out = bool(np.any(qp.row_kind == 1))
+    has_out = bool(np.any(qp.row_kind == OUTPUT.code))
     GEinvGt = ((qp.Gamma.astype(np.longdouble) @ EinvGt.astype(np.longdouble))
                .astype(np.float64) if has_out else np.zeros((0, 0)))
     GEinvGt = 0.5 * (GEinvGt + GEinvGt.T)
@@ -227,8 +267,7 @@ def mode_data(name: str, actuator_index, plant: DiscretePlant, obs_gain: np.ndar
     T = 0.5 * (T + T.T)
     Ew = (np.linalg.solve(np.linalg.cholesky(T), Uv) if V.shape[0]
           else np.zeros((0, qp.n)))
-    offset = np.select([qp.row_kind == 1, qp.row_kind == 2], [qp.n, qp.n + N * ny], 0)
-    row_q = (offset + qp.row_index).astype(np.int32)
+    row_q = quantities(qp.row_kind, qp.row_index, qp.n, N * ny)
     colsum = (EinvGt.astype(np.longdouble)[:, :(N - 1) * ny].reshape(qp.n, N - 1, ny)
               .sum(axis=1).T.astype(np.float64))
 
@@ -236,12 +275,18 @@ def mode_data(name: str, actuator_index, plant: DiscretePlant, obs_gain: np.ndar
         return np.ascontiguousarray(np.asarray(a, dtype=np.float64).astype(dt))
 
     markov = cast(qp.markov)  # (N, ny, nu)
-    soft = {"w_cap": qp.n}
+    soft = {"w_cap": qp.n if qp.soft_l2 is None else soft_constraints.working_set_cap(
+        qp.n, qp.row_kind, qp.row_index, qp.soft_l2)}
     if soft_l2 is not None:
         l1, w = soft_constraints.storage(soft_l1, soft_l2)
-        soft = {"soft_l1": cast(l1), "soft_w": cast(w), "w_cap": soft_constraints.working_set_cap(
-            qp.n, qp.row_kind, qp.row_index, qp.soft_l2)}
-    return ModeData(**soft,
+        soft |= {"soft_l1": cast(l1), "soft_w": cast(w)}
+    next_rows = next_stage_rows(row_q, qp.row_sign, qp.n, nu, ny, N * ny, qp.blocks)
+    signal = {}
+    if qp.signals is not None:
+        signal = signal_storage(qp, EinvGt if has_out else None, cast, dt)
+        first = int(np.flatnonzero(qp.row_kind == SIGNAL.code)[0])
+        next_rows[first:] = signal_rows.next_signal_rows(qp.signals, first)
+    return ModeData(**soft, **signal,
         name=name, nx=qp.nx, nu=nu, ny=ny, N=N, n=qp.n, m=qp.m, n_yq=N * ny,
         actuator_index=np.asarray(actuator_index, dtype=np.int32),
         A=cast(plant.A), B=cast(plant.B), C=cast(plant.C), L=cast(obs_gain),
@@ -251,7 +296,7 @@ def mode_data(name: str, actuator_index, plant: DiscretePlant, obs_gain: np.ndar
         GEinvGt_p=cast(packed_lower(GEinvGt)), Omega2=cast(Omega2), Phi=cast(qp.Phi),
         markov_by_output=markov_by_output(markov), row_q=row_q,
         row_sign=qp.row_sign.astype(np.int32), row_c=cast(qp.c),
-        row_next=next_stage_rows(row_q, qp.row_sign, qp.n, nu, ny, N * ny, qp.blocks),
+        row_next=next_rows,
         colsum=cast(colsum), out_bound=cast(output_bound(markov, dt)),
         u_min=cast(u_min), u_max=cast(u_max),
         stage_block=None if qp.blocks is None else move_blocking.stage_block(qp.blocks))

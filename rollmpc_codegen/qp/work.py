@@ -50,9 +50,14 @@ PREDICT_UNITS_PER_OP = (3, 5)
 
 
 def predict_work(m) -> int:
+    """predict_outputs(), with predict_signals() where the mode has signal quantities
+    (nzq, z_pred_ops: 0 without)."""
     stages = m.n_yq // m.ny
-    return (m.ny_pred * m.nu * stages * (stages + 1) // 2 * PREDICT_UNITS_PER_OP[0]
-            // PREDICT_UNITS_PER_OP[1] + m.n_yq)
+    ops = m.ny_pred * m.nu * stages * (stages + 1) // 2
+    if m.nzq:
+        return ((ops + m.z_pred_ops) * PREDICT_UNITS_PER_OP[0] // PREDICT_UNITS_PER_OP[1]
+                + m.n_yq + m.nzq)
+    return ops * PREDICT_UNITS_PER_OP[0] // PREDICT_UNITS_PER_OP[1] + m.n_yq
 
 
 def scan_work(m) -> int:
@@ -61,15 +66,15 @@ def scan_work(m) -> int:
 
 def correct_cost(m, count: int, nin: int, nout: int) -> int:
     """correct() over ``count`` rows whose multipliers reach ``nin`` input and ``nout``
-    output quantities: an n-long column each, and the Woodbury term."""
-    return count + 2 * m.n + m.n_yq + m.n * (nin + nout + m.nt) + m.nt * nin
+    output (and signal) quantities: an n-long column each, and the Woodbury term."""
+    return count + 2 * m.n + m.n_yq + m.nzq + m.n * (nin + nout + m.nt) + m.nt * nin
 
 
 def correct_work(m, count: int) -> int:
     """The most correct() can cost over ``count`` rows (what afford() asks for): at most
-    min(2 count, n) input and min(count, nyq) output quantities; it charges correct_cost()
-    of the quantities it met."""
-    return correct_cost(m, count, min(2 * count, m.n), min(count, m.n_yq))
+    min(2 count, n) input and min(count, nyq + nzq) output and signal quantities; it
+    charges correct_cost() of the quantities it met."""
+    return correct_cost(m, count, min(2 * count, m.n), min(count, m.n_yq + m.nzq))
 
 
 def sweep_work(m, count: int, factor: int) -> int:
@@ -212,12 +217,19 @@ def unconstrained_work(m, summed: int, runs: int, has_outputs: bool) -> int:
             + (m.n_yq * m.nx if has_outputs else 0))
 
 
+def free_response_work(m) -> int:
+    """signal_free_response(): Zx x, and Zr r where rows follow the reference (0 without
+    signal quantities)."""
+    return m.nzq * m.nx + (m.nzq * m.ny if m.has_signal_reference else 0)
+
+
 def base_work(m, has_outputs: bool) -> int:
     """The most a solve spends before its first check: th0 (every stage its own run), the
-    slacks K, the output certificate and prediction, and the final finish()."""
+    signals' free response, the slacks K, the output certificate and prediction, and the
+    final finish()."""
     last = m.n_yq // m.ny - 1
-    return (unconstrained_work(m, last, last, has_outputs) + 4 * m.m + m.n + predict_work(m)
-            + finish_work(m))
+    return (unconstrained_work(m, last, last, has_outputs) + free_response_work(m) + 4 * m.m
+            + m.n + m.nzq + predict_work(m) + finish_work(m))
 
 
 def largest_unit(m, wcap: int, factor: int) -> int:

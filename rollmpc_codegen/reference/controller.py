@@ -53,8 +53,10 @@ class ControllerRef:
     def _apply_bounds(self, j):
         """Mode j's solver reads the live bounds, as the C's row_const() derives them."""
         md, b, solver = self.md[j], self.bounds[j], self.solvers[j]
-        solver.row_c = runtime_bounds.row_constants(md.row_q, md.row_sign, md.n, md.nu, md.ny,
-                                                    dtype=md.Kx.dtype, **b)
+        solver.row_c = np.where(md.signal_rows, md.row_c,  # a signal's bounds are baked in
+                                runtime_bounds.row_constants(md.row_q, md.row_sign, md.n,
+                                                             md.nu, md.ny, dtype=md.Kx.dtype,
+                                                             **b))
         solver.u_min, solver.u_max = b["u_min"], b["u_max"]
 
     def set_bounds(self, mode, u_min, u_max, y_min, y_max):

@@ -38,6 +38,8 @@ def hessian_reads(md: ModeData) -> HessianReads:
     Hq = np.block([[Einv, md.EinvGt], [md.EinvGt.T, GEG]])
     if md.has_rate_rows:
         Hq = _rate_extended(Hq, n, md.nu)
+    if md.has_signal_rows:
+        Hq = _signal_extended(Hq, md)
     q, sg = md.row_q, md.row_sign
     same = sg[:, None] == sg[None, :]
     Hrows = Hq[np.ix_(q, q)]
@@ -55,3 +57,23 @@ def _rate_extended(Hq: np.ndarray, n: int, nu: int) -> np.ndarray:
         return np.concatenate((np.take(base, np.arange(nu), axis=axis), tail), axis=axis)
     X = np.hstack((Hq, diff(Hq, 1)))
     return np.vstack((X, diff(X, 0)))
+
+
+def _signal_extended(Hq: np.ndarray, md: ModeData) -> np.ndarray:
+    """Hq with the signal quantities from z0 = 2 n + nyq on (a gap where a mode without Δu
+    rows has no Δu quantities), exactly as hq_signal() reads them: E^-1 Gz' against the
+    inputs (a Δu quantity as a difference of two), G E^-1 Gz' against the outputs, and
+    Gz E^-1 Gz'."""
+    n, nyq, nu, dt = md.n, md.n_yq, md.nu, md.Kx.dtype
+    z0 = 2 * n + nyq
+    base = np.zeros((z0, z0), dt)
+    base[:Hq.shape[0], :Hq.shape[1]] = Hq
+    cross = np.zeros((z0, md.nzq), dt)
+    cross[:n] = md.EinvZt
+    if md.GEinvZt is not None:
+        cross[n:n + nyq] = md.GEinvZt
+    if md.has_rate_rows:  # D_d = U_d - U_(d-nu), or U_d in the first stage
+        cross[n + nyq:n + nyq + nu] = md.EinvZt[:nu]
+        cross[n + nyq + nu:] = md.EinvZt[nu:] - md.EinvZt[:n - nu]
+    ZZ = unpack_lower(md.ZEinvZt_p, md.nzq)
+    return np.block([[base, cross], [cross.T, ZZ]])

@@ -58,7 +58,7 @@ class PolishMixin:
             return OUT_OF_WORK, th, z
         chol = self.chol  # the factor dual_solve() used
         for _ in range(2):
-            if self.has_out:
+            if self.has_pred:
                 self.work += predict_work(md)
             e = self.row_excess(th, gam)[0][W]
             if self.soft:

@@ -2,7 +2,7 @@
 slacks K = gamma - M th0, and the violation tests, each for every row at once.
 
 :class:`RowsMixin` is part of :class:`~.solver.SolverRef`; it reads ``md``, ``row_c``,
-``has_out``, ``has_rate``, ``one``, ``limit`` and ``tol``.  Where the C skips the output rows
+``has_out``, ``has_pred``, ``has_rate``, ``one``, ``limit`` and ``tol``.  Where the C skips the output rows
 because ``outputs_certified()`` proves none violated, the mirror evaluates them anyway; it
 decides the certificate only to charge the work the C does (:mod:`rollmpc_codegen.qp.work`),
 and keeps the C's ``out_slacks_ok`` as ``out_slacks_ok``.
@@ -11,48 +11,59 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..qp.rows import OUTPUT, RATE, SIGNAL
 from ..qp.work import predict_work
+from .signals import predicted_index
 
 
 class RowsMixin:
-    def row_value(self, th, yv):
-        """Mirror of row_value() for every row (yv = Gamma th, or None without output
-        rows)."""
-        q, n = self.md.row_q, self.md.n
+    def row_value(self, th, pv):
+        """Mirror of row_value() for every row (pv = the predicted vector [Gamma th; Gz th]
+        of :func:`.signals.predicted_index`, or None without predicted rows)."""
+        md = self.md
+        q, n, kind = md.row_q, md.n, md.row_kinds
+        value = th[np.clip(q, 0, n - 1)]
         if self.has_rate:  # Δu rows: U_d - U_(d-nu), or U_d in the first stage
-            d = q - (n + self.md.n_yq)
-            i = np.clip(d, 0, n - 1)
-            prev = th[np.maximum(i - self.md.nu, 0)]
-            rate = np.where(d >= self.md.nu, th[i] - prev, th[i])
-            plain = th[np.minimum(q, n - 1)] if yv is None else np.where(
-                q < n, th[np.minimum(q, n - 1)], yv[np.clip(q - n, 0, self.md.n_yq - 1)])
-            return np.where(d >= 0, rate, plain)
-        if yv is None:
-            return th[q]
-        return np.where(q < n, th[np.minimum(q, n - 1)], yv[np.maximum(q - n, 0)])
+            i = np.clip(q - RATE.base(n, md.n_yq), 0, n - 1)
+            prev = th[np.maximum(i - md.nu, 0)]
+            rate = np.where(i >= md.nu, th[i] - prev, th[i])
+            value = np.where(kind == RATE.code, rate, value)
+        if pv is not None:
+            value = np.where((kind == OUTPUT.code) | (kind == SIGNAL.code),
+                             pv[predicted_index(md, q)], value)
+        return value
 
     def is_out(self):
         """Mirror of the is_out() macro for every row: is it an output row?"""
-        q, n = self.md.row_q, self.md.n
-        return (q >= n) & (q < n + self.md.n_yq)
+        return self.md.output_rows
+
+    def is_predicted(self):
+        """Mirror of the is_predicted() macro for every row: an output or a signal row?"""
+        return self.md.predicted_rows
 
     def outputs_certified(self, th, gam):
-        """Mirror of outputs_certified(): can no output row be violated at th?"""
+        """Mirror of outputs_certified(): can no output (or signal) row be violated at th?"""
         md = self.md
-        self.work += md.n + md.m
+        self.work += md.n + md.m + md.nzq
         a = np.abs(th)
         thmax = a[~np.isnan(a)].max(initial=self.zero)
-        bmax = md.out_bound[md.n_yq - md.ny:].max(initial=self.zero)
-        out = self.is_out()
+        if md.has_signal_rows:
+            last = md.out_bound[md.n_yq - md.ny:] if self.has_out else md.out_bound[:0]
+            bmax = max(last.max(initial=self.zero), md.z_bound.max(initial=self.zero))
+        else:
+            bmax = md.out_bound[md.n_yq - md.ny:].max(initial=self.zero)
         if bmax * thmax <= self.gam_out_min:
             return True
-        q = md.row_q[out] - md.n
-        return bool(np.all(md.out_bound[q] * thmax <= gam[out]))
+        out, sig = self.is_out(), md.signal_rows
+        if not np.all(md.out_bound[md.row_q[out] - md.n] * thmax <= gam[out]):
+            return False
+        z = md.row_q[sig] - SIGNAL.base(md.n, md.n_yq)
+        return bool(np.all(md.z_bound[z] * thmax <= gam[sig])) if md.has_signal_rows else True
 
     def outputs_uncertified(self, th, gam):
-        """Mirror of outputs_uncertified(): are there output rows the certificate cannot
+        """Mirror of outputs_uncertified(): are there predicted rows the certificate cannot
         clear at th?"""
-        return self.has_out and not self.outputs_certified(th, gam)
+        return self.has_pred and not self.outputs_certified(th, gam)
 
     def outputs_to_check(self, th, gam):
         """Mirror of outputs_to_check()'s decision and work: must the output rows be
@@ -68,32 +79,34 @@ class RowsMixin:
             self.work += self.md.m + predict_work(self.md)
             self.out_slacks_ok = True
 
-    def slacks(self, x, th0, px):
-        """Mirror of slacks() with output_slacks(): (gamma = c + W x, K = gamma - M th0)."""
+    def slacks(self, x, th0, pfree):
+        """Mirror of slacks() with output_slacks(): (gamma = c + W x, K = gamma - M th0);
+        pfree: the predicted rows' free response [Phi x; Zx x + Zr r], None without."""
         md = self.md
         self.work += 2 * md.m
-        yv0 = self.predict_outputs(th0) if self.has_out else None
-        v = self.row_value(th0, yv0)
+        pv0 = self.predict_outputs(th0) if self.has_pred else None
+        v = self.row_value(th0, pv0)
         q, sg, n = md.row_q, md.row_sign, md.n
         gam = self.row_c.copy()
-        if self.has_out:
-            pxr = px[np.clip(q - n, 0, md.n_yq - 1)]
-            gam = np.where(self.is_out(), np.where(sg > 0, gam - pxr, gam + pxr), gam)
+        pred = self.is_predicted()
+        if self.has_pred:
+            p = pfree[predicted_index(md, q)]
+            gam = np.where(pred, np.where(sg > 0, gam - p, gam + p), gam)
         if self.has_rate:  # first-stage Δu rows: gamma carries u_prev (last nu states)
-            d = q - (n + md.n_yq)
-            first = (d >= 0) & (d < md.nu)
+            d = q - RATE.base(n, md.n_yq)
+            first = (md.row_kinds == RATE.code) & (d < md.nu)
             up = x[md.nx - md.nu + np.clip(d, 0, md.nu - 1)]
             gam = np.where(first, np.where(sg > 0, gam + up, gam - up), gam)
-        self.gam_out_min = gam[self.is_out()].min(initial=self.limit)
-        self.out_slacks_ok = not self.has_out
-        if self.has_out and not self.outputs_certified(th0, gam):
+        self.gam_out_min = gam[pred].min(initial=self.limit)
+        self.out_slacks_ok = not self.has_pred
+        if self.has_pred and not self.outputs_certified(th0, gam):
             self.output_slacks()
         return gam, np.where(sg > 0, gam - v, gam + v)
 
     def row_excess(self, th, gam):
         """Mirror of row_excess() and tol_scale() for every row: (M th - gamma, max(1, |gamma|))."""
-        yv = self.predict_outputs(th) if self.has_out else None
-        v = self.row_value(th, yv)
+        pv = self.predict_outputs(th) if self.has_pred else None
+        v = self.row_value(th, pv)
         sg = self.md.row_sign
         ag = np.abs(gam)
         return np.where(sg > 0, v - gam, -v - gam), np.where(ag > self.one, ag, self.one)
@@ -108,7 +121,7 @@ class RowsMixin:
         (the C skips them when certified: only its work differs)."""
         viol = self.row_violated(th, gam)
         viol[W] = False
-        box = ~self.is_out()
+        box = ~self.is_predicted()
         first = np.flatnonzero(viol & box)
         self.work += self.md.m
         if first.size:

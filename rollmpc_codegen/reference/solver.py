@@ -1,7 +1,8 @@
 """NumPy reference of the generated QP solver, operation by operation.
 
 It mirrors ``templates/solver.c.j2``, a module per partial of ``templates/solver/``:
-:mod:`.hq`, :mod:`.dot`, :mod:`.unconstrained`, :mod:`.rows` (with ``violated_rows``),
+:mod:`.signals`, :mod:`.hq`, :mod:`.dot`, :mod:`.unconstrained`, :mod:`.rows` (with
+``violated_rows``),
 :mod:`.factor_update`, :mod:`.soft_rows`, :mod:`.sweeps`, :mod:`.primal_rows`,
 :mod:`.polish_primal`, :mod:`.polish_dual`, :mod:`.seeds`, :mod:`.guess`, :mod:`.polish`,
 :mod:`.active_set`, and this module for ``qp_solve``; the ``row_const()`` of ``bounds`` is :func:`rollmpc_codegen.features.runtime_bounds.row_constants`, and
@@ -34,6 +35,7 @@ from .polish_dual import (CHOL_NONE, COLD_START, GUESS_CAPPED, GUESS_HANDED_OVER
 from .polish_primal import PrimalPolishMixin
 from .rows import RowsMixin
 from .seeds import SeedsMixin
+from .signals import SignalsMixin
 from .soft_rows import SoftRowsMixin
 from .sweeps import SweepsMixin
 from .unconstrained import UnconstrainedMixin, output_prediction
@@ -52,8 +54,9 @@ class LastPlan:
         self.age = self.none
 
 
-class SolverRef(UnconstrainedMixin, RowsMixin, SoftRowsMixin, SweepsMixin, PrimalPolishMixin,
-                DualPolishMixin, SeedsMixin, GuessMixin, PolishMixin, ActiveSetMixin):
+class SolverRef(SignalsMixin, UnconstrainedMixin, RowsMixin, SoftRowsMixin, SweepsMixin,
+                PrimalPolishMixin, DualPolishMixin, SeedsMixin, GuessMixin, PolishMixin,
+                ActiveSetMixin):
     """Reference of ``P_qp_solve`` for one mode; holds that mode's warm-start multipliers
     and shares the controller's :class:`LastPlan` with the other modes' solvers.
 
@@ -78,6 +81,8 @@ class SolverRef(UnconstrainedMixin, RowsMixin, SoftRowsMixin, SweepsMixin, Prima
         self.Sinv, self.S, self.H, self.Hdiag = hessian_reads(md)
         self.Gam, self.expand = output_prediction(md)
         self.has_out, self.has_rate = md.has_output_rows, md.has_rate_rows
+        # rows the C predicts on line (its has_pred(): output or signal rows)
+        self.has_pred = md.has_output_rows or md.has_signal_rows
         self.lam = np.zeros(md.m, md.Kx.dtype)
         # the controller's last plan (shared by its modes' solvers, as P_ctrl's U), for a
         # TIME_LIMIT with nothing better than th0 (fallback_point())
@@ -238,7 +243,9 @@ class SolverRef(UnconstrainedMixin, RowsMixin, SoftRowsMixin, SweepsMixin, Prima
             if diverged:
                 status = INFEASIBLE
                 break
+            before = self.work
             th = self.correct(th0, S, lam[S])
+            corrected = self.work - before  # what the C's second correct() charges too
             if self.polish_on:
                 code, th_p, act, its = self.polish(self.seed_from_multipliers(lam, S), lam,
                                                    th0, K, gam)
@@ -250,7 +257,7 @@ class SolverRef(UnconstrainedMixin, RowsMixin, SoftRowsMixin, SweepsMixin, Prima
                                                           + 2 * scan_work(md) + 2 * md.m):
                     th, status = self.fallback_point(th0), TIME_LIMIT
                     break
-                self.work += correct_work(md, S.size)  # the C corrects again: same th
+                self.work += corrected  # the C corrects again: same th, same cost
             exc, scale = self.row_excess(th, gam)
             viol = exc > self.tol * scale
             if self.soft:

@@ -24,16 +24,18 @@ class SweepsMixin:
         rows, mult = rows[sel], mult[sel]
         v = np.where(md.row_sign[rows] > 0, mult, -mult)
         q = md.row_q[rows]
-        at, val = q.copy(), v.copy()  # quantity index in [inputs, outputs] and its term
+        nzq, z0 = md.nzq, 2 * n + nyq
+        # quantity index in [inputs, outputs, signals] and its term
+        at, val = np.where(q >= z0, q - z0 + n + nyq, q), v.copy()
         if self.has_rate:  # a Δu row adds to U_d and, past the first stage, subtracts from U_(d-nu)
-            d = q - (n + nyq)
-            at = np.where(d >= 0, d, q)
+            d = np.where(q >= z0, -1, q - (n + nyq))
+            at = np.where(d >= 0, d, at)
             prev = d >= md.nu
             order = np.argsort(np.concatenate((2 * np.arange(rows.size),
                                                2 * np.flatnonzero(prev) + 1)), kind="stable")
             at = np.concatenate((at, d[prev] - md.nu))[order]
             val = np.concatenate((val, -v[prev]))[order]
-        qv = np.zeros(n + nyq, dt)
+        qv = np.zeros(n + nyq + nzq, dt)
         np.add.at(qv, at, val)  # sequential, in the rows' order
         met = (qv < 0) | (qv > 0)  # the C's test: a NaN sum (inf - inf) is skipped, as there
         th = np.zeros(n, dt)
@@ -43,8 +45,10 @@ class SweepsMixin:
             ew_v = ew_v + md.Ew[:, j] * qv[j]
         for o in range(md.nt):
             th = th - md.Ew[o] * ew_v[o]
-        for k in np.flatnonzero(met[n:]):
+        for k in np.flatnonzero(met[n:n + nyq]):
             th = th + md.EinvGt[:, k] * qv[n + k]
+        for k in np.flatnonzero(met[n + nyq:]):  # + E^-1 Gz' v_sig
+            th = th + md.EinvZt[:, k] * qv[n + nyq + k]
         self.work += correct_cost(md, count, int(np.count_nonzero(met[:n])),
                                   int(np.count_nonzero(met[n:])))
         return th0 - th

@@ -29,8 +29,10 @@ def output_prediction(md: ModeData) -> tuple[np.ndarray, np.ndarray | None]:
 
 class UnconstrainedMixin:
     def unconstrained(self, x, r):
-        """Mirror of unconstrained(): (th0, px = Phi x or None), th0 summed per run of
-        equal w (see reference_runs()); a new QP, so no primal factor to update yet."""
+        """Mirror of unconstrained(): (th0, the predicted rows' free response or None),
+        th0 summed per run of equal w (see reference_runs()); a new QP, so no primal
+        factor to update yet. The free response is [Phi x; Zx x + Zr r] (signal_free_response();
+        zeros for the outputs of a mode with signal rows only)."""
         md, ny = self.md, self.md.ny
         self.factor_rows = None
         rr = r.reshape(md.N, ny)
@@ -60,16 +62,22 @@ class UnconstrainedMixin:
                 acc = acc + W[bounds[longest][0], a] * (md.colsum[a] - other)
             acc = acc + G[:, last, a] * W[last, a]
         px = seqsum_rows(md.Phi * x[None, :]) if self.has_out else None
+        if md.has_signal_rows:
+            px = np.concatenate((np.zeros(md.n_yq, md.Kx.dtype) if px is None else px,
+                                 self.signal_free_response(x, r)))
         return acc, px
 
     def predict_outputs(self, th):
         """Mirror of predict_outputs(): Gamma th (Gamma T th with move blocking) for the
-        outputs with constraint rows (md.pred_out[:ny_pred]); the others 0."""
+        outputs with constraint rows (md.pred_out[:ny_pred]); the others 0; then, with
+        signal rows, Gz th (predict_signals())."""
         md = self.md
         out = np.zeros(md.n_yq, md.Kx.dtype)
-        th = th if self.expand is None else th[self.expand]
+        full = th if self.expand is None else th[self.expand]
         predicted = np.isin(np.arange(md.n_yq) % md.ny, md.pred_out[:md.ny_pred])
         for k in np.flatnonzero(predicted):
             width = (k // md.ny + 1) * md.nu
-            out[k] = seqsum(self.Gam[k, :width] * th[:width])
+            out[k] = seqsum(self.Gam[k, :width] * full[:width])
+        if md.has_signal_rows:
+            return np.concatenate((out, self.predict_signals(th)))
         return out

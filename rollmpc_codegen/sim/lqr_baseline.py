@@ -26,20 +26,16 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-import control
 import numpy as np
 
 from ..model.controller import ControllerModel
+from ..model.terminal_law import TrackingLaw, tracking_law
 from .switched_observer import SwitchedObserver
 
 
 @dataclass(frozen=True)
 class LqrMode:
-    K: np.ndarray  # (nu, nk) state feedback gain on the kept (controllable) states
-    keep: np.ndarray  # the state indices but the disturbance states'
-    dist: np.ndarray  # the disturbance states' indices (empty without a model)
-    Mx: np.ndarray  # (nk, ny + nd): x_ss = Mx [r; d]
-    Mu: np.ndarray  # (nu, ny + nd): u_ss = Mu [r; d]
+    law: TrackingLaw  # gain and steady state (model/terminal_law.py)
     u_min: np.ndarray
     u_max: np.ndarray
     actuator_index: np.ndarray
@@ -50,17 +46,8 @@ def design_lqr(model: ControllerModel, ctx: dict) -> list[LqrMode]:
     modes = []
     for mode_cfg, m, mode in zip(model.config.modes, ctx["modes"], model.modes):
         A, B, C = (np.array(m[k], float) for k in ("A", "B", "C"))
-        nu, ny = B.shape[1], C.shape[0]
-        dist, keep = mode.plant.disturbance_states, mode.plant.non_disturbance_states
-        Ak, Bk, Ck = A[np.ix_(keep, keep)], B[keep], C[:, keep]
-        K, _, _ = control.dlqr(Ak, Bk, Ck.T @ mode_cfg.Q @ Ck, mode_cfg.R)
-        nk = keep.size
-        target = np.block([[Ak - np.eye(nk), Bk], [Ck, np.zeros((ny, nu))]])
-        rhs = np.block([[np.zeros((nk, ny)), -A[np.ix_(keep, dist)]],
-                        [np.eye(ny), -C[:, dist]]])
-        M = np.linalg.pinv(target) @ rhs
-        modes.append(LqrMode(K=np.asarray(K, float), keep=keep, dist=dist, Mx=M[:nk],
-                             Mu=M[nk:], u_min=np.array(m["u_min"], float),
+        law = tracking_law(A, B, C, mode_cfg.Q, mode_cfg.R, mode.plant.disturbance_states)
+        modes.append(LqrMode(law=law, u_min=np.array(m["u_min"], float),
                              u_max=np.array(m["u_max"], float),
                              actuator_index=np.array(m["actuator_index"], int)))
     return modes
@@ -81,9 +68,10 @@ class LqrController:
         lq = self.modes[j]
         r1 = np.asarray(r, float)[:self.ny]  # r_{k+1|k}: no preview beyond one sample
         xhat = self.observer.xhat[j]
-        target = np.concatenate((r1, xhat[lq.dist]))
-        x_ss, u_ss = lq.Mx @ target, lq.Mu @ target
-        u_mode = np.clip(u_ss - lq.K @ (xhat[lq.keep] - x_ss), lq.u_min, lq.u_max)
+        law = lq.law
+        target = np.concatenate((r1, xhat[law.dist]))
+        x_ss, u_ss = law.Mx @ target, law.Mu @ target
+        u_mode = np.clip(u_ss - law.K @ (xhat[law.keep] - x_ss), lq.u_min, lq.u_max)
         u = np.zeros(self.ctx["n_actuators"])
         u[lq.actuator_index] = u_mode
         self.observer.observe(y, u)
