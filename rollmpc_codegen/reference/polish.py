@@ -13,7 +13,7 @@ import numpy as np
 from ..qp.work import (append_work, correct_work, delete_work, predict_work,
                        primal_reserve, scan_work, tri_work)
 from .linalg import chol_solve_packed
-from .polish_dual import CHOL_DUAL, GUESS_CAPPED, GUESS_HANDED_OVER, OUT_OF_WORK
+from ..solver_codes import CHOL_DUAL, GUESS_CAPPED, GUESS_HANDED_OVER, OUT_OF_WORK
 
 
 class PolishMixin:
@@ -112,7 +112,6 @@ class PolishMixin:
         then (``th`` on entry) and ``stop`` where it stopped (after GUESS_HANDED_OVER: a
         guess' dual-feasible rows, with their factor)."""
         md = self.md
-        n = md.n
         its, known, z = 0, 0, None
         repeatable = guess  # every round so far a dual solve that switched or dropped
         if W.size == 0 or W.size > self.wcap:
@@ -122,7 +121,7 @@ class PolishMixin:
         self.work += md.m
         for _ in range(self.polish_max):
             its += 1
-            if np.all(md.row_q[W] < n):  # box_only()
+            if self.box_only(W):
                 repeatable = False
                 ok, th_p, zp = self.primal_solve(th0, W, primal_reserve(md))
                 if ok == OUT_OF_WORK:

@@ -12,16 +12,9 @@ from __future__ import annotations
 import numpy as np
 
 from ..qp.work import delete_work, factor_work, hq_work, predict_work, tri_work
+from ..solver_codes import CHOL_DUAL, CHOL_NONE, OUT_OF_WORK
 from .factor_update import chol_delete, pivot_independent
 from .linalg import cholesky_packed, chol_lsolve_packed, chol_solve_packed, seqsum
-
-# what ws->chol holds (the C's P_CHOL_NONE / _DUAL / _PRIMAL of internal.h.j2)
-CHOL_NONE, CHOL_DUAL, CHOL_PRIMAL = 0, 1, 2
-OUT_OF_WORK = -2  # the C's: a solver part stopped, the budget cannot afford its next unit
-OUT_OF_WORK_AT_TH0 = -3  # the C's: the dual active set stopped so before a point of its own
-GUESS_CAPPED = -4  # the C's: a guess' polish() that resume_working_set() would repeat
-GUESS_HANDED_OVER = -5  # the C's: a guess' dual-feasible working set (``stop``) goes on
-COLD_START = "cold start"  # the C's dual_active_set() from = COLD_START: no warm start
 
 
 class DualPolishMixin:

@@ -17,8 +17,8 @@ from .dot import s_row_dots
 from .linalg import (chol_lsolve_packed, chol_ltsolve_packed, cholesky_packed,
                      factor_and_solve_packed, seqsum)
 from ..qp.work import multipliers_work, primal_work
+from ..solver_codes import CHOL_NONE, CHOL_PRIMAL, OUT_OF_WORK
 from .factor_update import chol_delete
-from .polish_dual import CHOL_NONE, CHOL_PRIMAL, OUT_OF_WORK
 from .primal_rows import BOUND, FREE, PrimalRowsMixin
 
 

@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .polish_dual import CHOL_DUAL, CHOL_NONE
+from ..solver_codes import CHOL_DUAL, CHOL_NONE
 
 
 class SeedsMixin:
@@ -48,12 +48,12 @@ class SeedsMixin:
 
     def violated_resume(self, K):
         """Mirror of violated_resume(): the rows th0 violates, seeded again as the dual
-        active set's start (``stop``: them, none known), or None (the budget, none, or
-        more than wcap: a cold start)."""
+        active set's start (``stop``: them, none known); their count, or -1 (the budget,
+        none, or more than wcap: a cold start)."""
         if not self.afford(self.md.m):
-            return None
+            return -1
         W = self.seed_from_violated(K)
         if W.size == 0 or W.size > self.wcap:
-            return None
+            return -1
         self.stop = (W.copy(), np.zeros(0, self.md.Kx.dtype), 0)
-        return W
+        return W.size

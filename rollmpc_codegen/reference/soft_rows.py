@@ -14,7 +14,7 @@ import numpy as np
 from ..features.soft_constraints import slacks as multiplier_slacks
 from ..qp.work import rank_one_work
 from .factor_update import chol_rank_one
-from .polish_dual import CHOL_DUAL, CHOL_NONE, OUT_OF_WORK
+from ..solver_codes import CHOL_DUAL, CHOL_NONE, OUT_OF_WORK
 
 
 class SoftRowsMixin:
