@@ -163,14 +163,10 @@ class HostController:
         return status, out
 
     def info(self) -> dict:
+        """``P_last_info()``: every member of P_info by name (info_struct.py)."""
         p = self._fn["last_info"](self.ctrl)
-        out = {"status": p.status, "mode": p.mode, "iterations": p.iterations,
-               "polish_iterations": p.polish_iterations, "active": p.active,
-               "mode_switches": p.mode_switches, "clipped": p.clipped,
-               "solve_ticks": p.solve_ticks, "work": p.work}
-        if self.ctx.get("has_soft_rows"):  # soft output bounds: the plan's slack
-            out.update(slack_max=float(p.slack_max), slack_rows=p.slack_rows)
-        return out
+        return {f["name"]: float(getattr(p, f["name"])) if f["real"] else getattr(p, f["name"])
+                for f in self.ctx["info_fields"]}
 
     def status_message(self, status: int) -> str:
         return self.ffi.string(self._fn["status_message"](status)).decode()

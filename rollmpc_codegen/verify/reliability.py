@@ -37,6 +37,7 @@ from .spike_recovery import measure_spikes
 from ..host.programs import (SANITIZE, SOAK_SUMMARY, VALGRIND_BUILD, VECTORS_SUMMARY,
                             compile_program, run_program, write_soak_program)
 from ..sim.simulate import progress_printer
+from ..status import STATUS_NAMES
 
 ROOT = Path(__file__).resolve().parents[2]
 UAV = ROOT / "examples" / "uav_roll.yaml"
@@ -81,7 +82,7 @@ def measure_memory(work: Path, soak_steps: int = 100_000) -> dict:
         counts = run.counts(SOAK_SUMMARY)
         out[f"soak_asan_ubsan_{prec}"] = {
             "steps": counts[0] if counts else 0, "faults": counts[1] if counts else 0,
-            "statuses": list(counts[2:-1]) if counts else [],
+            "statuses": dict(zip(STATUS_NAMES.values(), counts[2:-1])) if counts else {},
             "violations": counts[-1] if counts else -1,
             "sanitizer_reports": run.sanitizer_reports, "seconds": round(time.time() - t0, 1)}
     return out
