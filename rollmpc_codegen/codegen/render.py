@@ -5,12 +5,15 @@ rendered files on disk.
 """
 from __future__ import annotations
 
+import functools
 import math
 from pathlib import Path
 
 import jinja2
 import numpy as np
 
+from ..qp import work  # noqa: F401  (declares the work formulas)
+from ..qp.work_formula import FORMULAS, traced
 from .context import context_json
 
 # generated file name (without prefix) -> template
@@ -69,6 +72,13 @@ def _c_int_array(values, per_line: int = 16) -> str:
     return ",\n    ".join(lines)
 
 
+@functools.cache
+def work_formulas() -> dict:
+    """Every work formula of qp/work.py as the C function work_formula.c.j2 prints (the
+    same for every design: its design constants are the context's)."""
+    return {name: traced(name) for name in FORMULAS}
+
+
 def environment(precision: str) -> jinja2.Environment:
     env = jinja2.Environment(
         loader=jinja2.FileSystemLoader(str(templates_dir())),
@@ -78,6 +88,7 @@ def environment(precision: str) -> jinja2.Environment:
     env.filters["c_int_array"] = _c_int_array
     env.filters["c_real"] = lambda v: format_real(v, precision)
     env.filters["size"] = lambda v: max(1, int(np.asarray(v).size))
+    env.globals["work_formulas"] = work_formulas()
     return env
 
 
