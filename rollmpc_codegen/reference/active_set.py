@@ -13,7 +13,7 @@ import numpy as np
 
 from ..qp.work import (add_step_work, correct_work, factor_work, hq_work, independent_work,
                        predict_work, scan_work, tri_work)
-from .linalg import chol_ltsolve_packed, seqsum
+from .linalg import chol_ltsolve, seqsum
 from .factor_update import pivot_independent
 from ..solver_codes import CHOL_DUAL, COLD_START, OUT_OF_WORK, OUT_OF_WORK_AT_TH0
 
@@ -59,7 +59,7 @@ class ActiveSetMixin:
             y = np.concatenate((y[:start], hcol[start:]))
             zeta = self.factor_pivot(y, hpp, start)
             d = y.copy()
-            chol_ltsolve_packed(self.chol, nw, d)
+            chol_ltsolve(self.chol, nw, d)
             k, tblock, event = -1, self.zero, 0
             if self.soft:
                 k, tblock, event = self._first_event(W, z, d)

@@ -14,7 +14,7 @@ import numpy as np
 from ..qp.work import delete_work, factor_work, hq_work, predict_work, tri_work
 from ..solver_codes import CHOL_DUAL, CHOL_NONE, OUT_OF_WORK
 from .factor_update import chol_delete, pivot_independent
-from .linalg import cholesky_packed, chol_lsolve_packed, chol_solve_packed, seqsum
+from .linalg import cholesky_from, chol_lsolve_from, chol_solve, seqsum
 
 
 class DualPolishMixin:
@@ -32,7 +32,7 @@ class DualPolishMixin:
         on_diagonal = [i * (i + 3) // 2 for i in range(len(W))]  # packed (i, i)
         diag = chol[on_diagonal].copy()
         self.chol_rows = 0
-        ok = cholesky_packed(chol, len(W))
+        ok = cholesky_from(chol, len(W))
         if ok:  # rows above a dependent one do not read it: they stand (chol_rows)
             pivots = chol[on_diagonal]
             weak = np.flatnonzero(~pivot_independent(pivots * pivots, diag, self.dep_tol))
@@ -45,7 +45,7 @@ class DualPolishMixin:
         """Mirror of factor_pivot(): y = L^-1 H_Wp in place (y[:start] solved already),
         returns hpp - y'y; charged as a whole solve."""
         self.work += tri_work(y.size) + y.size
-        chol_lsolve_packed(self.chol, y.size, y, start)
+        chol_lsolve_from(self.chol, y.size, y, start)
         return seqsum(-(y * y), start=hpp)
 
     def factor_append(self, y, zeta):
@@ -112,5 +112,5 @@ class DualPolishMixin:
         if self.chol_holds != CHOL_DUAL and not self.factor_working_set(W):
             return -1, None
         self.work += 2 * tri_work(nw)
-        chol_solve_packed(self.chol, nw, z)
+        chol_solve(self.chol, nw, z)
         return 0, z

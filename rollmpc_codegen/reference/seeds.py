@@ -13,6 +13,11 @@ from ..solver_codes import CHOL_DUAL, CHOL_NONE
 
 
 class SeedsMixin:
+    @staticmethod
+    def violated_at_th0(K):
+        """Mirror of violated_at_th0() for every row: K < 0 (the C skips the output rows
+        whose K output_slacks() did not form: certified, none of them is violated)."""
+        return K < 0
     def new_working_set(self):
         """Mirror of new_working_set(): a dual factor belongs to the old working set."""
         if self.chol_holds == CHOL_DUAL:
@@ -42,7 +47,7 @@ class SeedsMixin:
         """Mirror of seed_from_violated(): the rows th0 violates (K < 0), all tight."""
         self.new_working_set()
         self.work += self.md.m
-        W = np.flatnonzero(K < 0)
+        W = np.flatnonzero(self.violated_at_th0(K))
         self.slack_on[W] = False
         return W
 

@@ -4,7 +4,7 @@ It mirrors ``templates/solver.c.j2``, a module per partial of ``templates/solver
 :mod:`.hq`, :mod:`.dot`, :mod:`.unconstrained`, :mod:`.rows` (with ``violated_rows``),
 :mod:`.factor_update`, :mod:`.soft_rows`, :mod:`.sweeps`, :mod:`.primal_rows`,
 :mod:`.polish_primal`, :mod:`.polish_dual`, :mod:`.seeds`, :mod:`.guess`, :mod:`.polish`,
-:mod:`.active_set`, and this module for ``qp_solve``; the ``row_const()`` of ``bounds`` is :func:`rollmpc_codegen.features.runtime_bounds.row_constants`, and
+:mod:`.active_set`, and this module for ``qp_solve``; the ``row_const()`` of ``bounds`` is :func:`rollmpc_codegen.features.runtime_bounds.row_const`, and
 ``linalg.c.j2`` is :mod:`.linalg`.  Each method is named after the C function it mirrors.
 The reference uses the same storage-precision numbers (from :mod:`rollmpc_codegen.qp.storage`),
 the same loops in the same order, scalars of the storage dtype (float32 where the C uses
@@ -21,7 +21,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..features.move_blocking import next_input_quantity
-from ..features.soft_constraints import slacks as multiplier_slacks
+from ..features.soft_constraints import multiplier_slack
 from ..qp.storage import ModeData
 from ..qp.work import correct_work, finish_work, predict_work, scan_work, sweep_work
 from ..status import INACCURATE, INFEASIBLE, MAX_ITER, NUMERICAL, OPTIMAL, TIME_LIMIT
@@ -143,7 +143,7 @@ class SolverRef(UnconstrainedMixin, RowsMixin, SoftRowsMixin, SweepsMixin, Prima
             plan.age = plan.none
         plan.mode = self.mode_index
 
-    def solve(self, x, r):
+    def solve_mode(self, x, r):
         """Mirror of solve_mode(): qp_solve(), then keep_plan()."""
         out = self.qp_solve(x, r)
         self.keep_plan(out[0], out[1])
@@ -302,7 +302,7 @@ class SolverRef(UnconstrainedMixin, RowsMixin, SoftRowsMixin, SweepsMixin, Prima
         if status not in (OPTIMAL, TIME_LIMIT):
             self.lam[:] = 0
         if self.soft:  # the plan's slacks (finish()): 0 unless optimal
-            sl = (multiplier_slacks(self.lam, self.soft_l1, self.soft_w) if status == OPTIMAL
+            sl = (multiplier_slack(self.lam, self.soft_l1, self.soft_w) if status == OPTIMAL
                   else np.zeros(0, md.Kx.dtype))
             self.slack_max = sl.max(initial=self.zero)
             self.slack_rows = int(np.count_nonzero(sl > 0))

@@ -43,7 +43,7 @@ def widened(md: ModeData) -> ModeData:
 def stored_data_floor(md_float: ModeData, double_solver_ctx: dict, x, r,
                       U_exact: np.ndarray) -> tuple[int, float]:
     """(status, floor) of one QP, solved cold; floor is NaN unless the status is OPTIMAL."""
-    status, U, *_ = SolverRef(widened(md_float), double_solver_ctx).solve(
+    status, U, *_ = SolverRef(widened(md_float), double_solver_ctx).solve_mode(
         np.asarray(x, np.float64), np.asarray(r, np.float64))
     if status != OPTIMAL:
         return int(status), float("nan")
