@@ -16,7 +16,7 @@ typedef double chain_rb_real;
 #define CHAIN_RB_SQRT(x) sqrt(x)
 #define CHAIN_RB_FABS(x) fabs(x)
 /** Largest dual multiplier before the QP is declared infeasible. */
-#define CHAIN_RB_LAMBDA_LIMIT 1.0e30
+#define CHAIN_RB_LAMBDA_LIMIT 1e+30
 /*
  * Build guard: GCC's -fsingle-precision-constant (ArduPilot's flags) would silently round
  * every unsuffixed literal of this double tree, all of the stored matrices, to float.

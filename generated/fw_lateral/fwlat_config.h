@@ -16,7 +16,7 @@ typedef double fwlat_real;
 #define FWLAT_SQRT(x) sqrt(x)
 #define FWLAT_FABS(x) fabs(x)
 /** Largest dual multiplier before the QP is declared infeasible. */
-#define FWLAT_LAMBDA_LIMIT 1.0e30
+#define FWLAT_LAMBDA_LIMIT 1e+30
 /*
  * Build guard: GCC's -fsingle-precision-constant (ArduPilot's flags) would silently round
  * every unsuffixed literal of this double tree, all of the stored matrices, to float.

@@ -16,7 +16,7 @@ typedef double rollmpc_real;
 #define ROLLMPC_SQRT(x) sqrt(x)
 #define ROLLMPC_FABS(x) fabs(x)
 /** Largest dual multiplier before the QP is declared infeasible. */
-#define ROLLMPC_LAMBDA_LIMIT 1.0e30
+#define ROLLMPC_LAMBDA_LIMIT 1e+30
 /*
  * Build guard: GCC's -fsingle-precision-constant (ArduPilot's flags) would silently round
  * every unsuffixed literal of this double tree, all of the stored matrices, to float.

@@ -16,7 +16,7 @@ typedef float rollmpc_real;
 #define ROLLMPC_SQRT(x) sqrtf(x)
 #define ROLLMPC_FABS(x) fabsf(x)
 /** Largest dual multiplier before the QP is declared infeasible. */
-#define ROLLMPC_LAMBDA_LIMIT 1.0e30f
+#define ROLLMPC_LAMBDA_LIMIT 1.00000002e+30f
 
 /** Sample time in microseconds (rounded): a task must call rollmpc_step() at this period. */
 #define ROLLMPC_SAMPLE_PERIOD_US 10000u
