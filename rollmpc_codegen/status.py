@@ -81,9 +81,11 @@ STATUS_NAMES = {s: s.name.lower() for s in Status if not s.runtime_bounds_only}
 
 
 def context_statuses(prefix: str, runtime_bounds: bool) -> list[dict]:
-    """The codes of one build for the templates (the README's ``P_`` becomes the prefix)."""
+    """The codes of one build for the templates (``P_`` becomes the prefix)."""
     return [{"name": s.name, "code": int(s), "message": s.message, "plan_usable": s.plan_usable,
              "step": not s.runtime_bounds_only,
+             "meaning": s.meaning.replace("P_", f"{prefix}_"),
+             "command": s.command.replace("P_", f"{prefix}_"),
              "doc": f"{s.meaning[0].upper()}{s.meaning[1:]}. Command: {s.command}."
              .replace("P_", f"{prefix}_")}
             for s in Status if runtime_bounds or not s.runtime_bounds_only]

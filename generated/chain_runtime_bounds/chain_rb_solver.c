@@ -19,8 +19,9 @@
  *    input bounds are in it, else in dual form (Cholesky of H_WW) -- then corrected by
  *    dropping negative multipliers and adding violated rows until KKT holds.
  *
- * Every sum runs sequentially in a fixed order with no fused multiply-add, so the NumPy
- * reference (rollmpc_codegen.reference.solver) reproduces every output bit for bit.
+ * Every sum runs sequentially in a fixed order with no fused multiply-add, so the
+ * generator's NumPy reference reproduces every output bit for bit (chain_rb_README.md,
+ * "Bit for bit").
  */
 #include <math.h>
 #include "chain_rb_internal.h"
@@ -28,11 +29,12 @@
 #define R_ CHAIN_RB_R
 
 /*
- * Work units (docs/solver.md, "Work budget"): about one multiply-add with its loads. Each
- * costly function adds its closed-form cost to ws->work once per call (never per loop
- * iteration); the same formulas bound a unit of work before it starts (afford()), so the
- * work of a solve never exceeds CHAIN_RB_SOLVER_WORK_BUDGET. The NumPy reference charges the
- * same numbers at the same places (rollmpc_codegen/qp/work.py: these formulas).
+ * Work units (chain_rb_README.md, "Work budget"): about one multiply-add with its
+ * loads. Each costly function adds its closed-form cost to ws->work once per call (never
+ * per loop iteration); the same formulas bound a unit of work before it starts (afford()),
+ * so the work of a solve never exceeds CHAIN_RB_SOLVER_WORK_BUDGET. The generator
+ * declares each formula once: the NumPy reference charges the same numbers at the same
+ * places. The constants in capitals are the README's.
  */
 #define OUT_OF_WORK (-2) /* a solver part stopped: the budget cannot afford its next unit */
 #define OUT_OF_WORK_AT_TH0 (-3) /* the dual active set stopped so before a point of its own */
@@ -279,7 +281,7 @@ static chain_rb_real row_const(const chain_rb_work *ws, const chain_rb_mode_data
  * selects v or -v; v times the product of two rows' signs. The product is a multiply by
  * +-1 (exact), not a select: the working set's signs are mixed, and on the host a branch
  * on them was mispredicted often enough to cost 4-5 % of thermal_zones_rate's worst QP
- * (docs/solver.md, "Branches on the host").
+ * (measured on the host).
  */
 static inline chain_rb_real by_sign(const chain_rb_mode_data *md, int r, chain_rb_real v)
 {
@@ -449,8 +451,8 @@ static void h_column(const chain_rb_mode_data *md, const int16_t *wset, int nw, 
  * diagonal, column q below it) is one sequential sum over j = 0..n-1 of M(q, j) x_j. Every
  * function here forms that sum in that order: over a range of j (packed_range_dot()), over
  * the support of a sparse x only (the terms left out are exact zeros, so the sum is the
- * same to the bit), or for every q at once (sym_product()). The reference sums the dense
- * row (reference/dot.py).
+ * same to the bit), or for every q at once (sym_product()). The NumPy reference sums the
+ * dense row (chain_rb_README.md, "Bit for bit").
  */
 
 /*
@@ -1500,7 +1502,7 @@ enum { FORM_NONE = 0, FORM_FREE = 1, FORM_BOUND = 2 };
 
 /*
  * Six times the multiply-adds of a primal solve with a factor of order k whose rows from
- * p on are factored (docs/solver.md): the rows of A, their Cholesky, Y's rows, the two
+ * p on are factored: the rows of A, their Cholesky, Y's rows, the two
  * solves and the k (n - k) product with the other inputs (-S_FB d_B, or S^-1_FB beta).
  * The same in both forms; the choice between updating and refactoring compares it.
  * (Six times: every term is then an integer product, with no 64-bit division, which
@@ -1947,7 +1949,7 @@ static void set_role_word(uint8_t *role, uint32_t w)
  * a valid working set). It runs at every correction: the flags are cleared four roles at
  * a time (role_word(), ROLE_BOUND being bit 0 of each), and the pairs counted in one pass
  * over the roles rather than by two neighbour tests per row. (Counting the pairs by words
- * too took polish()'s host frame 16 B past the stack limit of tests/test_reliability_memory.)
+ * too took polish()'s host frame 16 B past its stack budget.)
  */
 static int mark_bound_inputs(chain_rb_work *ws, const chain_rb_mode_data *md, int nw)
 {
@@ -3045,7 +3047,7 @@ static int finish(chain_rb_work *ws, const chain_rb_mode_data *md, chain_rb_real
  * takes the next block's value, a longer block keeps its own), while that plan is younger
  * than the horizon (plan_age: samples since it was optimal); else th0. A plan met every
  * row a sample ago, th0 only the dynamics: under a long run of TIME_LIMIT samples th0
- * drives the outputs through their hard bounds (docs/solver.md, "Work budget").
+ * drives the outputs through their hard bounds (chain_rb_README.md, "Work budget").
  */
 static void fallback_point(chain_rb_work *ws, const chain_rb_mode_data *md,
     const chain_rb_real *plan, int plan_age)

@@ -14,12 +14,9 @@ from pathlib import Path
 import cffi
 import numpy as np
 
+from ..codegen.build_flags import EXACT_MATH, STRICT_WARNINGS  # noqa: F401  (re-exported)
 from ..codegen.render import render_template
 from .build_cache import private_root, publish, source_dir, staging, verified
-
-STRICT_WARNINGS = ("-std=c99", "-Wall", "-Wextra", "-Wpedantic", "-Wconversion", "-Wshadow",
-                   "-Wdouble-promotion", "-Werror")
-EXACT_MATH = ("-ffp-contract=off",)
 
 
 class BuildError(RuntimeError):
