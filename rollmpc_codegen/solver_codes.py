@@ -40,7 +40,8 @@ INTERNAL_CODES = (
 # What the work array chol holds (ws->chol_holds; P_CHOL_* in internal.h)
 CHOL_STATES = (("NONE", 0), ("DUAL", 1), ("PRIMAL", 2))
 
-OUT_OF_WORK, OUT_OF_WORK_AT_TH0, GUESS_CAPPED, GUESS_HANDED_OVER, COLD_START = (c.value for c in INTERNAL_CODES)
+(OUT_OF_WORK, OUT_OF_WORK_AT_TH0, GUESS_CAPPED, GUESS_HANDED_OVER,
+ COLD_START) = (c.value for c in INTERNAL_CODES)
 CHOL_NONE, CHOL_DUAL, CHOL_PRIMAL = (value for _, value in CHOL_STATES)
 
 

@@ -4,8 +4,10 @@ It mirrors ``templates/solver.c.j2``, a module per partial of ``templates/solver
 :mod:`.hq`, :mod:`.dot`, :mod:`.unconstrained`, :mod:`.rows` (with ``violated_rows``),
 :mod:`.factor_update`, :mod:`.soft_rows`, :mod:`.sweeps`, :mod:`.primal_rows`,
 :mod:`.polish_primal`, :mod:`.polish_dual`, :mod:`.seeds`, :mod:`.guess`, :mod:`.polish`,
-:mod:`.active_set`, and this module for ``qp_solve``; the ``row_const()`` of ``bounds`` is :func:`rollmpc_codegen.features.runtime_bounds.row_const`, and
-``linalg.c.j2`` is :mod:`.linalg`.  Each method is named after the C function it mirrors.
+:mod:`.active_set`, and this module for ``qp_solve``; ``bounds`` is
+:mod:`rollmpc_codegen.features.runtime_bounds`, ``work`` :mod:`rollmpc_codegen.qp.work`
+and ``linalg.c.j2`` :mod:`.linalg` (:mod:`.mirror` declares the rule and its exceptions).
+Each method is named after the C function it mirrors.
 The reference uses the same storage-precision numbers (from :mod:`rollmpc_codegen.qp.storage`),
 the same loops in the same order, scalars of the storage dtype (float32 where the C uses
 float), and *sequential* sums (:func:`~.linalg.seqsum`, never BLAS or pairwise summation).

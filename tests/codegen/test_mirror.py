@@ -112,7 +112,8 @@ def mirror_problems(functions: dict[str, set[str]], modules: dict[str, str],
             row_mods, row_mirrored, row_unmirrored = rows[template]
             if row_mods != mods:
                 problems.append(f"{template}: the table names {row_mods}, the rule {mods}")
-            if row_mirrored != names - set(UNMIRRORED) or row_unmirrored != names & set(UNMIRRORED):
+            declared = names & set(UNMIRRORED)
+            if row_mirrored != names - declared or row_unmirrored != declared:
                 problems.append(f"{template}: the table lists {sorted(row_mirrored)} | "
                                 f"{sorted(row_unmirrored)}, the C defines {sorted(names)}")
     every = set().union(*functions.values())
