@@ -84,7 +84,7 @@ int rollctl_step(rollctl *rc, const rollctl_input *in, uint32_t (*cycles_now)(vo
     for (i = 0; i < ROLLMPC_N_ACTUATORS; ++i) {
         finite = finite && isfinite(rc->u[i]);
     }
-    if (status == ROLLMPC_OPTIMAL && finite) {
+    if (ROLLMPC_STATUS_PLAN_USABLE(status) && finite) {
         for (i = 0; i < ROLLMPC_N_ACTUATORS; ++i) {
             rc->u_good[i] = rc->u[i];
         }

@@ -1,8 +1,9 @@
 """The status codes of the generated C, each declared once.
 
-Each :class:`Status` carries its code, the ``P_status_message()`` text, what it means and
-what the command holds after it.  From these, :mod:`.codegen.context` passes the list on to
-the templates, which render the C enum (``api.h.j2``) and the message table
+Each :class:`Status` carries its code, the ``P_status_message()`` text, what it means,
+what the command holds after it and whether that command is the optimal plan's.  From
+these, :mod:`.codegen.context` passes the list on to the templates, which render the C enum
+and the ``P_STATUS_PLAN_USABLE()`` test (``api.h.j2``) and the message table
 (``controller.c.j2``).  The NumPy reference returns the same codes.  The README's status
 table repeats the texts, and tests/test_status.py keeps it in step.
 """
@@ -17,15 +18,17 @@ class Status(IntEnum):
     """Return codes of P_step(), P_solve_qp() and P_set_bounds(); 0 is optimal."""
 
     def __new__(cls, code: int, message: str, meaning: str, command: str,
-                runtime_bounds_only: bool = False):
+                runtime_bounds_only: bool = False, plan_usable: bool = False):
         status = int.__new__(cls, code)
         status._value_ = code
         status.message, status.meaning, status.command = message, meaning, command
         status.runtime_bounds_only = runtime_bounds_only  # P_set_bounds() only
+        # the command is the optimal plan's first move: a glue flies it, not its fallback
+        status.plan_usable = plan_usable
         return status
 
     OPTIMAL = (0, "optimal", "KKT conditions hold within the feasibility tolerance",
-               "the solution")
+               "the solution", False, True)
     MAX_ITER = (1, "iteration cap reached", "the sweep cap was hit",
                 "best estimate, clamped to the limits")
     INACCURATE = (2, "converged by delta but constraints violated",
@@ -65,20 +68,24 @@ class Status(IntEnum):
                            "the solve was optimal, and an innovation y − C x̂ of this sample was "
                            "beyond ±`observer.innovation_limit` and was clipped to it "
                            "(`P_last_info()->clipped` counts the clips whatever the status)",
-                           "the solution (this sample's y enters only the next one)")
+                           "the solution (this sample's y enters only the next one)", False, True)
 
 
 # the codes as module names, for the reference's and the tests' comparisons
 (OPTIMAL, MAX_ITER, INACCURATE, INFEASIBLE, NONFINITE_INPUT, NUMERICAL, BAD_ARGUMENT, BAD_BOUNDS,
  BOUND_NOT_CONFIGURED, TIME_LIMIT, MEASUREMENT_CLIPPED) = Status
 
-# every build's codes (the runtime_bounds ones exist only in a runtime build) -> short name
+# every build's codes (the runtime_bounds ones exist only in a runtime build) -> short name;
+# P_step() returns these
 STATUS_NAMES = {s: s.name.lower() for s in Status if not s.runtime_bounds_only}
 
 
 def context_statuses(prefix: str, runtime_bounds: bool) -> list[dict]:
-    """The codes of one build for the templates (the README's ``P_`` becomes the prefix)."""
-    return [{"name": s.name, "code": int(s), "message": s.message,
+    """The codes of one build for the templates (``P_`` becomes the prefix)."""
+    return [{"name": s.name, "code": int(s), "message": s.message, "plan_usable": s.plan_usable,
+             "step": not s.runtime_bounds_only,
+             "meaning": s.meaning.replace("P_", f"{prefix}_"),
+             "command": s.command.replace("P_", f"{prefix}_"),
              "doc": f"{s.meaning[0].upper()}{s.meaning[1:]}. Command: {s.command}."
              .replace("P_", f"{prefix}_")}
             for s in Status if runtime_bounds or not s.runtime_bounds_only]

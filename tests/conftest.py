@@ -198,7 +198,7 @@ def sampled_qps_against_independent_solvers(built: Built, states: list, referenc
         r0 = preview(reference, kk, qp.N, ny)
         for r in (r0, r0 + rng.uniform(-perturb, perturb, r0.size)):
             st_c, U_c, _ = c.solve_qp(0, x, r)
-            st_r, U_r, _, _, _ = solver.solve(x, r)
+            st_r, U_r, _, _, _ = solver.solve_mode(x, r)
             assert st_c == st_r == OPTIMAL and U_c.tobytes() == U_r.tobytes()
             saturated += bool(np.any(np.abs(U_c) == bound))
             data = qp_data(qp, x, r)

@@ -48,7 +48,7 @@ def test_dual_active_set_matches_reference_and_exact_solution(gi_only):
         md, qp = model.modes[mode].data, model.modes[mode].qp
         c = gi_only.fresh_c()  # cold, like the reference below
         st, U, sweeps = c.solve_qp(mode, x, r)
-        st_r, U_r, sweeps_r, steps_r, _ = SolverRef(md, ctx["solver"]).solve(x, r)
+        st_r, U_r, sweeps_r, steps_r, _ = SolverRef(md, ctx["solver"]).solve_mode(x, r)
         assert (st, sweeps) == (st_r, sweeps_r) and U.tobytes() == U_r.tobytes()
         assert c.info()["polish_iterations"] == steps_r
         assert sweeps == 0  # the sweeps are only the last resort

@@ -1,4 +1,5 @@
-"""The public C API contract (shared/design.md): statuses, bad inputs, safe outputs."""
+"""The public C API contract (the generated README, "API" and "Statuses"): statuses, bad
+inputs, safe outputs."""
 from __future__ import annotations
 
 import subprocess

@@ -94,7 +94,7 @@ def qp_replay(scenario_run):
     results = []
     for mode, x, r in cases:  # warm starts carry over in both, in the same order
         st_c, U_c, its_c = c.solve_qp(mode, x, r)
-        st_r, U_r, its_r, _, _ = refs[mode].solve(x, r.astype(x.dtype))
+        st_r, U_r, its_r, _, _ = refs[mode].solve_mode(x, r.astype(x.dtype))
         results.append((mode, x, r, st_c, U_c, its_c, st_r, U_r, its_r))
     return uav, results
 

@@ -14,7 +14,7 @@ STEPS = 232  # samples 228 (overflow) and 230 (dependent row) are among them
 
 
 def test_guess_hands_its_feasible_rows_over(build_root):
-    from rollmpc_codegen.reference.polish_dual import GUESS_HANDED_OVER
+    from rollmpc_codegen.solver_codes import GUESS_HANDED_OVER
     from rollmpc_codegen.status import OPTIMAL
 
     built = Built(ZRATE, "double", build_root)

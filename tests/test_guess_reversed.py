@@ -28,7 +28,7 @@ def reversals(uav_double):
     def recording(self, W):
         before = self.work
         verdict = sample(self, W)
-        z = self.signed_multipliers(W)  # uncharged: the full rule's view
+        z = self.signed_multiplier(W)  # uncharged: the full rule's view
         full = self.given_up(int(np.count_nonzero(z >= 0)), W.size, True)
         calls.append((W.size, verdict, full, self.work - before, self.md))
         return verdict

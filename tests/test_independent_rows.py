@@ -41,7 +41,7 @@ def test_dependent_warm_start_resumes_bit_exact(build_root):
 def test_independent_rows_drop_a_copied_row(build_root):
     """A row repeated in the working set leaves; the others keep their order and the
     factor is that of their H_WW."""
-    from rollmpc_codegen.reference.polish_dual import CHOL_DUAL
+    from rollmpc_codegen.solver_codes import CHOL_DUAL
 
     built = Built(ZRATE, "double", build_root)
     solver = built.reference().solvers[0]

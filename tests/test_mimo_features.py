@@ -112,7 +112,7 @@ def qp_cases(chain_run):
     for x, r in cases:  # one warm start carried over in both, in the same order
         r = r.astype(x.dtype)
         st_c, U_c, its_c = c.solve_qp(0, x, r)
-        st_r, U_r, its_r, _, _ = solver.solve(x, r)
+        st_r, U_r, its_r, _, _ = solver.solve_mode(x, r)
         results.append((x, r, st_c, U_c, its_c, st_r, U_r, its_r))
     return chain, results
 

@@ -321,7 +321,7 @@ def test_the_warning_is_what_the_solver_finds_at_rest(y_min, status):
 
     model = pipeline.build_model(parse(ship(bounds={"y_min": y_min, "y_max": 30})))
     solver = SolverRef(model.modes[0].data, build_context(model)["solver"])
-    assert solver.solve(np.zeros(3), np.full(50, 20.0))[0] == status
+    assert solver.solve_mode(np.zeros(3), np.full(50, 20.0))[0] == status
     assert len(rest_warnings(model)) == (status == 3)
 
 

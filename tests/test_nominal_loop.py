@@ -71,7 +71,7 @@ def test_the_radius_is_what_the_solver_does_near_rest(changes, grows):
     r = np.zeros(model.config.horizon * 2)
     start, steps = np.linalg.norm(x), 400
     for _ in range(steps):
-        status, U, *_ = solver.solve(x, r)
+        status, U, *_ = solver.solve_mode(x, r)
         assert status == OPTIMAL
         x = plant.A @ x + plant.B @ U[:1]
     growth = np.linalg.norm(x) / start

@@ -164,7 +164,7 @@ def test_solve_near_float_overflow_matches_the_reference(tmp_path, build_root):
     r = np.zeros(built.ctx["horizon"], np.float32)
     status_c, U_c, _ = built.fresh_c().solve_qp(0, x, r)
     with np.errstate(all="ignore"):
-        status_r, U_r, *_ = SolverRef(built.model.modes[0].data, built.ctx["solver"]).solve(x, r)
+        status_r, U_r, *_ = SolverRef(built.model.modes[0].data, built.ctx["solver"]).solve_mode(x, r)
     assert status_c == status_r and U_c.tobytes() == U_r.tobytes()
 
 

@@ -10,14 +10,14 @@ import pytest
 
 from conftest import ROOT, Built, lockstep_closed_loop
 from rollmpc_codegen.reference.factor_update import chol_delete, chol_rank_one
-from rollmpc_codegen.reference.linalg import chol_lsolve_packed, cholesky_packed
+from rollmpc_codegen.reference.linalg import chol_lsolve_from, cholesky_from
 
 
 def _factor(n: int, rng, dtype):
     B = rng.standard_normal((n, n))
     A = (B @ B.T + n * np.eye(n)).astype(dtype)
     packed = A[np.tril_indices(n)].copy()
-    assert cholesky_packed(packed, n)
+    assert cholesky_from(packed, n)
     return packed
 
 
@@ -31,7 +31,7 @@ def test_rows_above_the_change_keep_their_solve(dtype, change):
             L = _factor(n, rng, dtype)
             h = rng.standard_normal(n).astype(dtype)
             y = h.copy()
-            chol_lsolve_packed(L, n, y)  # the step before
+            chol_lsolve_from(L, n, y)  # the step before
             if change == "delete":
                 chol_delete(L, k, n, np.zeros(n, dtype))
                 m, h2 = n - 1, np.delete(h, k)
@@ -43,13 +43,13 @@ def test_rows_above_the_change_keep_their_solve(dtype, change):
             if k >= m:
                 continue
             scratch = h2.copy()
-            chol_lsolve_packed(L, m, scratch)
+            chol_lsolve_from(L, m, scratch)
             reused = np.concatenate((y[:k], h2[k:]))
-            chol_lsolve_packed(L, m, reused, k)
+            chol_lsolve_from(L, m, reused, k)
             assert reused.tobytes() == scratch.tobytes(), (n, k)
             same_from_k += 1
             late = np.concatenate((y[:k + 1], h2[k + 1:]))  # one row too late: stale
-            chol_lsolve_packed(L, m, late, k + 1)
+            chol_lsolve_from(L, m, late, k + 1)
             differs_from_k1 += late.tobytes() != scratch.tobytes()
     assert same_from_k > 600
     assert differs_from_k1 > 0.9 * same_from_k  # the check can tell a wrong first row

@@ -17,7 +17,7 @@ import numpy as np
 import pytest
 
 from rollmpc_codegen.codegen.render import render_sources
-from rollmpc_codegen.reference.linalg import chol_lsolve_packed, cholesky_packed
+from rollmpc_codegen.reference import linalg as reference
 from rollmpc_codegen.reference.primal_rows import BOUND, FREE
 from conftest import require_tool
 
@@ -65,13 +65,13 @@ def test_factor_and_forward_solve_from_any_row_are_the_full_ones(linalg, n):
     full = A.copy()
     assert cholesky_from(full, 0, n) == 0
     ref = A.copy()
-    assert cholesky_packed(ref, n)
+    assert reference.cholesky_from(ref, n)
     assert full.tobytes() == ref.tobytes()
     b = np.random.default_rng(n + 1).standard_normal(n).astype(dt)
     y_full = b.copy()
     lsolve_from(full, 0, n, y_full)
     y_ref = b.copy()
-    chol_lsolve_packed(ref, n, y_ref)
+    reference.chol_lsolve_from(ref, n, y_ref)
     assert y_full.tobytes() == y_ref.tobytes()
     for p in range(n + 1):
         kept = A.copy()
@@ -91,7 +91,7 @@ def test_bad_pivot_is_reported_in_any_row_pairing(linalg):
             A = _packed_spd(n, dt, 3)
             A[bad * (bad + 1) // 2 + bad] = -1
             assert cholesky_from(A.copy(), 0, n) == -1
-            assert not cholesky_packed(A.copy(), n)
+            assert not reference.cholesky_from(A.copy(), n)
 
 
 def test_reference_rows_keep_the_head_and_append_the_tail(uav_double):

@@ -154,7 +154,7 @@ def test_with_r_delta_and_partial_bounds_random_states(tmp_path, build_root):
         x[-2:] = rng.uniform(-2.0, 2.0, 2) if i < 34 else (2.5, 0.0)  # last: infeasible
         r = rng.uniform(-6.0, 6.0, qp.N * qp.ny)
         st_c, U_c, _ = c.solve_qp(0, x, r)
-        st_r, U_r, _, _, _ = solver.solve(x, r)
+        st_r, U_r, _, _, _ = solver.solve_mode(x, r)
         assert st_c == st_r and U_c.tobytes() == U_r.tobytes(), i
         statuses.append(st_c)
         if st_c == OPTIMAL:

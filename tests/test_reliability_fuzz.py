@@ -78,7 +78,7 @@ def _closed_loop_matches_reference(params: dict, build_root) -> None:
             r = np.concatenate([np.tile(rng.uniform(-3, 3, size=ny), cut),
                                 np.tile(rng.uniform(-3, 3, size=ny), N - cut)]).astype(dt)
             st_c, U_c, its_c = c.solve_qp(j, x, r)
-            st_r, U_r, its_r, _, _ = solver.solve(x, r)
+            st_r, U_r, its_r, _, _ = solver.solve_mode(x, r)
             assert (st_c, its_c, U_c.tobytes()) == (st_r, its_r, U_r.tobytes()), params
             assert np.all(U_c >= np.tile(m.data.u_min, N)) and np.all(U_c <= np.tile(m.data.u_max, N))
 

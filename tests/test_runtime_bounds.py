@@ -24,7 +24,7 @@ from rollmpc_codegen.host.build import build_host_controller
 from rollmpc_codegen.config import ConfigError, load, parse
 from rollmpc_codegen.qp.exact import qp_data, solve_exact
 from rollmpc_codegen.pipeline import generate, load_model
-from rollmpc_codegen.features.runtime_bounds import row_constants
+from rollmpc_codegen.features.runtime_bounds import row_const
 from rollmpc_codegen.sim.scenario import preview, scenario_reference
 from rollmpc_codegen.sim.simulate import run_closed_loop
 from rollmpc_codegen.status import (BAD_ARGUMENT, BAD_BOUNDS, BOUND_NOT_CONFIGURED, INFEASIBLE,
@@ -171,7 +171,7 @@ def test_double_matches_exact_solution_with_new_bounds(bounds_run):
         assert c.set_bounds(0, **b) == OPTIMAL
         st_c, U_c, _ = c.solve_qp(0, x, r)
         # the QP with the new bounds, in double from the config's maths: c = s * bound
-        c_new = row_constants(row_q, qp.row_sign, qp.n, qp.nu, qp.ny, **b)
+        c_new = row_const(row_q, qp.row_sign, qp.n, qp.nu, qp.ny, **b)
         exact = solve_exact(qp_data(dataclasses.replace(qp, c=c_new), x, r))
         assert st_c == log.status[k], k
         if st_c == INFEASIBLE:
@@ -184,7 +184,7 @@ def test_double_matches_exact_solution_with_new_bounds(bounds_run):
     assert (checked, infeasible) == (8, 2)
     assert worst <= 1e-8, worst
     # the baked row_c of the config equals the derived constants (one formula)
-    assert np.array_equal(row_constants(md.row_q, md.row_sign, md.n, md.nu, md.ny, **CONFIG),
+    assert np.array_equal(row_const(md.row_q, md.row_sign, md.n, md.nu, md.ny, **CONFIG),
                           md.row_c)
 
 

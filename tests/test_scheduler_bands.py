@@ -369,7 +369,7 @@ def test_double_qps_of_every_mode_match_independent_solvers(drives, scenario):
             x, k = states[p]
             for r in (preview(ref, k, N), preview(ref, k, N) + rng.uniform(-6, 6, N)):
                 st_c, U_c, its_c = c.solve_qp(j, x, r)
-                st_r, U_r, its_r, _, _ = solver.solve(x, r)
+                st_r, U_r, its_r, _, _ = solver.solve_mode(x, r)
                 assert st_c == st_r == OPTIMAL and U_c.tobytes() == U_r.tobytes()
                 assert its_c == its_r
                 peer_result = peer.solve(j, x, r)

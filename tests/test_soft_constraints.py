@@ -22,7 +22,7 @@ from rollmpc_codegen.pipeline import load_model
 from rollmpc_codegen.codegen.render import render_sources
 from rollmpc_codegen.sim.scenario import preview, scenario_reference
 from rollmpc_codegen.sim.simulate import run_closed_loop
-from rollmpc_codegen.features.soft_constraints import explicit_qp, slacks
+from rollmpc_codegen.features.soft_constraints import explicit_qp, multiplier_slack
 from rollmpc_codegen.reference.solver import SolverRef
 from rollmpc_codegen.status import INFEASIBLE, OPTIMAL
 from test_bitexact import Lockstep
@@ -73,7 +73,7 @@ def test_slack_formula():
     lam = np.array([0.0, 500.0, 1500.0, 3000.0])
     l1 = np.full(4, 1000.0)
     w = np.array([5e-4, 5e-4, 5e-4, 0.0])  # 1 / (2 l2), l2 = 1000; the last row hard
-    assert np.array_equal(slacks(lam, l1, w), [0.0, 0.0, 0.25, 0.0])
+    assert np.array_equal(multiplier_slack(lam, l1, w), [0.0, 0.0, 0.25, 0.0])
 
 
 # --------------------------------------------------------------------------- closed loop
@@ -161,7 +161,7 @@ def test_other_solver_paths_on_slack_qps(soft_run, solver, tmp_path):
     worst = 0.0
     for x, r in _slack_states(built, lock, infos, count=5):
         st_c, U_c, its = c.solve_qp(0, x, r)
-        st_r, U_r, its_r, _, _ = ref.solve(x, r)
+        st_r, U_r, its_r, _, _ = ref.solve_mode(x, r)
         assert st_c == st_r and U_c.tobytes() == U_r.tobytes() and its == its_r
         assert st_c == OPTIMAL
         if "polish" not in solver:

@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 
 from rollmpc_codegen.codegen.render import render_sources
-from rollmpc_codegen.reference.dot import s_row_dots
+from rollmpc_codegen.reference.dot import s_row_dot
 from conftest import ROOT, require_tool
 
 
@@ -90,5 +90,5 @@ def test_sparse_rows_dot_is_the_dense_sequential_sum(sparse_rows_dot, complement
         else:  # the free form: the free rows in a factor order, support = B itself
             rows = rng.permutation(np.flatnonzero(~bound))
             got = call(mp, n, rows, x, np.flatnonzero(bound), 0, by_columns)
-        want = s_row_dots(M, rows, x)
+        want = s_row_dot(M, rows, x)
         assert got.tobytes() == want.tobytes(), f"bound inputs {np.flatnonzero(bound)}"

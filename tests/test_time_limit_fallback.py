@@ -54,7 +54,7 @@ def test_time_limit_shifts_the_last_plan_for_horizon_minus_one_samples(tight):
 
     def both(mode, x, r):
         st_c, U_c, _ = c.solve_qp(mode, x, r)
-        st_r, U_r, *_ = ref.solvers[mode].solve(x, r)
+        st_r, U_r, *_ = ref.solvers[mode].solve_mode(x, r)
         assert int(st_c) == int(st_r) and U_c.tobytes() == U_r.tobytes()
         return int(st_c), U_c
 
@@ -98,9 +98,9 @@ def test_blocked_plans_shift_block_by_block(tight_blocked):
     x = np.zeros(tight_blocked.model.modes[0].data.nx)
     st, plan, _ = c.solve_qp(0, x, np.full(HORIZON, 0.2))
     assert int(st) == OPTIMAL and plan.size == len(BLOCKS) and len(set(plan)) == len(BLOCKS)
-    ref.solvers[0].solve(x, np.full(HORIZON, 0.2))
+    ref.solvers[0].solve_mode(x, np.full(HORIZON, 0.2))
     st, U, _ = c.solve_qp(0, x, np.full(HORIZON, 80.0))
-    st_r, U_r, *_ = ref.solvers[0].solve(x, np.full(HORIZON, 80.0))
+    st_r, U_r, *_ = ref.solvers[0].solve_mode(x, np.full(HORIZON, 80.0))
     assert int(st) == int(st_r) == TIME_LIMIT and U.tobytes() == U_r.tobytes()
     # blocks 0 and 1 (one stage each) take blocks 1 and 2; 2, 3 and 4 keep their own
     assert np.array_equal(U, plan[[1, 2, 2, 3, 4]])

@@ -27,10 +27,9 @@ def test_failed_violated_polish_resumes_from_its_rows(build_root):
     violated_resume = solver.violated_resume
 
     def recording(K):
-        W = violated_resume(K)
-        resumed.append((len(steps_so_far), None if W is None else W.size,
-                        int(np.count_nonzero(K < 0))))
-        return W
+        nw = violated_resume(K)
+        resumed.append((len(steps_so_far), nw, int(np.count_nonzero(K < 0))))
+        return nw
 
     steps_so_far: list = []
 

@@ -14,8 +14,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from rollmpc_codegen.reference.linalg import (chol_lsolve_packed, chol_ltsolve_packed,
-                                              cholesky_packed)
+from rollmpc_codegen.reference.linalg import (chol_lsolve_from, chol_ltsolve,
+                                              cholesky_from)
 
 TREE = Path(__file__).resolve().parent.parent / "generated" / "uav_roll_f32"
 CASES = [(n, start) for n in (1, 2, 3, 4, 5, 7, 8, 9, 13, 16, 31, 50) for start in
@@ -122,10 +122,10 @@ def test_wide_kernels_factor_and_solve_as_the_plain_ones_and_the_reference(tmp_p
         status, got = int(rest[size]), words(rest[size + 1:])
         a = words(rest[:size]).copy()  # A as the driver built it
         # the result does not depend on the first row: the reference factors from row 0
-        assert status == 0 and cholesky_packed(a, n)
+        assert status == 0 and cholesky_from(a, n)
         y = np.array([(i % 5) - 1.75 for i in range(n)], np.float32)
-        chol_lsolve_packed(a, n, y)
+        chol_lsolve_from(a, n, y)
         x = y.copy()
-        chol_ltsolve_packed(a, n, x)
+        chol_ltsolve(a, n, x)
         assert np.array_equal(got.view(np.uint32), np.concatenate((a, y, x)).view(np.uint32)), \
             (n, start)

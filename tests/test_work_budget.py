@@ -130,7 +130,7 @@ def test_updated_factor_is_the_reference_and_a_fresh_factor(fw_small, tmp_path):
     A deletion carries two solves L^-1 b through its rotations (the primal factor's Y):
     they become the solves of b without the deleted entry."""
     from rollmpc_codegen.reference.factor_update import chol_delete, chol_rank_one
-    from rollmpc_codegen.reference.linalg import chol_lsolve_packed, cholesky_packed
+    from rollmpc_codegen.reference.linalg import chol_lsolve_from, cholesky_from
     from rollmpc_codegen.reference.solver import SolverRef
 
     ctx, md = fw_small.ctx, fw_small.model.modes[0].data
@@ -144,7 +144,7 @@ def test_updated_factor_is_the_reference_and_a_fresh_factor(fw_small, tmp_path):
     extra = {r: dt.type(0.0) for r in W}  # w on the diagonal (a slack soft row)
     A = lambda: ref.H[np.ix_(W, W)].astype(np.float64) + np.diag([float(extra[r]) for r in W])  # noqa: E731
     L = np.concatenate([ref.H[W[i], W[:i + 1]] for i in range(len(W))]).astype(dt)
-    assert cholesky_packed(L, len(W))
+    assert cholesky_from(L, len(W))
     worst = worst_y = 0.0
     counts = {"delete": 0, "append": 0, "update": 0, "downdate": 0}
     for _ in range(60):
@@ -158,7 +158,7 @@ def test_updated_factor_is_the_reference_and_a_fresh_factor(fw_small, tmp_path):
             B = rng.standard_normal((2, n)).astype(dt)
             Yr = B.copy()
             for y in Yr:
-                chol_lsolve_packed(Lr, n, y)
+                chol_lsolve_from(Lr, n, y)
             nmax = lib.shim_n_max()
             Yc = np.zeros(2 * nmax, dt)
             Yc[:n], Yc[nmax:nmax + n] = Yr
@@ -246,7 +246,7 @@ def test_time_limited_random_qps_are_bit_exact(build_root):
         x = rng.normal(size=md.nx) * rng.choice([1, 10, 100])
         r = rng.normal(size=md.N * md.ny) * rng.choice([1, 30, 100])
         st_c, U_c, _ = c.solve_qp(mode, x, r)
-        st_r, U_r, *_ = refs[mode].solve(x, r)
+        st_r, U_r, *_ = refs[mode].solve_mode(x, r)
         limited += int(st_r) == TIME_LIMIT
         if (int(st_c), U_c.tobytes(), c.info()["work"]) != (int(st_r), U_r.tobytes(),
                                                               refs[mode].work):

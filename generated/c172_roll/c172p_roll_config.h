@@ -8,6 +8,21 @@
 #ifndef C172P_ROLL_CONFIG_H
 #define C172P_ROLL_CONFIG_H
 
+/*
+ * Build guards: flags that compile the NaN/Inf checks away or change the order and
+ * rounding of the arithmetic break what the code guarantees (c172p_roll_README.md,
+ * "Build flags"); the first that applies stops the build.
+ */
+#if defined(__FAST_MATH__) && __FAST_MATH__
+#error "c172p_roll: -ffast-math is not supported: it compiles the NaN/Inf checks away and reorders the sums (c172p_roll_README.md, Build flags)"
+#elif defined(__FINITE_MATH_ONLY__) && __FINITE_MATH_ONLY__
+#error "c172p_roll: -ffinite-math-only is not supported: it compiles the NaN/Inf checks away (c172p_roll_README.md, Build flags)"
+#elif defined(__ASSOCIATIVE_MATH__) && __ASSOCIATIVE_MATH__
+#error "c172p_roll: -fassociative-math is not supported: it reorders the sums (no longer the reference's) (c172p_roll_README.md, Build flags)"
+#elif defined(__RECIPROCAL_MATH__) && __RECIPROCAL_MATH__
+#error "c172p_roll: -freciprocal-math is not supported: it turns divisions into products with reciprocals (no longer the reference's) (c172p_roll_README.md, Build flags)"
+#endif
+
 /* The one place where the precision is chosen. */
 #define C172P_ROLL_PRECISION_DOUBLE 1
 typedef double c172p_roll_real;
@@ -16,13 +31,13 @@ typedef double c172p_roll_real;
 #define C172P_ROLL_SQRT(x) sqrt(x)
 #define C172P_ROLL_FABS(x) fabs(x)
 /** Largest dual multiplier before the QP is declared infeasible. */
-#define C172P_ROLL_LAMBDA_LIMIT 1.0e30
+#define C172P_ROLL_LAMBDA_LIMIT 1e+30
 /*
  * Build guard: GCC's -fsingle-precision-constant (ArduPilot's flags) would silently round
  * every unsuffixed literal of this double tree, all of the stored matrices, to float.
  * 16777217.0 is not a float: under that flag it reads 16777216 and this array size turns
  * negative, so the build stops here. Compile the double tree without that flag, or use
- * the float tree (firmware_stub/README.md).
+ * the float tree (c172p_roll_README.md, "Build flags").
  */
 typedef char c172p_roll_double_tree_built_with_single_precision_constants[
     ((long)16777217.0 == 16777217L) ? 1 : -1];
@@ -47,7 +62,7 @@ typedef char c172p_roll_double_tree_built_with_single_precision_constants[
 #define C172P_ROLL_NYQ_MAX 100
 #define C172P_ROLL_NT_MAX 1
 /* The working set's packed factor and row lists: w (w + 1) / 2 and w entries, with a
- * floor for short horizons (qp/sizes.py, working_set_lengths()). */
+ * floor for short horizons. */
 #define C172P_ROLL_CHOL_MAX 5050
 #define C172P_ROLL_WSET_MAX 100
 #define C172P_ROLL_TMP_MAX 100
@@ -78,8 +93,8 @@ typedef char c172p_roll_double_tree_built_with_single_precision_constants[
 #define C172P_ROLL_SOLVER_ACTIVE_SET_MAX 500
 #define C172P_ROLL_SOLVER_DEPENDENCE_TOL 1e-10
 /**
- * Work units one QP solve may spend (about one multiply-add each; docs/solver.md, "Work
- * budget"): before each unit of work the solver checks that it fits, else it returns
+ * Work units one QP solve may spend (about one multiply-add each; c172p_roll_README.md,
+ * "Work budget"): before each unit of work the solver checks that it fits, else it returns
  * C172P_ROLL_TIME_LIMIT with its best command so far. c172p_roll_last_info()->work is what a solve spent.
  */
 #define C172P_ROLL_SOLVER_WORK_BUDGET 42000u

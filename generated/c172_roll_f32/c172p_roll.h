@@ -57,6 +57,13 @@ typedef enum {
     C172P_ROLL_MEASUREMENT_CLIPPED = 10
 } c172p_roll_status;
 
+/**
+ * Nonzero when status s means that the command is the optimal plan's first move
+ * (C172P_ROLL_OPTIMAL, C172P_ROLL_MEASUREMENT_CLIPPED): what glue code tests before it
+ * flies the command rather than its own fallback.
+ */
+#define C172P_ROLL_STATUS_PLAN_USABLE(s) ((s) == C172P_ROLL_OPTIMAL || (s) == C172P_ROLL_MEASUREMENT_CLIPPED)
+
 /** Diagnostics of the last solve, readable by the caller. */
 typedef struct {
     int status;             /**< c172p_roll_status of the last call. */

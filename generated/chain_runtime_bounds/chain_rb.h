@@ -63,6 +63,13 @@ typedef enum {
     CHAIN_RB_MEASUREMENT_CLIPPED = 10
 } chain_rb_status;
 
+/**
+ * Nonzero when status s means that the command is the optimal plan's first move
+ * (CHAIN_RB_OPTIMAL, CHAIN_RB_MEASUREMENT_CLIPPED): what glue code tests before it
+ * flies the command rather than its own fallback.
+ */
+#define CHAIN_RB_STATUS_PLAN_USABLE(s) ((s) == CHAIN_RB_OPTIMAL || (s) == CHAIN_RB_MEASUREMENT_CLIPPED)
+
 /** Diagnostics of the last solve, readable by the caller. */
 typedef struct {
     int status;             /**< chain_rb_status of the last call. */

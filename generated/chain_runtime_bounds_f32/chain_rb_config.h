@@ -8,6 +8,21 @@
 #ifndef CHAIN_RB_CONFIG_H
 #define CHAIN_RB_CONFIG_H
 
+/*
+ * Build guards: flags that compile the NaN/Inf checks away or change the order and
+ * rounding of the arithmetic break what the code guarantees (chain_rb_README.md,
+ * "Build flags"); the first that applies stops the build.
+ */
+#if defined(__FAST_MATH__) && __FAST_MATH__
+#error "chain_rb: -ffast-math is not supported: it compiles the NaN/Inf checks away and reorders the sums (chain_rb_README.md, Build flags)"
+#elif defined(__FINITE_MATH_ONLY__) && __FINITE_MATH_ONLY__
+#error "chain_rb: -ffinite-math-only is not supported: it compiles the NaN/Inf checks away (chain_rb_README.md, Build flags)"
+#elif defined(__ASSOCIATIVE_MATH__) && __ASSOCIATIVE_MATH__
+#error "chain_rb: -fassociative-math is not supported: it reorders the sums (no longer the reference's) (chain_rb_README.md, Build flags)"
+#elif defined(__RECIPROCAL_MATH__) && __RECIPROCAL_MATH__
+#error "chain_rb: -freciprocal-math is not supported: it turns divisions into products with reciprocals (no longer the reference's) (chain_rb_README.md, Build flags)"
+#endif
+
 /* The one place where the precision is chosen. */
 #define CHAIN_RB_PRECISION_DOUBLE 0
 typedef float chain_rb_real;
@@ -16,7 +31,7 @@ typedef float chain_rb_real;
 #define CHAIN_RB_SQRT(x) sqrtf(x)
 #define CHAIN_RB_FABS(x) fabsf(x)
 /** Largest dual multiplier before the QP is declared infeasible. */
-#define CHAIN_RB_LAMBDA_LIMIT 1.0e30f
+#define CHAIN_RB_LAMBDA_LIMIT 1.00000002e+30f
 
 /** Sample time in microseconds (rounded): a task must call chain_rb_step() at this period. */
 #define CHAIN_RB_SAMPLE_PERIOD_US 500000u
@@ -34,7 +49,7 @@ typedef float chain_rb_real;
 #define CHAIN_RB_NYQ_MAX 60
 #define CHAIN_RB_NT_MAX 6
 /* The working set's packed factor and row lists: w (w + 1) / 2 and w entries, with a
- * floor for short horizons (qp/sizes.py, working_set_lengths()). */
+ * floor for short horizons. */
 #define CHAIN_RB_CHOL_MAX 820
 #define CHAIN_RB_WSET_MAX 40
 #define CHAIN_RB_TMP_MAX 40
@@ -65,8 +80,8 @@ typedef float chain_rb_real;
 #define CHAIN_RB_SOLVER_ACTIVE_SET_MAX 500
 #define CHAIN_RB_SOLVER_DEPENDENCE_TOL 9.99999975e-06f
 /**
- * Work units one QP solve may spend (about one multiply-add each; docs/solver.md, "Work
- * budget"): before each unit of work the solver checks that it fits, else it returns
+ * Work units one QP solve may spend (about one multiply-add each; chain_rb_README.md,
+ * "Work budget"): before each unit of work the solver checks that it fits, else it returns
  * CHAIN_RB_TIME_LIMIT with its best command so far. chain_rb_last_info()->work is what a solve spent.
  */
 #define CHAIN_RB_SOLVER_WORK_BUDGET 2100000u

@@ -57,6 +57,13 @@ typedef enum {
     CHAIN_SOFT_MEASUREMENT_CLIPPED = 10
 } chain_soft_status;
 
+/**
+ * Nonzero when status s means that the command is the optimal plan's first move
+ * (CHAIN_SOFT_OPTIMAL, CHAIN_SOFT_MEASUREMENT_CLIPPED): what glue code tests before it
+ * flies the command rather than its own fallback.
+ */
+#define CHAIN_SOFT_STATUS_PLAN_USABLE(s) ((s) == CHAIN_SOFT_OPTIMAL || (s) == CHAIN_SOFT_MEASUREMENT_CLIPPED)
+
 /** Diagnostics of the last solve, readable by the caller. */
 typedef struct {
     int status;             /**< chain_soft_status of the last call. */
@@ -69,9 +76,9 @@ typedef struct {
                                  mode's observer and output (observer.innovation_limit). */
     uint32_t solve_ticks;   /**< CHAIN_SOFT_TIMESTAMP() difference around the solve. */
     uint32_t work;          /**< Work units of the last QP solve (<= CHAIN_SOFT_SOLVER_WORK_BUDGET). */
-    chain_soft_real slack_max; /**< Largest soft-bound slack s of the planned outputs (output
-                               units: how far the plan exceeds a soft bound); 0 when
-                               none does or the status is not OPTIMAL. */
+    chain_soft_real slack_max; /**< Largest soft-bound slack s of the planned outputs (output units: how
+                                 far the plan exceeds a soft bound); 0 when none does or the status
+                                 is not OPTIMAL. */
     int slack_rows;         /**< Soft output rows (output, side, stage) with s > 0 in the plan. */
 } chain_soft_info;
 

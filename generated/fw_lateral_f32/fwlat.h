@@ -57,6 +57,13 @@ typedef enum {
     FWLAT_MEASUREMENT_CLIPPED = 10
 } fwlat_status;
 
+/**
+ * Nonzero when status s means that the command is the optimal plan's first move
+ * (FWLAT_OPTIMAL, FWLAT_MEASUREMENT_CLIPPED): what glue code tests before it flies the
+ * command rather than its own fallback.
+ */
+#define FWLAT_STATUS_PLAN_USABLE(s) ((s) == FWLAT_OPTIMAL || (s) == FWLAT_MEASUREMENT_CLIPPED)
+
 /** Diagnostics of the last solve, readable by the caller. */
 typedef struct {
     int status;             /**< fwlat_status of the last call. */
@@ -69,9 +76,9 @@ typedef struct {
                                  mode's observer and output (observer.innovation_limit). */
     uint32_t solve_ticks;   /**< FWLAT_TIMESTAMP() difference around the solve. */
     uint32_t work;          /**< Work units of the last QP solve (<= FWLAT_SOLVER_WORK_BUDGET). */
-    fwlat_real slack_max; /**< Largest soft-bound slack s of the planned outputs (output
-                               units: how far the plan exceeds a soft bound); 0 when
-                               none does or the status is not OPTIMAL. */
+    fwlat_real slack_max;   /**< Largest soft-bound slack s of the planned outputs (output units: how
+                                 far the plan exceeds a soft bound); 0 when none does or the status
+                                 is not OPTIMAL. */
     int slack_rows;         /**< Soft output rows (output, side, stage) with s > 0 in the plan. */
 } fwlat_info;
 

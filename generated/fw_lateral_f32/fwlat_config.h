@@ -8,6 +8,21 @@
 #ifndef FWLAT_CONFIG_H
 #define FWLAT_CONFIG_H
 
+/*
+ * Build guards: flags that compile the NaN/Inf checks away or change the order and
+ * rounding of the arithmetic break what the code guarantees (fwlat_README.md,
+ * "Build flags"); the first that applies stops the build.
+ */
+#if defined(__FAST_MATH__) && __FAST_MATH__
+#error "fwlat: -ffast-math is not supported: it compiles the NaN/Inf checks away and reorders the sums (fwlat_README.md, Build flags)"
+#elif defined(__FINITE_MATH_ONLY__) && __FINITE_MATH_ONLY__
+#error "fwlat: -ffinite-math-only is not supported: it compiles the NaN/Inf checks away (fwlat_README.md, Build flags)"
+#elif defined(__ASSOCIATIVE_MATH__) && __ASSOCIATIVE_MATH__
+#error "fwlat: -fassociative-math is not supported: it reorders the sums (no longer the reference's) (fwlat_README.md, Build flags)"
+#elif defined(__RECIPROCAL_MATH__) && __RECIPROCAL_MATH__
+#error "fwlat: -freciprocal-math is not supported: it turns divisions into products with reciprocals (no longer the reference's) (fwlat_README.md, Build flags)"
+#endif
+
 /* The one place where the precision is chosen. */
 #define FWLAT_PRECISION_DOUBLE 0
 typedef float fwlat_real;
@@ -16,7 +31,7 @@ typedef float fwlat_real;
 #define FWLAT_SQRT(x) sqrtf(x)
 #define FWLAT_FABS(x) fabsf(x)
 /** Largest dual multiplier before the QP is declared infeasible. */
-#define FWLAT_LAMBDA_LIMIT 1.0e30f
+#define FWLAT_LAMBDA_LIMIT 1.00000002e+30f
 
 /** Sample time in microseconds (rounded): a task must call fwlat_step() at this period. */
 #define FWLAT_SAMPLE_PERIOD_US 20000u
@@ -36,7 +51,7 @@ typedef float fwlat_real;
 /** Working-set capacity: n plus the soft (output, stage) pairs (slack rows need no U freedom). */
 #define FWLAT_W_MAX 120
 /* The working set's packed factor and row lists: w (w + 1) / 2 and w entries, with a
- * floor for short horizons (qp/sizes.py, working_set_lengths()). */
+ * floor for short horizons. */
 #define FWLAT_CHOL_MAX 7260
 #define FWLAT_WSET_MAX 120
 #define FWLAT_TMP_MAX 120
@@ -67,8 +82,8 @@ typedef float fwlat_real;
 #define FWLAT_SOLVER_ACTIVE_SET_MAX 500
 #define FWLAT_SOLVER_DEPENDENCE_TOL 9.99999975e-06f
 /**
- * Work units one QP solve may spend (about one multiply-add each; docs/solver.md, "Work
- * budget"): before each unit of work the solver checks that it fits, else it returns
+ * Work units one QP solve may spend (about one multiply-add each; fwlat_README.md,
+ * "Work budget"): before each unit of work the solver checks that it fits, else it returns
  * FWLAT_TIME_LIMIT with its best command so far. fwlat_last_info()->work is what a solve spent.
  */
 #define FWLAT_SOLVER_WORK_BUDGET 84000u

@@ -57,6 +57,13 @@ typedef enum {
     QUADATT_MEASUREMENT_CLIPPED = 10
 } quadatt_status;
 
+/**
+ * Nonzero when status s means that the command is the optimal plan's first move
+ * (QUADATT_OPTIMAL, QUADATT_MEASUREMENT_CLIPPED): what glue code tests before it flies
+ * the command rather than its own fallback.
+ */
+#define QUADATT_STATUS_PLAN_USABLE(s) ((s) == QUADATT_OPTIMAL || (s) == QUADATT_MEASUREMENT_CLIPPED)
+
 /** Diagnostics of the last solve, readable by the caller. */
 typedef struct {
     int status;             /**< quadatt_status of the last call. */

@@ -57,6 +57,13 @@ typedef enum {
     QTANK_MEASUREMENT_CLIPPED = 10
 } qtank_status;
 
+/**
+ * Nonzero when status s means that the command is the optimal plan's first move
+ * (QTANK_OPTIMAL, QTANK_MEASUREMENT_CLIPPED): what glue code tests before it flies the
+ * command rather than its own fallback.
+ */
+#define QTANK_STATUS_PLAN_USABLE(s) ((s) == QTANK_OPTIMAL || (s) == QTANK_MEASUREMENT_CLIPPED)
+
 /** Diagnostics of the last solve, readable by the caller. */
 typedef struct {
     int status;             /**< qtank_status of the last call. */

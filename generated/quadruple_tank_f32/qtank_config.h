@@ -8,6 +8,21 @@
 #ifndef QTANK_CONFIG_H
 #define QTANK_CONFIG_H
 
+/*
+ * Build guards: flags that compile the NaN/Inf checks away or change the order and
+ * rounding of the arithmetic break what the code guarantees (qtank_README.md,
+ * "Build flags"); the first that applies stops the build.
+ */
+#if defined(__FAST_MATH__) && __FAST_MATH__
+#error "qtank: -ffast-math is not supported: it compiles the NaN/Inf checks away and reorders the sums (qtank_README.md, Build flags)"
+#elif defined(__FINITE_MATH_ONLY__) && __FINITE_MATH_ONLY__
+#error "qtank: -ffinite-math-only is not supported: it compiles the NaN/Inf checks away (qtank_README.md, Build flags)"
+#elif defined(__ASSOCIATIVE_MATH__) && __ASSOCIATIVE_MATH__
+#error "qtank: -fassociative-math is not supported: it reorders the sums (no longer the reference's) (qtank_README.md, Build flags)"
+#elif defined(__RECIPROCAL_MATH__) && __RECIPROCAL_MATH__
+#error "qtank: -freciprocal-math is not supported: it turns divisions into products with reciprocals (no longer the reference's) (qtank_README.md, Build flags)"
+#endif
+
 /* The one place where the precision is chosen. */
 #define QTANK_PRECISION_DOUBLE 0
 typedef float qtank_real;
@@ -16,7 +31,7 @@ typedef float qtank_real;
 #define QTANK_SQRT(x) sqrtf(x)
 #define QTANK_FABS(x) fabsf(x)
 /** Largest dual multiplier before the QP is declared infeasible. */
-#define QTANK_LAMBDA_LIMIT 1.0e30f
+#define QTANK_LAMBDA_LIMIT 1.00000002e+30f
 
 /** Sample time in microseconds (rounded): a task must call qtank_step() at this period. */
 #define QTANK_SAMPLE_PERIOD_US 5000000u
@@ -34,7 +49,7 @@ typedef float qtank_real;
 #define QTANK_NYQ_MAX 40
 #define QTANK_NT_MAX 2
 /* The working set's packed factor and row lists: w (w + 1) / 2 and w entries, with a
- * floor for short horizons (qp/sizes.py, working_set_lengths()). */
+ * floor for short horizons. */
 #define QTANK_CHOL_MAX 820
 #define QTANK_WSET_MAX 40
 #define QTANK_TMP_MAX 40
@@ -65,8 +80,8 @@ typedef float qtank_real;
 #define QTANK_SOLVER_ACTIVE_SET_MAX 500
 #define QTANK_SOLVER_DEPENDENCE_TOL 9.99999975e-06f
 /**
- * Work units one QP solve may spend (about one multiply-add each; docs/solver.md, "Work
- * budget"): before each unit of work the solver checks that it fits, else it returns
+ * Work units one QP solve may spend (about one multiply-add each; qtank_README.md,
+ * "Work budget"): before each unit of work the solver checks that it fits, else it returns
  * QTANK_TIME_LIMIT with its best command so far. qtank_last_info()->work is what a solve spent.
  */
 #define QTANK_SOLVER_WORK_BUDGET 21000000u

@@ -57,6 +57,13 @@ typedef enum {
     ZONES_MEASUREMENT_CLIPPED = 10
 } zones_status;
 
+/**
+ * Nonzero when status s means that the command is the optimal plan's first move
+ * (ZONES_OPTIMAL, ZONES_MEASUREMENT_CLIPPED): what glue code tests before it flies the
+ * command rather than its own fallback.
+ */
+#define ZONES_STATUS_PLAN_USABLE(s) ((s) == ZONES_OPTIMAL || (s) == ZONES_MEASUREMENT_CLIPPED)
+
 /** Diagnostics of the last solve, readable by the caller. */
 typedef struct {
     int status;             /**< zones_status of the last call. */

@@ -57,6 +57,13 @@ typedef enum {
     ZRATE_MEASUREMENT_CLIPPED = 10
 } zrate_status;
 
+/**
+ * Nonzero when status s means that the command is the optimal plan's first move
+ * (ZRATE_OPTIMAL, ZRATE_MEASUREMENT_CLIPPED): what glue code tests before it flies the
+ * command rather than its own fallback.
+ */
+#define ZRATE_STATUS_PLAN_USABLE(s) ((s) == ZRATE_OPTIMAL || (s) == ZRATE_MEASUREMENT_CLIPPED)
+
 /** Diagnostics of the last solve, readable by the caller. */
 typedef struct {
     int status;             /**< zrate_status of the last call. */

@@ -9,8 +9,8 @@
 #include "zrate.h"
 
 /**
- * Static data of one mode (all arrays row-major; "_p" = packed lower triangle), declared
- * member by member in rollmpc_codegen/qp/arrays.py.
+ * Static data of one mode (all arrays row-major; "_p" = packed lower triangle), each
+ * member declared once by the generator.
  */
 typedef struct {
     int nx;                             /**< States (with disturbance and u_prev states). */

@@ -57,6 +57,13 @@ typedef enum {
     DRIVES_MEASUREMENT_CLIPPED = 10
 } drives_status;
 
+/**
+ * Nonzero when status s means that the command is the optimal plan's first move
+ * (DRIVES_OPTIMAL, DRIVES_MEASUREMENT_CLIPPED): what glue code tests before it flies
+ * the command rather than its own fallback.
+ */
+#define DRIVES_STATUS_PLAN_USABLE(s) ((s) == DRIVES_OPTIMAL || (s) == DRIVES_MEASUREMENT_CLIPPED)
+
 /** Diagnostics of the last solve, readable by the caller. */
 typedef struct {
     int status;             /**< drives_status of the last call. */

@@ -19,8 +19,9 @@
  *    input bounds are in it, else in dual form (Cholesky of H_WW) -- then corrected by
  *    dropping negative multipliers and adding violated rows until KKT holds.
  *
- * Every sum runs sequentially in a fixed order with no fused multiply-add, so the NumPy
- * reference (rollmpc_codegen.reference.solver) reproduces every output bit for bit.
+ * Every sum runs sequentially in a fixed order with no fused multiply-add, so the
+ * generator's NumPy reference reproduces every output bit for bit (drives_README.md,
+ * "Bit for bit").
  */
 #include <math.h>
 #include "drives_internal.h"
@@ -28,16 +29,20 @@
 #define R_ DRIVES_R
 
 /*
- * Work units (docs/solver.md, "Work budget"): about one multiply-add with its loads. Each
- * costly function adds its closed-form cost to ws->work once per call (never per loop
- * iteration); the same formulas bound a unit of work before it starts (afford()), so the
- * work of a solve never exceeds DRIVES_SOLVER_WORK_BUDGET. The NumPy reference charges the
- * same numbers at the same places (rollmpc_codegen/qp/work.py: these formulas).
+ * Work units (drives_README.md, "Work budget"): about one multiply-add with its
+ * loads. Each costly function adds its closed-form cost to ws->work once per call (never
+ * per loop iteration); the same formulas bound a unit of work before it starts (afford()),
+ * so the work of a solve never exceeds DRIVES_SOLVER_WORK_BUDGET. The generator
+ * declares each formula once: the NumPy reference charges the same numbers at the same
+ * places. The constants in capitals are the README's.
  */
 #define OUT_OF_WORK (-2) /* a solver part stopped: the budget cannot afford its next unit */
 #define OUT_OF_WORK_AT_TH0 (-3) /* the dual active set stopped so before a point of its own */
 
-/* One read of H through hq(): the Woodbury sum of nt terms, twice for a Δu quantity. */
+/*
+ * One read of H through hq(): the Woodbury sum of nt terms, `factor` times (2 with Δu
+ * rows: a Δu quantity is a difference of reads).
+ */
 static uint32_t hq_work(const drives_mode_data *md)
 {
     return ((uint32_t)md->nt + 4u) * 1u;
@@ -45,13 +50,13 @@ static uint32_t hq_work(const drives_mode_data *md)
 
 /*
  * predict_outputs(): the Markov sum of each output with rows over the stages before it, at
- * 3/5 of a unit per multiply-add (PREDICT_UNITS_PER_OP), and a unit per output.
+ * PREDICT_UNITS_PER_OP of a unit per multiply-add, and a unit per output.
  */
 static uint32_t predict_work(const drives_mode_data *md)
 {
     const uint32_t stages = (uint32_t)md->nyq / (uint32_t)md->ny;
-    return (uint32_t)md->ny_pred * (uint32_t)md->nu * stages * (stages + 1u) / 2u
-        * 3u / 5u + (uint32_t)md->nyq;
+    return (uint32_t)md->ny_pred * (uint32_t)md->nu * stages * (stages + 1u) / 2u * 3u / 5u +
+        (uint32_t)md->nyq;
 }
 
 /*
@@ -64,32 +69,34 @@ static uint32_t scan_work(const drives_mode_data *md)
 }
 
 /*
- * correct() over `count` rows whose multipliers reach nin input and nout output
+ * correct() over `count` rows whose multipliers reach `nin` input and `nout` output
  * quantities: an n-long column each, and the Woodbury term.
  */
 static uint32_t correct_cost(const drives_mode_data *md, int count, uint32_t nin, uint32_t nout)
 {
-    const uint32_t n = (uint32_t)md->n, nt = (uint32_t)md->nt;
+    const uint32_t n = (uint32_t)md->n;
+    const uint32_t nt = (uint32_t)md->nt;
     return (uint32_t)count + 2u * n + (uint32_t)md->nyq + n * (nin + nout + nt) + nt * nin;
 }
 
 /*
- * The most correct() can cost over `count` rows (what afford() asks for): at most
- * min(2 count, n) input and min(count, nyq) output quantities.
+ * The most correct() can cost over `count` rows (what afford() asks for): at most min(2
+ * count, n) input and min(count, nyq) output quantities; it charges correct_cost() of the
+ * quantities it met.
  */
 static uint32_t correct_work(const drives_mode_data *md, int count)
 {
-    const uint32_t n = (uint32_t)md->n, c = (uint32_t)count;
-    const uint32_t nin = (2u * c < n) ? 2u * c : n;
-    const uint32_t nout = (c < (uint32_t)md->nyq) ? c : (uint32_t)md->nyq;
+    const uint32_t nin = (2u * (uint32_t)count < (uint32_t)md->n) ? 2u * (uint32_t)count :
+        (uint32_t)md->n;
+    const uint32_t nout = ((uint32_t)count < (uint32_t)md->nyq) ? (uint32_t)count :
+        (uint32_t)md->nyq;
     return correct_cost(md, count, nin, nout);
 }
 
 /* One Gauss-Seidel sweep over `count` rows. */
 static uint32_t sweep_work(const drives_mode_data *md, int count)
 {
-    const uint32_t c = (uint32_t)count;
-    return c * c * hq_work(md) + 8u * c;
+    return (uint32_t)count * (uint32_t)count * hq_work(md) + 8u * (uint32_t)count;
 }
 
 /* finish() and the slacks of the plan: always paid, so every check reserves it. */
@@ -111,29 +118,31 @@ static int afford(const drives_work *ws, const drives_mode_data *md, uint32_t ne
 }
 
 /*
- * The dense kernels of linalg.c run faster per operation than a unit: a Cholesky is
- * charged 2/5 of a unit per operation, a triangular solve 3/5
- * (CHOL_UNITS_PER_OP, TRI_UNITS_PER_OP in rollmpc_codegen/qp/work.py, measured there).
+ * The operations of a Cholesky factorisation of order n (n^3/6 multiply-adds, a division
+ * per entry).
  */
 static uint32_t chol_ops(int n)
 {
-    const uint32_t u = (uint32_t)n;
-    return u * u * u / 6u + 2u * u * u + 4u * u;
+    return (uint32_t)n * (uint32_t)n * (uint32_t)n / 6u + 2u * (uint32_t)n * (uint32_t)n + 4u *
+        (uint32_t)n;
 }
 
+/* The operations of one triangular solve of order n. */
 static uint32_t tri_ops(int n)
 {
-    const uint32_t u = (uint32_t)n;
-    return u * u / 2u + 4u * u;
+    return (uint32_t)n * (uint32_t)n / 2u + 4u * (uint32_t)n;
 }
 
-/* Cholesky factorisation of order n (n^3/6 multiply-adds, a division per entry). */
+/*
+ * A Cholesky factorisation of order n, at CHOL_UNITS_PER_OP of a unit per operation: the
+ * dense kernels of linalg.c run faster per operation than a unit.
+ */
 static uint32_t chol_work(int n)
 {
     return chol_ops(n) * 2u / 5u;
 }
 
-/* One triangular solve of order n. */
+/* One triangular solve of order n, at TRI_UNITS_PER_OP of a unit per operation. */
 static uint32_t tri_work(int n)
 {
     return tri_ops(n) * 3u / 5u;
@@ -142,15 +151,14 @@ static uint32_t tri_work(int n)
 /* chol_rank_one() on a trailing block of order n: a rotation per column. */
 static uint32_t rank_one_work(int n)
 {
-    const uint32_t u = (uint32_t)n;
-    return 3u * u * u / 2u + 10u * u;
+    return 3u * (uint32_t)n * (uint32_t)n / 2u + 10u * (uint32_t)n;
 }
 
 /* chol_delete() of row k from order n: the rows below move up, then one rank-one update. */
 static uint32_t delete_work(int k, int n)
 {
-    const uint32_t a = (uint32_t)n, b = (uint32_t)k;
-    return (a * a - b * b) / 2u + a + rank_one_work((n - 1 - k > 0) ? n - 1 - k : 0);
+    return ((uint32_t)n * (uint32_t)n - (uint32_t)k * (uint32_t)k) / 2u + (uint32_t)n +
+        rank_one_work((n - 1 - k > 0) ? n - 1 - k : 0);
 }
 
 /* chol_delete() of the primal factor's row k from order n, carrying Y's nt columns. */
@@ -162,8 +170,7 @@ static uint32_t primal_delete_work(int k, int n, int nt)
 /* factor_working_set() of nw rows: their H entries, then the factorisation. */
 static uint32_t factor_work(const drives_mode_data *md, int nw)
 {
-    const uint32_t u = (uint32_t)nw;
-    return u * (u + 1u) / 2u * hq_work(md) + chol_work(nw);
+    return (uint32_t)nw * ((uint32_t)nw + 1u) / 2u * hq_work(md) + chol_work(nw);
 }
 
 /* append_row() at position nw: the column H_Wp and its diagonal, a forward solve. */
@@ -187,41 +194,49 @@ static uint32_t primal_reserve(const drives_mode_data *md)
     return scan_work(md) + (uint32_t)md->m;
 }
 
-/* guess_reversed() on `rows` rows: each about twice one of free_multipliers()'s multipliers. */
+/*
+ * guess_reversed() on `rows` rows: each multiplier row by row costs about twice one from
+ * free_multipliers()'s symmetric product on the M4F.
+ */
 static uint32_t guess_sample_work(const drives_mode_data *md, int rows)
 {
     return multipliers_work(md, 2 * rows);
 }
 
-/* trim_guess() on a guess of nw rows at most: its scans of the guess (twice) and of every row. */
+/*
+ * trim_guess() on a guess of nw rows at most: its scans of the guess (twice) and of every
+ * row.
+ */
 static uint32_t trim_work(const drives_mode_data *md, int nw)
 {
     return (uint32_t)md->m + 2u * (uint32_t)nw;
 }
 
 /*
- * primal_solve() on nw bound inputs with a factor of order k whose rows from `start` are
- * factored again (0: a new factor): its Cholesky at 2/6 of a unit per operation, its
- * solves for the nt + 1 right-hand sides, the terminal Schur complement and its products
- * at 3/6 (PRIMAL_SIXTHS_PER_OP), and 200 units per call (the bookkeeping). The free form's
- * product -S_FB d_B is what it does, with 4 operations per free row and run of bound
- * inputs (`bound_runs`; a packed_range_dot() call each); its multipliers are charged by
- * free_multipliers(). The bound form pays 2 n (k + nt) and multipliers_work() for its
- * product over the packed S^-1, whose per-call costs its operations undercount.
+ * primal_solve() on nw bound inputs with a factor of order k whose rows (and Y's) from
+ * `start` are factored again (0: a new factor): its Cholesky, its solves for the nt + 1
+ * right-hand sides, the terminal Schur complement and its products, at
+ * PRIMAL_SIXTHS_PER_OP, and PRIMAL_CALL_UNITS per call (the bookkeeping). The free form's
+ * product -S_FB d_B is what it does: k (n - k) multiply-adds, nt (n - k) for V_B d_B, n
+ * for the point, and PRIMAL_CALL_OPS per free row and run of bound inputs (`bound_runs`:
+ * sparse_rows_dot() calls packed_range_dot() for each); its multipliers are charged by
+ * free_multipliers() (multipliers_work()). The bound form pays 2 n (k + nt) and
+ * multipliers_work() for its product over the packed S^-1, whose calls per free row and
+ * run of bound inputs its operations alone undercount.
  */
 static uint32_t primal_work(const drives_mode_data *md, int nw, int k, int start, int bound_form,
     int bound_runs)
 {
-    const int n = md->n, nt = md->nt;
-    const uint32_t u = (uint32_t)k, s = (uint32_t)start, un = (uint32_t)n, ut = (uint32_t)nt;
-    const uint32_t factor = chol_ops(k) - chol_ops(start) + chol_ops(nt);
-    const uint32_t products = bound_form ? 2u * un * (u + ut)
-        : (u + ut) * (un - u) + un + 4u * u * (uint32_t)bound_runs;
-    const uint32_t loops = (u * u - s * s) / 2u
-        + 2u * (ut * (tri_ops(k) - tri_ops(start)) + tri_ops(k)) + ut * ut * u / 2u
-        + 2u * tri_ops(nt) + 3u * ut * un + products;
-    return (2u * factor + 3u * loops) / 6u + 200u
-        + (bound_form ? multipliers_work(md, nw) : 0u);
+    const uint32_t n = (uint32_t)md->n;
+    const uint32_t nt = (uint32_t)md->nt;
+    const uint32_t factor = chol_ops(k) - chol_ops(start) + chol_ops(md->nt);
+    const uint32_t products = bound_form ? 2u * n * ((uint32_t)k + nt) : ((uint32_t)k + nt) *
+        (n - (uint32_t)k) + n + 4u * (uint32_t)k * (uint32_t)bound_runs;
+    const uint32_t loops = ((uint32_t)k * (uint32_t)k - (uint32_t)start * (uint32_t)start) / 2u
+        + 2u * (nt * (tri_ops(k) - tri_ops(start)) + tri_ops(k)) + nt * nt *
+        (uint32_t)k / 2u + 2u * tri_ops(md->nt) + 3u * nt * n + products;
+    return (2u * factor + 3u * loops) / 6u + 200u + (bound_form ? multipliers_work(md, nw) :
+        0u);
 }
 
 /* independent_rows() on nw rows, at most: each appended to all the rows before it. */
@@ -235,11 +250,14 @@ static uint32_t independent_work(const drives_mode_data *md, int nw)
     return w;
 }
 
-/* One step of add_to_set() on nw rows: two triangular solves, then a row leaves, switches
- * state or joins. */
+/*
+ * One step of add_to_set() on nw rows: two triangular solves, then a row leaves, switches
+ * state or joins.
+ */
 static uint32_t add_step_work(int nw)
 {
-    const uint32_t leave = delete_work(0, nw), flip = rank_one_work(nw);
+    const uint32_t leave = delete_work(0, nw);
+    const uint32_t flip = rank_one_work(nw);
     return 2u * tri_work(nw) + 5u * (uint32_t)nw + ((leave > flip) ? leave : flip);
 }
 
@@ -248,7 +266,7 @@ static uint32_t add_step_work(int nw)
  * selects v or -v; v times the product of two rows' signs. The product is a multiply by
  * +-1 (exact), not a select: the working set's signs are mixed, and on the host a branch
  * on them was mispredicted often enough to cost 4-5 % of thermal_zones_rate's worst QP
- * (docs/solver.md, "Branches on the host").
+ * (measured on the host).
  */
 static inline drives_real by_sign(const drives_mode_data *md, int r, drives_real v)
 {
@@ -418,8 +436,8 @@ static void h_column(const drives_mode_data *md, const int16_t *wset, int nw, in
  * diagonal, column q below it) is one sequential sum over j = 0..n-1 of M(q, j) x_j. Every
  * function here forms that sum in that order: over a range of j (packed_range_dot()), over
  * the support of a sparse x only (the terms left out are exact zeros, so the sum is the
- * same to the bit), or for every q at once (sym_product()). The reference sums the dense
- * row (reference/dot.py).
+ * same to the bit), or for every q at once (sym_product()). The NumPy reference sums the
+ * dense row (drives_README.md, "Bit for bit").
  */
 
 /*
@@ -1469,7 +1487,7 @@ enum { FORM_NONE = 0, FORM_FREE = 1, FORM_BOUND = 2 };
 
 /*
  * Six times the multiply-adds of a primal solve with a factor of order k whose rows from
- * p on are factored (docs/solver.md): the rows of A, their Cholesky, Y's rows, the two
+ * p on are factored: the rows of A, their Cholesky, Y's rows, the two
  * solves and the k (n - k) product with the other inputs (-S_FB d_B, or S^-1_FB beta).
  * The same in both forms; the choice between updating and refactoring compares it.
  * (Six times: every term is then an integer product, with no 64-bit division, which
@@ -1916,7 +1934,7 @@ static void set_role_word(uint8_t *role, uint32_t w)
  * a valid working set). It runs at every correction: the flags are cleared four roles at
  * a time (role_word(), ROLE_BOUND being bit 0 of each), and the pairs counted in one pass
  * over the roles rather than by two neighbour tests per row. (Counting the pairs by words
- * too took polish()'s host frame 16 B past the stack limit of tests/test_reliability_memory.)
+ * too took polish()'s host frame 16 B past its stack budget.)
  */
 static int mark_bound_inputs(drives_work *ws, const drives_mode_data *md, int nw)
 {
@@ -3014,7 +3032,7 @@ static int finish(drives_work *ws, const drives_mode_data *md, drives_real *lam,
  * takes the next block's value, a longer block keeps its own), while that plan is younger
  * than the horizon (plan_age: samples since it was optimal); else th0. A plan met every
  * row a sample ago, th0 only the dynamics: under a long run of TIME_LIMIT samples th0
- * drives the outputs through their hard bounds (docs/solver.md, "Work budget").
+ * drives the outputs through their hard bounds (drives_README.md, "Work budget").
  */
 static void fallback_point(drives_work *ws, const drives_mode_data *md,
     const drives_real *plan, int plan_age)

@@ -8,6 +8,21 @@
 #ifndef DRIVES_CONFIG_H
 #define DRIVES_CONFIG_H
 
+/*
+ * Build guards: flags that compile the NaN/Inf checks away or change the order and
+ * rounding of the arithmetic break what the code guarantees (drives_README.md,
+ * "Build flags"); the first that applies stops the build.
+ */
+#if defined(__FAST_MATH__) && __FAST_MATH__
+#error "drives: -ffast-math is not supported: it compiles the NaN/Inf checks away and reorders the sums (drives_README.md, Build flags)"
+#elif defined(__FINITE_MATH_ONLY__) && __FINITE_MATH_ONLY__
+#error "drives: -ffinite-math-only is not supported: it compiles the NaN/Inf checks away (drives_README.md, Build flags)"
+#elif defined(__ASSOCIATIVE_MATH__) && __ASSOCIATIVE_MATH__
+#error "drives: -fassociative-math is not supported: it reorders the sums (no longer the reference's) (drives_README.md, Build flags)"
+#elif defined(__RECIPROCAL_MATH__) && __RECIPROCAL_MATH__
+#error "drives: -freciprocal-math is not supported: it turns divisions into products with reciprocals (no longer the reference's) (drives_README.md, Build flags)"
+#endif
+
 /* The one place where the precision is chosen. */
 #define DRIVES_PRECISION_DOUBLE 0
 typedef float drives_real;
@@ -16,7 +31,7 @@ typedef float drives_real;
 #define DRIVES_SQRT(x) sqrtf(x)
 #define DRIVES_FABS(x) fabsf(x)
 /** Largest dual multiplier before the QP is declared infeasible. */
-#define DRIVES_LAMBDA_LIMIT 1.0e30f
+#define DRIVES_LAMBDA_LIMIT 1.00000002e+30f
 
 /** Sample time in microseconds (rounded): a task must call drives_step() at this period. */
 #define DRIVES_SAMPLE_PERIOD_US 20000u
@@ -38,7 +53,7 @@ typedef float drives_real;
 #define DRIVES_NYQ_MAX 25
 #define DRIVES_NT_MAX 1
 /* The working set's packed factor and row lists: w (w + 1) / 2 and w entries, with a
- * floor for short horizons (qp/sizes.py, working_set_lengths()). */
+ * floor for short horizons. */
 #define DRIVES_CHOL_MAX 325
 #define DRIVES_WSET_MAX 25
 #define DRIVES_TMP_MAX 25
@@ -69,8 +84,8 @@ typedef float drives_real;
 #define DRIVES_SOLVER_ACTIVE_SET_MAX 500
 #define DRIVES_SOLVER_DEPENDENCE_TOL 9.99999975e-06f
 /**
- * Work units one QP solve may spend (about one multiply-add each; docs/solver.md, "Work
- * budget"): before each unit of work the solver checks that it fits, else it returns
+ * Work units one QP solve may spend (about one multiply-add each; drives_README.md,
+ * "Work budget"): before each unit of work the solver checks that it fits, else it returns
  * DRIVES_TIME_LIMIT with its best command so far. drives_last_info()->work is what a solve spent.
  */
 #define DRIVES_SOLVER_WORK_BUDGET 84000u

@@ -8,6 +8,21 @@
 #ifndef ROLLMPC_CONFIG_H
 #define ROLLMPC_CONFIG_H
 
+/*
+ * Build guards: flags that compile the NaN/Inf checks away or change the order and
+ * rounding of the arithmetic break what the code guarantees (rollmpc_README.md,
+ * "Build flags"); the first that applies stops the build.
+ */
+#if defined(__FAST_MATH__) && __FAST_MATH__
+#error "rollmpc: -ffast-math is not supported: it compiles the NaN/Inf checks away and reorders the sums (rollmpc_README.md, Build flags)"
+#elif defined(__FINITE_MATH_ONLY__) && __FINITE_MATH_ONLY__
+#error "rollmpc: -ffinite-math-only is not supported: it compiles the NaN/Inf checks away (rollmpc_README.md, Build flags)"
+#elif defined(__ASSOCIATIVE_MATH__) && __ASSOCIATIVE_MATH__
+#error "rollmpc: -fassociative-math is not supported: it reorders the sums (no longer the reference's) (rollmpc_README.md, Build flags)"
+#elif defined(__RECIPROCAL_MATH__) && __RECIPROCAL_MATH__
+#error "rollmpc: -freciprocal-math is not supported: it turns divisions into products with reciprocals (no longer the reference's) (rollmpc_README.md, Build flags)"
+#endif
+
 /* The one place where the precision is chosen. */
 #define ROLLMPC_PRECISION_DOUBLE 0
 typedef float rollmpc_real;
@@ -16,7 +31,7 @@ typedef float rollmpc_real;
 #define ROLLMPC_SQRT(x) sqrtf(x)
 #define ROLLMPC_FABS(x) fabsf(x)
 /** Largest dual multiplier before the QP is declared infeasible. */
-#define ROLLMPC_LAMBDA_LIMIT 1.0e30f
+#define ROLLMPC_LAMBDA_LIMIT 1.00000002e+30f
 
 /** Sample time in microseconds (rounded): a task must call rollmpc_step() at this period. */
 #define ROLLMPC_SAMPLE_PERIOD_US 10000u
@@ -38,7 +53,7 @@ typedef float rollmpc_real;
 #define ROLLMPC_NYQ_MAX 100
 #define ROLLMPC_NT_MAX 1
 /* The working set's packed factor and row lists: w (w + 1) / 2 and w entries, with a
- * floor for short horizons (qp/sizes.py, working_set_lengths()). */
+ * floor for short horizons. */
 #define ROLLMPC_CHOL_MAX 210
 #define ROLLMPC_WSET_MAX 20
 #define ROLLMPC_TMP_MAX 20
@@ -69,8 +84,8 @@ typedef float rollmpc_real;
 #define ROLLMPC_SOLVER_ACTIVE_SET_MAX 500
 #define ROLLMPC_SOLVER_DEPENDENCE_TOL 9.99999975e-06f
 /**
- * Work units one QP solve may spend (about one multiply-add each; docs/solver.md, "Work
- * budget"): before each unit of work the solver checks that it fits, else it returns
+ * Work units one QP solve may spend (about one multiply-add each; rollmpc_README.md,
+ * "Work budget"): before each unit of work the solver checks that it fits, else it returns
  * ROLLMPC_TIME_LIMIT with its best command so far. rollmpc_last_info()->work is what a solve spent.
  */
 #define ROLLMPC_SOLVER_WORK_BUDGET 42000u

@@ -57,6 +57,13 @@ typedef enum {
     ROLLMPC_MEASUREMENT_CLIPPED = 10
 } rollmpc_status;
 
+/**
+ * Nonzero when status s means that the command is the optimal plan's first move
+ * (ROLLMPC_OPTIMAL, ROLLMPC_MEASUREMENT_CLIPPED): what glue code tests before it flies
+ * the command rather than its own fallback.
+ */
+#define ROLLMPC_STATUS_PLAN_USABLE(s) ((s) == ROLLMPC_OPTIMAL || (s) == ROLLMPC_MEASUREMENT_CLIPPED)
+
 /** Diagnostics of the last solve, readable by the caller. */
 typedef struct {
     int status;             /**< rollmpc_status of the last call. */

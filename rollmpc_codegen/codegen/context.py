@@ -20,6 +20,8 @@ from ..qp.budget import check_work_budget
 from ..qp.work import (ADD_BATCH, CHOL_UNITS_PER_OP, GUESS_SAMPLE_MIN, PREDICT_UNITS_PER_OP,
                        PRIMAL_CALL_OPS, PRIMAL_CALL_UNITS, PRIMAL_SIXTHS_PER_OP,
                        TRI_UNITS_PER_OP)
+from ..info_struct import context_info_fields
+from ..solver_codes import context_codes
 from ..status import UNKNOWN_MESSAGE, context_statuses
 
 
@@ -126,6 +128,9 @@ def build_context(model: ControllerModel) -> dict:
         "runtime_bounds": cfg.runtime_bounds,
         "statuses": context_statuses(cfg.prefix, cfg.runtime_bounds),
         "unknown_status_message": UNKNOWN_MESSAGE,
+        "info_fields": context_info_fields(cfg.prefix, features["has_soft_rows"]),
+        # the solver's internal return codes, what chol holds, P_LAMBDA_LIMIT (solver_codes.py)
+        **context_codes(),
         # Δu rows in some mode: the solver's third row kind (else the C is unchanged)
         "has_rate_rows": has_rate_rows,
         **features,

@@ -5,15 +5,24 @@ rendered files on disk.
 """
 from __future__ import annotations
 
+import functools
 import math
 from pathlib import Path
 
 import jinja2
 import numpy as np
 
+from ..qp.arrays import MODE_SIZES
+from ..qp.work import (ADD_BATCH, CHOL_UNITS_PER_OP, CYCLES_PER_WORK_UNIT, GUESS_SAMPLE_MIN,
+                       PREDICT_UNITS_PER_OP, PRIMAL_CALL_OPS, PRIMAL_CALL_UNITS,
+                       PRIMAL_SIXTHS_PER_OP, TRI_UNITS_PER_OP)
+from ..qp.work_formula import FORMULAS, traced
+from .build_flags import context_build_flags
 from .context import context_json, rendering_context
+from .misra_deviations import DEVIATIONS
+from .output import MANIFEST
 
-# generated file name (without prefix) -> template
+# generated file name ({p}: the prefix) -> template
 GENERATED_FILES = {
     "{p}_config.h": "config.h.j2",
     "{p}.h": "api.h.j2",
@@ -22,6 +31,26 @@ GENERATED_FILES = {
     "{p}_linalg.c": "linalg.c.j2",
     "{p}_solver.c": "solver.c.j2",
     "{p}_controller.c": "controller.c.j2",
+    "{p}_README.md": "readme.md.j2",
+}
+CONTEXT_FILE = "{p}_context.json"
+# what each file of a generated tree is, in the order its README lists them
+FILE_ROLES = {
+    "{p}.h": "the public API: the controller instance, its functions, the status codes, "
+             "P_info; the only header to include",
+    "{p}_config.h": "the precision switch, the sizes, the solver's constants, the sample "
+                    "period and the build guards",
+    "{p}_internal.h": "the solver's internal declarations: the stored data of a mode, the "
+                      "linear algebra",
+    "{p}_data.c": "the stored matrices of every mode (const), computed offline in double",
+    "{p}_linalg.c": "packed Cholesky factorisation and triangular solves",
+    "{p}_solver.c": "the QP solver: the unconstrained step, the dual sweeps, the polish "
+                    "and the dual active set, and its work count",
+    "{p}_controller.c": "P_init(), P_step(), P_observe(), P_solve_qp(): the scheduler, the "
+                        "observers, the QP of the active mode",
+    "{p}_README.md": "this file",
+    CONTEXT_FILE: "every number the C is compiled with, as JSON (for tools; not compiled)",
+    MANIFEST: "the files rollmpc replaces when it regenerates this directory (others stay)",
 }
 
 
@@ -69,6 +98,38 @@ def _c_int_array(values, per_line: int = 16) -> str:
     return ",\n    ".join(lines)
 
 
+@functools.cache
+def work_formulas(absent: frozenset = frozenset()) -> dict:
+    """Every work formula of qp/work.py as the C function work_formula.c.j2 prints: its
+    design constants are the context's, and the mode sizes ``absent`` from the design's
+    P_mode_data (a feature it lacks) read 0."""
+    return {name: traced(name, absent) for name in FORMULAS}
+
+
+def template_vars(ctx: dict) -> dict:
+    """What a template renders: the context (rendering_context()) and the work formulas
+    of the sizes its P_mode_data has."""
+    full = rendering_context(ctx)
+    absent = frozenset(s.name for s in MODE_SIZES if s.feature and not full[s.feature])
+    return full | {"work_formulas": work_formulas(absent)}
+
+
+def package_facts() -> dict:
+    """What the templates see besides the context: the package's declarations, the same
+    for every design (the work formulas, the compiler flags, the MISRA deviations, the
+    work units' constants, the files of a tree)."""
+    return {"work_formulas": work_formulas(), "build_flags": context_build_flags(),
+            "misra_deviations": [d._asdict() for d in DEVIATIONS],
+            "file_roles": FILE_ROLES,
+            "work_constants": {
+                "CYCLES_PER_WORK_UNIT": CYCLES_PER_WORK_UNIT,
+                "PREDICT_UNITS_PER_OP": PREDICT_UNITS_PER_OP,
+                "CHOL_UNITS_PER_OP": CHOL_UNITS_PER_OP, "TRI_UNITS_PER_OP": TRI_UNITS_PER_OP,
+                "PRIMAL_SIXTHS_PER_OP": PRIMAL_SIXTHS_PER_OP,
+                "PRIMAL_CALL_UNITS": PRIMAL_CALL_UNITS, "PRIMAL_CALL_OPS": PRIMAL_CALL_OPS,
+                "GUESS_SAMPLE_MIN": GUESS_SAMPLE_MIN, "ADD_BATCH": ADD_BATCH}}
+
+
 def environment(precision: str) -> jinja2.Environment:
     env = jinja2.Environment(
         loader=jinja2.FileSystemLoader(str(templates_dir())),
@@ -78,6 +139,7 @@ def environment(precision: str) -> jinja2.Environment:
     env.filters["c_int_array"] = _c_int_array
     env.filters["c_real"] = lambda v: format_real(v, precision)
     env.filters["size"] = lambda v: max(1, int(np.asarray(v).size))
+    env.globals.update(package_facts())
     return env
 
 
@@ -87,13 +149,13 @@ def render_sources(ctx: dict) -> dict[str, str]:
     out = {}
     for name, template in GENERATED_FILES.items():
         out[name.format(p=ctx["prefix"])] = env.get_template(template).render(
-            rendering_context(ctx))
-    out[f"{ctx['prefix']}_context.json"] = context_json(ctx)
+            template_vars(ctx))
+    out[CONTEXT_FILE.format(p=ctx["prefix"])] = context_json(ctx)
     return out
 
 
 def render_template(ctx: dict, template: str, **extra) -> str:
     """Render one auxiliary template (host timer, C test harness) with the context."""
     return environment(ctx["precision"]).get_template(template).render(
-        rendering_context(ctx), **extra)
+        template_vars(ctx), **extra)
 

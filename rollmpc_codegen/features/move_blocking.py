@@ -7,12 +7,12 @@ the top level (every mode) and per mode (overrides the top level); docs/features
 "Control horizon and move blocking".
 
 The decision vector becomes U_b (p nu) with ``U = T U_b`` and T the 0/1 expansion
-(:func:`expansion`).  :func:`.mpc.condense` builds the blocked QP from the full one:
+(:func:`expansion`).  :func:`..qp.condense.condense` builds the blocked QP from the full one:
 Gamma_b = Gamma T, Psi_b = T' Psi T (so E_b = T' E T, and a Δu weight penalises the
 step between consecutive blocks), the state gradient T' Gx, one pair of input rows per
 block (at the block's first stage) and the output rows of Gamma_b, unchanged in number.
-Everything after that (qp.py: E^-1 Gamma', Kx, colsum, the terminal split S + V'(2P)V)
-is already written for any n.
+Everything after that (qp/condense.py and qp/storage.py: E^-1 Gamma', Kx, colsum, the
+terminal split S + V'(2P)V) is already written for any n.
 
 The C predicts the outputs from the Markov parameters over the *stages* (the N^2/2
 product of predict_outputs()); a blocked mode stores ``stage_block`` (the block of each

@@ -14,7 +14,7 @@ constant on line from ``row_q``/``row_sign`` (``row_const()`` in solver/bounds.c
 copy would cost m reals per mode (200 for the chain of masses, 4 x 200 B in float).
 
 This module is the reference of the C's bound handling: :func:`check_bounds` mirrors the
-validation of ``P_set_bounds()``, :func:`row_constants` the constants the C derives (bit
+validation of ``P_set_bounds()``, :func:`row_const` the constants the C derives (bit
 for bit: -cast(u_min) == cast(-u_min)), and :func:`config_bounds` the values ``P_init``
 restores.
 """
@@ -26,7 +26,7 @@ import numpy as np
 
 from ..status import BAD_ARGUMENT, BAD_BOUNDS, BOUND_NOT_CONFIGURED, OPTIMAL
 
-__all__ = ["check_bounds", "config_bounds", "context_bounds", "row_constants"]
+__all__ = ["check_bounds", "config_bounds", "context_bounds", "row_const"]
 
 
 def context_bounds(mode_cfg) -> dict:
@@ -46,7 +46,7 @@ def config_bounds(mode_ctx: dict, dtype) -> dict:
             "y_min": vec(mode_ctx["y_min"], -np.inf), "y_max": vec(mode_ctx["y_max"], np.inf)}
 
 
-def _output_bound_status(configured, value, upper: bool) -> int:
+def output_bound_status(configured, value, upper: bool) -> int:
     """Mirror of output_bound_status() in controller.c.j2 for one output bound."""
     if math.isnan(value):
         return BAD_BOUNDS
@@ -67,9 +67,9 @@ def check_bounds(configured: dict, u_min, u_max, y_min, y_max) -> int:
         if not (math.isfinite(lo) and math.isfinite(hi) and lo < hi and lo <= 0 <= hi):
             return BAD_BOUNDS
     for a, (lo, hi) in enumerate(zip(y_min, y_max)):
-        status = _output_bound_status(configured["y_min"][a], lo, False)
+        status = output_bound_status(configured["y_min"][a], lo, False)
         if status == OPTIMAL:
-            status = _output_bound_status(configured["y_max"][a], hi, True)
+            status = output_bound_status(configured["y_max"][a], hi, True)
         if status == OPTIMAL and not lo < hi:
             status = BAD_BOUNDS
         if status != OPTIMAL:
@@ -77,7 +77,7 @@ def check_bounds(configured: dict, u_min, u_max, y_min, y_max) -> int:
     return OPTIMAL
 
 
-def row_constants(row_q, row_sign, n: int, nu: int, ny: int, u_min, u_max, y_min, y_max,
+def row_const(row_q, row_sign, n: int, nu: int, ny: int, u_min, u_max, y_min, y_max,
                   dtype=np.float64) -> np.ndarray:
     """c of eq. (6) for the given bounds: u_max / -u_min of input U_q (bound q mod nu),
     y_max / -y_min of output (Gamma U)_k (bound k mod ny), as ``row_const()`` derives it."""

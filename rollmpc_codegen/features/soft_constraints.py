@@ -66,7 +66,7 @@ def working_set_cap(n: int, row_kind, row_index, row_l2) -> int:
                    for k in ROW_KINDS if k.soft)
 
 
-def slacks(lam: np.ndarray, row_l1: np.ndarray, row_w: np.ndarray) -> np.ndarray:
+def multiplier_slack(lam: np.ndarray, row_l1: np.ndarray, row_w: np.ndarray) -> np.ndarray:
     """s_r = (lam_r - l1_r) w_r where w_r > 0 and lam_r > l1_r, else 0 (w = 1/(2 l2), 0 for
     hard rows), in the arrays' dtype: the C's multiplier_slack() for every row."""
     on = (row_w > 0) & (lam > row_l1)

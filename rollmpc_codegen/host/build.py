@@ -14,12 +14,9 @@ from pathlib import Path
 import cffi
 import numpy as np
 
+from ..codegen.build_flags import EXACT_MATH, STRICT_WARNINGS  # noqa: F401  (re-exported)
 from ..codegen.render import render_template
 from .build_cache import private_root, publish, source_dir, staging, verified
-
-STRICT_WARNINGS = ("-std=c99", "-Wall", "-Wextra", "-Wpedantic", "-Wconversion", "-Wshadow",
-                   "-Wdouble-promotion", "-Werror")
-EXACT_MATH = ("-ffp-contract=off",)
 
 
 class BuildError(RuntimeError):
@@ -163,14 +160,10 @@ class HostController:
         return status, out
 
     def info(self) -> dict:
+        """``P_last_info()``: every member of P_info by name (info_struct.py)."""
         p = self._fn["last_info"](self.ctrl)
-        out = {"status": p.status, "mode": p.mode, "iterations": p.iterations,
-               "polish_iterations": p.polish_iterations, "active": p.active,
-               "mode_switches": p.mode_switches, "clipped": p.clipped,
-               "solve_ticks": p.solve_ticks, "work": p.work}
-        if self.ctx.get("has_soft_rows"):  # soft output bounds: the plan's slack
-            out.update(slack_max=float(p.slack_max), slack_rows=p.slack_rows)
-        return out
+        return {f["name"]: float(getattr(p, f["name"])) if f["real"] else getattr(p, f["name"])
+                for f in self.ctx["info_fields"]}
 
     def status_message(self, status: int) -> str:
         return self.ffi.string(self._fn["status_message"](status)).decode()

@@ -22,6 +22,7 @@ from .build import EXACT_MATH, STRICT_WARNINGS
 from ..pipeline import load_model
 from ..codegen.output import write_output
 from ..codegen.render import render_sources, render_template
+from ..status import STATUS_NAMES
 
 SANITIZE = ("-O1", "-g", "-fno-omit-frame-pointer",
             "-fsanitize=address,undefined,float-cast-overflow", "-fno-sanitize-recover=all")
@@ -89,6 +90,9 @@ def run_program(exe: Path, args: tuple[str, ...] = (), valgrind: str | None = No
     return RunResult(proc.returncode, proc.stdout, proc.stderr)
 
 
-SOAK_SUMMARY = (r"^soak: (\d+) steps, (\d+) faults injected, statuses (\d+) (\d+) (\d+) (\d+) "
-                r"(\d+) (\d+) (\d+) (\d+), (\d+) violations$")  # codes 0..6, then TIME_LIMIT
+# the soak's last line: steps, faults, the count of each status P_step returns (in
+# STATUS_NAMES' order, by name), violations
+SOAK_SUMMARY = (r"^soak: (\d+) steps, (\d+) faults injected, statuses"
+                + "".join(rf" {name}=(\d+)" for name in STATUS_NAMES.values())
+                + r", (\d+) violations$")
 VECTORS_SUMMARY = r"^(\d+) passed, (\d+) failed$"

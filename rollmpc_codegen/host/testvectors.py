@@ -45,7 +45,7 @@ def qp_cases_from_log(model, ctx, log, xs, count: int = 12) -> list[dict]:
         idx = np.minimum(np.arange(k + 1, k + N + 1), len(ref) - 1)
         r = np.repeat(ref[idx], ny) if ny == 1 else ref[idx].ravel()
         solver = SolverRef(model.modes[mode].data, ctx["solver"])
-        status, U, its, _, _ = solver.solve(x, r)
+        status, U, its, _, _ = solver.solve_mode(x, r)
         cases.append({"mode": int(mode), "x": x, "r": r.astype(x.dtype), "U": U,
                       "status": int(status), "iterations": int(its), "n": int(U.size)})
     return cases
@@ -63,7 +63,7 @@ def write_test_vectors(config: str | Path, out_dir: str | Path, precision: str |
     class Recorder:
         def step(self, y, s, r):
             xs.append((ref_ctrl.mode if ctx["scheduler"] is None else
-                       ref_ctrl._schedule(ref_ctrl.dt(s[0])), None))
+                       ref_ctrl.schedule(ref_ctrl.dt(s[0])), None))
             mode = xs[-1][0]
             x_before = ref_ctrl.xhat[mode].copy()
             xs[-1] = (mode, x_before)

@@ -11,11 +11,11 @@ Everything the C needs is computed here once (one source of truth):
 * the dual Hessian ``H = L E^-1 L'`` and its L/D/U split (for reference and tests; the C
   reads H through its structure, see :mod:`rollmpc_codegen.qp.storage`).
 
-Offset-free tracking (:mod:`.disturbance_model`) and Δu weighting (:mod:`.input_rate`)
+Offset-free tracking (:mod:`..features.disturbance_model`) and Δu weighting (:mod:`..features.input_rate`)
 add a state-dependent gradient term ``Gx x`` (``Gx`` below), which only changes Kx; Δu
 weighting also makes Psi block tridiagonal.
 
-Move blocking (:mod:`.move_blocking`) substitutes U = T U_b before any of the above:
+Move blocking (:mod:`..features.move_blocking`) substitutes U = T U_b before any of the above:
 Gamma, Psi and Gx become Gamma T, T' Psi T and T' Gx, and the input rows are one pair per
 block, so n = p nu; ``markov`` stays the unblocked (stage) one.
 """

@@ -38,7 +38,7 @@ side), numbered q = n + N ny + i.  Their Hq entries are differences of the ones 
 max_i |th_i|``; when that certifies every output row, the C skips the N^2/2 prediction.
 ``row_next`` maps each row to the same constraint one stage later, for the shifted warm start.
 
-With move blocking (:mod:`.move_blocking`) n = p nu (one input vector per block) and
+With move blocking (:mod:`..features.move_blocking`) n = p nu (one input vector per block) and
 Gamma is the blocked Gamma T; ``stage_block`` tells the C's prediction which block holds
 each stage, ``row_next`` maps an input row to the block holding its first stage + 1, and
 ``out_bound`` stays that of the stage Markov parameters (sound, see move_blocking).

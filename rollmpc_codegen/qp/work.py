@@ -1,12 +1,13 @@
-"""The solver's work units and its budget (docs/solver.md, "Work budget").
+"""The solver's work units and its budget (the generated README, "Work budget").
 
 A work unit is about one multiply-add with its loads.  The generated solver charges the
 closed-form cost of each costly function to ``ws->work`` and checks every unit of work
-against ``solver.work_budget`` before it starts, with the same formulas as an upper bound
-(``templates/solver/work.c.j2``).  This module is their Python side, with the C's names:
-the reference (:mod:`rollmpc_codegen.reference`) charges the same numbers at the same
-places, and the generator derives the default budget from the sample time and the clock
-and checks that a budget leaves room for the unconstrained step (budget.py).
+against ``solver.work_budget`` before it starts, with the same formulas as an upper bound.
+Each formula is declared once here (:func:`~.work_formula.formula`): the reference
+(:mod:`rollmpc_codegen.reference`) calls it to charge the same numbers at the same places,
+and ``templates/solver/work.c.j2`` renders it as the C function of the same name.  The
+generator derives the default budget from the sample time and the clock and checks that
+a budget leaves room for the unconstrained step (budget.py).
 
 ``m`` below is a mode's stored sizes (:class:`~rollmpc_codegen.qp.storage.ModeData`:
 n, m, n_yq, ny, nu, nx, nt).  All arithmetic is on unsigned 32-bit integers in the C; the
@@ -15,6 +16,7 @@ generator keeps every bound below 2**31 (budget.py, :func:`check_work_budget`).
 from __future__ import annotations
 
 from ..config.schema import DEFAULT_CPU_MHZ, WORK_BUDGET_AUTO
+from .work_formula import either, formula, larger, named, smaller, summed
 
 # Estimated Cortex-M4F cycles per work unit, declared once: `rollmpc report --precision
 # float` (which prints the ratio) measured at most 19.23 cycles per unit on the counted
@@ -35,8 +37,10 @@ UNBOUNDED_WORK = WORK_LIMIT - 1  # the largest budget: in effect none
 ADD_BATCH = 4
 
 
+@formula(design={"factor": "hq_work_factor"})
 def hq_work(m, factor: int) -> int:
-    """One read of H through hq() (``factor`` 2 with Δu rows: differences of reads)."""
+    """One read of H through hq(): the Woodbury sum of nt terms, ``factor`` times (2 with
+    Δu rows: a Δu quantity is a difference of reads)."""
     return (m.nt + 4) * factor
 
 
@@ -49,42 +53,55 @@ def hq_work(m, factor: int) -> int:
 PREDICT_UNITS_PER_OP = (3, 5)
 
 
+@formula()
 def predict_work(m) -> int:
-    """predict_outputs(), with predict_signals() where the mode has signal quantities
-    (nzq, z_pred_ops: 0 without)."""
-    stages = m.n_yq // m.ny
-    ops = m.ny_pred * m.nu * stages * (stages + 1) // 2
-    if m.nzq:
-        return ((ops + m.z_pred_ops) * PREDICT_UNITS_PER_OP[0] // PREDICT_UNITS_PER_OP[1]
-                + m.n_yq + m.nzq)
-    return ops * PREDICT_UNITS_PER_OP[0] // PREDICT_UNITS_PER_OP[1] + m.n_yq
+    """predict_outputs(): the Markov sum of each output with rows over the stages before
+    it, at PREDICT_UNITS_PER_OP of a unit per multiply-add, and a unit per output."""
+    # (the docstring is the C comment of every design; with general constraints the sum
+    # also holds predict_signals()' z_pred_ops multiply-adds and a unit per signal
+    # quantity: sizes a design without them lacks read 0 and fold away)
+    stages = named("stages", m.n_yq // m.ny)
+    return ((m.ny_pred * m.nu * stages * (stages + 1) // 2 + m.z_pred_ops)
+            * PREDICT_UNITS_PER_OP[0] // PREDICT_UNITS_PER_OP[1] + m.n_yq + m.nzq)
 
 
+@formula()
 def scan_work(m) -> int:
+    """A check of every row at a point (violated_outside(), most_violated()): the
+    certificate, the prediction it may need, and the rows."""
     return 3 * m.m + m.n + predict_work(m)
 
 
+@formula(uint=("nin", "nout"))
 def correct_cost(m, count: int, nin: int, nout: int) -> int:
     """correct() over ``count`` rows whose multipliers reach ``nin`` input and ``nout``
-    output (and signal) quantities: an n-long column each, and the Woodbury term."""
-    return count + 2 * m.n + m.n_yq + m.nzq + m.n * (nin + nout + m.nt) + m.nt * nin
+    output quantities: an n-long column each, and the Woodbury term."""
+    # (nout counts signal quantities too, and their nzq accumulators are cleared)
+    n, nt = named("n", m.n), named("nt", m.nt)
+    return count + 2 * n + m.n_yq + m.nzq + n * (nin + nout + nt) + nt * nin
 
 
+@formula()
 def correct_work(m, count: int) -> int:
     """The most correct() can cost over ``count`` rows (what afford() asks for): at most
-    min(2 count, n) input and min(count, nyq + nzq) output and signal quantities; it
-    charges correct_cost() of the quantities it met."""
-    return correct_cost(m, count, min(2 * count, m.n), min(count, m.n_yq + m.nzq))
+    min(2 count, n) input and min(count, nyq) output quantities; it charges
+    correct_cost() of the quantities it met."""
+    # (with signal quantities: min(count, nyq + nzq) output and signal quantities)
+    nin = named("nin", smaller(2 * count, m.n))
+    nout = named("nout", smaller(count, m.n_yq + m.nzq))
+    return correct_cost(m, count, nin, nout)
 
 
+@formula(design={"factor": "hq_work_factor"})
 def sweep_work(m, count: int, factor: int) -> int:
+    """One Gauss-Seidel sweep over ``count`` rows."""
     return count * count * hq_work(m, factor) + 8 * count
 
 
+@formula()
 def finish_work(m) -> int:
+    """finish() and the slacks of the plan: always paid, so every check reserves it."""
     return 2 * m.n + 2 * m.m
-
-
 # The dense kernels of linalg.c run faster per operation than a unit (H reads, row scans:
 # ~14 cycles): on the emulated M4F (float, -O2, orders 10-80) a Cholesky takes 5.3-6.2
 # cycles per chol_ops() operation (7.4 at order 5), a forward solve 6.9-7.1 and a back
@@ -110,80 +127,101 @@ PRIMAL_CALL_UNITS = 200
 PRIMAL_CALL_OPS = 4
 
 
+@formula()
 def chol_ops(n: int) -> int:
-    """The operations of a Cholesky factorisation of order n."""
+    """The operations of a Cholesky factorisation of order n (n^3/6 multiply-adds, a
+    division per entry)."""
     return n * n * n // 6 + 2 * n * n + 4 * n
 
 
+@formula()
 def tri_ops(n: int) -> int:
     """The operations of one triangular solve of order n."""
     return n * n // 2 + 4 * n
 
 
+@formula()
 def chol_work(n: int) -> int:
+    """A Cholesky factorisation of order n, at CHOL_UNITS_PER_OP of a unit per operation:
+    the dense kernels of linalg.c run faster per operation than a unit."""
     return chol_ops(n) * CHOL_UNITS_PER_OP[0] // CHOL_UNITS_PER_OP[1]
 
 
+@formula()
 def tri_work(n: int) -> int:
+    """One triangular solve of order n, at TRI_UNITS_PER_OP of a unit per operation."""
     return tri_ops(n) * TRI_UNITS_PER_OP[0] // TRI_UNITS_PER_OP[1]
 
 
+@formula()
 def rank_one_work(n: int) -> int:
+    """chol_rank_one() on a trailing block of order n: a rotation per column."""
     return 3 * n * n // 2 + 10 * n
 
 
+@formula()
 def delete_work(k: int, n: int) -> int:
-    return (n * n - k * k) // 2 + n + rank_one_work(max(n - 1 - k, 0))
+    """chol_delete() of row k from order n: the rows below move up, then one rank-one
+    update."""
+    return (n * n - k * k) // 2 + n + rank_one_work(larger(n - 1 - k, 0))
 
 
+@formula()
 def primal_delete_work(k: int, n: int, nt: int) -> int:
     """chol_delete() of the primal factor's row k from order n, carrying Y's nt columns."""
     return delete_work(k, n) + 4 * nt * (n - k)
 
 
+@formula(design={"factor": "hq_work_factor"})
 def factor_work(m, nw: int, factor: int) -> int:
+    """factor_working_set() of nw rows: their H entries, then the factorisation."""
     return nw * (nw + 1) // 2 * hq_work(m, factor) + chol_work(nw)
 
 
+@formula(design={"factor": "hq_work_factor"})
 def append_work(m, nw: int, factor: int) -> int:
+    """append_row() at position nw: the column H_Wp and its diagonal, a forward solve."""
     return (nw + 1) * hq_work(m, factor) + tri_work(nw) + nw
 
 
+@formula(design={"factor": "hq_work_factor"})
 def independent_work(m, nw: int, factor: int) -> int:
     """independent_rows() on nw rows, at most: each appended to all the rows before it."""
-    return sum(append_work(m, k, factor) for k in range(nw))
+    return summed(nw, lambda k: append_work(m, k, factor))
 
 
+@formula()
 def primal_work(m, nw: int, k: int, start: int = 0, bound_form: bool = True,
                 bound_runs: int = 0) -> int:
-    """primal_solve() with a factor of order k whose rows (and Y's) from ``start`` are
-    factored again (0: a new factor): its Cholesky, its solves for the nt + 1 right-hand
-    sides, the terminal Schur complement and its products, at PRIMAL_SIXTHS_PER_OP, and
-    PRIMAL_CALL_UNITS. The free form's product -S_FB d_B is what it does: k (n - k)
-    multiply-adds, nt (n - k) for V_B d_B, n for the point, and PRIMAL_CALL_OPS per free
-    row and run of bound inputs (``bound_runs``: sparse_rows_dot() calls
-    packed_range_dot() for each); its multipliers are charged where they are computed
-    (multipliers_work()). The bound form pays 2 n (k + nt) and nw (n + nt) for its
-    product over the packed S^-1, whose calls per free row and run of bound inputs its
-    operations alone undercount (quad_attitude's bound-form steps run at <= 18.6 cycles
-    per unit with it)."""
-    nt, n = m.nt, m.n
-    factor = chol_ops(k) - chol_ops(start) + chol_ops(nt)
-    products = (2 * n * (k + nt) if bound_form else
-                (k + nt) * (n - k) + n + PRIMAL_CALL_OPS * k * bound_runs)
-    loops = ((k * k - start * start) // 2
-             + 2 * (nt * (tri_ops(k) - tri_ops(start)) + tri_ops(k)) + nt * nt * k // 2
-             + 2 * tri_ops(nt) + 3 * nt * n + products)
+    """primal_solve() on nw bound inputs with a factor of order k whose rows (and Y's)
+    from ``start`` are factored again (0: a new factor): its Cholesky, its solves for the
+    nt + 1 right-hand sides, the terminal Schur complement and its products, at
+    PRIMAL_SIXTHS_PER_OP, and PRIMAL_CALL_UNITS per call (the bookkeeping). The free
+    form's product -S_FB d_B is what it does: k (n - k) multiply-adds, nt (n - k) for
+    V_B d_B, n for the point, and PRIMAL_CALL_OPS per free row and run of bound inputs
+    (``bound_runs``: sparse_rows_dot() calls packed_range_dot() for each); its
+    multipliers are charged by free_multipliers() (multipliers_work()). The bound form
+    pays 2 n (k + nt) and multipliers_work() for its product over the packed S^-1, whose
+    calls per free row and run of bound inputs its operations alone undercount."""
+    n, nt = named("n", m.n), named("nt", m.nt)
+    factor = named("factor", chol_ops(k) - chol_ops(start) + chol_ops(m.nt))
+    products = named("products", either(bound_form, 2 * n * (k + nt), (k + nt) * (n - k) + n
+                                        + PRIMAL_CALL_OPS * k * bound_runs))
+    loops = named("loops", (k * k - start * start) // 2
+                  + 2 * (nt * (tri_ops(k) - tri_ops(start)) + tri_ops(k)) + nt * nt * k // 2
+                  + 2 * tri_ops(m.nt) + 3 * nt * n + products)
     return ((PRIMAL_SIXTHS_PER_OP[0] * factor + PRIMAL_SIXTHS_PER_OP[1] * loops) // 6
-            + PRIMAL_CALL_UNITS + (multipliers_work(m, nw) if bound_form else 0))
+            + PRIMAL_CALL_UNITS + either(bound_form, multipliers_work(m, nw), 0))
 
 
+@formula()
 def multipliers_work(m, nw: int) -> int:
     """free_multipliers() on nw rows, charged when it runs: a free-form polish computes
     them only at a feasible point, not after every correction."""
     return PRIMAL_SIXTHS_PER_OP[1] * nw * (m.n + m.nt) // 6
 
 
+@formula()
 def primal_reserve(m) -> int:
     """What polish() still spends after a primal solve: its check of every row and
     accept()."""
@@ -195,20 +233,27 @@ def primal_reserve(m) -> int:
 GUESS_SAMPLE_MIN = 8
 
 
+@formula()
 def guess_sample_work(m, rows: int) -> int:
     """guess_reversed() on ``rows`` rows: each multiplier row by row costs about twice one
     from free_multipliers()'s symmetric product on the M4F."""
     return multipliers_work(m, 2 * rows)
 
 
+@formula()
 def trim_work(m, nw: int) -> int:
     """trim_guess() on a guess of nw rows at most: its scans of the guess (twice) and of
     every row."""
     return m.m + 2 * nw
 
 
+@formula()
 def add_step_work(nw: int) -> int:
-    return 2 * tri_work(nw) + 5 * nw + max(delete_work(0, nw), rank_one_work(nw))
+    """One step of add_to_set() on nw rows: two triangular solves, then a row leaves,
+    switches state or joins."""
+    leave = named("leave", delete_work(0, nw))
+    flip = named("flip", rank_one_work(nw))
+    return 2 * tri_work(nw) + 5 * nw + larger(leave, flip)
 
 
 def unconstrained_work(m, summed: int, runs: int, has_outputs: bool) -> int:

@@ -13,9 +13,9 @@ import numpy as np
 
 from ..qp.work import (add_step_work, correct_work, factor_work, hq_work, independent_work,
                        predict_work, scan_work, tri_work)
-from .linalg import chol_ltsolve_packed, seqsum
+from .linalg import chol_ltsolve, seqsum
 from .factor_update import pivot_independent
-from .polish_dual import CHOL_DUAL, COLD_START, OUT_OF_WORK, OUT_OF_WORK_AT_TH0
+from ..solver_codes import CHOL_DUAL, COLD_START, OUT_OF_WORK, OUT_OF_WORK_AT_TH0
 
 
 class ActiveSetMixin:
@@ -59,7 +59,7 @@ class ActiveSetMixin:
             y = np.concatenate((y[:start], hcol[start:]))
             zeta = self.factor_pivot(y, hpp, start)
             d = y.copy()
-            chol_ltsolve_packed(self.chol, nw, d)
+            chol_ltsolve(self.chol, nw, d)
             k, tblock, event = -1, self.zero, 0
             if self.soft:
                 k, tblock, event = self._first_event(W, z, d)
@@ -131,12 +131,12 @@ class ActiveSetMixin:
                     k, tblock, event = i, ratio, ev
         return k, tblock, event
 
-    def resume_working_set(self, lam, th0, K, st, resume):
-        """Mirror of resume_working_set(): the working set ``resume`` where the guess
-        stopped, else the shifted previous one (its first wcap rows), made dual feasible in
-        st (W, z, in_set), its dependent rows leaving if its factor breaks down; returns
-        (its size, 0 to start cold, or OUT_OF_WORK with ``stop``; th)."""
-        W = self.seed_shifted(lam, True) if resume is None else resume
+    def resume_working_set(self, lam, th0, K, st, from_):
+        """Mirror of resume_working_set(): the working set where the guess stopped (``stop``,
+        ``from_`` >= 0 rows), else the shifted previous one (its first wcap rows), made dual
+        feasible in st (W, z, in_set), its dependent rows leaving if its factor breaks
+        down; returns (its size, 0 to start cold, or OUT_OF_WORK with ``stop``; th)."""
+        W = self.stop[0] if from_ >= 0 else self.seed_shifted(lam, True)
         st["in_set"][W] = True
         for _ in range(self.polish_max if W.size else 0):
             st["steps"] += 1
@@ -169,27 +169,25 @@ class ActiveSetMixin:
         self.chol_holds = CHOL_DUAL
         return 0, th0
 
-    def dual_active_set(self, lam, th0, K, gam, resume=None):
-        """Mirror of dual_active_set() (``resume``: the working set where the guess
-        stopped, None, or COLD_START: no warm start): (code 0/1/-1/OUT_OF_WORK/
+    def dual_active_set(self, lam, th0, K, gam, from_=-1):
+        """Mirror of dual_active_set() (``from_``: the rows of ``stop``, where the guess
+        stopped; -1: none; COLD_START: no warm start either): (code 0/1/-1/OUT_OF_WORK/
         OUT_OF_WORK_AT_TH0, th, active, steps + polish its)."""
         md = self.md
-        warm = self.warm and resume is not COLD_START
-        resume = None if resume is COLD_START else resume  # the C's from >= 0 or not
         st = {"W": np.zeros(0, np.int64), "z": np.zeros(0, md.Kx.dtype), "steps": 0, "K": K,
               "gam": gam, "in_set": np.zeros(md.m, bool)}
         th, moved = th0.copy(), False  # moved: th is a corrected point
         if not self.afford((0 if self.out_slacks_ok else md.m + predict_work(md)) + 2 * md.m):
-            if resume is not None:
+            if from_ >= 0:
                 self.keep_progress(lam)  # where the shifted guess stopped
             return OUT_OF_WORK_AT_TH0, th, 0, 0
         self.output_slacks()
         self.work += md.m
-        if resume is None:
+        if from_ < 0:
             self.chol_holds = CHOL_DUAL  # the factor of the empty working set
             self.slack_on[:] = False
-        if resume is not None or warm:
-            nw, th = self.resume_working_set(lam, th0, K, st, resume)
+        if from_ >= 0 or (from_ != COLD_START and self.warm):
+            nw, th = self.resume_working_set(lam, th0, K, st, from_)
             if nw == OUT_OF_WORK:  # lam: the warm start as far as it got
                 self.keep_progress(lam)
                 return OUT_OF_WORK_AT_TH0, th, 0, st["steps"]

@@ -1,9 +1,9 @@
 """NumPy reference of the generated switched controller (``P_step``), op by op.
 
-Mirrors ``templates/controller.c.j2``: the band scheduler with hysteresis (eq. 3
-generalised, :mod:`.band_scheduler`), the predictor
-observers of every mode with their innovations clipped (``observe()``), the QP of the
-active mode (:class:`SolverRef`), first-move extraction and the inactive actuators at 0.
+Mirrors ``templates/controller.c.j2`` (and ``controller/runtime_bounds.c.j2``): the band
+scheduler with hysteresis (eq. 3 generalised, :mod:`.scheduler`), the predictor observers
+of every mode with their innovations clipped (:func:`observe`), the QP of the active mode
+(:class:`SolverRef`), first-move extraction and the inactive actuators at 0.
 """
 from __future__ import annotations
 
@@ -11,9 +11,36 @@ import numpy as np
 
 from ..features import runtime_bounds
 from .scheduler import scheduled_mode
-from ..status import BAD_ARGUMENT, MEASUREMENT_CLIPPED, NONFINITE_INPUT, OPTIMAL
+from ..status import (BAD_ARGUMENT, MEASUREMENT_CLIPPED, NONFINITE_INPUT, OPTIMAL,
+                      UNKNOWN_MESSAGE, Status)
 from .linalg import seqsum
 from .solver import LastPlan, SolverRef
+
+
+def observe(md, x, y, u_phys, use_y) -> int:
+    """Mirror of observe(): one update, each innovation clipped to +-innovation_limit;
+    returns how many were clipped (y - C x may overflow to +-inf, as in the C)."""
+    innov = np.zeros(md.ny, md.Kx.dtype)
+    clipped = 0
+    with np.errstate(over="ignore", invalid="ignore"):
+        for a in range(md.ny):
+            yh = seqsum(md.C[a] * x)
+            if use_y:
+                limit = md.innovation_limit[a]
+                innov[a] = y[a] - yh
+                if innov[a] > limit:
+                    innov[a], clipped = limit, clipped + 1
+                if innov[a] < -limit:
+                    innov[a], clipped = -limit, clipped + 1
+        xn = np.empty(md.nx, md.Kx.dtype)
+        u_mode = u_phys[md.actuator_index]
+        for i in range(md.nx):
+            prods = [md.A[i] * x, md.B[i] * u_mode]
+            if use_y:
+                prods.append(md.L[i] * innov)
+            xn[i] = seqsum(np.concatenate(prods))
+    x[:] = xn
+    return clipped
 
 
 class ControllerRef:
@@ -30,9 +57,10 @@ class ControllerRef:
             # the C stores each threshold -/+ epsilon as one literal computed in double
             self.below = tuple(dt(v) for v in sc["below"])
             self.above = tuple(dt(v) for v in sc["above"])
-        self.reset()
+        self.init()
 
-    def reset(self):
+    def init(self):
+        """Mirror of ``P_init``."""
         self.mode = self.ctx["initial_mode"]
         self.xhat = [np.zeros(md.nx, md.Kx.dtype) for md in self.md]
         for s in self.solvers:
@@ -54,9 +82,8 @@ class ControllerRef:
         """Mode j's solver reads the live bounds, as the C's row_const() derives them."""
         md, b, solver = self.md[j], self.bounds[j], self.solvers[j]
         solver.row_c = np.where(md.signal_rows, md.row_c,  # a signal's bounds are baked in
-                                runtime_bounds.row_constants(md.row_q, md.row_sign, md.n,
-                                                             md.nu, md.ny, dtype=md.Kx.dtype,
-                                                             **b))
+                                runtime_bounds.row_const(md.row_q, md.row_sign, md.n, md.nu,
+                                                         md.ny, dtype=md.Kx.dtype, **b))
         solver.u_min, solver.u_max = b["u_min"], b["u_max"]
 
     def set_bounds(self, mode, u_min, u_max, y_min, y_max):
@@ -77,6 +104,39 @@ class ControllerRef:
             self.hold_for_mode()  # the held command obeys the new input bounds
         return OPTIMAL
 
+    def get_bounds(self, mode):
+        """Mirror of ``P_get_bounds``: (status, a copy of the live bounds or None)."""
+        if not 0 <= mode < len(self.md):
+            return BAD_ARGUMENT, None
+        return OPTIMAL, {k: v.copy() for k, v in self.bounds[mode].items()}
+
+    def status_message(self, status: int) -> str:
+        """Mirror of ``P_status_message``: a code of this build (the run-time bounds' only
+        with runtime_bounds), else the unknown code's message."""
+        known = {int(s): s.message for s in Status
+                 if self.ctx.get("runtime_bounds") or not s.runtime_bounds_only}
+        return known.get(int(status), UNKNOWN_MESSAGE)
+
+    def last_info(self) -> dict:
+        """Mirror of ``P_last_info``: the diagnostics of the last call (P_info's members the
+        reference computes)."""
+        return self.last
+
+    def solve_qp(self, mode, x, r):
+        """Mirror of ``P_solve_qp``: (status, U, iterations); None stands for a NULL
+        pointer."""
+        if not 0 <= mode < len(self.md):
+            return BAD_ARGUMENT, None, 0
+        md = self.md[mode]
+        if x is None or r is None or not (np.all(np.isfinite(x)) and np.all(np.isfinite(r))):
+            self.last["status"] = BAD_ARGUMENT if x is None or r is None else NONFINITE_INPUT
+            return self.last["status"], np.zeros(md.n, md.Kx.dtype), 0
+        solver = self.solvers[mode]
+        status, U, its, pits, active = solver.solve_mode(x, r)
+        self.last.update(status=status, iterations=its, polish_iterations=pits, active=active,
+                         work=solver.work)
+        return status, U, its
+
     def hold_for_mode(self):
         """Mirror of hold_for_mode(): u_last made the active mode's (after P_observe()
         switched the mode it may be another's): its actuators clamped into its live input
@@ -88,15 +148,15 @@ class ControllerRef:
                                            np.where(v > solver.u_max, solver.u_max, v))
         self.u_last = held
 
-    def _schedule(self, s):
+    def schedule(self, s):
         """The mode ``schedule()`` of the C returns for signal ``s`` (no state change)."""
         return scheduled_mode(self.mode, s, self.below, self.above,
                               self.ctx["scheduler"]["band_modes"])
 
-    def _follow_schedule(self, sched):
+    def follow_schedule(self, sched):
         """``follow_schedule()`` of the C: the incoming mode starts cold."""
         if self.ctx["scheduler"] is not None:
-            j = self._schedule(sched[0])
+            j = self.schedule(sched[0])
             if j != self.mode:
                 self.solvers[j].lam[:] = 0
                 self.last_plan.forget()
@@ -113,37 +173,12 @@ class ControllerRef:
             return NONFINITE_INPUT
         use_y = bool(np.all(np.isfinite(y)) and np.all(np.isfinite(sched)))
         if use_y:
-            self._follow_schedule(sched)
-        clipped = sum(self._observe(md, self.xhat[j], y, u, use_y)
+            self.follow_schedule(sched)
+        clipped = sum(observe(md, self.xhat[j], y, u, use_y)
                       for j, md in enumerate(self.md))
         if not use_y:
             return NONFINITE_INPUT
         return MEASUREMENT_CLIPPED if clipped else OPTIMAL
-
-    def _observe(self, md, x, y, u_phys, use_y) -> int:
-        """``observe()``: one update, each innovation clipped to +-innovation_limit;
-        returns how many were clipped (y - C x may overflow to +-inf, as in the C)."""
-        innov = np.zeros(md.ny, md.Kx.dtype)
-        clipped = 0
-        with np.errstate(over="ignore", invalid="ignore"):
-            for a in range(md.ny):
-                yh = seqsum(md.C[a] * x)
-                if use_y:
-                    limit = md.innovation_limit[a]
-                    innov[a] = y[a] - yh
-                    if innov[a] > limit:
-                        innov[a], clipped = limit, clipped + 1
-                    if innov[a] < -limit:
-                        innov[a], clipped = -limit, clipped + 1
-            xn = np.empty(md.nx, md.Kx.dtype)
-            u_mode = u_phys[md.actuator_index]
-            for i in range(md.nx):
-                prods = [md.A[i] * x, md.B[i] * u_mode]
-                if use_y:
-                    prods.append(md.L[i] * innov)
-                xn[i] = seqsum(np.concatenate(prods))
-        x[:] = xn
-        return clipped
 
     def step(self, y, sched, r):
         """Returns (status, u) exactly as ``P_step``."""
@@ -156,14 +191,14 @@ class ControllerRef:
             self.hold_for_mode()
             u = self.u_last.copy()
             for j, md in enumerate(self.md):
-                self._observe(md, self.xhat[j], y, u, False)
+                observe(md, self.xhat[j], y, u, False)
             self.last = {"status": NONFINITE_INPUT, "iterations": 0,
                          "polish_iterations": self.last["polish_iterations"],
                          "active": self.last["active"], "clipped": 0, "work": 0}
             return NONFINITE_INPUT, u
-        self._follow_schedule(sched)
+        self.follow_schedule(sched)
         md = self.md[self.mode]
-        status, U, its, pits, active = self.solvers[self.mode].solve(self.xhat[self.mode], r)
+        status, U, its, pits, active = self.solvers[self.mode].solve_mode(self.xhat[self.mode], r)
         self.U = U
         self.last = {"status": status, "iterations": its, "polish_iterations": pits,
                      "active": active, "work": self.solvers[self.mode].work}
@@ -172,7 +207,7 @@ class ControllerRef:
             self.last.update(slack_max=float(solver.slack_max), slack_rows=solver.slack_rows)
         u = np.zeros(self.ctx["n_actuators"], dt)
         u[md.actuator_index] = U[:md.nu]
-        clipped = sum(self._observe(mdj, self.xhat[j], y, u, True)
+        clipped = sum(observe(mdj, self.xhat[j], y, u, True)
                       for j, mdj in enumerate(self.md))
         self.u_last = u.copy()
         self.last["clipped"] = clipped

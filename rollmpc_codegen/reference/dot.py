@@ -13,7 +13,7 @@ import numpy as np
 from .linalg import seqsum_rows
 
 
-def s_row_dots(M: np.ndarray, rows, x: np.ndarray) -> np.ndarray:
+def s_row_dot(M: np.ndarray, rows, x: np.ndarray) -> np.ndarray:
     """Mirror of ``s_row_dot``, ``sparse_rows_dot`` (either walk: along the rows by
     ``packed_range_dot``/``packed_range_dot2``, or down them by ``packed_columns_axpy``)
     and ``sym_product`` for each q in ``rows``: sum_j M(q, j) x_j in increasing j, from 0."""

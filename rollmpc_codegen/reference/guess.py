@@ -3,7 +3,7 @@
 (:meth:`GuessMixin.trim_guess`).
 
 :class:`GuessMixin` is part of :class:`~.solver.SolverRef`; it reads ``md`` and the free
-form's multipliers (:meth:`~.polish_primal.PrimalPolishMixin.signed_multipliers`).
+form's multipliers (:meth:`~.polish_primal.PrimalPolishMixin.signed_multiplier`).
 """
 from __future__ import annotations
 
@@ -24,7 +24,7 @@ class GuessMixin:
             return False  # the budget keeps what primal_solve() granted polish()
         for a in (nw // 2, 0, nw - 1):
             self.work += guess_sample_work(self.md, 1)
-            if not self.signed_multipliers(W[a:a + 1])[0] < 0:
+            if not self.signed_multiplier(W[a:a + 1])[0] < 0:
                 return False
         return True
 
@@ -42,6 +42,7 @@ class GuessMixin:
         if 4 * kept < 3 * W.size:
             return None
         self.work += md.m  # the rows' scan
-        if factor_order(kept, md.n) >= factor_order(int(np.count_nonzero(K < 0)), md.n):
+        violated = int(np.count_nonzero(self.violated_at_th0(K)))
+        if factor_order(kept, md.n) >= factor_order(violated, md.n):
             return None
         return W[keep]

@@ -23,7 +23,7 @@ def seqsum_rows(P: np.ndarray) -> np.ndarray:
     return np.add.accumulate(np.hstack((head, P)), axis=1)[:, -1]
 
 
-def cholesky_packed(a: np.ndarray, n: int, start: int = 0) -> bool:
+def cholesky_from(a: np.ndarray, n: int, start: int = 0) -> bool:
     """Mirror of ``P_cholesky_from`` (in place on the packed array, rows ``start``..n-1);
     False on a bad pivot."""
     dt = a.dtype
@@ -42,7 +42,12 @@ def cholesky_packed(a: np.ndarray, n: int, start: int = 0) -> bool:
     return True
 
 
-def chol_lsolve_packed(l: np.ndarray, n: int, b: np.ndarray, start: int = 0) -> None:
+def cholesky(a: np.ndarray, n: int) -> bool:
+    """Mirror of ``P_cholesky``: :func:`cholesky_from` row 0."""
+    return cholesky_from(a, n)
+
+
+def chol_lsolve_from(l: np.ndarray, n: int, b: np.ndarray, start: int = 0) -> None:
     """Mirror of ``P_chol_lsolve_from`` (L y = b, in place on b, rows ``start``..n-1; the
     rows above already hold y)."""
     tri = _tri_offsets(n)
@@ -51,7 +56,12 @@ def chol_lsolve_packed(l: np.ndarray, n: int, b: np.ndarray, start: int = 0) -> 
         b[i] = s / l[tri[i] + i]
 
 
-def chol_ltsolve_packed(l: np.ndarray, n: int, b: np.ndarray) -> None:
+def chol_lsolve(l: np.ndarray, n: int, b: np.ndarray) -> None:
+    """Mirror of ``P_chol_lsolve``: :func:`chol_lsolve_from` row 0."""
+    chol_lsolve_from(l, n, b)
+
+
+def chol_ltsolve(l: np.ndarray, n: int, b: np.ndarray) -> None:
     """Mirror of ``P_chol_ltsolve`` (L' x = y, in place on b): each x_i's sum in decreasing
     k, however many rows the C solves in one trip."""
     tri = _tri_offsets(n)
@@ -61,19 +71,19 @@ def chol_ltsolve_packed(l: np.ndarray, n: int, b: np.ndarray) -> None:
         b[i] = s / l[tri[i] + i]
 
 
-def chol_solve_packed(l: np.ndarray, n: int, b: np.ndarray) -> None:
+def chol_solve(l: np.ndarray, n: int, b: np.ndarray) -> None:
     """Mirror of ``P_chol_solve`` (in place on b)."""
-    chol_lsolve_packed(l, n, b)
-    chol_ltsolve_packed(l, n, b)
+    chol_lsolve(l, n, b)
+    chol_ltsolve(l, n, b)
 
 
-def factor_and_solve_packed(a: np.ndarray, n: int, *rhs: np.ndarray) -> bool:
+def factor_and_solve(a: np.ndarray, n: int, *rhs: np.ndarray) -> bool:
     """``P_cholesky`` on a, then ``P_chol_solve`` for each right-hand side in turn (all in
     place); False on a bad pivot."""
-    if not cholesky_packed(a, n):
+    if not cholesky(a, n):
         return False
     for b in rhs:
-        chol_solve_packed(a, n, b)
+        chol_solve(a, n, b)
     return True
 
 

@@ -12,11 +12,16 @@ import numpy as np
 
 from ..qp.work import (append_work, correct_work, delete_work, predict_work,
                        primal_reserve, scan_work, tri_work)
-from .linalg import chol_solve_packed
-from .polish_dual import CHOL_DUAL, GUESS_CAPPED, GUESS_HANDED_OVER, OUT_OF_WORK
+from .linalg import chol_solve
+from ..solver_codes import CHOL_DUAL, GUESS_CAPPED, GUESS_HANDED_OVER, OUT_OF_WORK
 
 
 class PolishMixin:
+    @staticmethod
+    def kept_rows(z):
+        """Mirror of kept_rows(): the working-set rows whose multiplier is not negative."""
+        return int(np.count_nonzero(z >= 0))
+
     @staticmethod
     def given_up(kept, size, guess):
         """Mirror of given_up(): emptied, or a guess losing more than half of its rows."""
@@ -26,7 +31,7 @@ class PolishMixin:
         """Mirror of drop_negative(): (W, z, 0 none dropped / 1 dropped / -1 give up /
         OUT_OF_WORK), the negative rows removed from the last position down (remove_row())."""
         keep = z >= 0
-        kept = int(np.count_nonzero(keep))
+        kept = self.kept_rows(z)
         if kept == W.size:
             return W, z, 0
         if self.given_up(kept, W.size, guess):
@@ -47,7 +52,7 @@ class PolishMixin:
             self.outputs_to_check(th, gam)  # its work; the mirror checks every row
         viol, scale = self.row_excess(th, gam)
         if self.soft:
-            return not np.any(viol[W] - self.slack_in_set(W, z) > self.tol * scale[W])
+            return not np.any(self.violated_in_set(W, z, viol, scale))
         return not np.any((viol > self.tol * scale)[W])
 
     def refine_dual(self, W, z, th0, K, gam, th):
@@ -64,7 +69,7 @@ class PolishMixin:
             if self.soft:
                 e = e - self.slack_in_set(W, z)
             self.work += 2 * tri_work(nw)
-            chol_solve_packed(chol, nw, e)
+            chol_solve(chol, nw, e)
             z = z + e
             if np.any(z < 0):
                 return -1, th, z
@@ -112,7 +117,6 @@ class PolishMixin:
         then (``th`` on entry) and ``stop`` where it stopped (after GUESS_HANDED_OVER: a
         guess' dual-feasible rows, with their factor)."""
         md = self.md
-        n = md.n
         its, known, z = 0, 0, None
         repeatable = guess  # every round so far a dual solve that switched or dropped
         if W.size == 0 or W.size > self.wcap:
@@ -122,7 +126,7 @@ class PolishMixin:
         self.work += md.m
         for _ in range(self.polish_max):
             its += 1
-            if np.all(md.row_q[W] < n):  # box_only()
+            if self.box_only(W):
                 repeatable = False
                 ok, th_p, zp = self.primal_solve(th0, W, primal_reserve(md))
                 if ok == OUT_OF_WORK:
@@ -141,7 +145,7 @@ class PolishMixin:
                     continue
                 if add.size and guess and its == 1:  # the C's early test of a guess
                     zc = zp if zp is not None else self.free_multipliers(W)
-                    if self.given_up(int(np.count_nonzero(zc >= 0)), W.size, True):
+                    if self.given_up(self.kept_rows(zc), W.size, True):
                         return -1, None, 0, its
                 if add.size == 0:
                     if zp is None:

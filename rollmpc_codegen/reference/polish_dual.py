@@ -12,16 +12,9 @@ from __future__ import annotations
 import numpy as np
 
 from ..qp.work import delete_work, factor_work, hq_work, predict_work, tri_work
+from ..solver_codes import CHOL_DUAL, CHOL_NONE, OUT_OF_WORK
 from .factor_update import chol_delete, pivot_independent
-from .linalg import cholesky_packed, chol_lsolve_packed, chol_solve_packed, seqsum
-
-# what ws->chol holds (the C's P_CHOL_NONE / _DUAL / _PRIMAL of internal.h.j2)
-CHOL_NONE, CHOL_DUAL, CHOL_PRIMAL = 0, 1, 2
-OUT_OF_WORK = -2  # the C's: a solver part stopped, the budget cannot afford its next unit
-OUT_OF_WORK_AT_TH0 = -3  # the C's: the dual active set stopped so before a point of its own
-GUESS_CAPPED = -4  # the C's: a guess' polish() that resume_working_set() would repeat
-GUESS_HANDED_OVER = -5  # the C's: a guess' dual-feasible working set (``stop``) goes on
-COLD_START = "cold start"  # the C's dual_active_set() from = COLD_START: no warm start
+from .linalg import cholesky_from, chol_lsolve_from, chol_solve, seqsum
 
 
 class DualPolishMixin:
@@ -39,7 +32,7 @@ class DualPolishMixin:
         on_diagonal = [i * (i + 3) // 2 for i in range(len(W))]  # packed (i, i)
         diag = chol[on_diagonal].copy()
         self.chol_rows = 0
-        ok = cholesky_packed(chol, len(W))
+        ok = cholesky_from(chol, len(W))
         if ok:  # rows above a dependent one do not read it: they stand (chol_rows)
             pivots = chol[on_diagonal]
             weak = np.flatnonzero(~pivot_independent(pivots * pivots, diag, self.dep_tol))
@@ -52,7 +45,7 @@ class DualPolishMixin:
         """Mirror of factor_pivot(): y = L^-1 H_Wp in place (y[:start] solved already),
         returns hpp - y'y; charged as a whole solve."""
         self.work += tri_work(y.size) + y.size
-        chol_lsolve_packed(self.chol, y.size, y, start)
+        chol_lsolve_from(self.chol, y.size, y, start)
         return seqsum(-(y * y), start=hpp)
 
     def factor_append(self, y, zeta):
@@ -119,5 +112,5 @@ class DualPolishMixin:
         if self.chol_holds != CHOL_DUAL and not self.factor_working_set(W):
             return -1, None
         self.work += 2 * tri_work(nw)
-        chol_solve_packed(self.chol, nw, z)
+        chol_solve(self.chol, nw, z)
         return 0, z

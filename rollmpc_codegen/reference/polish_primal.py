@@ -13,12 +13,12 @@ from __future__ import annotations
 
 import numpy as np
 
-from .dot import s_row_dots
-from .linalg import (chol_lsolve_packed, chol_ltsolve_packed, cholesky_packed,
-                     factor_and_solve_packed, seqsum)
+from .dot import s_row_dot
+from .linalg import (chol_lsolve_from, chol_ltsolve, cholesky_from,
+                     factor_and_solve, seqsum)
 from ..qp.work import multipliers_work, primal_work
+from ..solver_codes import CHOL_NONE, CHOL_PRIMAL, OUT_OF_WORK
 from .factor_update import chol_delete
-from .polish_dual import CHOL_NONE, CHOL_PRIMAL, OUT_OF_WORK
 from .primal_rows import BOUND, FREE, PrimalRowsMixin
 
 
@@ -83,7 +83,7 @@ class PrimalPolishMixin(PrimalRowsMixin):
         tri_start = start * (start + 1) // 2
         chol = np.concatenate([kept_l[:tri_start] if start else np.zeros(0, dt)]
                               + [A[idx[a], idx[:a + 1]] for a in range(start, k)])
-        ok = cholesky_packed(chol, k, start)
+        ok = cholesky_from(chol, k, start)
         self.chol_holds = CHOL_PRIMAL if ok else CHOL_NONE  # the C's ws->chol now
         if not ok:
             self.factor_rows = None
@@ -92,7 +92,7 @@ class PrimalPolishMixin(PrimalRowsMixin):
         if start:
             Y[:, :start] = kept_y[:, :start]
         for y in Y:
-            chol_lsolve_packed(chol, k, y, start)
+            chol_lsolve_from(chol, k, y, start)
         self._chol, self._Y, self._idx = chol, Y, idx
         return True
 
@@ -111,7 +111,7 @@ class PrimalPolishMixin(PrimalRowsMixin):
                 acc = seqsum(Y[o] * Y[p])
                 small[o * (o + 1) // 2 + p] = acc + md.P2inv[o, p] if free else md.T[o, p] - acc
             nu[o] = seqsum(np.concatenate((Y[o] * y0, extra(o))) if free else Y[o] * y0)
-        if not factor_and_solve_packed(small, nt, nu):
+        if not factor_and_solve(small, nt, nu):
             return None
         for a in range(y0.size):
             t = Y[:, a] * nu
@@ -123,12 +123,12 @@ class PrimalPolishMixin(PrimalRowsMixin):
         md = self.md
         idx, chol, k = self._idx, self._chol, self._idx.size
         B = np.flatnonzero(bound)
-        rhs = -s_row_dots(self.S, idx, dv)  # dv is 0 on the free inputs here
-        chol_lsolve_packed(chol, k, rhs)
+        rhs = -s_row_dot(self.S, idx, dv)  # dv is 0 on the free inputs here
+        chol_lsolve_from(chol, k, rhs)
         nu = self.terminal_step(rhs, lambda o: md.V[o, B] * dv[B])
         if nu is None:
             return False, None, None
-        chol_ltsolve_packed(chol, k, rhs)
+        chol_ltsolve(chol, k, rhs)
         dv[idx] = rhs
         th[idx] = th0[idx] + rhs
         self._free_state = (dv, nu)
@@ -137,14 +137,14 @@ class PrimalPolishMixin(PrimalRowsMixin):
     def free_multipliers(self, W):
         """Mirror of free_multipliers() for the last free-form solve."""
         self.work += multipliers_work(self.md, W.size)
-        return self.signed_multipliers(W)
+        return self.signed_multiplier(W)
 
-    def signed_multipliers(self, W):
+    def signed_multiplier(self, W):
         """Mirror of signed_multiplier() on each row of W: z = -/+ (S d + V' nu)_q."""
         md = self.md
         dv, nu = self._free_state
         qW = md.row_q[W]
-        g = s_row_dots(self.S, qW, dv)
+        g = s_row_dot(self.S, qW, dv)
         g = np.add.accumulate(np.hstack((g[:, None], md.V[:, qW].T * nu[None, :])), axis=1)[:, -1]
         return np.where(md.row_sign[W] > 0, -g, g)
 
@@ -153,15 +153,15 @@ class PrimalPolishMixin(PrimalRowsMixin):
         md = self.md
         idx, chol, k = self._idx, self._chol, self._idx.size
         beta = dv[idx].copy()
-        chol_lsolve_packed(chol, k, beta)
+        chol_lsolve_from(chol, k, beta)
         nu = self.terminal_step(beta, None)
         if nu is None:
             return False, None, None
-        chol_ltsolve_packed(chol, k, beta)
+        chol_ltsolve(chol, k, beta)
         by_input = np.zeros(md.n, md.Kx.dtype)
         by_input[idx] = beta
         z = np.where(md.row_sign[W] > 0, -by_input[qW], by_input[qW])
         F = np.flatnonzero(~bound)
-        for f, d in zip(F, s_row_dots(self.Sinv, F, by_input)):
+        for f, d in zip(F, s_row_dot(self.Sinv, F, by_input)):
             th[f] = th0[f] + seqsum(-(md.Uv[:, f] * nu), start=d)
         return True, th, z

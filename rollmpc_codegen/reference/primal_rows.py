@@ -50,6 +50,11 @@ def primal_cost(n: int, nt: int, k: int, p: int) -> int:
 class PrimalRowsMixin:
     factor_rows: FactorRows | None = None
 
+    def box_only(self, W):
+        """Mirror of box_only(): does the seed W hold only input bounds (the primal form's
+        working set)?  A seed beyond wcap is the C's -1, no rows: True."""
+        return W.size > self.wcap or bool(np.all(self.md.row_q[W] < self.md.n))
+
     def primal_order(self, bound, form):
         """Mirror of primal_diff() and primal_order(): the rows of the factor in order, the
         factor_rows they make, the first row that changes and, for an update, the previous

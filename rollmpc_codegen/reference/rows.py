@@ -103,13 +103,18 @@ class RowsMixin:
             self.output_slacks()
         return gam, np.where(sg > 0, gam - v, gam + v)
 
+    def tol_scale(self, gam):
+        """Mirror of tol_scale() for every row: max(1, |gamma|), the tolerance's scale."""
+        ag = np.abs(gam)
+        return np.where(ag > self.one, ag, self.one)
+
     def row_excess(self, th, gam):
-        """Mirror of row_excess() and tol_scale() for every row: (M th - gamma, max(1, |gamma|))."""
+        """Mirror of row_excess() for every row, with its tol_scale(): (M th - gamma,
+        max(1, |gamma|))."""
         pv = self.predict_outputs(th) if self.has_pred else None
         v = self.row_value(th, pv)
         sg = self.md.row_sign
-        ag = np.abs(gam)
-        return np.where(sg > 0, v - gam, -v - gam), np.where(ag > self.one, ag, self.one)
+        return np.where(sg > 0, v - gam, -v - gam), self.tol_scale(gam)
 
     def row_violated(self, th, gam):
         """Mirror of row_violated() for every row."""

@@ -1,8 +1,8 @@
 """The scheduling rule of ``P_step`` (k bands with hysteresis, eq. (3) generalised).
 
-One function, shared by the bit-exact mirror of the C (:mod:`.controller_ref`, with the
+One function, shared by the bit-exact mirror of the C (:mod:`.controller`, with the
 thresholds rounded to the storage precision) and the double-precision observer bank
-(:mod:`.switched_observer`).  It performs the comparisons of ``schedule()`` in
+(:mod:`..sim.switched_observer`).  It performs the comparisons of ``schedule()`` in
 ``templates/controller.c.j2`` in the same order.
 
 ``below[i] = t_i - eps_i`` and ``above[i] = t_i + eps_i`` for the k-1 increasing

@@ -9,10 +9,15 @@ from __future__ import annotations
 
 import numpy as np
 
-from .polish_dual import CHOL_DUAL, CHOL_NONE
+from ..solver_codes import CHOL_DUAL, CHOL_NONE
 
 
 class SeedsMixin:
+    @staticmethod
+    def violated_at_th0(K):
+        """Mirror of violated_at_th0() for every row: K < 0 (the C skips the output rows
+        whose K output_slacks() did not form: certified, none of them is violated)."""
+        return K < 0
     def new_working_set(self):
         """Mirror of new_working_set(): a dual factor belongs to the old working set."""
         if self.chol_holds == CHOL_DUAL:
@@ -42,18 +47,18 @@ class SeedsMixin:
         """Mirror of seed_from_violated(): the rows th0 violates (K < 0), all tight."""
         self.new_working_set()
         self.work += self.md.m
-        W = np.flatnonzero(K < 0)
+        W = np.flatnonzero(self.violated_at_th0(K))
         self.slack_on[W] = False
         return W
 
     def violated_resume(self, K):
         """Mirror of violated_resume(): the rows th0 violates, seeded again as the dual
-        active set's start (``stop``: them, none known), or None (the budget, none, or
-        more than wcap: a cold start)."""
+        active set's start (``stop``: them, none known); their count, or -1 (the budget,
+        none, or more than wcap: a cold start)."""
         if not self.afford(self.md.m):
-            return None
+            return -1
         W = self.seed_from_violated(K)
         if W.size == 0 or W.size > self.wcap:
-            return None
+            return -1
         self.stop = (W.copy(), np.zeros(0, self.md.Kx.dtype), 0)
-        return W
+        return W.size

@@ -11,10 +11,10 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..features.soft_constraints import slacks as multiplier_slacks
+from ..features.soft_constraints import multiplier_slack
 from ..qp.work import rank_one_work
 from .factor_update import chol_rank_one
-from .polish_dual import CHOL_DUAL, CHOL_NONE, OUT_OF_WORK
+from ..solver_codes import CHOL_DUAL, CHOL_NONE, OUT_OF_WORK
 
 
 class SoftRowsMixin:
@@ -22,6 +22,11 @@ class SoftRowsMixin:
         """Mirror of slack_in_set() for the working set: (z - l1) w where slack, else 0."""
         sl = (z - self.soft_l1[W]) * self.soft_w[W]
         return np.where(self.slack_on[W], sl, self.zero)
+
+    def violated_in_set(self, W, z, excess, scale):
+        """Mirror of violated_in_set() for the working set W (multipliers z), from the rows'
+        excess and tolerance scale at th (:meth:`row_excess`)."""
+        return excess[W] - self.slack_in_set(W, z) > self.tol * scale[W]
 
     def set_state(self, W, lam_of_W):
         """Mirror of set_state() for rows joining with these multipliers."""
@@ -54,5 +59,5 @@ class SoftRowsMixin:
     def violated_beyond_slack(self, excess, scale, lam):
         """Mirror of violated_beyond_slack() from the rows' excess and tolerance scale at th
         (:meth:`row_excess`): how many exceed the slack of their multiplier."""
-        sl = multiplier_slacks(lam, self.soft_l1, self.soft_w)
+        sl = multiplier_slack(lam, self.soft_l1, self.soft_w)
         return int(np.count_nonzero(excess - sl > self.tol * scale))

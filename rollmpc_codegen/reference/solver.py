@@ -5,8 +5,10 @@ It mirrors ``templates/solver.c.j2``, a module per partial of ``templates/solver
 ``violated_rows``),
 :mod:`.factor_update`, :mod:`.soft_rows`, :mod:`.sweeps`, :mod:`.primal_rows`,
 :mod:`.polish_primal`, :mod:`.polish_dual`, :mod:`.seeds`, :mod:`.guess`, :mod:`.polish`,
-:mod:`.active_set`, and this module for ``qp_solve``; the ``row_const()`` of ``bounds`` is :func:`rollmpc_codegen.features.runtime_bounds.row_constants`, and
-``linalg.c.j2`` is :mod:`.linalg`.  Each method is named after the C function it mirrors.
+:mod:`.active_set`, and this module for ``qp_solve``; ``bounds`` is
+:mod:`rollmpc_codegen.features.runtime_bounds`, ``work`` :mod:`rollmpc_codegen.qp.work`
+and ``linalg.c.j2`` :mod:`.linalg` (:mod:`.mirror` declares the rule and its exceptions).
+Each method is named after the C function it mirrors.
 The reference uses the same storage-precision numbers (from :mod:`rollmpc_codegen.qp.storage`),
 the same loops in the same order, scalars of the storage dtype (float32 where the C uses
 float), and *sequential* sums (:func:`~.linalg.seqsum`, never BLAS or pairwise summation).
@@ -22,7 +24,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..features.move_blocking import next_input_quantity
-from ..features.soft_constraints import slacks as multiplier_slacks
+from ..features.soft_constraints import multiplier_slack
 from ..qp.storage import ModeData
 from ..qp.work import correct_work, finish_work, predict_work, scan_work, sweep_work
 from ..status import INACCURATE, INFEASIBLE, MAX_ITER, NUMERICAL, OPTIMAL, TIME_LIMIT
@@ -30,8 +32,9 @@ from .active_set import ActiveSetMixin
 from .hq import hessian_reads
 from .guess import GuessMixin
 from .polish import PolishMixin
-from .polish_dual import (CHOL_NONE, COLD_START, GUESS_CAPPED, GUESS_HANDED_OVER, OUT_OF_WORK,
-                          OUT_OF_WORK_AT_TH0, DualPolishMixin)
+from ..solver_codes import (CHOL_NONE, COLD_START, GUESS_CAPPED, GUESS_HANDED_OVER, LAMBDA_LIMIT,
+                            OUT_OF_WORK, OUT_OF_WORK_AT_TH0)
+from .polish_dual import DualPolishMixin
 from .polish_primal import PrimalPolishMixin
 from .rows import RowsMixin
 from .seeds import SeedsMixin
@@ -74,7 +77,7 @@ class SolverRef(SignalsMixin, UnconstrainedMixin, RowsMixin, SoftRowsMixin, Swee
         self.tol = dt(s["feasibility_tol"])
         self.max_iter, self.polish_every, self.polish_max = (
             s["max_iterations"], s["polish_every"], s["polish_max"])
-        self.limit = dt(1e30)
+        self.limit = dt(LAMBDA_LIMIT)
         self.active_set = s.get("active_set", False)
         self.active_set_max = s.get("active_set_max", 0)
         self.dep_tol = dt(s.get("dependence_tol", 0.0))
@@ -147,7 +150,7 @@ class SolverRef(SignalsMixin, UnconstrainedMixin, RowsMixin, SoftRowsMixin, Swee
             plan.age = plan.none
         plan.mode = self.mode_index
 
-    def solve(self, x, r):
+    def solve_mode(self, x, r):
         """Mirror of solve_mode(): qp_solve(), then keep_plan()."""
         out = self.qp_solve(x, r)
         self.keep_plan(out[0], out[1])
@@ -167,37 +170,43 @@ class SolverRef(SignalsMixin, UnconstrainedMixin, RowsMixin, SoftRowsMixin, Swee
         if not np.any(K < 0):
             lam[:] = 0
             return self.finish(th0, th0, OPTIMAL) + (0, 0, 0)
-        total, polish_its, active, resume = 0, 0, 0, None
+        total, polish_its, active, resume = 0, 0, 0, -1
         if self.polish_on and self.polish_first:
             # the previous active set shifted one stage (a guess, in the dual form on a third
             # of what the budget has left: the dual active set takes over where it stops),
             # then the rows th0 violates (with a warm start, in the primal form only)
-            warm_rows = 0
-            for guess in ((True, False) if self.warm else (False,)):
+            count = 0  # rows of the warm start (-1: more than the working set holds)
+            if self.warm:
                 if not self.afford(md.m):
                     return self.time_limit_at_th0(th0, False) + (0, polish_its, 0)
-                W = self.seed_shifted(lam) if guess else self.seed_from_violated(K)
-                if guess:
-                    warm_rows = W.size if W.size <= self.wcap else -1
-                    if self.active_set and warm_rows > 0 and not np.all(md.row_q[W] < md.n):
-                        self.work_limit = self.work + (self.budget - self.work) // 3
-                elif warm_rows > 0 and self.active_set and not np.all(md.row_q[W] < md.n):
-                    break
-                code, th_p, act, its = self.polish(W, lam, th0, K, gam, guess)
+                W = self.seed_shifted(lam)
+                count = W.size if W.size <= self.wcap else -1
+                if self.active_set and not self.box_only(W):
+                    self.work_limit = self.work + (self.budget - self.work) // 3
+                code, th_p, act, its = self.polish(W, lam, th0, K, gam, True)
                 self.work_limit = self.budget
                 polish_its += its
                 if code == 0:
                     return self.finish(th_p, th0, OPTIMAL) + (0, polish_its, act)
-                if code == GUESS_HANDED_OVER or (code == OUT_OF_WORK and self.active_set
-                                                 and guess):
-                    resume = self.stop[0]  # the dual active set takes over from there
-                    break
-                if code == OUT_OF_WORK:
-                    return self.time_limit_at_th0(th0, True) + (0, polish_its, 0)
+                if code in (OUT_OF_WORK, GUESS_HANDED_OVER):
+                    if not self.active_set:
+                        return self.time_limit_at_th0(th0, True) + (0, polish_its, 0)
+                    resume = self.stop[0].size  # the dual active set takes over from there
                 if code == GUESS_CAPPED:
                     resume = COLD_START  # resuming the same guess would repeat it
-                if code == -1 and not guess and warm_rows == 0 and self.active_set:
-                    resume = self.violated_resume(K)  # not cold: from the rows th0 violates
+            if resume < 0:
+                if not self.afford(md.m):
+                    return self.time_limit_at_th0(th0, False) + (0, polish_its, 0)
+                W = self.seed_from_violated(K)
+                if count <= 0 or not self.active_set or self.box_only(W):
+                    code, th_p, act, its = self.polish(W, lam, th0, K, gam)
+                    polish_its += its
+                    if code == 0:
+                        return self.finish(th_p, th0, OPTIMAL) + (0, polish_its, act)
+                    if code == OUT_OF_WORK:
+                        return self.time_limit_at_th0(th0, True) + (0, polish_its, 0)
+                    if code == -1 and count == 0 and self.active_set:
+                        resume = self.violated_resume(K)  # not cold: from the rows th0 violates
         if self.active_set:
             code, th_a, act, its = self.dual_active_set(lam, th0, K, gam, resume)
             polish_its += its
@@ -211,14 +220,13 @@ class SolverRef(SignalsMixin, UnconstrainedMixin, RowsMixin, SoftRowsMixin, Swee
         if not self.afford(3 * md.m + md.n + (0 if self.out_slacks_ok else predict_work(md))):
             return self.time_limit_at_th0(th0, False) + (0, polish_its, active)
         self.output_slacks()
+        th = th0
         in_set = (K < self.sigma) if self.reduced else np.ones(md.m, bool)
         if not self.warm:
             lam[:] = 0
         lam[~in_set] = 0
-        S = np.flatnonzero(in_set)  # build_set()
-        self.work += md.m
+        S = self.build_set(in_set)
         status = MAX_ITER
-        th = th0
         while True:
             converged = diverged = out = False
             chunk = self.polish_every if self.polish_on else self.max_iter
@@ -243,9 +251,7 @@ class SolverRef(SignalsMixin, UnconstrainedMixin, RowsMixin, SoftRowsMixin, Swee
             if diverged:
                 status = INFEASIBLE
                 break
-            before = self.work
             th = self.correct(th0, S, lam[S])
-            corrected = self.work - before  # what the C's second correct() charges too
             if self.polish_on:
                 code, th_p, act, its = self.polish(self.seed_from_multipliers(lam, S), lam,
                                                    th0, K, gam)
@@ -257,7 +263,7 @@ class SolverRef(SignalsMixin, UnconstrainedMixin, RowsMixin, SoftRowsMixin, Swee
                                                           + 2 * scan_work(md) + 2 * md.m):
                     th, status = self.fallback_point(th0), TIME_LIMIT
                     break
-                self.work += corrected  # the C corrects again: same th, same cost
+                th = self.correct(th0, S, lam[S])  # the polish overwrote the corrected point
             exc, scale = self.row_excess(th, gam)
             viol = exc > self.tol * scale
             if self.soft:
@@ -281,8 +287,7 @@ class SolverRef(SignalsMixin, UnconstrainedMixin, RowsMixin, SoftRowsMixin, Swee
                 status = INACCURATE
                 break
             if added:
-                S = np.flatnonzero(in_set)
-                self.work += md.m
+                S = self.build_set(in_set)
         if active == 0:
             active = int(np.count_nonzero(lam > 0))
         status, U = self.finish(th, th0, status)
@@ -304,7 +309,7 @@ class SolverRef(SignalsMixin, UnconstrainedMixin, RowsMixin, SoftRowsMixin, Swee
         if status not in (OPTIMAL, TIME_LIMIT):
             self.lam[:] = 0
         if self.soft:  # the plan's slacks (finish()): 0 unless optimal
-            sl = (multiplier_slacks(self.lam, self.soft_l1, self.soft_w) if status == OPTIMAL
+            sl = (multiplier_slack(self.lam, self.soft_l1, self.soft_w) if status == OPTIMAL
                   else np.zeros(0, md.Kx.dtype))
             self.slack_max = sl.max(initial=self.zero)
             self.slack_rows = int(np.count_nonzero(sl > 0))

@@ -1,6 +1,5 @@
 """Mirror of ``templates/solver/sweeps.c.j2``: the corrected point and Hildreth's sweeps.
 
-``build_set()`` is ``np.flatnonzero(in_set)`` in :meth:`~.solver.SolverRef.solve`.
 :class:`SweepsMixin` is part of :class:`~.solver.SolverRef`; it reads ``md``, ``Sinv``,
 ``H``, ``Hdiag``, ``omega``, ``limit``, ``one``, ``zero`` and ``soft_l1``/``soft_w``.
 """
@@ -13,6 +12,10 @@ from .linalg import seqsum
 
 
 class SweepsMixin:
+    def build_set(self, in_set):
+        """Mirror of build_set(): the sorted rows of the sweep set."""
+        self.work += self.md.m
+        return np.flatnonzero(in_set)
     def correct(self, th0, rows, mult):
         """Mirror of correct(): th0 - E^-1 M' mult over the rows with mult > 0, the
         multipliers summed by quantity first (in row order), then E^-1 v column by column

@@ -30,9 +30,9 @@ def output_prediction(md: ModeData) -> tuple[np.ndarray, np.ndarray | None]:
 class UnconstrainedMixin:
     def unconstrained(self, x, r):
         """Mirror of unconstrained(): (th0, the predicted rows' free response or None),
-        th0 summed per run of equal w (see reference_runs()); a new QP, so no primal
-        factor to update yet. The free response is [Phi x; Zx x + Zr r] (signal_free_response();
-        zeros for the outputs of a mode with signal rows only)."""
+        th0 summed per run of equal w (reference_runs(), other_runs()); a new QP, so no
+        primal factor to update yet. The free response is [Phi x; Zx x + Zr r]
+        (signal_free_response(); zeros for the outputs of a mode with signal rows only)."""
         md, ny = self.md, self.md.ny
         self.factor_rows = None
         rr = r.reshape(md.N, ny)
@@ -42,30 +42,43 @@ class UnconstrainedMixin:
             w[k] = seqsum(md.Omega2[stage, a, :] * rr[stage])
         W = w.reshape(md.N, ny)
         last = md.N - 1
-        # reference_runs()
-        starts = [st for st in range(last) if st == 0 or np.any(W[st] != W[st - 1])]
-        bounds = list(zip(starts, starts[1:] + [last]))
-        lengths = [e - b for b, e in bounds]
-        longest = int(np.argmax(lengths)) if lengths else -1
-        self.work += unconstrained_work(md, last - (lengths[longest] if lengths else 0),
-                                        len(starts), self.has_out)
+        runs, longest = self.reference_runs(W)
+        summed = last - (runs[longest][1] - runs[longest][0] if runs else 0)
+        self.work += unconstrained_work(md, summed, len(runs), self.has_out)
         G = md.EinvGt.reshape(md.n, md.N, ny)
         acc = seqsum_rows(md.Kx * x[None, :])
         for a in range(ny):
-            other = np.zeros(md.n, md.Kx.dtype)
-            for j, (b, e) in enumerate(bounds):
-                if j != longest:
-                    s = seqsum_rows(G[:, b:e, a])
-                    acc = acc + W[b, a] * s
-                    other = other + s
+            acc, coef = self.other_runs(acc, G, W, a, runs, longest)
             if longest >= 0:
-                acc = acc + W[bounds[longest][0], a] * (md.colsum[a] - other)
+                acc = acc + W[runs[longest][0], a] * coef
             acc = acc + G[:, last, a] * W[last, a]
         px = seqsum_rows(md.Phi * x[None, :]) if self.has_out else None
         if md.has_signal_rows:
             px = np.concatenate((np.zeros(md.n_yq, md.Kx.dtype) if px is None else px,
                                  self.signal_free_response(x, r)))
         return acc, px
+
+    @staticmethod
+    def reference_runs(W):
+        """Mirror of reference_runs(): the runs of equal w (rows of W by stage) over the
+        stages 0..N-2 as (first stage, end stage) pairs, and the first longest (-1: none)."""
+        last = W.shape[0] - 1
+        starts = [st for st in range(last) if st == 0 or np.any(W[st] != W[st - 1])]
+        runs = list(zip(starts, starts[1:] + [last]))
+        lengths = [e - b for b, e in runs]
+        return runs, (int(np.argmax(lengths)) if lengths else -1)
+
+    def other_runs(self, acc, G, W, a, runs, longest):
+        """Mirror of other_runs() for output a: (th0 so far plus w_j s_j over every run j but
+        the longest, in run order; the longest run's column sums colsum_a - sum_j s_j),
+        s_j the sums of E^-1 G' (``G``: by input, stage and output) over run j."""
+        other = np.zeros(self.md.n, self.md.Kx.dtype)
+        for j, (b, e) in enumerate(runs):
+            if j != longest:
+                s = seqsum_rows(G[:, b:e, a])
+                acc = acc + W[b, a] * s
+                other = other + s
+        return acc, self.md.colsum[a] - other
 
     def predict_outputs(self, th):
         """Mirror of predict_outputs(): Gamma th (Gamma T th with move blocking) for the

@@ -36,7 +36,7 @@ class SwitchedObserver:
         self.xhat = [np.zeros(A.shape[0]) for A in self.A]
 
     def schedule(self, sched) -> int:
-        """The band rule of :mod:`.band_scheduler` (firmly inside a band -> its mode,
+        """The band rule of :mod:`..reference.scheduler` (firmly inside a band -> its mode,
         within a threshold's margin -> keep the current mode), in double.  Returns (and
         keeps) the active mode."""
         sc = self.ctx["scheduler"]

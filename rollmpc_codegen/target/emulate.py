@@ -1,6 +1,6 @@
 """Run functions of a Cortex-M4F image on Unicorn and count instructions and cycles.
 
-Recipe (shared/notes/mcu-cycle-counting.md): ``Uc(ARM, THUMB | MCLASS)`` with the
+Recipe: ``Uc(ARM, THUMB | MCLASS)`` with the
 Cortex-M4 CPU model; flash and RAM mapped where the image is linked; every PT_LOAD
 segment written at its run address (``.data`` already initialised, ``.bss`` zero); a
 ``b .`` at a return address in LR; run until PC reaches it.

@@ -186,7 +186,7 @@ def measure(model, ctx: dict, build_root: Path, *, plan: FlightPlan = FlightPlan
              "host_solve_us": round(record.info[k]["solve_ticks"] / 1000.0, 1)}
             for k in sorted(worst_run.hard, key=lambda k: -counts[k].cycles)],
         "cycle_model": "Cortex-M4 TRM weights, zero wait states, taken branch +2 "
-                       "(shared/notes/mcu-cycle-counting.md); treat as +/-20 %",
+                       "(target/emulate.py); treat as +/-20 %",
     }
     if plan.flights:
         report["flights"] = [f.summary() for f in runs]

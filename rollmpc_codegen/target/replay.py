@@ -24,13 +24,13 @@ from pathlib import Path
 import numpy as np
 
 from ..host.build import build_host_controller, c_values
+from ..info_struct import COMPARED_FIELDS
 from ..sim.scenario import scenario_reference
 from ..sim.simulate import run_closed_loop, start_phase
 from .emulate import CortexM4
 
 # the diagnostics compared per step, in the order of the harness' {prefix}_target_info
-INFO_FIELDS = ("status", "mode", "iterations", "polish_iterations", "active", "mode_switches",
-               "clipped", "work")
+INFO_FIELDS = COMPARED_FIELDS
 
 
 @dataclass

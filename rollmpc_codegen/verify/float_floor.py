@@ -6,7 +6,7 @@ solver doing its arithmetic exactly would then solve a slightly different QP; th
 
     floor = max|U_s - U*| / max(1, max|U*|)
 
-with U* the extended-precision solution of the design's QP (:mod:`.exact_qp`) and U_s what
+with U* the extended-precision solution of the design's QP (:mod:`..qp.exact`) and U_s what
 our own solver returns, in *double* arithmetic, on the float build's stored numbers (every
 float array widened exactly to double).  Double arithmetic adds ~1e-16 cond(E), far below
 the float rounding it measures.  No float solver can be expected to beat the floor; when it
@@ -43,7 +43,7 @@ def widened(md: ModeData) -> ModeData:
 def stored_data_floor(md_float: ModeData, double_solver_ctx: dict, x, r,
                       U_exact: np.ndarray) -> tuple[int, float]:
     """(status, floor) of one QP, solved cold; floor is NaN unless the status is OPTIMAL."""
-    status, U, *_ = SolverRef(widened(md_float), double_solver_ctx).solve(
+    status, U, *_ = SolverRef(widened(md_float), double_solver_ctx).solve_mode(
         np.asarray(x, np.float64), np.asarray(r, np.float64))
     if status != OPTIMAL:
         return int(status), float("nan")

@@ -1,21 +1,22 @@
 """cppcheck with its MISRA C 2012 addon over generated C, checked against deviations.
 
 ``cppcheck --addon=misra`` reports rule numbers (the rule texts are licensed, so the
-messages are generic).  Every finding must be covered by a recorded deviation: a line
-of the deviation file naming the rule, the generated files it applies to (a glob on the
-file name without the prefix, e.g. ``_solver.c``, or ``*``), a classification and the
-reason.  cppcheck's own warnings (``--enable=warning,portability``) have no deviations:
+messages are generic).  Every finding must be covered by a recorded deviation
+(:data:`rollmpc_codegen.codegen.misra_deviations.DEVIATIONS`, which the generated README
+lists): the rule, the generated files it applies to (a glob on the file name without the
+prefix, e.g. ``_solver.c``, or ``*``), a classification and the reason.  cppcheck's own warnings (``--enable=warning,portability``) have no deviations:
 any of them fails the check.  A finding nobody has justified is "unjustified": the
 check fails on it, so a template change that introduces a new kind of finding must
 either fix it or add a reasoned deviation.
 """
 from __future__ import annotations
 
-import fnmatch
 import re
 import subprocess
 from dataclasses import dataclass
 from pathlib import Path
+
+from ..codegen.misra_deviations import DEVIATIONS
 
 TEMPLATE = "{file}\t{line}\t{severity}\t{id}\t{message}"
 
@@ -31,18 +32,6 @@ class Finding:
     @property
     def misra(self) -> bool:
         return re.fullmatch(r"\d+\.\d+", self.rule) is not None
-
-
-@dataclass(frozen=True)
-class Deviation:
-    rule: str
-    files: str  # glob on the file name with the prefix removed ("_solver.c", "*")
-    kind: str  # "advisory" | "required" | "false-positive"
-    reason: str
-
-    def covers(self, f: Finding, prefix: str) -> bool:
-        name = f.file[len(prefix):] if f.file.startswith(prefix) else f.file
-        return f.rule == self.rule and fnmatch.fnmatch(name, self.files)
 
 
 def run_cppcheck(src_dir: Path, cppcheck: str = "cppcheck", jobs: int = 1) -> list[Finding]:
@@ -66,20 +55,11 @@ def run_cppcheck(src_dir: Path, cppcheck: str = "cppcheck", jobs: int = 1) -> li
     return findings
 
 
-def load_deviations(path: Path) -> list[Deviation]:
-    """``rule | files | kind | reason`` lines; a line starting with ``#`` is a comment."""
-    out = []
-    for raw in Path(path).read_text().splitlines():
-        line = raw.strip()
-        if not line or line.startswith("#"):
-            continue
-        rule, files, kind, reason = (p.strip() for p in line.split("|", 3))
-        out.append(Deviation(rule, files, kind, reason))
-    return out
-
-
-def unjustified(findings: list[Finding], deviations: list[Deviation], prefix: str) -> list[Finding]:
-    return [f for f in findings if not any(d.covers(f, prefix) for d in deviations)]
+def unjustified(findings: list[Finding], prefix: str,
+                deviations=DEVIATIONS) -> list[Finding]:
+    """The findings no deviation covers."""
+    return [f for f in findings
+            if not any(d.covers(f.rule, f.file, prefix) for d in deviations)]
 
 
 def by_rule(findings: list[Finding]) -> dict[str, int]:

@@ -12,7 +12,7 @@
   under ASan+UBSan, and the test-vector program under valgrind, both precisions;
 * ``stack``: worst stack path per entry point (GCC -fstack-usage), host and Cortex-M4F;
 * ``misra``: cppcheck + MISRA addon findings per rule on generated/, and how many are
-  not covered by tests/data/misra_deviations.txt;
+  not covered by rollmpc_codegen/codegen/misra_deviations.py;
 * ``spikes``: one huge but finite measurement in the closed loop of three examples, and the
   samples to recovery (:mod:`rollmpc_codegen.verify.spike_recovery`).
 
@@ -37,6 +37,7 @@ from .spike_recovery import measure_spikes
 from ..host.programs import (SANITIZE, SOAK_SUMMARY, VALGRIND_BUILD, VECTORS_SUMMARY,
                             compile_program, run_program, write_soak_program)
 from ..sim.simulate import progress_printer
+from ..status import STATUS_NAMES
 
 ROOT = Path(__file__).resolve().parents[2]
 UAV = ROOT / "examples" / "uav_roll.yaml"
@@ -81,7 +82,7 @@ def measure_memory(work: Path, soak_steps: int = 100_000) -> dict:
         counts = run.counts(SOAK_SUMMARY)
         out[f"soak_asan_ubsan_{prec}"] = {
             "steps": counts[0] if counts else 0, "faults": counts[1] if counts else 0,
-            "statuses": list(counts[2:-1]) if counts else [],
+            "statuses": dict(zip(STATUS_NAMES.values(), counts[2:-1])) if counts else {},
             "violations": counts[-1] if counts else -1,
             "sanitizer_reports": run.sanitizer_reports, "seconds": round(time.time() - t0, 1)}
     return out
@@ -111,13 +112,13 @@ def measure_stack(work: Path) -> dict:
 
 
 def measure_misra(work: Path) -> dict:
-    from .misra import by_rule, load_deviations, run_cppcheck, unjustified
+    from ..codegen.misra_deviations import DEVIATIONS
+    from .misra import by_rule, run_cppcheck, unjustified
 
-    devs = load_deviations(ROOT / "tests" / "data" / "misra_deviations.txt")
-    out: dict = {"deviations": len(devs)}
+    out: dict = {"deviations": len(DEVIATIONS)}
     for tree in ("uav_roll_f32", "uav_roll"):
         findings = run_cppcheck(ROOT / "generated" / tree)
-        bad = unjustified(findings, devs, "rollmpc")
+        bad = unjustified(findings, "rollmpc")
         out[tree] = {"findings": len(findings), "by_rule": by_rule(findings),
                      "unjustified": len(bad),
                      "unjustified_list": [f"{f.file}:{f.line}: {f.rule}" for f in bad]}

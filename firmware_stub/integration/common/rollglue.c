@@ -186,6 +186,8 @@ static void track(rollglue *g, const rollglue_input *in, uint32_t faults)
     if (applied_deflections(g, in, u)) {
         status = ROLLGLUE_FN(_observe)(&g->mpc, y, sched, u);
     }
+    /* only a sample the observers took whole counts: a clipped innovation
+     * (MEASUREMENT_CLIPPED) restarts the warm-up */
     if (status == ROLLGLUE_K(_OPTIMAL)) {
         g->tm.warm_samples = (uint16_t)(g->tm.warm_samples + (g->tm.warm_samples < UINT16_MAX));
     } else {
@@ -231,7 +233,7 @@ static int solve(rollglue *g, const rollglue_input *in, rollglue_output *out)
     for (a = 0; a < ROLLGLUE_N_ACT; ++a) {
         finite = finite && isfinite(u[a]);
     }
-    if (g->tm.status != ROLLGLUE_K(_OPTIMAL) || !finite) {
+    if (!ROLLGLUE_K(_STATUS_PLAN_USABLE)(g->tm.status) || !finite) {
         return 0;
     }
     for (a = 0; a < ROLLGLUE_N_ACT; ++a) {
