@@ -48,10 +48,11 @@ def _beyond(cfg: ControllerConfig, y_beyond: dict) -> str:
 
 
 def infeasible_check(cfg: ControllerConfig, statuses: np.ndarray, modes: np.ndarray,
-                     y_beyond: dict) -> list[DesignWarning]:
+                     y_beyond: dict, keys=None) -> list[DesignWarning]:
     """``infeasible_samples``, or without them ``hard_bound_passed`` (module docstring):
     ``statuses`` and ``modes`` per sample, ``y_beyond`` how far each output passed a hard
-    bound (metrics.constraint_violations)."""
+    bound (metrics.constraint_violations); ``keys`` (a Counter, sim/infeasible_rows.py):
+    the constraints the infeasible samples' QPs could not meet, by config key."""
     bad = np.asarray(statuses) == INFEASIBLE
     far = _beyond(cfg, y_beyond)
     if not bad.any():
@@ -67,23 +68,43 @@ def infeasible_check(cfg: ControllerConfig, statuses: np.ndarray, modes: np.ndar
     counts = np.bincount(np.asarray(modes)[bad], minlength=len(cfg.modes))
     j = int(counts.argmax())
     passed = f", and the outputs passed them by up to {far}" if far else ""
+    keys = keys or {}
+    signal = [k for k in keys if ".constraints." in k]
+    if signal:  # a constraint beyond the bounds: soften it where it is declared
+        return [DesignWarning(
+            "infeasible_samples", max(signal, key=keys.get),
+            f"{int(bad.sum())} of {bad.size} samples ({100 * bad.mean():.1f} %) were "
+            f"INFEASIBLE{passed}: no input within its bounds met {_named(keys)}; an "
+            "INFEASIBLE command keeps the input bounds only. Make it soft (soft: {l1, l2}), "
+            "or start it where the input reaches it (stages) (docs/features.md, \"General "
+            "constraints\")")]
+    which = f" (the QPs could not meet {_named(keys)})" if keys else ""
     return [DesignWarning(
         "infeasible_samples", f"modes[{j}].bounds.soft",
         f"{int(bad.sum())} of {bad.size} samples ({100 * bad.mean():.1f} %) were INFEASIBLE "
         f"(most in modes[{j}] {cfg.modes[j].name}): no input within its bounds met the hard "
-        f"output bounds from where noise, disturbance or mismatch took the plant{passed}; "
-        "an INFEASIBLE command keeps the input bounds only. Make the output bounds soft, e.g. "
-        f"{_soft_hint(cfg, j)} (docs/features.md, \"Soft output bounds\")")]
+        f"output bounds from where noise, disturbance or mismatch took the plant{passed}"
+        f"{which}; an INFEASIBLE command keeps the input bounds only. Make the output bounds "
+        f"soft, e.g. {_soft_hint(cfg, j)} (docs/features.md, \"Soft output bounds\")")]
+
+
+def _named(keys) -> str:
+    """``a (5 of the diagnosed samples), b (2)``: the keys, most often broken first."""
+    items = sorted(keys.items(), key=lambda kv: (-kv[1], kv[0]))
+    return ", ".join(f"{k} ({n} of the diagnosed samples)" if i == 0 else f"{k} ({n})"
+                     for i, (k, n) in enumerate(items))
 
 
 def scenario_checks(cfg: ControllerConfig, summary: dict, statuses: np.ndarray,
-                    modes: np.ndarray, design: list[DesignWarning]) -> list[DesignWarning]:
+                    modes: np.ndarray, design: list[DesignWarning],
+                    infeasible_keys=None) -> list[DesignWarning]:
     """Every warning of one closed loop (``summary``: metrics.summarize's), then the
-    design's (qp/sanity.py)."""
+    design's (qp/sanity.py); ``infeasible_keys``: infeasible_check's ``keys``."""
     found = [DesignWarning("short_segment", "simulation.reference.segment", text)
              for text in summary["warnings"]]
     found += time_limit_check(summary["status_counts"], summary["samples"],
                               summary["longest_time_limit_run"], cfg.horizon)
     found += infeasible_check(cfg, statuses, modes,
-                              summary["constraint_violations"]["y_max_beyond"])
+                              summary["constraint_violations"]["y_max_beyond"],
+                              infeasible_keys)
     return found + list(design)

@@ -18,6 +18,7 @@ from ..host.build import build_host_controller
 from ..pipeline import config_label, load_model
 from ..qp.sanity import design_warnings
 from .metrics import summarize, work_stats
+from .infeasible_rows import infeasible_keys
 from .run_checks import scenario_checks
 from .scenario import plant_mismatch, scenario_reference
 from .simulate import ClosedLoopLog, run_closed_loop, start_phase
@@ -80,7 +81,8 @@ def run_scenario(config, *, precision: str | None = None,
 
         base_log = run(LqrController(model, ctx), "LQR baseline")
         summary["baseline"] = {"kind": "lqr_saturated", **summarize(cfg, base_log)}
-    found = scenario_checks(cfg, summary, log.status, log.mode, design)
+    found = scenario_checks(cfg, summary, log.status, log.mode, design,
+                            infeasible_keys(model, ctx, log, scenario_reference(cfg)))
     summary["checks"] = [w.as_dict() for w in found]
     return ScenarioRun(config=cfg, ctx=ctx, log=log, summary=summary, baseline_log=base_log,
                        warnings=found)
