@@ -88,7 +88,7 @@ def test_the_predicted_units_are_what_the_solver_charges_without_active_bounds(p
     charged = []
     for mm in model.modes:
         solver = SolverRef(mm.data, ctx["solver"])
-        assert solver.solve(np.zeros(mm.plant.nx), np.zeros(cfg.horizon * cfg.n_outputs))[0] == 0
+        assert solver.solve_mode(np.zeros(mm.plant.nx), np.zeros(cfg.horizon * cfg.n_outputs))[0] == 0
         charged.append(solver.work)
     assert predict(cfg).step_units == max(charged)
 
