@@ -89,7 +89,7 @@ def build_context(model: ControllerModel) -> dict:
             entry["blocks"] = list(mm.qp.blocks or (1,) * cfg.horizon)
     if cfg.runtime_bounds:  # the output bounds P_init gives the instance (None: unbounded)
         for entry, mode_cfg in zip(modes, cfg.modes):
-            entry.update(context_bounds(mode_cfg))
+            entry.update(context_bounds(mode_cfg, features.get("has_signal_rows", False)))
     sched = None
     if cfg.scheduler is not None:
         sc = cfg.scheduler
@@ -157,7 +157,8 @@ def build_context(model: ControllerModel) -> dict:
             "n_max": n_max, "m_max": max(m["m"] for m in modes),
             "nyq_max": max(m["nyq"] for m in modes),
             "nt_max": max(m["nt"] for m in modes),
-            **({"nzq_max": max(m["nzq"] for m in modes)}
+            **({"nzq_max": max(m["nzq"] for m in modes),
+                "nsig_live_max": max(max(m["nsig_live"] for m in modes), 1)}
                if features.get("has_signal_rows") else {}),
             "w_max": w_max, "chol_max": lengths["chol"],
             "wset_max": lengths["wset"], "tmp_max": lengths["tmp"],

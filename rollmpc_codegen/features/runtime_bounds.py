@@ -26,15 +26,21 @@ import numpy as np
 
 from ..status import BAD_ARGUMENT, BAD_BOUNDS, BOUND_NOT_CONFIGURED, OPTIMAL
 
-__all__ = ["check_bounds", "config_bounds", "context_bounds", "row_const"]
+__all__ = ["check_bounds", "check_signal_bounds", "config_bounds", "context_bounds", "row_const"]
 
 
-def context_bounds(mode_cfg) -> dict:
-    """The output bounds of one mode for the render context (JSON: None = unbounded)."""
+def context_bounds(mode_cfg, signals: bool = False) -> dict:
+    """The output bounds of one mode for the render context (JSON: None = unbounded);
+    with ``signals`` (a build with signal rows) also its constrained signals' (z_min,
+    z_max: constraints.signals and .mixed, in order; a terminal set's are baked in)."""
     def finite_or_none(v):
         return [float(x) if math.isfinite(x) else None for x in v]
 
-    return {"y_min": finite_or_none(mode_cfg.y_min), "y_max": finite_or_none(mode_cfg.y_max)}
+    out = {"y_min": finite_or_none(mode_cfg.y_min), "y_max": finite_or_none(mode_cfg.y_max)}
+    if signals:
+        out |= {"z_min": finite_or_none([s.lo for s in mode_cfg.signals]),
+                "z_max": finite_or_none([s.hi for s in mode_cfg.signals])}
+    return out
 
 
 def config_bounds(mode_ctx: dict, dtype) -> dict:
@@ -42,8 +48,12 @@ def config_bounds(mode_ctx: dict, dtype) -> dict:
     def vec(values, unbounded):
         return np.array([unbounded if v is None else v for v in values], dtype=dtype)
 
-    return {"u_min": np.asarray(mode_ctx["u_min"], dtype), "u_max": np.asarray(mode_ctx["u_max"], dtype),
-            "y_min": vec(mode_ctx["y_min"], -np.inf), "y_max": vec(mode_ctx["y_max"], np.inf)}
+    out = {"u_min": np.asarray(mode_ctx["u_min"], dtype),
+           "u_max": np.asarray(mode_ctx["u_max"], dtype),
+           "y_min": vec(mode_ctx["y_min"], -np.inf), "y_max": vec(mode_ctx["y_max"], np.inf)}
+    if "z_min" in mode_ctx:  # a build with signal rows
+        out |= {"z_min": vec(mode_ctx["z_min"], -np.inf), "z_max": vec(mode_ctx["z_max"], np.inf)}
+    return out
 
 
 def output_bound_status(configured, value, upper: bool) -> int:
@@ -77,6 +87,22 @@ def check_bounds(configured: dict, u_min, u_max, y_min, y_max) -> int:
     return OPTIMAL
 
 
+def check_signal_bounds(configured: dict, z_min, z_max) -> int:
+    """Status of ``P_set_signal_bounds()``: each signal as an output bound is checked
+    (lower, upper, lower <= upper: a signal may be held at a value)."""
+    if z_min is None or z_max is None:
+        return BAD_ARGUMENT
+    for a, (lo, hi) in enumerate(zip(z_min, z_max)):
+        status = output_bound_status(configured["z_min"][a], lo, False)
+        if status == OPTIMAL:
+            status = output_bound_status(configured["z_max"][a], hi, True)
+        if status == OPTIMAL and not lo <= hi:
+            status = BAD_BOUNDS
+        if status != OPTIMAL:
+            return status
+    return OPTIMAL
+
+
 def row_const(row_q, row_sign, n: int, nu: int, ny: int, u_min, u_max, y_min, y_max,
                   dtype=np.float64) -> np.ndarray:
     """c of eq. (6) for the given bounds: u_max / -u_min of input U_q (bound q mod nu),
@@ -86,3 +112,23 @@ def row_const(row_q, row_sign, n: int, nu: int, ny: int, u_min, u_max, y_min, y_
     hi = np.concatenate((np.asarray(u_max, dtype), np.asarray(y_max, dtype)))
     idx = np.where(row_q < n, row_q % nu, nu + (row_q - n) % ny)
     return np.where(row_sign > 0, hi[idx], -lo[idx]).astype(dtype)
+
+
+def signal_row_const(md, z_min, z_max) -> np.ndarray:
+    """c of every row as ``row_const()`` derives a signal row's: z_max / -z_min of the
+    quantity's signal when it takes run-time bounds (the first nsig_live), else the baked
+    c (a terminal facet); the other rows' baked c (row_const() gives theirs)."""
+    c = md.row_c.copy()
+    sig = np.flatnonzero(md.signal_rows)
+    if sig.size == 0:
+        return c
+    j = md.z_sig[md.row_q[sig] - (2 * md.n + md.n_yq)]
+    live = j < md.nsig_live
+    lo = np.asarray(z_min, c.dtype)
+    hi = np.asarray(z_max, c.dtype)
+    jj = np.minimum(j, max(md.nsig_live - 1, 0))
+    value = np.where(md.row_sign[sig] > 0, hi[jj] if hi.size else c[sig],
+                     -lo[jj] if lo.size else c[sig])
+    c[sig] = np.where(live, value, c[sig])
+    return c
+

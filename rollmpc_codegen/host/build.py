@@ -93,7 +93,9 @@ class HostController:
         obj._fn = {name: getattr(lib, f"{obj.prefix}_{name}") for name in
                    ("ctrl_size", "init", "step", "observe", "solve_qp", "last_info",
                     "status_message")
-                   + (("set_bounds", "get_bounds") if ctx.get("runtime_bounds") else ())}
+                   + (("set_bounds", "get_bounds") if ctx.get("runtime_bounds") else ())
+                   + (("set_signal_bounds", "get_signal_bounds")
+                      if ctx.get("runtime_bounds") and ctx.get("has_signal_rows") else ())}
         obj.ctrl = ffi.new("char[]", obj._fn["ctrl_size"]())
         obj.u = np.zeros(ctx["n_actuators"], obj.dtype)
         obj.init()
@@ -158,6 +160,19 @@ class HostController:
                "y_max": np.zeros(self.ctx["n_outputs"], self.dtype)}
         status = self._fn["get_bounds"](self.ctrl, mode, *(self._ptr(v) for v in out.values()))
         return status, out
+
+    def set_signal_bounds(self, mode: int, z_min, z_max) -> int:
+        """``P_set_signal_bounds`` (run-time bounds with signal rows); None passes NULL."""
+        ptrs = [self._bound_ptr(v) for v in (z_min, z_max)]
+        return self._fn["set_signal_bounds"](self.ctrl, mode, *(p for p, _ in ptrs))
+
+    def get_signal_bounds(self, mode: int) -> tuple[int, dict]:
+        """``P_get_signal_bounds``: (status, {z_min, z_max}) of one mode."""
+        live = self.ctx["modes"][mode]["nsig_live"] if 0 <= mode < len(self.ctx["modes"]) else 1
+        out = {k: np.zeros(max(live, 1), self.dtype) for k in ("z_min", "z_max")}
+        status = self._fn["get_signal_bounds"](self.ctrl, mode,
+                                               *(self._ptr(v) for v in out.values()))
+        return status, {k: v[:live] for k, v in out.items()}
 
     def info(self) -> dict:
         """``P_last_info()``: every member of P_info by name (info_struct.py)."""

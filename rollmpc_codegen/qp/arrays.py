@@ -100,6 +100,9 @@ MODE_SIZES = (
     StoredSize("nzq", "Signal quantities: (signal, time) pairs with rows (0: none).",
                feature="has_signal_rows"),
     StoredSize("nsig", "Constrained signals (general constraints).", feature="has_signal_rows"),
+    StoredSize("nsig_live", "The first nsig_live of them take run-time bounds (the constrained "
+               "signals and mixed rows; a terminal set's facets are baked in).",
+               feature="has_signal_rows"),
     StoredSize("z_pred_ops", "Multiply-adds of predict_signals(): the work it is charged.",
                feature="has_signal_rows"),
 )

@@ -22,6 +22,7 @@ def signal_storage(qp: CondensedQP, EinvGt: np.ndarray | None, cast, dt) -> dict
     markov = cast(signal_rows.lag_descending(block.markov))
     soft = np.array([[s.soft_l1, s.soft_l2] for s in block.signals])  # (nsig, 2, 2)
     out = {"nzq": block.nzq, "nsig": len(block.signals),
+           "nsig_live": sum(s.source != "terminal" for s in block.signals),
            "z_pred_ops": int(np.sum((block.stage + 1) * nu)),
            "z_markov": markov, "z_sig": block.sig.astype(np.int32),
            "z_stage": block.stage.astype(np.int32), "Zx": cast(block.Zx),

@@ -56,6 +56,7 @@ class ModeSizes:
     # are known only once it is computed, and left out
     nzq: int = 0
     nsig: int = 0
+    nsig_live: int = 0
     z_pred_ops: int = 0
     has_signal_reference: bool = False
     has_soft_signal_rows: bool = False
@@ -119,7 +120,7 @@ def signal_sizes(mode: ModeConfig, N: int, nu: int, nxp: int) -> dict:
     nzq = sum(last - first + 1 for first, last, _, _ in times)
     ops = sum((k + (1 if feed else 0)) * nu for first, last, feed, _ in times
               for k in range(first, last + 1))
-    return {"nzq": nzq, "nsig": len(times), "z_pred_ops": ops,
+    return {"nzq": nzq, "nsig": len(times), "nsig_live": len(mode.signals), "z_pred_ops": ops,
             "has_signal_reference": t is not None,
             "has_soft_signal_rows": any(soft for *_, soft in times),
             "terminal_rows": terminal_rows,
@@ -185,7 +186,8 @@ def struct_bytes(cfg: ControllerConfig, sizes: tuple[ModeSizes, ...],
              + k * (nx + m) + len(cfg.actuators) + n  # xhat, lam, u_last, U
              + 2 * top["nzq"])  # the signals' prediction and free response
     if cfg.runtime_bounds:  # the live bounds of every mode, and the solver's copy
-        reals += (k + 1) * 2 * (top["nu"] + ny)
+        live = max(s.nsig_live for s in sizes)
+        reals += (k + 1) * 2 * (top["nu"] + ny + (max(live, 1) if top["nzq"] else 0))
     # run, set, wset, tmp, and plan_mode and plan_age
     int16s = cfg.horizon + 1 + m + lengths["wset"] + lengths["tmp"] + 2
     bytes_ = m + n + (m if features_of(cfg)["has_soft_rows"] else 0)

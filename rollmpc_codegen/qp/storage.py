@@ -117,6 +117,7 @@ class ModeData:
     # general constraints (features/signals.py): the signal quantities; 0 / None without
     nzq: int = 0  # (signal, time) quantities
     nsig: int = 0  # scalar signals
+    nsig_live: int = 0  # the first of them, those of constraints.signals and .mixed
     z_pred_ops: int = 0  # multiply-adds of predict_signals()
     z_markov: np.ndarray | None = None
     z_sig: np.ndarray | None = None

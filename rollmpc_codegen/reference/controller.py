@@ -81,9 +81,12 @@ class ControllerRef:
     def _apply_bounds(self, j):
         """Mode j's solver reads the live bounds, as the C's row_const() derives them."""
         md, b, solver = self.md[j], self.bounds[j], self.solvers[j]
-        solver.row_c = np.where(md.signal_rows, md.row_c,  # a signal's bounds are baked in
-                                runtime_bounds.row_const(md.row_q, md.row_sign, md.n, md.nu,
-                                                         md.ny, dtype=md.Kx.dtype, **b))
+        plain = {k: b[k] for k in ("u_min", "u_max", "y_min", "y_max")}
+        solver.row_c = runtime_bounds.row_const(md.row_q, md.row_sign, md.n, md.nu, md.ny,
+                                                dtype=md.Kx.dtype, **plain)
+        if md.has_signal_rows:  # a signal row's constant: its live bound, or baked in
+            live = runtime_bounds.signal_row_const(md, b["z_min"], b["z_max"])
+            solver.row_c = np.where(md.signal_rows, live, solver.row_c)
         solver.u_min, solver.u_max = b["u_min"], b["u_max"]
 
     def set_bounds(self, mode, u_min, u_max, y_min, y_max):
@@ -98,7 +101,8 @@ class ControllerRef:
         status = runtime_bounds.check_bounds(self.config_bounds[mode], *new)
         if status != OPTIMAL:
             return status
-        self.bounds[mode] = dict(zip(("u_min", "u_max", "y_min", "y_max"), new))
+        self.bounds[mode] = {**self.bounds[mode],
+                             **dict(zip(("u_min", "u_max", "y_min", "y_max"), new))}
         self._apply_bounds(mode)
         if mode == self.mode:
             self.hold_for_mode()  # the held command obeys the new input bounds
@@ -108,7 +112,29 @@ class ControllerRef:
         """Mirror of ``P_get_bounds``: (status, a copy of the live bounds or None)."""
         if not 0 <= mode < len(self.md):
             return BAD_ARGUMENT, None
-        return OPTIMAL, {k: v.copy() for k, v in self.bounds[mode].items()}
+        return OPTIMAL, {k: self.bounds[mode][k].copy() for k in ("u_min", "u_max", "y_min",
+                                                                   "y_max")}
+
+    def set_signal_bounds(self, mode, z_min, z_max):
+        """Mirror of ``P_set_signal_bounds``: its status; changes nothing unless OPTIMAL.
+        None stands for a NULL pointer; the C reads nsig_live(mode) entries."""
+        if not 0 <= mode < len(self.md):
+            return BAD_ARGUMENT
+        md = self.md[mode]
+        new = [None if v is None else np.array(np.atleast_1d(v)[:md.nsig_live], md.Kx.dtype)
+               for v in (z_min, z_max)]
+        status = runtime_bounds.check_signal_bounds(self.config_bounds[mode], *new)
+        if status != OPTIMAL:
+            return status
+        self.bounds[mode] = {**self.bounds[mode], "z_min": new[0], "z_max": new[1]}
+        self._apply_bounds(mode)
+        return OPTIMAL
+
+    def get_signal_bounds(self, mode):
+        """Mirror of ``P_get_signal_bounds``: (status, {z_min, z_max} copies or None)."""
+        if not 0 <= mode < len(self.md):
+            return BAD_ARGUMENT, None
+        return OPTIMAL, {k: self.bounds[mode][k].copy() for k in ("z_min", "z_max")}
 
     def status_message(self, status: int) -> str:
         """Mirror of ``P_status_message``: a code of this build (the run-time bounds' only
