@@ -97,9 +97,11 @@ def load_model_from_config(cfg: ControllerConfig) -> tuple[ControllerModel, dict
     return model, build_context(model)
 
 
-def load_model(config_path: str | Path, precision: str | None = None) -> tuple[ControllerModel, dict]:
-    """Validate the config file and compute every static matrix; returns (model, context)."""
-    return load_model_from_config(config_mod.load(config_path, precision))
+def load_model(config_path: str | Path, precision: str | None = None,
+               part: str | None = None) -> tuple[ControllerModel, dict]:
+    """Validate the config file and compute every static matrix; returns (model, context).
+    ``precision`` and ``part`` override the file's (config.load)."""
+    return load_model_from_config(config_mod.load(config_path, precision, part))
 
 
 def generate_config(cfg: ControllerConfig, out_dir: str | Path, force: bool = False,
@@ -130,10 +132,11 @@ def generate_config(cfg: ControllerConfig, out_dir: str | Path, force: bool = Fa
 
 def generate(config_path: str | Path, out_dir: str | Path, precision: str | None = None,
              force: bool = False, force_size: bool = False,
-             announce: Callable[[Footprint], None] | None = None
-             ) -> tuple[ControllerModel, dict]:
+             announce: Callable[[Footprint], None] | None = None,
+             part: str | None = None) -> tuple[ControllerModel, dict]:
     """Render the controller for the config file ``config_path`` into ``out_dir``
-    (the keywords of :func:`generate_config`)."""
+    (the keywords of :func:`generate_config`; ``part`` replaces the target: section,
+    config.load)."""
     check_output_dir(out_dir, force)  # a bad output path costs no maths
-    return generate_config(config_mod.load(config_path, precision), out_dir, force,
+    return generate_config(config_mod.load(config_path, precision, part), out_dir, force,
                            force_size, announce)

@@ -18,7 +18,7 @@ from __future__ import annotations
 import sys
 from pathlib import Path
 
-from .options import add_build_dir, add_force, add_precision
+from .options import add_build_dir, add_force, add_part, add_precision
 
 
 def add_parser(sub) -> None:
@@ -31,6 +31,7 @@ def add_parser(sub) -> None:
                    help="generate a design beyond its target's flash, RAM or cycle budget "
                    "(target: section, or the documented defaults)")
     add_precision(g)
+    add_part(g)
     g.add_argument("--no-float-check", action="store_true",
                    help="float: skip the check of the design's scenario QPs against double")
     add_build_dir(g)
@@ -79,7 +80,7 @@ def run(args) -> int:
     # `-o ''` reaches the writer, which refuses it (it is not the default directory)
     out = args.output if args.output is not None else default_out_dir(args.config, args.precision)
     model, ctx = generate(args.config, out, args.precision, args.force, args.force_size,
-                          announce)
+                          announce, part=args.part)
     if not predicted[0].slow:
         _print_footprint(predicted[0])
     sizes = ", ".join(f"{m['name']}: n={m['n']} m={m['m']}" for m in ctx["modes"])

@@ -14,6 +14,7 @@ from .. import __version__
 from ..config.schema import default_dependence_tol
 from ..features.runtime_bounds import context_bounds
 from ..model.controller import ControllerModel
+from ..parts import DEFAULT_PART, PARTS
 from ..qp.arrays import REAL, declared_for
 from ..qp.sizes import working_set_lengths
 from ..qp.work import (ADD_BATCH, CHOL_UNITS_PER_OP, GUESS_SAMPLE_MIN, PREDICT_UNITS_PER_OP,
@@ -94,6 +95,7 @@ def build_context(model: ControllerModel) -> dict:
         "initial_mode": 0 if sched is None else sched["initial"],
         "scheduler": sched,
         "runtime_bounds": cfg.runtime_bounds,
+        "target": target_context(cfg.target),
         "statuses": context_statuses(cfg.prefix, cfg.runtime_bounds),
         "unknown_status_message": UNKNOWN_MESSAGE,
         # Δu rows in some mode: the solver's third row kind (else the C is unchanged)
@@ -131,6 +133,18 @@ def build_context(model: ControllerModel) -> dict:
         "mode_struct": stored_members(features, cfg.prefix),
         "modes": modes,
     }
+
+
+def target_context(target) -> dict:
+    """The target the design was generated for (config/target.py, parts.py): its core's
+    flags for the target build and P_target.mk, and a memory map for the firmware stub's
+    linker script (a core without a named part: the default part's)."""
+    core, part = target.core_decl, PARTS[target.part or DEFAULT_PART]
+    return {"part": target.part, "label": target.label, "core": core.name,
+            "core_short": core.short, "cflags": list(core.cflags),
+            "fpu_double": core.fpu_double, "cpu_mhz": target.cpu_mhz,
+            "regions": [{"name": r.name, "origin": r.origin, "kib": r.kib}
+                        for r in (part.flash, part.ram)]}
 
 
 def stored_members(features: dict, prefix: str) -> dict:

@@ -22,6 +22,7 @@ GENERATED_FILES = {
     "{p}_linalg.c": "linalg.c.j2",
     "{p}_solver.c": "solver.c.j2",
     "{p}_controller.c": "controller.c.j2",
+    "{p}_target.mk": "target.mk.j2",
 }
 
 

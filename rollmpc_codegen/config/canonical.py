@@ -19,7 +19,8 @@ import numpy as np
 def _plain(value: Any) -> Any:
     """JSON-ready data; every float as its repr (exact, and defined for +-inf)."""
     if dataclasses.is_dataclass(value) and not isinstance(value, type):
-        return {f.name: _plain(getattr(value, f.name)) for f in dataclasses.fields(value)}
+        return {f.name: _plain(getattr(value, f.name)) for f in dataclasses.fields(value)
+                if not _omitted(f, getattr(value, f.name))}
     if isinstance(value, np.ndarray):
         return _plain(value.tolist())
     if isinstance(value, (list, tuple)):
@@ -35,6 +36,12 @@ def _plain(value: Any) -> Any:
     if value is None or isinstance(value, str):
         return value
     raise TypeError(f"no canonical form for {type(value).__name__}")
+
+
+def _omitted(f: dataclasses.Field, value: Any) -> bool:
+    """A field added after designs were generated, at its default: left out, so that those
+    designs keep their hash (schema.NEW_FIELD)."""
+    return f.metadata.get("canonical") == "omit_default" and value == f.default
 
 
 def canonical_json(config: Any) -> str:

@@ -15,15 +15,10 @@ generator keeps every bound below 2**31 (:func:`check_work_budget`).
 from __future__ import annotations
 
 from ..config.errors import ConfigError
-from ..config.schema import DEFAULT_CPU_MHZ, WORK_BUDGET_AUTO
+from ..config.schema import WORK_BUDGET_AUTO
 
-# Estimated Cortex-M4F cycles per work unit, declared once: `rollmpc report --precision
-# float` (which prints the ratio) measured at most 19.23 cycles per unit on the counted
-# steps that spend over 30 % of their budget (commit a0d58fb: fw_lateral step 576;
-# quad_attitude 17.93, c172_roll 15.54, uav_roll 13.11), with 4 % of margin (docs/solver.md,
-# "Work budget"). Small steps ran at 21-24 (fixed costs per call: thermal_zones' largest,
-# <= 11.7 k units, at 20.1-21.2); PRIMAL_CALL_UNITS brings them to <= 19.8 (3313d1b).
-CYCLES_PER_WORK_UNIT = 20.0
+# The cycles a work unit costs are the target core's calibration (parts.py
+# Core.work_unit_cycles: the auto budget's divisor; the M4F's is 20).
 WORK_LIMIT = 2**31  # every count and bound stays below it (uint32 in the C)
 UNBOUNDED_WORK = WORK_LIMIT - 1  # the largest budget: in effect none
 # rows the dual active set adds per scan of every row (it pays the scan and the corrected
@@ -42,7 +37,7 @@ def hq_work(m, factor: int) -> int:
 # per call with its per-stage setup (quad_attitude, chain_runtime_bounds, fw_lateral's
 # single bounded output), so it is charged 3/5 of a unit per multiply-add (11.5-14.4
 # cycles per unit), and a unit per output. At 1/2 fw_lateral's heavy steps ran at 20.13
-# cycles per unit, over CYCLES_PER_WORK_UNIT.
+# cycles per unit, over the M4F's 20.
 PREDICT_UNITS_PER_OP = (3, 5)
 
 
@@ -82,7 +77,7 @@ def finish_work(m) -> int:
 # cycles per chol_ops() operation (7.4 at order 5), a forward solve 6.9-7.1 and a back
 # solve 9.5-11.5 per tri_ops() one (`python -m rollmpc_codegen.target.kernel_cycles`:
 # the kernels called alone on the emulator). Their charges are these fractions of a unit per operation
-# (7.6 and 11.4 cycles at CYCLES_PER_WORK_UNIT); checked on whole steps with rollmpc report.
+# (7.6 and 11.4 cycles at the M4F's 20 per unit); checked on whole steps with rollmpc report.
 CHOL_UNITS_PER_OP = (2, 5)
 TRI_UNITS_PER_OP = (3, 5)
 # primal_solve(), in sixths of a unit per operation (one division, so the C's
@@ -227,28 +222,30 @@ def largest_unit(m, wcap: int, factor: int) -> int:
                6 * (primal_work(m, m.n, m.n, 0, True) + 1), add_step_work(wcap))
 
 
-def auto_work_budget(sample_time: float, share: float, cpu_mhz: float = DEFAULT_CPU_MHZ) -> int:
+def auto_work_budget(sample_time: float, share: float, cpu_mhz: float,
+                     cycles_per_unit: float) -> int:
     """``solver.work_budget: auto``: ``share`` of the sample time at ``cpu_mhz``, in units."""
-    return int(sample_time * share * cpu_mhz * 1e6 / CYCLES_PER_WORK_UNIT)
+    return int(sample_time * share * cpu_mhz * 1e6 / cycles_per_unit)
 
 
 def check_work_budget(cfg, modes, factor: int) -> int:
     """The budget of ``cfg`` (a ControllerConfig) in work units, checked against the
     unconstrained step of every mode (its ModeData in ``modes``): a budget below it could
     not even return the clamped unconstrained optimum."""
-    s = cfg.solver
+    s, target = cfg.solver, cfg.target
+    per_unit = target.core_decl.cycles_per_work_unit(cfg.precision)
     budget = int(s.work_budget) if s.work_budget != WORK_BUDGET_AUTO else (
-        auto_work_budget(cfg.sample_time, s.budget_share, cfg.target.cpu_mhz) if s.polish
-        else UNBOUNDED_WORK)  # the paper's variants: their sweep cap bounds the work
+        auto_work_budget(cfg.sample_time, s.budget_share, target.cpu_mhz, per_unit)
+        if s.polish else UNBOUNDED_WORK)  # the paper's variants: their sweep cap bounds it
     need = max(base_work(m, m.has_output_rows) for m in modes)
     for m in modes:
         if largest_unit(m, m.w_cap, factor) >= WORK_LIMIT:
             raise ConfigError("solver", f"mode {m.name}: its QP (n = {m.n}, m = {m.m}) is too "
                               f"large to count its work in 32 bits")
     if budget < need or budget >= WORK_LIMIT:
-        how = (f"auto: {s.budget_share:g} of Ts = {cfg.sample_time:g} s at {cfg.target.cpu_mhz:g} "
-               f"MHz, {CYCLES_PER_WORK_UNIT:g} cycles per unit" if s.work_budget == WORK_BUDGET_AUTO
-               else "given")
+        how = (f"auto: {s.budget_share:g} of Ts = {cfg.sample_time:g} s at {target.cpu_mhz:g} "
+               f"MHz, {per_unit:g} cycles per unit on the {target.core_decl.label}"
+               if s.work_budget == WORK_BUDGET_AUTO else "given")
         raise ConfigError("solver.work_budget", f"{budget} work units ({how}) must be at least "
                           f"the {need} of the unconstrained step and below {WORK_LIMIT}")
     return budget

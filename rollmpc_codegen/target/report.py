@@ -1,5 +1,6 @@
-"""``rollmpc report``: flash, RAM, stack and cycles of the generated controller on an
-emulated Cortex-M4F, bit-exact against the host build.
+"""``rollmpc report``: flash, RAM, stack and cycles of the generated controller on the
+emulated core of its part (parts.py; ``part`` overrides the config's), bit-exact against
+the host build.
 
 :func:`run_report` takes keywords, returns the report as a dict and prints nothing (its
 progress goes to an optional callback factory, see ``sim.simulate.start_phase``):
@@ -34,7 +35,7 @@ from .measure import measure
 TARGET_MODULES = (("unicorn", "unicorn"), ("capstone", "capstone"), ("elftools", "pyelftools"))
 
 
-def run_report(config: str | Path, *, precision: str | None = None,
+def run_report(config: str | Path, *, precision: str | None = None, part: str | None = None,
                horizons: Iterable[int] | None = None, steps: int | None = None,
                flights: int = 0, seed: int = 0, noise_std: float = 0.0,
                disturbance: float = 0.0, mismatch: float = 0.0,
@@ -73,10 +74,10 @@ def run_report(config: str | Path, *, precision: str | None = None,
         raise config_mod.ConfigError("--peer", f"one of {', '.join(PEERS)}, on the scenario "
                                      "only (not with --horizons, --flights or --flight)")
     if horizons:
-        config_mod.load(config, precision)  # validate before the long run
+        config_mod.load(config, precision, part)  # validate before the long run
         return {"horizons": horizon_table(Path(config), sorted(set(horizons)), precision, root,
-                                          progress, **options)}
-    model, ctx = load_model(config, precision)
+                                          progress, part=part, **options)}
+    model, ctx = load_model(config, precision, part)
     if flight is None:
         report = measure(model, ctx, root, progress=progress, **options)
         if peer is not None:
