@@ -98,3 +98,20 @@ def test_the_m7_predicts_a_loop_and_the_m4_pays_each_trip(tmp_path):
     per_trip_m4 = (m4[1][1].cycles - m4[0][1].cycles) / 100
     per_trip_m7 = (m7[1][1].cycles - m7[0][1].cycles) / 100
     assert per_trip_m7 < per_trip_m4 - 2  # the refill the predicted branch does not pay
+
+
+def test_the_cache_estimate_counts_lru_misses():
+    """target/cache_lines.py's caches: a line hits once loaded, a set keeps its four most
+    recent lines, and an access across a line boundary touches both."""
+    from rollmpc_codegen.target.cache_lines import Cache
+
+    c = Cache(kib=16, ways=4, line=32)
+    stride = 32 * c.sets  # addresses of the same set
+    for a in (0, 4, 28):
+        c.access(a, 4)
+    assert (c.accesses, c.misses) == (3, 1)
+    for k in range(1, 5):
+        c.access(k * stride)  # four more lines in set 0: line 0 is evicted
+    c.access(0)
+    c.access(30, 4)  # lines 0 and 1
+    assert c.misses == 1 + 4 + 1 + 1
