@@ -29,8 +29,8 @@ def target_tools():
 def test_every_part_is_complete(name):
     p = PARTS[name]
     assert p.name == name and p.core in CORES.values() and p.cpu_mhz > 0
-    assert p.flash.origin == 0x08000000 and p.flash.kib >= 256 and p.ram.kib >= 64
-    assert p.ram.origin in (0x20000000, 0x24000000) and p.boards
+    assert p.flash.origin in (0x0, 0x08000000) and p.flash.kib >= 256 and p.ram.kib >= 64
+    assert 0x20000000 <= p.ram.origin < 0x30000000 and p.boards  # the ARMv7-M SRAM region
 
 
 @pytest.mark.parametrize("name", sorted(CORES))
