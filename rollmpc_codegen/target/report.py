@@ -46,6 +46,7 @@ def run_report(config: str | Path, *, precision: str | None = None, part: str | 
     """The report of ``config`` (the keys of :func:`rollmpc_codegen.target.measure.measure`),
     or with ``horizons`` ``{"horizons": horizon_table(...)}``.
 
+    ``part`` replaces the config's target: section by that part's (parts.py; config.load).
     ``steps`` samples of the scenario, or of each of ``flights`` random flights, are
     replayed (default: the scenario's length); ``seed``, ``noise_std``, ``disturbance``
     and ``mismatch`` perturb them (:class:`~rollmpc_codegen.sim.flight_plan.FlightPlan`).
