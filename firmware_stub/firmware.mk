@@ -1,12 +1,16 @@
 # Firmware stub builds (used by the top-level `make firmware`, `make size`; also usable
 # alone: make -f firmware_stub/firmware.mk [firmware|size|host] [FW_GEN=...] [FW_BUILD=...]).
 #
-#   firmware  Cortex-M4F image: stub + HAL + startup + the generated controller in FW_GEN
+#   firmware  image for the part FW_GEN was generated for: stub + HAL + startup + the
+#             generated controller in FW_GEN
 #   size      flash and static RAM of that image
 #   host      host executable (stdin/stdout HAL) for closing the loop in a test
 #
-# Flags: the target flags of `rollmpc report` (bit-exact with the host float build), the
-# project's strict warnings, PX4's C warnings and ArduPilot's frame limit, all -Werror.
+# The part comes from the tree: $(FW_GEN)/<prefix>_target.mk (rollmpc generate writes it
+# from rollmpc_codegen/parts.py: the core's flags, the clock, the flash and RAM regions).
+# Flags: those core flags and the target flags of `rollmpc report` (bit-exact with the
+# host build), the project's strict warnings, PX4's C warnings and ArduPilot's frame
+# limit, all -Werror.
 #
 # The linked image is checked against the design's target: section, which generate writes
 # into FW_GEN's <prefix>_context.json (flash: text + data; static RAM: data + bss): beyond
@@ -18,11 +22,14 @@
 FW_DIR ?= firmware_stub
 FW_GEN ?= generated/uav_roll_f32
 FW_BUILD ?= build/firmware
+FW_PREFIX ?= rollmpc
 ARM_CC ?= arm-none-eabi-gcc
 ARM_SIZE ?= arm-none-eabi-size
 HOST_CC ?= gcc
 
-FW_MCU := -mcpu=cortex-m4 -mthumb -mfpu=fpv4-sp-d16 -mfloat-abi=hard
+FW_TARGET_MK := $(FW_GEN)/$(FW_PREFIX)_target.mk
+include $(FW_TARGET_MK)
+FW_MCU := $($(FW_PREFIX)_target_cflags)
 # -fbuiltin after -ffreestanding keeps fabsf/sqrtf as VABS/VSQRT instead of library calls
 FW_TARGET := -O2 -ffreestanding -fbuiltin -fno-math-errno -ffp-contract=off \
     -ffunction-sections -fdata-sections -fstack-usage
@@ -38,7 +45,9 @@ FW_FLASH_KIB ?= $(call fw_target,flash_kib)
 FW_RAM_KIB ?= $(call fw_target,ram_kib)
 FW_FORCE_SIZE ?=
 
-FW_ELF := $(FW_BUILD)/rollctl_m4f.elf
+FW_NAME := rollctl_$($(FW_PREFIX)_target_core_short)
+FW_ELF := $(FW_BUILD)/$(FW_NAME).elf
+FW_MEMORY := $(FW_BUILD)/rollctl_memory.ld
 FW_HOST := $(FW_BUILD)/rollctl_host
 FW_GEN_SRC := $(wildcard $(FW_GEN)/*.c)
 FW_STUB_SRC := $(FW_DIR)/rollctl.c $(FW_DIR)/app_main.c
@@ -55,16 +64,22 @@ vpath %.c $(FW_GEN) $(FW_DIR) $(FW_DIR)/m4f
 
 firmware: $(FW_ELF)
 
-$(FW_BUILD)/obj/%.o: %.c $(FW_HDR) | $(FW_BUILD)/obj
+$(FW_BUILD)/obj/%.o: %.c $(FW_HDR) $(FW_TARGET_MK) | $(FW_BUILD)/obj
 	$(ARM_CC) $(FW_MCU) $(FW_TARGET) $(FW_WARN) -include $(FW_DIR)/m4f/rollmpc_timestamp_m4f.h \
-	    $(FW_INC) -c $< -o $@
+	    -DROLLCTL_CPU_HZ=$($(FW_PREFIX)_target_cpu_hz)u $(FW_INC) -c $< -o $@
 
 $(FW_BUILD)/obj:
 	mkdir -p $@
 
-$(FW_ELF): $(FW_OBJ) $(FW_DIR)/m4f/stm32f4_generic.ld
-	$(ARM_CC) $(FW_MCU) -nostartfiles --specs=nano.specs -Wl,--gc-sections \
-	    -T $(FW_DIR)/m4f/stm32f4_generic.ld -Wl,-Map=$(FW_BUILD)/rollctl_m4f.map \
+# the part's regions, which the generic linker script INCLUDEs
+$(FW_MEMORY): $(FW_TARGET_MK) | $(FW_BUILD)/obj
+	printf 'MEMORY\n{\n    FLASH (rx)  : ORIGIN = %s, LENGTH = %sK\n    RAM   (rwx) : ORIGIN = %s, LENGTH = %sK\n}\n' \
+	    $($(FW_PREFIX)_target_flash_origin) $($(FW_PREFIX)_target_flash_kib) \
+	    $($(FW_PREFIX)_target_ram_origin) $($(FW_PREFIX)_target_ram_kib) > $@
+
+$(FW_ELF): $(FW_OBJ) $(FW_DIR)/m4f/cortex_m_generic.ld $(FW_MEMORY)
+	$(ARM_CC) $(FW_MCU) -nostartfiles --specs=nano.specs -Wl,--gc-sections -L$(FW_BUILD) \
+	    -T $(FW_DIR)/m4f/cortex_m_generic.ld -Wl,-Map=$(FW_BUILD)/$(FW_NAME).map \
 	    -o $@ $(FW_OBJ) -lm
 	@$(ARM_SIZE) $@ | awk -v flash_kib="$(FW_FLASH_KIB)" -v ram_kib="$(FW_RAM_KIB)" \
 	    -v force="$(FW_FORCE_SIZE)" -v gen="$(FW_GEN)" 'NR == 2 { \

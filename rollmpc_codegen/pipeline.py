@@ -17,6 +17,7 @@ from .codegen.context import build_context
 from .codegen.output import check_output_dir, write_output
 from .codegen.render import render_sources
 from .config import ConfigError, ControllerConfig, ModeConfig
+from .config.target import part_target
 from .config.checks import check_representable
 from .features import input_rate
 from .features.disturbance_model import prediction_model
@@ -109,20 +110,22 @@ def load_model_from_config(cfg: ControllerConfig) -> tuple[ControllerModel, dict
     return model, build_context(model)
 
 
-def load_config(config, precision: str | None = None) -> ControllerConfig:
+def load_config(config, precision: str | None = None,
+                part: str | None = None) -> ControllerConfig:
     """The validated config of a YAML file, a :class:`ControllerConfig` or a
     :class:`~rollmpc_codegen.api.Design`, with ``precision`` overriding its own as
-    ``--precision`` does: what every library run (simulate, bench, report) accepts."""
+    ``--precision`` does and ``part`` replacing its target: section as ``--part`` does:
+    what every library run (generate, simulate, bench, report) accepts."""
+    if isinstance(config, (str, Path)):
+        return config_mod.load(config, precision, part)
     config_for = getattr(config, "config_for", None)  # a Design
-    if callable(config_for):
-        return config_for(precision)
-    if isinstance(config, ControllerConfig):
-        if precision is None or precision == config.precision:
-            return config
-        cfg = dataclasses.replace(config, precision=precision)
+    cfg = config_for(precision) if callable(config_for) else config
+    if precision is not None and precision != cfg.precision:
+        cfg = dataclasses.replace(cfg, precision=precision)
         check_representable(precision, cfg.sample_time, cfg.modes, cfg.scheduler, cfg.solver)
-        return cfg
-    return config_mod.load(config, precision)
+    if part is not None:
+        cfg = dataclasses.replace(cfg, target=part_target(part, "--part"))
+    return cfg
 
 
 def config_label(config) -> str:
@@ -132,14 +135,15 @@ def config_label(config) -> str:
     return f"{load_config(config).prefix} (Python API)"
 
 
-def load_model(config, precision: str | None = None) -> tuple[ControllerModel, dict]:
+def load_model(config, precision: str | None = None,
+               part: str | None = None) -> tuple[ControllerModel, dict]:
     """Validate the config (a file, a ControllerConfig or a Design: :func:`load_config`)
     and compute every static matrix; returns (model, context).  A Design's are built
-    once per precision."""
+    once per precision (on its own target)."""
     build = getattr(config, "build", None)
-    if callable(build):
+    if callable(build) and part is None:
         return build(precision)
-    return load_model_from_config(load_config(config, precision))
+    return load_model_from_config(load_config(config, precision, part))
 
 
 def generate_config(cfg: ControllerConfig, out_dir: str | Path, force: bool = False,
@@ -170,10 +174,11 @@ def generate_config(cfg: ControllerConfig, out_dir: str | Path, force: bool = Fa
 
 def generate(config, out_dir: str | Path, precision: str | None = None,
              force: bool = False, force_size: bool = False,
-             announce: Callable[[Footprint], None] | None = None
-             ) -> tuple[ControllerModel, dict]:
+             announce: Callable[[Footprint], None] | None = None,
+             part: str | None = None) -> tuple[ControllerModel, dict]:
     """Render the controller for ``config`` (a file, a ControllerConfig or a Design:
-    :func:`load_config`) into ``out_dir`` (the keywords of :func:`generate_config`)."""
+    :func:`load_config`) into ``out_dir`` (the keywords of :func:`generate_config`;
+    ``part`` replaces the target: section)."""
     check_output_dir(out_dir, force)  # a bad output path costs no maths
-    return generate_config(load_config(config, precision), out_dir, force, force_size,
+    return generate_config(load_config(config, precision, part), out_dir, force, force_size,
                            announce)

@@ -9,6 +9,7 @@ from pathlib import Path
 import pytest
 
 from conftest import UAV, require_tool
+from rollmpc_codegen.parts import CORES
 from rollmpc_codegen.pipeline import generate
 
 STRICT = ["-std=c99", "-Wall", "-Wextra", "-Wpedantic", "-Wconversion", "-Wshadow",
@@ -53,10 +54,13 @@ def test_clang_strict_no_warnings(sources, tmp_path, opt):
     assert proc.returncode == 0 and proc.stderr == "", proc.stderr
 
 
-def test_arm_cortex_m4f_no_warnings(sources, tmp_path):
+@pytest.mark.parametrize("core", sorted(CORES))
+def test_arm_cores_no_warnings(sources, tmp_path, core):
+    """Every declared core's flags (PX4's and ArduPilot's, parts.py), both precisions:
+    soft-float double on the single-precision FPUs, hardware double on the M7's."""
     cc = require_tool("arm-none-eabi-gcc", ARM_HINT)
-    flags = ["-mcpu=cortex-m4", "-mthumb", "-mfpu=fpv4-sp-d16", "-mfloat-abi=hard", "-O2",
-             "-ffreestanding", "-fno-math-errno", "-ffp-contract=off", *STRICT, *AUTOPILOT]
+    flags = [*CORES[core].cflags, "-O2", "-ffreestanding", "-fno-math-errno",
+             "-ffp-contract=off", *STRICT, *AUTOPILOT]
     proc = _compile(cc, sources, flags, tmp_path)
     assert proc.returncode == 0 and proc.stderr == "", proc.stderr
 

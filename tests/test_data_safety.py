@@ -98,7 +98,8 @@ def _assert_refused_untouched(capsys, watched: Path, config: Path, out, *extra: 
 def _ours(prefix: str = "rollmpc") -> set[str]:
     return {f"{prefix}{tail}" for tail in (".h", "_config.h", "_internal.h", "_data.c",
                                            "_linalg.c", "_solver.c", "_controller.c",
-                                           "_context.json", "_README.md")}
+                                           "_context.json", "_README.md",
+                                           "_target.mk")}
 
 
 # ----------------------------------------------------------------------- the output directory

@@ -12,6 +12,7 @@ import pytest
 import yaml
 
 from conftest import ROOT, UAV, require_tool
+from rollmpc_codegen.parts import DEFAULT_PART, PARTS
 from rollmpc_codegen.pipeline import generate
 
 ARM_HINT = "apt-get install -y --no-install-recommends gcc-arm-none-eabi libnewlib-arm-none-eabi"
@@ -57,30 +58,45 @@ def test_generated_c_and_stub_compile_under_autopilot_flags(trees, tmp_path, pre
         assert proc.returncode == 0 and proc.stderr == "", f"{src.name}: {proc.stderr}"
 
 
-def test_make_firmware_is_warning_free(generated_f32, tmp_path):
+@pytest.mark.parametrize("part, precision", [(None, "float"), ("stm32h743", "double"),
+                                             ("stm32l562", "float")],
+                         ids=["default", "stm32h743-double", "stm32l562"])
+def test_make_firmware_is_warning_free(generated_f32, tmp_path, part, precision):
+    """The stub builds for the part its tree was generated for (<prefix>_target.mk): the
+    core's flags, the part's flash and RAM regions (the default: the STM32F427's)."""
     require_tool("arm-none-eabi-gcc", ARM_HINT)
+    tree = generated_f32
+    if part is not None:
+        tree = tmp_path / "gen"
+        generate(UAV, tree, precision, part=part)
+    decl = PARTS[part or DEFAULT_PART]
     proc = subprocess.run(["make", "--no-print-directory", "firmware", "size",
-                           f"FW_GEN={generated_f32}", f"FW_BUILD={tmp_path}"],
+                           f"FW_GEN={tree}", f"FW_BUILD={tmp_path / 'fw'}"],
                           cwd=ROOT, capture_output=True, text=True)
     assert proc.returncode == 0, proc.stdout + proc.stderr
     assert not re.search(r"warning:", proc.stdout + proc.stderr)
-    elf = tmp_path / "rollctl_m4f.elf"
+    assert " ".join(decl.core.cflags) in proc.stdout
+    elf = tmp_path / "fw" / f"rollctl_{decl.core.short}.elf"
     assert elf.exists()
     m = re.search(r"flash (\d+) B \(text \+ data\), static RAM (\d+) B", proc.stdout)
     assert m, proc.stdout
     flash, ram = int(m.group(1)), int(m.group(2))
-    assert 0 < flash <= 1024 * 1024 and 0 < ram <= 128 * 1024
-    # the vector table: initial SP at the top of the 128 KB RAM, reset vector in Thumb state
+    assert 0 < flash <= decl.flash.kib * 1024 and 0 < ram <= decl.ram.kib * 1024
+    # the vector table: initial SP at the top of the part's RAM region, reset vector in
+    # Thumb state
     from elftools.elf.elffile import ELFFile
 
     with open(elf, "rb") as fh:
         ef = ELFFile(fh)
         vec = ef.get_section_by_name(".isr_vector")
-        assert vec["sh_addr"] == 0x08000000
+        assert vec["sh_addr"] == decl.flash.origin
         sp, reset = np.frombuffer(vec.data()[:8], "<u4")
         symbols = {s.name: s["st_value"] for s in ef.get_section_by_name(".symtab").iter_symbols()}
-    assert sp == 0x20000000 + 128 * 1024
+        double_ops = b"vmul.f64" in subprocess.run(
+            ["arm-none-eabi-objdump", "-d", str(elf)], capture_output=True).stdout
+    assert sp == decl.ram.origin + decl.ram.kib * 1024
     assert reset == symbols["Reset_Handler"] and reset & 1
+    assert double_ops == (precision == "double")  # the M7's FPU computes the double tree
 
 
 def test_px4_parameter_names_fit_16_characters():

@@ -13,6 +13,7 @@ import pytest
 import yaml
 
 from conftest import ROOT, UAV, require_tool, variant_config
+from rollmpc_codegen.parts import CORES
 from rollmpc_codegen.status import NONFINITE_INPUT
 from glue_harness import (ENGAGED, FROZEN, GLUE, LOCKED_OUT, LOCKOUT, NO_PARAMS, NONFINITE, SOLVER,
                           STALE_CMD, STALE_RATE, STALE_ROLL, WARMING, Faults, Glue,
@@ -301,12 +302,14 @@ def test_check_script_skips_without_a_tree(script, monkeypatch):
     assert proc.returncode == 0 and "skipped" in proc.stdout and "--px4" in proc.stdout
 
 
-def test_glue_builds_for_cortex_m4f_with_the_dwt_timestamp(tmp_path):
-    """The glue and the controller compile for the M4F with -Werror, and the solve is
+@pytest.mark.parametrize("core", sorted(CORES))
+def test_glue_builds_for_each_core_with_the_dwt_timestamp(tmp_path, core):
+    """The glue and the controller compile with -Werror for every declared core (PX4's
+    fmu-v2/v3, fmu-v5/v6 and ArduPilot's F4/F7/H7 flags, parts.py), and the solve is
     timed by the DWT cycle counter (0xE0001004, read through its 0xE0001000 base)."""
     require_tool("arm-none-eabi-gcc", "apt-get install -y gcc-arm-none-eabi")
     from glue_harness import WARNINGS
-    flags = ["-mcpu=cortex-m4", "-mthumb", "-mfpu=fpv4-sp-d16", "-mfloat-abi=hard", "-O2",
+    flags = [*CORES[core].cflags, "-O2",
              *WARNINGS, "-Wframe-larger-than=1300", f"-I{F32}", f"-I{GLUE}",
              "-include", str(GLUE / "rollglue_cycles.h"), "-DROLLMPC_TIMESTAMP()=ROLLGLUE_CYCLES()"]
     for src in (GLUE / "rollglue.c", F32 / "rollmpc_controller.c"):

@@ -24,7 +24,7 @@ from rollmpc_codegen.qp.feasibility import rest_warnings
 from rollmpc_codegen.qp.footprint import check_fits, predict
 from rollmpc_codegen.qp.nominal_loop import closed_loop_radius, unstable_law_warnings
 from rollmpc_codegen.qp.sanity import design_warnings
-from rollmpc_codegen.target.horizons import PARTS
+from rollmpc_codegen.parts import PARTS
 
 SHIP = ROOT / "tests" / "data" / "newuser" / "ship_heading.yaml"
 BASE = yaml.safe_load(SHIP.read_text())
@@ -134,10 +134,10 @@ def test_an_undetectable_kalman_model_names_its_direction():
 
 
 # --------------------------------------------------------------------------- item 3: sizes
-PREDICTION = ("rollmpc: predicted on the target (float build): flash 65.5 of 128 KiB, RAM "
-              "10.1 of 32 KiB, a step without active bounds about 18,000 of the 7,200,000 "
-              "cycles of a sample and 1,650 of the solver's 180,000 work units (an "
-              "estimate; active bounds cost more)")
+PREDICTION = ("rollmpc: predicted on a Cortex-M4F (FPv4-SP) at 72 MHz (float build): flash "
+              "65.5 of 128 KiB, RAM 10.1 of 32 KiB, a step without active bounds about 18,000 "
+              "of the 7,200,000 cycles of a sample and 1,650 of the solver's 180,000 work "
+              "units (an estimate; active bounds cost more)")
 FORCE = "; --force-size generates it anyway"
 TOO_LARGE = [
     pytest.param({"horizon": 400},  # the issue's horizon: 12 s and 36 MB of files here
@@ -216,7 +216,8 @@ def test_force_size_generates_it_and_force_does_not(tmp_path, capsys):
     assert refused(tmp_path, capsys, small, "--force") == message  # the directory rule only
     rc, out, err, directory = run(tmp_path, capsys, small, "--force-size")
     assert (rc, err) == (0, "") and (directory / "ship.h").is_file()
-    assert out.startswith("rollmpc: predicted on the target (float build): flash 65.5 of 16 "
+    assert out.startswith("rollmpc: predicted on a Cortex-M4F (FPv4-SP) at 168 MHz (float build): "
+                          "flash 65.5 of 16 "
                           "KiB, RAM 10.1 of 512 KiB (default limit), ")
 
 
@@ -255,9 +256,11 @@ def test_every_example_fits_its_target_in_both_precisions(path):
         check_fits(cfg, predict(cfg))
 
 
-def test_the_default_limits_are_the_largest_part_the_report_knows():
-    assert DEFAULT_FLASH_LIMIT_KIB == max(p["flash_kib"] for p in PARTS)
-    assert DEFAULT_RAM_LIMIT_KIB == max(p["ram_kib"] for p in PARTS)
+def test_the_default_limits_are_the_largest_declared_part():
+    """Without target.flash_kib / ram_kib, generate refuses what no declared part holds:
+    2 MiB of flash and a 512 KiB RAM region (the F765's and the H743's)."""
+    assert DEFAULT_FLASH_LIMIT_KIB == max(p.flash.kib for p in PARTS.values()) == 2048
+    assert DEFAULT_RAM_LIMIT_KIB == max(p.ram.kib for p in PARTS.values()) == 512
 
 
 # median steps measured on the emulated M4F, float, at d2fac9d (docs/target.md, "Before

@@ -19,6 +19,7 @@ from __future__ import annotations
 import pytest
 
 from conftest import UAV, require_tool, short_uav_config
+from rollmpc_codegen.parts import CORES
 from rollmpc_codegen.pipeline import generate
 from rollmpc_codegen.host.programs import (SANITIZE, SOAK_SUMMARY, VALGRIND_BUILD,
                                            VECTORS_SUMMARY, compile_program, run_program,
@@ -29,8 +30,7 @@ from rollmpc_codegen.host.testvectors import write_test_vectors
 
 VALGRIND_HINT = "apt-get install -y --no-install-recommends valgrind"
 ARM_HINT = "apt-get install -y --no-install-recommends gcc-arm-none-eabi libnewlib-arm-none-eabi"
-ARM_M4F = ("-mcpu=cortex-m4", "-mthumb", "-mfpu=fpv4-sp-d16", "-mfloat-abi=hard",
-           "-ffreestanding", "-fno-math-errno")
+FREESTANDING = ("-ffreestanding", "-fno-math-errno")  # beside each core's flags (parts.py)
 STACK_LIMIT = 1024  # bytes, worst path; PX4's controller work queue has 2,240 B in all
 
 
@@ -110,13 +110,18 @@ def test_valgrind_on_the_paper_test_program(tmp_path, precision):
     _assert_vectors_pass(run, 6000)
 
 
-@pytest.mark.parametrize("target", ["host-O2", pytest.param("m4f-O2", marks=pytest.mark.slow),
-                                    "m4f-Os"])
-def test_stack_worst_path(tmp_path, target):
+@pytest.mark.parametrize("target, precision", [
+    ("host-O2", "float"), pytest.param("cortex-m4f-O2", "float", marks=pytest.mark.slow),
+    ("cortex-m4f-Os", "float"), ("cortex-m33-Os", "float"), ("cortex-m7-Os", "double"),
+    pytest.param("cortex-m7-O2", "double", marks=pytest.mark.slow)])
+def test_stack_worst_path(tmp_path, target, precision):
+    """Every core in the precision it runs; the M7's double tree computes in hardware."""
     src = tmp_path / "src"
-    generate(UAV, src, "float")
-    if target.startswith("m4f"):
-        cc, flags = require_tool("arm-none-eabi-gcc", ARM_HINT), (*ARM_M4F, target[-3:])
+    generate(UAV, src, precision)
+    if target.startswith("cortex"):
+        core = CORES[target[:-3]]
+        cc = require_tool("arm-none-eabi-gcc", ARM_HINT)
+        flags = (*core.cflags, *FREESTANDING, target[-3:])
     else:
         cc, flags = "gcc", (target[-3:],)
     report = analyse(src, tmp_path / "su", cc, flags)

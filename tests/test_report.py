@@ -120,7 +120,7 @@ def test_emulated_cycles_are_deterministic(target_tools, float_model, build_root
     ("vmov", "s0, s1", 1), ("sdiv", "r0, r1, r2", 12), ("add", "r0, r1", 1)])
 def test_cycle_weights_follow_the_table(name, ops, cycles):
     pytest.importorskip("capstone", reason="pip install 'rollmpc-codegen[target]'")
-    from rollmpc_codegen.target.emulate import instruction_cycles
+    from rollmpc_codegen.target.cycle_models import instruction_cycles
 
     assert instruction_cycles(name, ops) == cycles
 
@@ -170,11 +170,12 @@ def test_bad_report_arguments_give_one_line(args, capsys):
 def test_instance_layout_matches_the_host(target_tools, float_model, build_root):
     """The final-state comparison of replay_on_target relies on identical struct layouts."""
     from rollmpc_codegen.host.build import build_host_controller
-    from rollmpc_codegen.target.emulate import CortexM4
+    from rollmpc_codegen.target.emulate import CortexM
     from rollmpc_codegen.target.build import build_target
 
     model, ctx = float_model
-    em = CortexM4(build_target(ctx, build_root).elf)
+    build = build_target(ctx, build_root)
+    em = CortexM(build.elf, build.core)
     size, real, _, _ = np.frombuffer(em.read("rollmpc_target_layout"), np.uint32)
     host = build_host_controller(ctx, build_root)
     assert size == host.lib.rollmpc_ctrl_size() and real == 4
@@ -183,9 +184,11 @@ def test_instance_layout_matches_the_host(target_tools, float_model, build_root)
 def test_kernel_charges_cover_their_cycles(target_tools):
     """The Cholesky and the triangular solves alone on the emulated M4F never take more
     cycles per operation than their work charge buys (qp/work.py's calibration)."""
-    from rollmpc_codegen.qp.work import CHOL_UNITS_PER_OP, CYCLES_PER_WORK_UNIT, TRI_UNITS_PER_OP
+    from rollmpc_codegen.parts import CORTEX_M4F
+    from rollmpc_codegen.qp.work import CHOL_UNITS_PER_OP, TRI_UNITS_PER_OP
     from rollmpc_codegen.target.kernel_cycles import kernel_cycles
 
+    CYCLES_PER_WORK_UNIT = CORTEX_M4F.cycles_per_work_unit("float")
     rows = kernel_cycles(UAV, orders=(5, 20, 60))
     assert [r["order"] for r in rows] == [5, 20, 60]
     for r in rows:  # measured 7.36 / 11.53 at order 5, 5.33 / 9.59 at 60

@@ -8,7 +8,7 @@
  */
 #include <stdint.h>
 
-/* Symbols of stm32f4_generic.ld. */
+/* Symbols of cortex_m_generic.ld. */
 extern uint32_t _sidata, _sdata, _edata, _sbss, _ebss, _estack;
 
 int main(void);

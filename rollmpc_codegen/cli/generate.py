@@ -17,7 +17,8 @@ from __future__ import annotations
 import sys
 from pathlib import Path
 
-from .options import add_build_dir, add_command, add_config, add_force, add_precision
+from .options import (add_build_dir, add_command, add_config, add_force, add_part,
+                      add_precision)
 
 
 def add_parser(sub) -> None:
@@ -36,6 +37,7 @@ def add_parser(sub) -> None:
                    help="generate a design beyond its target's flash, RAM or cycle budget "
                    "(target: section, or the documented defaults)")
     add_precision(g)
+    add_part(g)
     g.add_argument("--no-float-check", action="store_true",
                    help="float: skip the check of the design's scenario QPs against double")
     add_build_dir(g)
@@ -68,7 +70,8 @@ def run(args) -> int:
     # `-o ''` reaches the writer, which refuses it (it is not the default directory)
     out = args.output if args.output is not None else default_out_dir(args.config, args.precision)
     result = run_generate(args.config, out, precision=args.precision, force=args.force,
-                          force_size=args.force_size, announce=announce)
+                          force_size=args.force_size, announce=announce,
+                          part=args.part)
     if not result.footprint.slow:
         _print_footprint(result.footprint)
     ctx = result.ctx

@@ -33,6 +33,13 @@ def add_precision(p: argparse.ArgumentParser) -> None:
                    help="override the config's precision")
 
 
+def add_part(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--part", default=None,
+                   help="judge the design on this part instead of the config's target: "
+                   "section (its core, clock, flash and RAM; docs/target.md \"Parts\"), "
+                   "e.g. stm32f427, stm32f765, stm32h743, stm32l562")
+
+
 def add_build_dir(p: argparse.ArgumentParser) -> None:
     p.add_argument("--build-dir", default=None,
                    help="scratch directory for the host C builds (default: "

@@ -5,16 +5,17 @@ as a short summary on stdout (with ``--flights``, a line per flight), or with
 from __future__ import annotations
 
 from ..config.errors import ConfigError
-from .options import (add_build_dir, add_command, add_config, add_outputs, add_perturbations,
+from .options import (add_build_dir, add_command, add_config, add_outputs, add_part,
+                      add_perturbations,
                       add_precision, add_quiet, check_flights, check_perturbations, check_steps,
                       progress_of, write_json)
 
 
 def add_parser(sub) -> None:
-    rp = add_command(sub, "report", "flash, RAM, stack and cycles on an emulated Cortex-M4F, "
-                     "bit-exact against the host build", "Cross-compiles the controller with "
+    rp = add_command(sub, "report", "flash, RAM, stack and cycles on the emulated core of "
+                     "the design's part, bit-exact against the host build", "Cross-compiles the controller with "
                      "the firmware flags, replays the config's scenario (or random flights, or "
-                     "a recorded flight) on an emulated Cortex-M4F, checks every output bit "
+                     "a recorded flight) on the emulated core of the target part (--part or target:), checks every output bit "
                      "for bit against the host build and counts the cycles of the hardest and "
                      "sampled steps; judges them against sample_time at target.cpu_mhz and "
                      "flash and RAM against the target: section.",
@@ -23,6 +24,7 @@ def add_parser(sub) -> None:
                      "tool failed; 2 bad input (docs/checks.md, \"Exit codes\")")
     add_config(rp)
     add_precision(rp)
+    add_part(rp)
     add_outputs(rp, json="write the report as JSON")
     rp.add_argument("--horizons", default=None,
                     help="comma-separated horizons (e.g. 25,50,100,200): tabulate generation "
@@ -98,7 +100,7 @@ def summary_text(rep: dict) -> str:
         f"{rep['worst_step_cycles']:,} cycles, {rep['worst_step_instructions']:,} "
         f"instructions; median {rep['median_step_cycles']:,} cycles",
         f"  needs {rep['cpu_mhz_needed']} MHz for Ts = {1000 * rep['sample_time']:g} ms; "
-        f"at {b['cpu_mhz']:g} MHz the worst step {verdict} "
+        f"on {b.get('target') or str(b['cpu_mhz']) + ' MHz'} the worst step {verdict} "
         f"({b['worst_load_percent']}% of {b['cycles_per_sample']:,} cycles)",
         f"  worst step by function: {top}",
     ]
@@ -180,7 +182,8 @@ def run(args) -> int:
     if args.sample_every < 1 or args.hardest < 0 or args.host_repeats < 1:
         raise ConfigError("--sample-every/--hardest/--host-repeats", "must be >= 1, >= 0, >= 1")
     horizons = parse_horizons(args.horizons) if args.horizons else None
-    result = run_report(args.config, precision=args.precision, horizons=horizons,
+    result = run_report(args.config, precision=args.precision, part=args.part,
+                        horizons=horizons,
                         steps=args.steps, flights=args.flights, seed=args.seed,
                         noise_std=args.noise, disturbance=args.disturbance,
                         mismatch=args.mismatch, sample_every=args.sample_every,

@@ -14,9 +14,11 @@ from .. import __version__
 from ..config.schema import default_dependence_tol
 from ..features.runtime_bounds import context_bounds
 from ..model.controller import ControllerModel
+from ..parts import DEFAULT_PART, PARTS
 from ..qp.arrays import REAL, declared_for
 from ..qp.sizes import working_set_lengths
 from ..qp.budget import check_work_budget
+from ..qp.work import cycles_per_work_unit
 from ..qp.work import (ADD_BATCH, CHOL_UNITS_PER_OP, GUESS_SAMPLE_MIN, PREDICT_UNITS_PER_OP,
                        PRIMAL_CALL_OPS, PRIMAL_CALL_UNITS, PRIMAL_SIXTHS_PER_OP,
                        TRI_UNITS_PER_OP)
@@ -107,10 +109,6 @@ def build_context(model: ControllerModel) -> dict:
     return {
         "generator": {"name": "rollmpc-codegen", "version": __version__},
         "config_hash": cfg.config_hash,
-        # not read by the templates: the part the firmware build checks the linked image
-        # against (firmware_stub/firmware.mk), null where the target: section is silent
-        "target": {"cpu_mhz": cfg.target.cpu_mhz, "flash_kib": cfg.target.flash_kib,
-                   "ram_kib": cfg.target.ram_kib},
         "prefix": cfg.prefix,
         "PREFIX": cfg.prefix.upper(),
         "precision": cfg.precision,
@@ -126,6 +124,7 @@ def build_context(model: ControllerModel) -> dict:
         "initial_mode": 0 if sched is None else sched["initial"],
         "scheduler": sched,
         "runtime_bounds": cfg.runtime_bounds,
+        "target": target_context(cfg.target),
         "statuses": context_statuses(cfg.prefix, cfg.runtime_bounds),
         "unknown_status_message": UNKNOWN_MESSAGE,
         "info_fields": context_info_fields(cfg.prefix, features["has_soft_rows"]),
@@ -145,6 +144,7 @@ def build_context(model: ControllerModel) -> dict:
             else default_dependence_tol(cfg.precision),
             # work units a solve may spend (qp/work.py), and the unit cost of an H read
             "work_budget": check_work_budget(cfg, [mm.data for mm in model.modes], hq_work_factor),
+            "cycles_per_work_unit": cycles_per_work_unit(cfg),  # the target core's
             "hq_work_factor": hq_work_factor, "add_batch": ADD_BATCH,
             "work_units": {"chol": CHOL_UNITS_PER_OP, "tri": TRI_UNITS_PER_OP,
                            "primal": PRIMAL_SIXTHS_PER_OP, "primal_call": PRIMAL_CALL_UNITS,
@@ -169,6 +169,21 @@ def build_context(model: ControllerModel) -> dict:
         "mode_struct": stored_members(features, cfg.prefix),
         "modes": modes,
     }
+
+
+def target_context(target) -> dict:
+    """The target the design was generated for (config/target.py, parts.py): its core's
+    flags for the target build and P_target.mk, and a memory map for the firmware stub's
+    linker script (a core without a named part: the default part's)."""
+    core, part = target.core_decl, PARTS[target.part or DEFAULT_PART]
+    return {"part": target.part, "label": target.label, "core": core.name,
+            "core_short": core.short, "cflags": list(core.cflags),
+            "fpu_double": core.fpu_double, "cpu_mhz": target.cpu_mhz,
+            # what the firmware build checks the linked image against (firmware.mk); null
+            # where the target: section is silent
+            "flash_kib": target.flash_kib, "ram_kib": target.ram_kib,
+            "regions": [{"name": r.name, "origin": r.origin, "kib": r.kib}
+                        for r in (part.flash, part.ram)]}
 
 
 def stored_members(features: dict, prefix: str) -> dict:

@@ -13,7 +13,7 @@ import jinja2
 import numpy as np
 
 from ..qp.arrays import MODE_SIZES
-from ..qp.work import (ADD_BATCH, CHOL_UNITS_PER_OP, CYCLES_PER_WORK_UNIT, GUESS_SAMPLE_MIN,
+from ..qp.work import (ADD_BATCH, CHOL_UNITS_PER_OP, GUESS_SAMPLE_MIN,
                        PREDICT_UNITS_PER_OP, PRIMAL_CALL_OPS, PRIMAL_CALL_UNITS,
                        PRIMAL_SIXTHS_PER_OP, TRI_UNITS_PER_OP)
 from ..qp.work_formula import FORMULAS, traced
@@ -32,6 +32,7 @@ GENERATED_FILES = {
     "{p}_solver.c": "solver.c.j2",
     "{p}_controller.c": "controller.c.j2",
     "{p}_README.md": "readme.md.j2",
+    "{p}_target.mk": "target.mk.j2",
 }
 CONTEXT_FILE = "{p}_context.json"
 # what each file of a generated tree is, in the order its README lists them
@@ -49,6 +50,8 @@ FILE_ROLES = {
     "{p}_controller.c": "P_init(), P_step(), P_observe(), P_solve_qp(): the scheduler, the "
                         "observers, the QP of the active mode",
     "{p}_README.md": "this file",
+    "{p}_target.mk": "the target part's compiler flags and memory map, for a make build "
+                     "(the firmware stub includes it)",
     CONTEXT_FILE: "every number the C is compiled with, as JSON (for tools; not compiled)",
     MANIFEST: "the files rollmpc replaces when it regenerates this directory (others stay)",
 }
@@ -122,7 +125,6 @@ def package_facts() -> dict:
             "misra_deviations": [d._asdict() for d in DEVIATIONS],
             "file_roles": FILE_ROLES,
             "work_constants": {
-                "CYCLES_PER_WORK_UNIT": CYCLES_PER_WORK_UNIT,
                 "PREDICT_UNITS_PER_OP": PREDICT_UNITS_PER_OP,
                 "CHOL_UNITS_PER_OP": CHOL_UNITS_PER_OP, "TRI_UNITS_PER_OP": TRI_UNITS_PER_OP,
                 "PRIMAL_SIXTHS_PER_OP": PRIMAL_SIXTHS_PER_OP,

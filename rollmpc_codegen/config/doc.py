@@ -13,7 +13,7 @@ import sys
 from dataclasses import MISSING, fields
 
 from ..model.observer import DEFAULT_POLE_RANGE
-from ..qp.work import CYCLES_PER_WORK_UNIT
+from ..parts import CORES
 from . import schema
 from .keys import SECTIONS, Section
 
@@ -26,7 +26,8 @@ def _values() -> dict[str, object]:
     """What a default's ``{NAME}`` may name."""
     return {**vars(schema),
             "POLE_LOW": f"{DEFAULT_POLE_RANGE[0]:.2f}", "POLE_HIGH": f"{DEFAULT_POLE_RANGE[1]:.2f}",
-            "CYCLES_PER_WORK_UNIT": CYCLES_PER_WORK_UNIT,
+            # the default core's (parts.py), in the float build the M4F runs
+            "CYCLES_PER_WORK_UNIT": CORES[schema.DEFAULT_CORE].cycles_per_work_unit("float"),
             "FEAS_DOUBLE": _number(schema.default_feasibility_tol("double")),
             "FEAS_FLOAT": _number(schema.default_feasibility_tol("float")),
             "DEP_DOUBLE": _number(schema.default_dependence_tol("double")),

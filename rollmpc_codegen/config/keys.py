@@ -247,8 +247,9 @@ SECTIONS = (
             "pivot is below tol · H_pp is dependent on the working set"),
         Key("work_budget", None, "work units (about one multiply-add each) a QP solve may "
             "spend; past it the status is `TIME_LIMIT`. `auto`: `budget_share` of the sample "
-            "time at `target.cpu_mhz`, {CYCLES_PER_WORK_UNIT:g} cycles per unit (no budget "
-            "with `polish: false`) (solver.md, \"Sizing\")"),
+            "time at `target.cpu_mhz`, at the target core's cycles per unit ({CYCLES_PER_WORK_UNIT:g} "
+            "on the default Cortex-M4F; target.md \"Parts\") (no budget with `polish: false`) "
+            "(solver.md, \"Sizing\")"),
         Key("budget_share", None, "the fraction of the sample time `work_budget: auto` gives "
             "the solver"),
     )),
@@ -278,6 +279,12 @@ SECTIONS = (
             "beyond it (unless `--force-size`)"),
         Key("ram_kib", "none (generate: {DEFAULT_RAM_LIMIT_KIB} KiB)", "static RAM the image, and "
             "the controller instance alone, must fit"),
+        Key("part", "none", "a declared part (`stm32f427`, `stm32f765`, `stm32h743`, "
+            "`stm32l562`, ...: parts.py, target.md \"Parts\"): its core, clock, flash and RAM, "
+            "each of which a key above may override; `--part` of generate and report "
+            "replaces this section with it"),
+        Key("core", None, "without a part: the core (`cortex-m4f`, `cortex-m7`, "
+            "`cortex-m33`), its flags, FPU width, cycle model and cycles per work unit"),
     )),
 )
 

@@ -17,6 +17,7 @@ import numpy as np
 from .canonical import OMIT_AT_DEFAULT, canonical_json, config_digest
 from .constraint_types import SignalConstraint, TerminalConfig
 from .keys import section_keys
+from ..parts import CORES, DEFAULT_PART, PARTS, Core
 
 SOLVER_METHODS = ("hildreth", "hildreth_plus", "hildreth_plus_prime")
 PRECISIONS = ("double", "float")
@@ -70,8 +71,10 @@ RESERVED_PREFIXES = C_STANDARD_HEADERS + SYSTEM_HEADERS
 DEFAULT_PREFIX = "rollmpc"
 DEFAULT_PRECISION = "double"
 # the target's clock (`target.cpu_mhz`): `rollmpc report`'s cycle budget per sample and
-# what `solver.work_budget: auto` follows (qp/work.py derives the budget)
-DEFAULT_CPU_MHZ = 168.0
+# what `solver.work_budget: auto` follows (qp/work.py derives the budget); without
+# target.part, the default part's core and clock (parts.py)
+DEFAULT_CORE = PARTS[DEFAULT_PART].core.name
+DEFAULT_CPU_MHZ = PARTS[DEFAULT_PART].cpu_mhz
 WORK_BUDGET_AUTO = "auto"  # solver.work_budget: derived from the sample time and the clock
 DEFAULT_EPSILON = 0.5  # scheduler.epsilon: the hysteresis margin of every threshold
 UNBOUNDED = math.inf  # an absent output or Δu bound: -UNBOUNDED .. UNBOUNDED, no QP rows
@@ -285,22 +288,35 @@ class UnitsConfig:
 
 
 # What `rollmpc generate` refuses (unless --force-size) when the target: section leaves
-# flash_kib / ram_kib out (qp/footprint.py): the largest autopilot part `rollmpc report
-# --horizons` knows (target/horizons.py PARTS: 2 MiB of flash, a 512 KiB RAM region).
-DEFAULT_FLASH_LIMIT_KIB = 2048
-DEFAULT_RAM_LIMIT_KIB = 512
+# flash_kib / ram_kib out (qp/footprint.py): the largest declared part's (parts.py).
+DEFAULT_FLASH_LIMIT_KIB = max(p.flash.kib for p in PARTS.values())
+DEFAULT_RAM_LIMIT_KIB = max(p.ram.kib for p in PARTS.values())
 
 
 @dataclass(frozen=True)
 class TargetConfig:
     """The microcontroller ``rollmpc report`` judges the design on and ``rollmpc
     generate`` checks its predicted size against (the top-level ``target`` key); the
-    generated C never sees it.  ``None``: no verdict on that figure in the report, the
-    DEFAULT_*_LIMIT_KIB above at generation."""
+    generated C sees only its work budget (``solver.work_budget: auto``).  ``None``: no
+    verdict on that figure in the report, the DEFAULT_*_LIMIT_KIB above at generation."""
 
     cpu_mhz: float = DEFAULT_CPU_MHZ  # core clock: a sample has cpu_mhz * 1e6 * Ts cycles
     flash_kib: float | None = None  # flash the image must fit (KiB)
     ram_kib: float | None = None  # static RAM the image, and the instance alone, must fit
+    part: str | None = field(default=None, metadata=OMIT_AT_DEFAULT)  # parts.PARTS; None: unnamed
+    core: str = field(default=DEFAULT_CORE, metadata=OMIT_AT_DEFAULT)  # parts.CORES
+
+    @property
+    def core_decl(self) -> Core:
+        """The core's declaration: its flags, FPU, cycle model and calibrations."""
+        return CORES[self.core]
+
+    @property
+    def label(self) -> str:
+        """The part (or the core) and the clock, for people."""
+        core = self.core_decl.label
+        what = f"{self.part.upper()} ({core})" if self.part else f"a {core}"
+        return f"{what} at {self.cpu_mhz:g} MHz"
 
 
 @dataclass(frozen=True, eq=False)

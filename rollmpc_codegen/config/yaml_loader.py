@@ -17,6 +17,7 @@ from .controller import parse
 from .errors import ConfigError
 from .schema import (MAX_ALIAS_NODES, MAX_CONFIG_BYTES, MAX_YAML_DEPTH, MAX_YAML_NODES,
                      PRECISIONS, ControllerConfig)
+from .target import part_target
 
 
 def _yaml_problem(exc: yaml.YAMLError) -> tuple[str, str]:
@@ -97,8 +98,11 @@ def _unique_mapping(loader: yaml.SafeLoader, node: yaml.MappingNode, deep: bool 
 _ConfigLoader.add_constructor(yaml.resolver.BaseResolver.DEFAULT_MAPPING_TAG, _unique_mapping)
 
 
-def load(path: str | Path, precision: str | None = None) -> ControllerConfig:
-    """Read and validate a YAML file; ``precision`` overrides the file's setting."""
+def load(path: str | Path, precision: str | None = None,
+         part: str | None = None) -> ControllerConfig:
+    """Read and validate a YAML file; ``precision`` overrides the file's setting, ``part``
+    (``--part``) replaces its target: section by that part's own (its figures were for
+    another part)."""
     path = Path(path)
     raw = read_bounded(path)
     try:
@@ -116,6 +120,10 @@ def load(path: str | Path, precision: str | None = None) -> ControllerConfig:
             raise ConfigError("precision", f"must be one of {', '.join(PRECISIONS)}")
         if isinstance(data, dict):
             data = dict(data, precision=precision)
+    if part is not None:
+        part_target(part, "--part")  # an unknown part names the option, not the file's key
+        if isinstance(data, dict):
+            data = dict(data, target={"part": part})
     return parse(data)
 
 

@@ -139,7 +139,8 @@ def harness_context(model: ControllerModel, version: str, setup: str = "offline"
             "heap_bytes": heap, "settings": SETTINGS, "factored": setup == "offline",
             "setup": SETUPS[setup],
             "n_max": max(md["n"] for md in modes), "nx_max": max(md["nx"] for md in modes),
-            "nr_max": max(md["nr"] for md in modes)}
+            "nr_max": max(md["nr"] for md in modes),
+            "target": {"core": model.config.target.core}}  # the core it is built for
 
 
 def compile_relaxed(cmd: list[str]) -> str:

@@ -56,11 +56,13 @@ class GenerateRun:
 
 def run_generate(config, out_dir: str | Path, *, precision: str | None = None,
                  force: bool = False, force_size: bool = False,
-                 announce: Callable[[Footprint], None] | None = None) -> GenerateRun:
+                 announce: Callable[[Footprint], None] | None = None,
+                 part: str | None = None) -> GenerateRun:
     """Write the controller of ``config`` (a file, a ControllerConfig or a Design) into
     ``out_dir`` with the rules of ``rollmpc generate`` (``force``, ``force_size``;
-    ``announce`` receives the footprint before the dense maths) and collect its design
-    warnings.  The float check is :meth:`GenerateRun.check_float`."""
+    ``announce`` receives the footprint before the dense maths; ``part`` replaces its
+    target: section) and collect its design warnings.  The float check is
+    :meth:`GenerateRun.check_float`."""
     predicted: list[Footprint] = []
 
     def before_maths(footprint: Footprint) -> None:
@@ -68,7 +70,7 @@ def run_generate(config, out_dir: str | Path, *, precision: str | None = None,
         if announce is not None:
             announce(footprint)
 
-    model, ctx = generate_config(load_config(config, precision), out_dir, force, force_size,
-                                 before_maths)
+    model, ctx = generate_config(load_config(config, precision, part), out_dir, force,
+                                 force_size, before_maths)
     return GenerateRun(path=Path(out_dir), model=model, ctx=ctx, footprint=predicted[0],
                        warnings=design_warnings(model))

@@ -16,10 +16,10 @@ from ..config import ConfigError, ControllerConfig
 from ..config.sample_time import seconds_text
 from ..config.schema import WORK_BUDGET_AUTO
 from .fits import at_least, what_fits
-from .footprint import rounded, step_cycles
+from .footprint import predict, rounded
 from .sizes import mode_sizes
-from .work import (CYCLES_PER_WORK_UNIT, WORK_LIMIT, base_work, free_step_work, largest_unit,
-                   work_budget_of)
+from .work import (WORK_LIMIT, base_work, cycles_per_work_unit, free_step_work,
+                   largest_unit, work_budget_of)
 
 
 def _need(modes) -> int:
@@ -35,7 +35,7 @@ def _scalings(cfg: ControllerConfig, need: int) -> list[str]:
     s = cfg.solver
     if s.work_budget != WORK_BUDGET_AUTO:
         return [f"solver.work_budget >= {need:,}"]
-    cycles = need * CYCLES_PER_WORK_UNIT
+    cycles = need * cycles_per_work_unit(cfg)
     share = cycles / (cfg.sample_time * cfg.target.cpu_mhz * 1e6)
     mhz = cycles / (s.budget_share * cfg.sample_time * 1e6)
     out = [f"solver.budget_share >= {at_least(share)}"] if share <= 1 else []
@@ -57,7 +57,8 @@ def check_work_budget(cfg: ControllerConfig, modes, factor: int) -> int:
         return budget
     s = cfg.solver
     how = (f"auto: {s.budget_share:g} of Ts = {seconds_text(cfg.sample_time)} at "
-           f"{cfg.target.cpu_mhz:g} MHz, {CYCLES_PER_WORK_UNIT:g} cycles per unit"
+           f"{cfg.target.cpu_mhz:g} MHz, {cycles_per_work_unit(cfg):g} cycles per unit on the "
+           f"{cfg.target.core_decl.label}"
            if s.work_budget == WORK_BUDGET_AUTO else "given")
     sizes = _sizes(cfg)
     held = max(free_step_work(m) for m in sizes)
@@ -65,4 +66,4 @@ def check_work_budget(cfg: ControllerConfig, modes, factor: int) -> int:
                      _scalings(cfg, need))
     raise ConfigError("solver.work_budget", f"{budget:,} units ({how}) are below the {need:,} "
                       f"a step without active bounds may charge ({held:,} with a held "
-                      f"reference, about {rounded(step_cycles(sizes)):,} cycles); {fits}")
+                      f"reference, about {rounded(predict(cfg).step_cycles):,} cycles); {fits}")

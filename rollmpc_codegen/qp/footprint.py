@@ -6,14 +6,17 @@ data and a 3 MB controller instance (issue 18).  Now ``generate`` prints the pre
 (before the maths when that maths is slow, :attr:`Footprint.slow`) and refuses a design
 beyond its ``target:`` section:
 
-* **The build judged** is the float build whatever precision is generated: the target is
-  the single-precision part ``rollmpc report`` emulates (Cortex-M4F) and firmware_stub
-  builds for, and the cycle estimate is for it.  So a config is accepted or refused the
-  same in both precisions; the paper's config declares its M4F's 256 KiB, which its float
-  build meets and its double reference build (the host's, twice the data) never could.
-  A double build's own data and instance are printed beside.
-* **flash** = the stored data (:func:`.sizes.stored_bytes`, exact when nx is) plus
-  :data:`CODE_FLASH_BYTES`; **RAM** = one ``P_ctrl`` (:func:`.sizes.struct_bytes`).
+* **The build judged** is the one the target's FPU runs (parts.py
+  ``Core.judged_precision``): the generated precision on a double-precision FPU (the
+  Cortex-M7), else the float build whatever precision is generated, since the
+  single-precision parts (Cortex-M4F, M33) run the float build and the cycle estimate is
+  for it.  So on those a config is accepted or refused the same in both precisions; the
+  paper's config declares its M4F's 256 KiB, which its float build meets and its double
+  reference build (the host's, twice the data) never could.  A double build's own data and
+  instance are printed beside.
+* **flash** = the stored data (:func:`.sizes.stored_bytes`, exact when nx is) plus the
+  core's code allowance (parts.py ``Core.code_bytes``); **RAM** = one ``P_ctrl``
+  (:func:`.sizes.struct_bytes`).
 * **cycles**: an *estimate* of a step with no active bound (the unconstrained solution,
   the row checks, every observer), which every step costs at least; steps with active
   bounds cost more (the paper config's worst is 19 times its median, quad_attitude's 12
@@ -28,6 +31,8 @@ beyond its ``target:`` section:
   of tests/data/newuser (buck.yaml, ship_heading.yaml); each within 13 %.  Not counted:
   the output rows' prediction when the bound cannot certify them (the buck at N = 12
   pays it on its median step, 514 units instead of 408: the estimate is 21 % low there).
+  On another core the cycles are scaled by its cycles per work unit over the M4F's (the
+  same arithmetic, at that core's cost per unit: parts.py).
 * **limits**: ``target.flash_kib`` and ``target.ram_kib`` (when absent,
   schema.DEFAULT_FLASH_LIMIT_KIB / DEFAULT_RAM_LIMIT_KIB), and the cycles of one sample
   time at ``target.cpu_mhz``.  The safety limits of :func:`.sizes.check_sizes` come first
@@ -39,20 +44,15 @@ from dataclasses import dataclass
 
 from ..config import ConfigError, ControllerConfig
 from ..config.schema import DEFAULT_FLASH_LIMIT_KIB, DEFAULT_RAM_LIMIT_KIB
+from ..parts import CORTEX_M4F
 from .fits import at_least, what_fits
 from .sizes import (ModeSizes, condensing_bytes, largest_mode, mode_sizes, stored_bytes,
                     struct_bytes)
 from .work import free_step_work, work_budget_of
 
-# the text of every generated function on the M4F at -O2 (-ffunction-sections, none
-# dropped): 29,804 to 33,552 B over the examples with the four-row back substitution and
-# correct()'s column pairs (29,016 to 32,704 at 57967e4; docs/target.md, "Before
-# generation"); the paper config's linked image keeps about 30 KB of it. It was 18 KiB,
-# then 32 KiB, until the solver grew past it: measure again when the templates grow
-# (tests/test_code_allowance.py).
-CODE_FLASH_BYTES = 36 * 1024
 CYCLES_PER_FREE_UNIT = 9  # per work unit of a step without active bounds (a fit, above)
 FIXED_STEP_CYCLES = 2_700  # per step, outside the solver's count
+FIT_CORE = CORTEX_M4F  # the core both were fitted on (another core's scales them)
 # dense condensing matrices beyond this take about a second (N = 150 for the paper's
 # plant on this machine): the prediction is then printed before the maths, not after
 SLOW_MATHS_BYTES = 1 << 20
@@ -63,12 +63,15 @@ KIB = 1024
 class Footprint:
     """The prediction of one config (every size in bytes)."""
 
+    target: str  # the part (or core) and clock, for people
     precision: str  # of the build being generated
+    judged: str  # the precision of the build the target runs (judged below)
     data_bytes: int  # its stored data
     ctrl_bytes: int  # its P_ctrl instance
-    flash_bytes: int  # the float build: data + CODE_FLASH_BYTES
-    ram_bytes: int  # the float build's P_ctrl
-    step_cycles: int  # estimated unconstrained step of the float build
+    code_bytes: int  # the target core's code allowance (parts.py Core.code_bytes)
+    flash_bytes: int  # the judged build: data + code_bytes
+    ram_bytes: int  # the judged build's P_ctrl
+    step_cycles: int  # estimated unconstrained step of the judged build
     step_units: int  # the same step in the solver's work units (held reference)
     work_budget: int  # the solver's budget in those units
     flash_limit: int
@@ -85,14 +88,14 @@ class Footprint:
             return (f"{size / KIB:.1f} of {limit / KIB:g} KiB"
                     + ("" if declared else " (default limit)"))
 
-        lines = [f"predicted on the target (float build): flash "
+        lines = [f"predicted on {self.target} ({self.judged} build): flash "
                  f"{of(self.flash_bytes, self.flash_limit, self.flash_declared)}, RAM "
                  f"{of(self.ram_bytes, self.ram_limit, self.ram_declared)}, a step without "
                  f"active bounds about {rounded(self.step_cycles):,} of the "
                  f"{self.cycle_budget:,} cycles of a sample and {self.step_units:,} of the "
                  f"solver's {self.work_budget:,} work units (an estimate; active bounds "
                  "cost more)"]
-        if self.precision != "float":
+        if self.precision != self.judged:
             lines.append(f"this {self.precision} build: data {self.data_bytes / KIB:.1f} "
                          f"KiB, controller instance {self.ctrl_bytes / KIB:.1f} KiB")
         return lines
@@ -103,22 +106,27 @@ def rounded(value: int) -> int:
     return int(round(value, 2 - len(str(abs(int(value))))))
 
 
-def step_cycles(sizes: tuple[ModeSizes, ...]) -> int:
+def step_cycles(sizes: tuple[ModeSizes, ...], scale: float = 1.0) -> int:
     """Estimated cycles of a step without active bounds: the work units of the costliest
     mode's free step (work.free_step_work) at CYCLES_PER_FREE_UNIT, and the step's fixed
-    costs (module docstring)."""
-    return CYCLES_PER_FREE_UNIT * max(free_step_work(s) for s in sizes) + FIXED_STEP_CYCLES
+    costs (module docstring); ``scale``: the target core's cost per work unit over
+    FIT_CORE's."""
+    return int(round(scale * (CYCLES_PER_FREE_UNIT * max(free_step_work(s) for s in sizes)
+                              + FIXED_STEP_CYCLES)))
 
 
 def predict(cfg: ControllerConfig) -> Footprint:
-    """The footprint of ``cfg``, from its sizes alone (no plant maths)."""
+    """The footprint of ``cfg`` on its target, from its sizes alone (no plant maths)."""
     sizes = tuple(mode_sizes(cfg, m) for m in cfg.modes)
-    target = cfg.target
+    target, core = cfg.target, cfg.target.core_decl
+    judged = core.judged_precision(cfg.precision)
+    scale = core.cycles_per_work_unit(judged) / FIT_CORE.cycles_per_work_unit("float")
     return Footprint(
-        precision=cfg.precision, data_bytes=stored_bytes(cfg, sizes),
-        ctrl_bytes=struct_bytes(cfg, sizes),
-        flash_bytes=stored_bytes(cfg, sizes, "float") + CODE_FLASH_BYTES,
-        ram_bytes=struct_bytes(cfg, sizes, "float"), step_cycles=step_cycles(sizes),
+        target=target.label, precision=cfg.precision, judged=judged,
+        data_bytes=stored_bytes(cfg, sizes), ctrl_bytes=struct_bytes(cfg, sizes),
+        code_bytes=core.code_bytes,
+        flash_bytes=stored_bytes(cfg, sizes, judged) + core.code_bytes,
+        ram_bytes=struct_bytes(cfg, sizes, judged), step_cycles=step_cycles(sizes, scale),
         step_units=max(free_step_work(s) for s in sizes), work_budget=work_budget_of(cfg),
         flash_limit=int(KIB * (target.flash_kib or DEFAULT_FLASH_LIMIT_KIB)),
         ram_limit=int(KIB * (target.ram_kib or DEFAULT_RAM_LIMIT_KIB)),
@@ -128,7 +136,7 @@ def predict(cfg: ControllerConfig) -> Footprint:
 
 
 def _cycles_fit(cfg: ControllerConfig) -> bool:
-    return step_cycles(tuple(mode_sizes(cfg, m) for m in cfg.modes)) <= cfg.cycles_per_sample
+    return predict(cfg).step_cycles <= cfg.cycles_per_sample
 
 
 def check_fits(cfg: ControllerConfig, fp: Footprint) -> None:
@@ -141,8 +149,8 @@ def check_fits(cfg: ControllerConfig, fp: Footprint) -> None:
     why = None
     if fp.flash_bytes > fp.flash_limit:
         why = (f"needs about {fp.flash_bytes / KIB:,.0f} KiB of flash "
-               f"({(fp.flash_bytes - CODE_FLASH_BYTES) / KIB:,.0f} KiB of data + "
-               f"{CODE_FLASH_BYTES // KIB} KiB of code; {fp.largest_mode}), above "
+               f"({(fp.flash_bytes - fp.code_bytes) / KIB:,.0f} KiB of data + "
+               f"{fp.code_bytes // KIB} KiB of code; {fp.largest_mode}), above "
                f"{limit('flash_kib', fp.flash_limit, fp.flash_declared)}")
     elif fp.ram_bytes > fp.ram_limit:
         why = (f"needs about {fp.ram_bytes / KIB:,.0f} KiB of RAM for one controller "
@@ -158,5 +166,5 @@ def check_fits(cfg: ControllerConfig, fp: Footprint) -> None:
                f"above the {fp.cycle_budget:,} of one sample (sample_time {cfg.sample_time:g} "
                f"s at target.cpu_mhz = {cfg.target.cpu_mhz:g}); {fits}")
     if why is not None:
-        raise ConfigError("horizon", f"too large for the target: the float build {why}; "
+        raise ConfigError("horizon", f"too large for the target: the {fp.judged} build {why}; "
                           "--force-size generates it anyway")

@@ -15,19 +15,14 @@ generator keeps every bound below 2**31 (budget.py, :func:`check_work_budget`).
 """
 from __future__ import annotations
 
-from ..config.schema import DEFAULT_CPU_MHZ, WORK_BUDGET_AUTO
+from ..config.schema import WORK_BUDGET_AUTO
 from .work_formula import either, formula, larger, named, smaller, summed
 
-# Estimated Cortex-M4F cycles per work unit, declared once: `rollmpc report --precision
-# float` (which prints the ratio) measured at most 19.23 cycles per unit on the counted
-# steps that spend over 30 % of their budget (commit a0d58fb: fw_lateral step 576;
-# quad_attitude 17.93, c172_roll 15.54, uav_roll 13.11), with 4 % of margin (docs/solver.md,
-# "Work budget"). Small steps ran at 21-24 (fixed costs per call: thermal_zones' largest,
-# <= 11.7 k units, at 20.1-21.2); PRIMAL_CALL_UNITS brings them to <= 19.8 (3313d1b).
-CYCLES_PER_WORK_UNIT = 20.0
-# ...and the fewest measured on a heavy step (uav_roll's max 12.55, docs/target.md): a
-# budget that takes longer than a sample period even at this rate misses its deadline
-# whenever a solve spends it (qp/sanity.py warns)
+# The cycles a work unit costs are the target core's calibration (parts.py
+# Core.work_unit_cycles: the auto budget's divisor; the M4F's is 20): cycles_per_work_unit().
+# The fewest measured on a heavy M4F step (uav_roll's max 12.55, docs/target.md): a budget
+# that takes longer than a sample period even at this rate misses its deadline whenever a
+# solve spends it (qp/sanity.py warns)
 FEWEST_CYCLES_PER_WORK_UNIT = 12.0
 WORK_LIMIT = 2**31  # every count and bound stays below it (uint32 in the C)
 UNBOUNDED_WORK = WORK_LIMIT - 1  # the largest budget: in effect none
@@ -49,7 +44,7 @@ def hq_work(m, factor: int) -> int:
 # per call with its per-stage setup (quad_attitude, chain_runtime_bounds, fw_lateral's
 # single bounded output), so it is charged 3/5 of a unit per multiply-add (11.5-14.4
 # cycles per unit), and a unit per output. At 1/2 fw_lateral's heavy steps ran at 20.13
-# cycles per unit, over CYCLES_PER_WORK_UNIT.
+# cycles per unit, over the M4F's 20.
 PREDICT_UNITS_PER_OP = (3, 5)
 
 
@@ -107,7 +102,7 @@ def finish_work(m) -> int:
 # cycles per chol_ops() operation (7.4 at order 5), a forward solve 6.9-7.1 and a back
 # solve 9.5-11.5 per tri_ops() one (`python -m rollmpc_codegen.target.kernel_cycles`:
 # the kernels called alone on the emulator). Their charges are these fractions of a unit per operation
-# (7.6 and 11.4 cycles at CYCLES_PER_WORK_UNIT); checked on whole steps with rollmpc report.
+# (7.6 and 11.4 cycles at the M4F's 20 per unit); checked on whole steps with rollmpc report.
 CHOL_UNITS_PER_OP = (2, 5)
 TRI_UNITS_PER_OP = (3, 5)
 # primal_solve(), in sixths of a unit per operation (one division, so the C's
@@ -298,16 +293,24 @@ def free_step_work(m, certified: bool = True) -> int:
             + (0 if certified or not rows else m.m + predict_work(m)) + finish_work(m))
 
 
-def auto_work_budget(sample_time: float, share: float, cpu_mhz: float = DEFAULT_CPU_MHZ) -> int:
+def cycles_per_work_unit(cfg) -> float:
+    """The estimated cycles of a work unit on ``cfg``'s target core, in the precision its
+    FPU runs the design (parts.py Core.work_unit_cycles)."""
+    return cfg.target.core_decl.cycles_per_work_unit(cfg.precision)
+
+
+def auto_work_budget(sample_time: float, share: float, cpu_mhz: float,
+                     cycles_per_unit: float) -> int:
     """``solver.work_budget: auto``: ``share`` of the sample time at ``cpu_mhz``, in units."""
-    return int(sample_time * share * cpu_mhz * 1e6 / CYCLES_PER_WORK_UNIT)
+    return int(sample_time * share * cpu_mhz * 1e6 / cycles_per_unit)
 
 
 def work_budget_of(cfg) -> int:
     """The work budget of ``cfg`` (a ControllerConfig) in units: the given one, or auto's
-    (without the polish, the paper's variants: none, their sweep cap bounds them)."""
+    on its target core (without the polish, the paper's variants: none, their sweep cap
+    bounds them)."""
     s = cfg.solver
     if s.work_budget != WORK_BUDGET_AUTO:
         return int(s.work_budget)
-    return (auto_work_budget(cfg.sample_time, s.budget_share, cfg.target.cpu_mhz) if s.polish
-            else UNBOUNDED_WORK)
+    return (auto_work_budget(cfg.sample_time, s.budget_share, cfg.target.cpu_mhz,
+                             cycles_per_work_unit(cfg)) if s.polish else UNBOUNDED_WORK)

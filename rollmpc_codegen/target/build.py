@@ -1,10 +1,11 @@
-"""Stage 9 (target): cross-compile a generated controller for a Cortex-M4F and size it.
+"""Stage 9 (target): cross-compile a generated controller for its core and size it.
 
 The target build is the generated C plus a template-rendered harness
 (``templates/target/harness.c.j2``: a static controller instance, static input/output
 buffers and two entry functions) linked with ``templates/target/link.ld.j2``. It is built
-with the flags of ``make firmware`` (single-precision hard float, ``-O2``,
-``-ffp-contract=off`` for bit-exactness with the host build) plus ``-fstack-usage``.
+with the flags of ``make firmware``: the core's (parts.py, from the context's ``target``:
+hard float, single or double precision as its FPU), ``-O2``, ``-ffp-contract=off`` for
+bit-exactness with the host build, plus ``-fstack-usage``.
 
 Sizes come from the ELF section headers: flash = everything loaded from flash (code,
 constants, the initial values of ``.data``); static RAM = ``.data`` + ``.bss`` (the stack
@@ -22,13 +23,13 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from ..host.build import STRICT_WARNINGS, BuildError
+from ..parts import CORES, CORTEX_M4F, FLASH_BASE, Core
 from ..host.build_cache import private_root, publish, staging, verified
 from ..codegen.render import render_sources, render_template
 
 CROSS_CC = "arm-none-eabi-gcc"
 CROSS_INSTALL_HINT = ("apt-get install -y --no-install-recommends gcc-arm-none-eabi "
                       "libnewlib-arm-none-eabi")
-CORTEX_M4F = ("-mcpu=cortex-m4", "-mthumb", "-mfpu=fpv4-sp-d16", "-mfloat-abi=hard")
 # -ffreestanding implies -fno-builtin, which turns every fabsf/sqrtf into a library call;
 # -fbuiltin restores VABS/VSQRT and -fno-math-errno lets sqrtf be VSQRT alone (no libm);
 # -ffp-contract=off: no fused multiply-add, so every operation rounds as on the host
@@ -41,8 +42,7 @@ TARGET_LDFLAGS = ("-nostartfiles", "--specs=nano.specs", "-Wl,--gc-sections")
 # (`rollmpc report --precision double` and `--precision float`, docs/checks.md:
 # tests/data/newuser/ship_heading.yaml 8.2 and 14.6, uav_roll --steps 1000 6.8 and 22.2)
 SOFT_DOUBLE_FACTOR = (7, 22)
-FLASH_BASE = 0x08000000
-RAM_BASE = 0x20000000
+RAM_BASE = 0x20000000  # of the emulation image (parts.py: the real parts' regions)
 # Memory of the emulation image: large enough for any horizon of the sweep; whether a
 # build fits a real part is judged from its sizes (see docs/target.md).
 EMU_FLASH_KIB = 16 * 1024
@@ -69,6 +69,7 @@ class TargetBuild:
     elf: Path
     build_dir: Path
     prefix: str
+    core: Core = CORTEX_M4F  # what it was compiled for: the emulator's CPU and cycle model
     su_files: list[Path] = field(default_factory=list)
 
 
@@ -76,6 +77,16 @@ def _run(cmd: list[str]) -> None:
     proc = subprocess.run(cmd, capture_output=True, text=True)
     if proc.returncode != 0 or proc.stderr.strip():
         raise BuildError(f"{' '.join(cmd)}\n{proc.stderr}")
+
+
+def core_of(ctx: dict) -> Core:
+    """The core a generated controller was generated for (its context's ``target``)."""
+    return CORES[ctx["target"]["core"]]
+
+
+def target_cflags(ctx: dict, extra_cflags: tuple[str, ...] = ()) -> list[str]:
+    """Every flag the target build compiles with (what ``rollmpc report`` records)."""
+    return [*core_of(ctx).cflags, *TARGET_CFLAGS, *extra_cflags]
 
 
 def build_target(ctx: dict, build_root: Path, flash_kib: int = EMU_FLASH_KIB,
@@ -94,7 +105,8 @@ def build_target(ctx: dict, build_root: Path, flash_kib: int = EMU_FLASH_KIB,
     files[f"{prefix}_target.ld"] = render_template(
         ctx, "target/link.ld.j2", flash_kib=flash_kib, ram_kib=ram_kib,
         stack_bytes=stack_bytes)
-    cflags = [*CORTEX_M4F, *TARGET_CFLAGS, *STRICT_WARNINGS, *extra_cflags]
+    core = core_of(ctx)
+    cflags = [*core.cflags, *TARGET_CFLAGS, *STRICT_WARNINGS, *extra_cflags]
     digest = hashlib.sha256()
     for name in sorted(files):
         digest.update(name.encode())
@@ -104,7 +116,7 @@ def build_target(ctx: dict, build_root: Path, flash_kib: int = EMU_FLASH_KIB,
     out, elf_name = root / f"target-{prefix}-{key[:16]}", f"{prefix}_target.elf"
     elf = verified(out, elf_name, key)
     if elf is not None:
-        return TargetBuild(elf=elf, build_dir=out, prefix=prefix,
+        return TargetBuild(elf=elf, build_dir=out, prefix=prefix, core=core,
                            su_files=sorted(out.glob("*.su")))
     with staging(root, out.name) as tmp:
         for name, text in files.items():
@@ -114,11 +126,12 @@ def build_target(ctx: dict, build_root: Path, flash_kib: int = EMU_FLASH_KIB,
             obj = src.with_suffix(".o")
             _run([cc, *cflags, f"-I{tmp}", "-c", str(src), "-o", str(obj)])
             objs.append(obj)
-        _run([cc, *CORTEX_M4F, *TARGET_LDFLAGS, "-T", str(tmp / f"{prefix}_target.ld"),
+        _run([cc, *core.cflags, *TARGET_LDFLAGS, "-T", str(tmp / f"{prefix}_target.ld"),
               f"-Wl,-Map={tmp / (prefix + '_target.map')}", "-o", str(tmp / elf_name),
               *map(str, objs), "-lm", "-lgcc"])
         elf = publish(tmp, out, elf_name, key)
-    return TargetBuild(elf=elf, build_dir=out, prefix=prefix, su_files=sorted(out.glob("*.su")))
+    return TargetBuild(elf=elf, build_dir=out, prefix=prefix, core=core,
+                       su_files=sorted(out.glob("*.su")))
 
 
 # ----------------------------------------------------------------------------- sizes

@@ -1,15 +1,20 @@
-"""Run functions of a Cortex-M4F image on Unicorn and count instructions and cycles.
+"""Run functions of a Cortex-M image on Unicorn and count instructions and cycles.
 
-Recipe: ``Uc(ARM, THUMB | MCLASS)`` with the
-Cortex-M4 CPU model; flash and RAM mapped where the image is linked; every PT_LOAD
-segment written at its run address (``.data`` already initialised, ``.bss`` zero); a
-``b .`` at a return address in LR; run until PC reaches it.
+Recipe: ``Uc(ARM, THUMB)`` with the core's CPU model
+(parts.py ``Core.emulator_cpu``); flash and RAM mapped where the image is linked; every
+PT_LOAD segment written at its run address (``.data`` already initialised, ``.bss``
+zero); a ``b .`` at a return address in LR; run until PC reaches it.  Not
+``UC_MODE_MCLASS``: unicorn 2.1.4 then runs its Cortex-M33 whatever model was set
+(``arm_cpu_init``), whose FPU is single precision; without it the model set is the one
+run, and the M7's executes the double-precision VFP instructions of FPv5-D16.
 
 Counting uses a ``UC_HOOK_BLOCK`` hook only while counting is on: each translated block
-is disassembled once with capstone, and its instruction count and summed cycle weight
-are cached. A taken branch adds the pipeline refill. ``UC_HOOK_CODE`` is not used: it
-skips the instructions of an IT block whose condition fails and is ~4x slower. The cycle
-model is the zero-wait-state table of the notes (Cortex-M4 TRM); treat it as +/-20 %.
+is disassembled once with capstone and its instructions and cycles (the core's model,
+:mod:`.cycle_models`) are cached; a loop's next trip is counted at the block's ``warm``
+cycles. A taken branch adds the refill, or with a predictor (the M7) a mispredicted one
+its penalty; the predictor starts cold on every counted call (other firmware runs between
+two controller steps). ``UC_HOOK_CODE`` is not used: it skips the instructions of an IT
+block whose condition fails and is ~4x slower.
 """
 from __future__ import annotations
 
@@ -20,61 +25,15 @@ from pathlib import Path
 
 import numpy as np
 
+from ..parts import CORTEX_M4F, Core
 from .build import FLASH_BASE, RAM_BASE, function_symbols, object_symbols
+from .cycle_models import MODELS, writes_pc
 
-BRANCH_TAKEN_CYCLES = 2
 # Memory the emulator maps (covers every image target.build_target links).
 FLASH_MAP_BYTES = 32 * 1024 * 1024
 RAM_MAP_BYTES = 32 * 1024 * 1024
 RETURN_ADDRESS = FLASH_BASE + FLASH_MAP_BYTES - 0x100
 STACK_PAINT = 0xA5
-
-
-def _reg_words(op_str: str) -> int:
-    """32-bit words moved by a register list such as ``{r4, r5, lr}`` or ``{d8-d10}``."""
-    inside = op_str[op_str.find("{") + 1: op_str.rfind("}")]
-    words = 0
-    for item in inside.split(","):
-        item = item.strip()
-        if not item:
-            continue
-        per = 2 if item.startswith("d") else 1
-        if "-" in item:
-            lo, hi = item.split("-")
-            words += per * (int(hi.strip()[1:]) - int(lo.strip()[1:]) + 1)
-        else:
-            words += per
-    return words
-
-
-def instruction_cycles(name: str, op_str: str) -> int:
-    """Estimated cycles of one instruction, by capstone's base name (no condition or
-    width suffix); the refill of a taken branch is added by the block hook."""
-    if name in ("vdiv", "vsqrt"):
-        return 14
-    if name in ("sdiv", "udiv"):
-        return 12
-    if name in ("vmla", "vmls", "vfma", "vfms", "vnmla", "vnmls", "vfnma", "vfnms"):
-        return 3
-    if name in ("ldrd", "strd"):
-        return 3
-    if name.startswith(("ldr", "str", "vldr", "vstr")):  # ldrb/ldrsh/strh/ldrex/...
-        return 2
-    if name.startswith(("ldm", "stm", "vldm", "vstm")) or name in ("push", "pop", "vpush", "vpop"):
-        return 1 + _reg_words(op_str)
-    if name == "vmov":
-        core = any(o.strip().startswith(("r", "ip", "lr", "sb", "sl", "fp"))
-                   for o in op_str.split(","))
-        return 2 if core else 1
-    return 1
-
-
-def _writes_pc(name: str, op_str: str) -> bool:
-    if name in ("b", "bl", "blx", "bx", "cbz", "cbnz", "tbb", "tbh"):
-        return True
-    if name in ("pop", "ldm") and "pc" in op_str:
-        return True
-    return name in ("ldr", "mov", "add") and op_str.startswith("pc")
 
 
 class EmulationError(RuntimeError):
@@ -90,17 +49,17 @@ class Counts:
     by_function: dict = field(default_factory=dict)  # name -> [instructions, cycles]
 
 
-class CortexM4:
-    """A Cortex-M4F image loaded into Unicorn, with functions callable by name."""
+class CortexM:
+    """A Cortex-M image of ``core`` loaded into Unicorn, with functions callable by name."""
 
-    def __init__(self, elf: Path):
+    def __init__(self, elf: Path, core: Core = CORTEX_M4F):
         from capstone import CS_ARCH_ARM, CS_MODE_MCLASS, CS_MODE_THUMB, Cs
         from elftools.elf.elffile import ELFFile
-        from unicorn import UC_ARCH_ARM, UC_MODE_MCLASS, UC_MODE_THUMB, Uc
-        from unicorn.arm_const import UC_CPU_ARM_CORTEX_M4
+        from unicorn import UC_ARCH_ARM, UC_MODE_THUMB, Uc, arm_const
 
-        self.uc = Uc(UC_ARCH_ARM, UC_MODE_THUMB | UC_MODE_MCLASS)
-        self.uc.ctl_set_cpu_model(UC_CPU_ARM_CORTEX_M4)
+        self.core, self.model = core, MODELS[core.cycle_model]
+        self.uc = Uc(UC_ARCH_ARM, UC_MODE_THUMB)
+        self.uc.ctl_set_cpu_model(getattr(arm_const, core.emulator_cpu))
         self.uc.mem_map(FLASH_BASE, FLASH_MAP_BYTES)
         self.uc.mem_map(RAM_BASE, RAM_MAP_BYTES)
         with open(elf, "rb") as fh:
@@ -120,11 +79,10 @@ class CortexM4:
         self.stack_base, self.stack_top = stack_base, stack_base + stack_size
         self.uc.mem_write(self.stack_base, bytes([STACK_PAINT]) * stack_size)
         self._cs = Cs(CS_ARCH_ARM, CS_MODE_THUMB | CS_MODE_MCLASS)
+        self._cs.detail = self.model.detail
         self._blocks: dict[int, tuple] = {}
-        self._hits: dict[int, int] = defaultdict(int)
-        self._taken: dict[int, int] = defaultdict(int)
-        self._prev_end, self._prev_branch, self._prev_key = -1, False, -1
         self._hook = None
+        self._reset_counts()
 
     # ------------------------------------------------------------------ memory access
     def address(self, symbol: str) -> int:
@@ -160,36 +118,58 @@ class CortexM4:
                 return name
         return "?"
 
+    def _reset_counts(self) -> None:
+        self._hits: dict[int, int] = defaultdict(int)  # entered from another block
+        self._warm: dict[int, int] = defaultdict(int)  # entered from itself (a loop)
+        self._taken: dict[int, int] = defaultdict(int)  # taken (or mispredicted) branches
+        self._state: dict[int, int] = {}  # the predictor: 2-bit counter or last target
+        self._prev_end, self._prev_branch, self._prev_key = -1, None, -1
+
     def _block_info(self, key: int, address: int, size: int) -> tuple:
         code = bytes(self.uc.mem_read(address, size))
-        n = cycles = 0
-        last = None
-        for insn in self._cs.disasm(code, address):
-            n += 1
-            cycles += instruction_cycles(insn.insn_name(), insn.op_str)
-            last = insn
-        branch = last is not None and _writes_pc(last.insn_name(), last.op_str)
-        info = (n, cycles, address + size, branch, self.function_at(address))
+        insns = list(self._cs.disasm(code, address))
+        cold, warm = self.model.block(insns)
+        last = insns[-1] if insns else None
+        branch = None  # what the predictor keeps of the block's last instruction
+        if last is not None and writes_pc(last.insn_name(), last.op_str):
+            branch = _branch_kind(last) if self.model.predicts else "taken"
+        info = (len(insns), cold, warm, address + size, branch, self.function_at(address))
         self._blocks[key] = info
         return info
 
     def _on_block(self, uc, address, size, _user) -> None:
         key = (address << 16) | size  # a start address may be translated with two sizes
         info = self._blocks.get(key) or self._block_info(key, address, size)
-        self._hits[key] += 1
-        if self._prev_branch and address != self._prev_end:
-            self._taken[self._prev_key] += 1  # the refill is charged to the branching block
-        self._prev_end, self._prev_branch, self._prev_key = info[2], info[3], key
+        if key == self._prev_key:
+            self._warm[key] += 1
+        else:
+            self._hits[key] += 1
+        branch, prev = self._prev_branch, self._prev_key
+        if branch is not None:
+            taken = address != self._prev_end
+            if branch == "taken":
+                self._taken[prev] += taken  # the refill is charged to the branching block
+            elif branch == "indirect":
+                self._taken[prev] += self._state.get(prev) != address
+                self._state[prev] = address
+            elif branch != "direct":  # conditional: "back" or "forward" (its static guess)
+                counter = self._state.get(prev, 2 if branch == "back" else 1)
+                self._taken[prev] += (counter >= 2) != taken
+                self._state[prev] = min(counter + 1, 3) if taken else max(counter - 1, 0)
+        self._prev_end, self._prev_branch, self._prev_key = info[3], info[4], key
 
     def _collect(self) -> Counts:
         counts = Counts()
-        for key, hits in self._hits.items():
-            n, cycles, _, _, name = self._blocks[key]
-            cyc = hits * cycles + self._taken.get(key, 0) * BRANCH_TAKEN_CYCLES
-            counts.instructions += hits * n
+        penalty = (self.model.mispredict_cycles if self.model.predicts
+                   else self.model.taken_cycles)
+        for key in set(self._hits) | set(self._warm):
+            n, cold, warm, _, _, name = self._blocks[key]
+            hits, again = self._hits.get(key, 0), self._warm.get(key, 0)
+            cyc = hits * cold + again * warm + self._taken.get(key, 0) * penalty
+            counts.instructions += (hits + again) * n
             counts.cycles += cyc
             per = counts.by_function.setdefault(name, [0, 0])
-            per[0] += hits * n
+            per[0] += (hits + again) * n
             per[1] += cyc
         return counts
 
@@ -209,8 +189,7 @@ class CortexM4:
         self.uc.reg_write(UC_ARM_REG_SP, self.stack_top)
         self.uc.reg_write(UC_ARM_REG_LR, RETURN_ADDRESS | 1)
         if count:
-            self._hits, self._taken = defaultdict(int), defaultdict(int)
-            self._prev_end, self._prev_branch, self._prev_key = -1, False, -1
+            self._reset_counts()
             self._hook = self.uc.hook_add(UC_HOOK_BLOCK, self._on_block)
             self.uc.ctl_flush_tb()  # blocks translated without the hook would not call it
         try:
@@ -227,3 +206,19 @@ class CortexM4:
             raise EmulationError(f"{function} did not return (stopped at "
                                  f"{self.uc.reg_read(UC_ARM_REG_PC):#x})")
         return self.uc.reg_read(UC_ARM_REG_R0), (self._collect() if count else None)
+
+
+def _branch_kind(insn) -> str:
+    """How the M7's predictor sees a branch: ``direct`` (unconditional to a fixed target,
+    always predicted), ``indirect`` (its target from a register or memory: predicted as
+    the last one), or conditional: ``back`` or ``forward`` by its target (the static guess
+    of a branch seen for the first time: a backward one is a loop, taken)."""
+    name = insn.insn_name()
+    direct = name in ("cbz", "cbnz") or (name in ("b", "bl")
+                                         and insn.op_str.lstrip().startswith("#"))
+    if not direct:
+        return "indirect"
+    if name not in ("cbz", "cbnz") and insn.cc in (0, 15):  # no condition (or AL)
+        return "direct"
+    target = int(insn.op_str.split("#")[-1], 0)
+    return "back" if target <= insn.address else "forward"

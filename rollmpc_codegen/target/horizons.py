@@ -1,8 +1,8 @@
 """``rollmpc report --horizons``: the measurement of :mod:`rollmpc_codegen.target.measure`
 repeated with the config's horizon overridden, the growth of each figure in N fitted
 (log-log least squares), the horizon that still fits the budget (the config's sample time
-at its ``target.cpu_mhz``, measure.budget_verdict), and which common autopilot parts hold
-each horizon in memory.
+at its ``target.cpu_mhz``, measure.budget_verdict), and which declared parts (parts.py)
+hold each horizon in memory.
 """
 from __future__ import annotations
 
@@ -15,23 +15,10 @@ import yaml
 
 from ..codegen.render import render_sources
 from ..config.errors import ConfigError
+from ..parts import PARTS
 from ..pipeline import load_model
 from ..sim.simulate import start_phase
 from .measure import measure
-
-# Memory assumed for common autopilot parts: flash, and the largest contiguous RAM region
-# a statically allocated controller instance can live in (the instance is one struct).
-PARTS = (
-    {"part": "STM32F405/F407 (M4F, 168 MHz)", "flash_kib": 1024, "ram_kib": 128,
-     "ram_note": "192 KiB = 128 KiB SRAM + 64 KiB CCM; one struct must fit 128 KiB"},
-    {"part": "STM32F427/F429 (M4F, 180 MHz; Pixhawk FMUv2/v3)", "flash_kib": 2048,
-     "ram_kib": 192, "ram_note": "256 KiB = 192 KiB SRAM + 64 KiB CCM"},
-    {"part": "STM32F765/F767 (M7 double FPU, 216 MHz; FMUv5)", "flash_kib": 2048,
-     "ram_kib": 512, "ram_note": "512 KiB (DTCM + SRAM1 + SRAM2, contiguous)"},
-    {"part": "STM32H743/H753 (M7 double FPU, 480 MHz; FMUv6)", "flash_kib": 2048,
-     "ram_kib": 512, "ram_note": "1 MiB total; largest region AXI SRAM 512 KiB"},
-)
-
 
 def config_with_horizon(config: Path, horizon: int, out_dir: Path) -> Path:
     """A copy of ``config`` with ``horizon`` overridden, written to ``out_dir``."""
@@ -67,7 +54,7 @@ def horizon_limit(ns: list[int], cycles: list[int], budget: float) -> int | None
 
 
 def horizon_table(config: Path, horizons: list[int], precision: str | None, build_root: Path,
-                  progress=None, **measure_options) -> dict:
+                  progress=None, part: str | None = None, **measure_options) -> dict:
     """Per horizon: generation time, flash, RAM, worst/median cycles; growth fits; parts.
     A horizon the generator refuses (say, the config's explicit work budget is below that
     horizon's unconstrained step) goes to ``refused`` with the error, and the others are
@@ -79,7 +66,7 @@ def horizon_table(config: Path, horizons: list[int], precision: str | None, buil
         path = config_with_horizon(config, h, Path(build_root) / "horizons")
         t0 = time.perf_counter()
         try:
-            model, ctx = load_model(path, precision)
+            model, ctx = load_model(path, precision, part)
         except ConfigError as exc:  # e.g. a work budget below this horizon's unconstrained step
             refused.append({"horizon": h, "error": str(exc)})
             continue
@@ -106,11 +93,13 @@ def horizon_table(config: Path, horizons: list[int], precision: str | None, buil
         fits[key]["exponent_last_pair"] = (loglog_fit(ns[-2:], [r[key] for r in rows[-2:]])
                                            ["exponent"] if len(rows) > 1 else None)
     n_max = horizon_limit(ns, [r["worst_step_cycles"] for r in rows], budget["cycles_per_sample"])
-    parts = []
-    for part in PARTS:
-        ok = [r["horizon"] for r in rows if r["flash_bytes"] <= part["flash_kib"] * 1024
-              and r["ram_bytes"] <= part["ram_kib"] * 1024]
-        parts.append({**part, "horizons_that_fit_memory": ok})
+    parts = []  # the declared parts' flash and the region a static instance lives in
+    for part in PARTS.values():
+        ok = [r["horizon"] for r in rows if r["flash_bytes"] <= part.flash.kib * 1024
+              and r["ram_bytes"] <= part.ram.kib * 1024]
+        parts.append({"part": part.label, "flash_kib": part.flash.kib,
+                      "ram_kib": part.ram.kib, "ram_region": part.ram.name,
+                      "horizons_that_fit_memory": ok})
     fitting = [r["horizon"] for r in rows if r["fits_budget"]]
     return {"rows": rows, "refused": refused, "fits": fits, "parts": parts, "budget": budget,
             "largest_measured_horizon_within_budget": max(fitting) if fitting else None,

@@ -18,7 +18,7 @@ import numpy as np
 from ..pipeline import load_model
 from ..qp.work import chol_ops, tri_ops
 from .build import build_target
-from .emulate import CortexM4
+from .emulate import CortexM
 
 ORDERS = (5, 10, 20, 40, 60, 80)
 
@@ -28,7 +28,8 @@ def kernel_cycles(config: str | Path, orders=ORDERS) -> list[dict]:
     their cycles per chol_ops() / tri_ops() operation."""
     _model, ctx = load_model(config, "float")
     with tempfile.TemporaryDirectory(prefix="rollmpc-kernels-") as tmp:  # loaded: not kept
-        cpu = CortexM4(build_target(ctx, Path(tmp)).elf)
+        build = build_target(ctx, Path(tmp))
+        cpu = CortexM(build.elf, build.core)
     p, rng, rows = ctx["prefix"], np.random.default_rng(0), []
     base, room = cpu.objects[f"{p}_target_ctrl"]
     for k in orders:

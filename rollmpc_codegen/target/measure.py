@@ -1,8 +1,9 @@
 """One measurement of ``rollmpc report`` (:mod:`rollmpc_codegen.target.report`): the target
 image's flash, RAM and stack, then the scenario or each flight of a
 :class:`~rollmpc_codegen.sim.flight_plan.FlightPlan` recorded on the host and replayed on
-the emulated Cortex-M4F, with the cycles of the counted steps judged against the config's
-own sample time and its ``target:`` section (clock; flash and RAM when given).
+the emulated core of the config's target (parts.py), with the cycles of the counted steps
+judged against the config's own sample time and its ``target:`` section (clock; flash and
+RAM when given).
 """
 from __future__ import annotations
 
@@ -14,7 +15,7 @@ import numpy as np
 from .. import __version__
 from ..sim.flight_plan import FlightPlan
 from ..sim.metrics import longest_run, status_counts
-from .build import (CORTEX_M4F, CROSS_CC, TARGET_CFLAGS, build_target, image_sizes,
+from .build import (CROSS_CC, build_target, core_of, image_sizes, target_cflags,
                     largest_symbols, worst_stack)
 from .flights import FlightRun, fly
 from .replay import INFO_FIELDS, HostRecord
@@ -44,7 +45,8 @@ def _other_share(counts, top: list[dict]) -> float:
 def budget_verdict(cfg, worst_cycles: int) -> dict:
     """The worst step against one sample time at the config's ``target.cpu_mhz``."""
     budget = cfg.cycles_per_sample
-    return {"cpu_mhz": cfg.target.cpu_mhz, "sample_time": cfg.sample_time,
+    return {"target": cfg.target.label, "part": cfg.target.part, "core": cfg.target.core,
+            "cpu_mhz": cfg.target.cpu_mhz, "sample_time": cfg.sample_time,
             "cycles_per_sample": budget, "worst_fits": bool(worst_cycles <= budget),
             "worst_load_percent": round(100.0 * worst_cycles / budget, 1)}
 
@@ -61,6 +63,12 @@ def memory_goals(cfg, flash_bytes: int, ram_bytes: int, ctrl_bytes: int) -> dict
         goals[f"ram_bytes<={limit}"] = bool(ram_bytes <= limit)
         goals[f"ctrl_bytes<={limit}"] = bool(ctrl_bytes <= limit)
     return goals
+
+
+def cycle_model_text(core) -> str:
+    """What the cycles are (docs/target.md "Parts": what each model includes)."""
+    return (f"{core.label}: cycle model {core.cycle_model} (target/cycle_models.py), zero "
+            f"wait states; treat as {core.cycle_band}")
 
 
 def cycles_by_mode(run: FlightRun, ctx: dict) -> dict:
@@ -84,7 +92,7 @@ def cycles_by_mode(run: FlightRun, ctx: dict) -> dict:
 def cycles_per_work(runs) -> dict:
     """Estimated cycles per work unit (qp/work.py) on the counted steps that solved a QP, over
     every flight: its largest and median ratio, and the flight and step of the largest (the
-    calibration of CYCLES_PER_WORK_UNIT, docs/solver.md "Work budget")."""
+    calibration of the core's cycles per work unit, parts.py; docs/solver.md "Work budget")."""
     ratios = {(f.flight.index, k): c.cycles / f.record.info[k]["work"]
               for f in runs for k, c in f.run.counts.items() if f.record.info[k]["work"] > 0}
     if not ratios:
@@ -137,7 +145,7 @@ def measure(model, ctx: dict, build_root: Path, *, plan: FlightPlan = FlightPlan
         "horizon": ctx["horizon"],
         "sample_time": ts,
         "toolchain": _toolchain_version(),
-        "cflags": " ".join([*CORTEX_M4F, *TARGET_CFLAGS, *extra_cflags]),
+        "cflags": " ".join(target_cflags(ctx, extra_cflags)),
         "flash_bytes": sizes["flash_bytes"],
         "ram_bytes": sizes["ram_bytes"],
         "ctrl_bytes": ctrl_bytes,
@@ -185,8 +193,7 @@ def measure(model, ctx: dict, build_root: Path, *, plan: FlightPlan = FlightPlan
                                                    "polish_iterations", "active", "work")},
              "host_solve_us": round(record.info[k]["solve_ticks"] / 1000.0, 1)}
             for k in sorted(worst_run.hard, key=lambda k: -counts[k].cycles)],
-        "cycle_model": "Cortex-M4 TRM weights, zero wait states, taken branch +2 "
-                       "(target/emulate.py); treat as +/-20 %",
+        "cycle_model": cycle_model_text(core_of(ctx)),
     }
     if plan.flights:
         report["flights"] = [f.summary() for f in runs]

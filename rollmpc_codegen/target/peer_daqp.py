@@ -40,9 +40,9 @@ from ..host.daqp_harness import (DAQP_WARNINGS, SETTINGS, SETUPS, build_key, com
                                  harness_context, mode_arrays, warning_counts)
 from ..model.controller import ControllerModel
 from ..qp.peers import DaqpPeer, c_stdout_silenced, peer_problems
-from .build import (CORTEX_M4F, EMU_FLASH_KIB, EMU_RAM_KIB, EMU_STACK_BYTES, TARGET_CFLAGS,
-                    TARGET_LDFLAGS, _run, image_sizes, require_cross_compiler)
-from .emulate import CortexM4
+from .build import (EMU_FLASH_KIB, EMU_RAM_KIB, EMU_STACK_BYTES, TARGET_CFLAGS,
+                    TARGET_LDFLAGS, _run, core_of, image_sizes, require_cross_compiler)
+from .emulate import CortexM
 
 SINGLE_PRECISION = "-DDAQP_SINGLE_PRECISION"
 # |u| beyond a limit by more than this fraction of the limit counts as a violation
@@ -60,7 +60,8 @@ def build_daqp_target(ctx: dict, csrc: Path, build_root: Path) -> tuple[Path, di
     harness = render_template(ctx, "target/daqp_harness.c.j2")
     ld = render_template(ctx, "target/link.ld.j2", flash_kib=EMU_FLASH_KIB,
                          ram_kib=EMU_RAM_KIB, stack_bytes=EMU_STACK_BYTES)
-    base = [*CORTEX_M4F, *TARGET_CFLAGS, SINGLE_PRECISION]
+    mcu = core_of(ctx).cflags
+    base = [*mcu, *TARGET_CFLAGS, SINGLE_PRECISION]
     key = build_key([cc, *base, *DAQP_WARNINGS, *STRICT_WARNINGS, harness, ld], csrc)
     root = private_root(build_root)
     out, elf_name = root / f"target-{p}-{key[:16]}", f"{p}_target.elf"
@@ -72,7 +73,7 @@ def build_daqp_target(ctx: dict, csrc: Path, build_root: Path) -> tuple[Path, di
         (tmp / f"{p}_target.ld").write_text(ld)
         objs, warnings = compile_daqp([cc, *base], csrc, tmp)
         objs.append(compile_harness([cc, *base], csrc, tmp / f"{p}_target_harness.c"))
-        _run([cc, *CORTEX_M4F, *TARGET_LDFLAGS, "-T", str(tmp / f"{p}_target.ld"),
+        _run([cc, *mcu, *TARGET_LDFLAGS, "-T", str(tmp / f"{p}_target.ld"),
               f"-Wl,-Map={tmp / (p + '_target.map')}", "-o", str(tmp / elf_name),
               *map(str, objs), "-lm", "-lgcc"])
         (tmp / "daqp_warnings.txt").write_text(warnings)
@@ -82,11 +83,11 @@ def build_daqp_target(ctx: dict, csrc: Path, build_root: Path) -> tuple[Path, di
 
 # ----------------------------------------------------------------------------- target
 class DaqpOnTarget:
-    """The DAQP image on the emulated M4F with every mode's workspace set up (not counted)."""
+    """The DAQP image on the emulated core with every mode's workspace set up (not counted)."""
 
     def __init__(self, elf: Path, ctx: dict, arrays: list[dict]):
         self.p, self.modes = ctx["prefix"], ctx["modes"]
-        self.em = CortexM4(elf)
+        self.em = CortexM(elf, core_of(ctx))
         for j, data in enumerate(arrays):
             for name, values in data.items():
                 self.em.write(f"{self.p}_{name}_{j}", np.ascontiguousarray(values, np.float32))
@@ -119,7 +120,7 @@ def daqp_cycles(model: ControllerModel, qp_sequence, progress=None,
                 build_root: Path | None = None, limit: int | None = None,
                 sdist_cache: Path | None = None, setup: str = "offline") -> dict:
     """Replay ``qp_sequence`` (``host.bench_record.record_qp_sequence``; its first ``limit`` QPs)
-    through DAQP on the emulated M4F; per mode: median and worst cycles, the QP where
+    through DAQP on the emulated core of the design's target; per mode: median and worst cycles, the QP where
     they peak, statuses, errors against the host DAQP in double and against our
     controller's host build, and inputs beyond their limits (see the module docstring)."""
     if setup not in SETUPS:
@@ -173,7 +174,7 @@ def daqp_cycles(model: ControllerModel, qp_sequence, progress=None,
     return {
         "peer": f"DAQP {version} (PyPI sdist, single precision)",
         "daqp_version": version,
-        "cflags": " ".join([*CORTEX_M4F, *TARGET_CFLAGS, SINGLE_PRECISION]),
+        "cflags": " ".join([*core_of(ctx).cflags, *TARGET_CFLAGS, SINGLE_PRECISION]),
         "relaxed_for_daqp": "-Werror",
         "daqp_warnings": warnings,
         "settings": dict(SETTINGS),

@@ -10,7 +10,7 @@ host run, choose the steps to count, and replay the run on the emulated Cortex-M
    the host clock is noisy), polish corrections, active rows and sweeps, plus a sampled
    sweep (every ``sample_every``-th step).
 3. Target run: the target image (``target.build_target``) replays the recorded inputs from
-   step 0 on Unicorn (``emulate.CortexM4``), so the observers and warm starts carry the same
+   step 0 on Unicorn (``emulate.CortexM``), so the observers and warm starts carry the same
    state as on the host. Every step is compared bit for bit with the host; instructions
    and estimated cycles are counted on the chosen steps only (the block hook is slow).
 
@@ -27,7 +27,7 @@ from ..host.build import build_host_controller, c_values
 from ..info_struct import COMPARED_FIELDS
 from ..sim.scenario import scenario_reference
 from ..sim.simulate import run_closed_loop, start_phase
-from .emulate import CortexM4
+from .emulate import CortexM
 
 # the diagnostics compared per step, in the order of the harness' {prefix}_target_info
 INFO_FIELDS = COMPARED_FIELDS
@@ -155,10 +155,10 @@ class TargetRun:
 
 def replay_on_target(build, ctx: dict, record: HostRecord, count_steps: set[int],
                      progress=None, label: str = "report") -> TargetRun:
-    """Replay the recorded inputs from step 0 on the emulated M4F; compare every output."""
+    """Replay the recorded inputs from step 0 on the emulated core; compare every output."""
     p = ctx["prefix"]
     dt = np.float32 if ctx["real"] == "float" else np.float64
-    em = CortexM4(build.elf)
+    em = CortexM(build.elf, build.core)
     ctrl_size, real_size, info_at, info_size = map(
         int, np.frombuffer(em.read(f"{p}_target_layout"), np.uint32))
     if ctrl_size != len(record.final_state) or real_size != np.dtype(dt).itemsize:

@@ -1,5 +1,6 @@
-"""``rollmpc report``: flash, RAM, stack and cycles of the generated controller on an
-emulated Cortex-M4F, bit-exact against the host build.
+"""``rollmpc report``: flash, RAM, stack and cycles of the generated controller on the
+emulated core of its part (parts.py; ``part`` overrides the config's), bit-exact against
+the host build.
 
 :func:`run_report` takes keywords, returns the report as a dict and prints nothing (its
 progress goes to an optional callback factory, see ``sim.simulate.start_phase``):
@@ -35,7 +36,7 @@ from .verdicts import conclude
 TARGET_MODULES = (("unicorn", "unicorn"), ("capstone", "capstone"), ("elftools", "pyelftools"))
 
 
-def run_report(config, *, precision: str | None = None,
+def run_report(config, *, precision: str | None = None, part: str | None = None,
                horizons: Iterable[int] | None = None, steps: int | None = None,
                flights: int = 0, seed: int = 0, noise_std: float = 0.0,
                disturbance: float = 0.0, mismatch: float = 0.0,
@@ -48,6 +49,7 @@ def run_report(config, *, precision: str | None = None,
     with its ``verdicts``, ``passed`` and ``checks`` (verdicts.py), or with ``horizons``
     ``{"horizons": horizon_table(...)}`` (a file or a Design).
 
+    ``part`` replaces the config's target: section by that part's (parts.py; config.load).
     ``steps`` samples of the scenario, or of each of ``flights`` random flights, are
     replayed (default: the scenario's length); ``seed``, ``noise_std``, ``disturbance``
     and ``mismatch`` perturb them (:class:`~rollmpc_codegen.sim.flight_plan.FlightPlan`).
@@ -77,10 +79,10 @@ def run_report(config, *, precision: str | None = None,
                                      "only (not with --horizons, --flights or --flight)")
     if horizons:
         path = yaml_file(config, root)
-        load_config(path, precision)  # validate before the long run
+        load_config(path, precision, part)  # validate before the long run
         return {"horizons": horizon_table(path, sorted(set(horizons)), precision, root,
-                                          progress, **options)}
-    model, ctx = load_model(config, precision)
+                                          progress, part=part, **options)}
+    model, ctx = load_model(config, precision, part)
     if flight is None:
         report = measure(model, ctx, root, progress=progress, **options)
         if peer is not None:

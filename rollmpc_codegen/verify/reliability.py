@@ -10,7 +10,7 @@
 * ``infeasible``: 1,000 infeasible QPs (50 controllers x 20) and their recovery;
 * ``memory``: the paper's test-vector program and a 100,000-step random closed loop
   under ASan+UBSan, and the test-vector program under valgrind, both precisions;
-* ``stack``: worst stack path per entry point (GCC -fstack-usage), host and Cortex-M4F;
+* ``stack``: worst stack path per entry point (GCC -fstack-usage), host and every core;
 * ``misra``: cppcheck + MISRA addon findings per rule on generated/, and how many are
   not covered by rollmpc_codegen/codegen/misra_deviations.py;
 * ``spikes``: one huge but finite measurement in the closed loop of three examples, and the
@@ -36,14 +36,14 @@ from . import qp_campaign as qc
 from .spike_recovery import measure_spikes
 from ..host.programs import (SANITIZE, SOAK_SUMMARY, VALGRIND_BUILD, VECTORS_SUMMARY,
                             compile_program, run_program, write_soak_program)
+from ..parts import CORES
 from ..sim.simulate import progress_printer
 from ..status import STATUS_NAMES
 
 ROOT = Path(__file__).resolve().parents[2]
 UAV = ROOT / "examples" / "uav_roll.yaml"
 SECTIONS = ("qp", "infeasible", "memory", "stack", "misra", "spikes")
-ARM_M4F = ("-mcpu=cortex-m4", "-mthumb", "-mfpu=fpv4-sp-d16", "-mfloat-abi=hard",
-           "-ffreestanding", "-fno-math-errno")
+FREESTANDING = ("-ffreestanding", "-fno-math-errno")  # beside each core's flags (parts.py)
 
 
 def measure_qp(work: Path, configs: int = 80, per_config: int = 125) -> tuple[dict, list]:
@@ -93,7 +93,9 @@ def measure_stack(work: Path) -> dict:
     from ..target.stack_usage import analyse
 
     out: dict = {}
-    targets = [("host-gcc", "gcc", ()), ("cortex-m4f", "arm-none-eabi-gcc", ARM_M4F)]
+    targets = [("host-gcc", "gcc", ()), *((core.name, "arm-none-eabi-gcc",
+                                           (*core.cflags, *FREESTANDING))
+                                          for core in CORES.values())]
     for prec in ("double", "float"):
         src = work / f"src_{prec}"
         generate(UAV, src, prec)
