@@ -38,12 +38,8 @@ MAX_CONFIG_BYTES = 1 << 20
 MAX_YAML_NODES = 100_000
 MAX_YAML_DEPTH = 32
 MAX_ALIAS_NODES = 10_000
-# Entries of any one list the reader converts (a vector, a matrix's rows, a row, names,
-# poles, bands, reference levels), checked before converting it.
-MAX_LIST_LENGTH = 256
-# A mode's prediction model (plant, integrators, disturbance and previous-input states):
-# the observer and controllability tests cost O(nx^4).
-MAX_STATES = 256
+MAX_LIST_LENGTH = 256  # entries of any list the reader converts, checked before it does
+MAX_STATES = 256  # of a mode's prediction model: its observer and PBH tests cost O(nx^4)
 # The generated data of all modes (flash) and one P_ctrl instance (RAM), predicted before
 # the maths (qp/sizes.py): beyond the memory of any microcontroller.
 MAX_STORED_BYTES = 16 << 20
