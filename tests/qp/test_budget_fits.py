@@ -45,7 +45,8 @@ def test_a_refused_budget_names_the_step_and_what_fits():
     assert exc.key == "solver.work_budget"
     fp = predict(parse(buck(12)))
     assert exc.problem == (
-        "210 units (auto: 0.5 of Ts = 50 us at 168 MHz, 20 cycles per unit) are below the "
+        "210 units (auto: 0.5 of Ts = 50 us at 168 MHz, 20 cycles per unit on the Cortex-M4F "
+        "(FPv4-SP)) are below the "
         f"1,018 a step without active bounds may charge ({fp.step_units:,} with a held "
         f"reference, about {rounded(fp.step_cycles):,} cycles); what fits: horizon <= 4; "
         "or target.cpu_mhz >= 815")
