@@ -66,11 +66,19 @@ class Status(IntEnum):
                            "beyond ±`observer.innovation_limit` and was clipped to it "
                            "(`P_last_info()->clipped` counts the clips whatever the status)",
                            "the solution (this sample's y enters only the next one)")
+    # P_observe's plausibility check of the applied command (docs/features.md, "Applied
+    # command plausibility"): beyond the actuator's range it cannot have been applied
+    APPLIED_CLIPPED = (11, "an applied command beyond its actuator's range was clipped",
+                       "`P_observe` only: an entry of `u_applied` was beyond the range of "
+                       "its actuator (the lowest `u_min` to the highest `u_max` of the modes "
+                       "that drive it) and was clipped to that range before the observers "
+                       "used it; it wins over `MEASUREMENT_CLIPPED`",
+                       "none (`P_observe` solves nothing)")
 
 
 # the codes as module names, for the reference's and the tests' comparisons
 (OPTIMAL, MAX_ITER, INACCURATE, INFEASIBLE, NONFINITE_INPUT, NUMERICAL, BAD_ARGUMENT, BAD_BOUNDS,
- BOUND_NOT_CONFIGURED, TIME_LIMIT, MEASUREMENT_CLIPPED) = Status
+ BOUND_NOT_CONFIGURED, TIME_LIMIT, MEASUREMENT_CLIPPED, APPLIED_CLIPPED) = Status
 
 # every build's codes (the runtime_bounds ones exist only in a runtime build) -> short name
 STATUS_NAMES = {s: s.name.lower() for s in Status if not s.runtime_bounds_only}

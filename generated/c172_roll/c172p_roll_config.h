@@ -8,6 +8,13 @@
 #ifndef C172P_ROLL_CONFIG_H
 #define C172P_ROLL_CONFIG_H
 
+/*
+ * This tree's generation (config, generator and templates). Every other generated file
+ * stops the build unless it is of the same one: a regeneration interrupted between two
+ * of its file moves leaves no mixed tree that compiles.
+ */
+#define C172P_ROLL_GENERATION 0x4186529543318cd
+
 /* The one place where the precision is chosen. */
 #define C172P_ROLL_PRECISION_DOUBLE 1
 typedef double c172p_roll_real;

@@ -8,6 +8,13 @@
 #ifndef CHAIN_CONFIG_H
 #define CHAIN_CONFIG_H
 
+/*
+ * This tree's generation (config, generator and templates). Every other generated file
+ * stops the build unless it is of the same one: a regeneration interrupted between two
+ * of its file moves leaves no mixed tree that compiles.
+ */
+#define CHAIN_GENERATION 0xdf56eb295414120
+
 /* The one place where the precision is chosen. */
 #define CHAIN_PRECISION_DOUBLE 0
 typedef float chain_real;

@@ -8,6 +8,13 @@
 #ifndef FWLAT_CONFIG_H
 #define FWLAT_CONFIG_H
 
+/*
+ * This tree's generation (config, generator and templates). Every other generated file
+ * stops the build unless it is of the same one: a regeneration interrupted between two
+ * of its file moves leaves no mixed tree that compiles.
+ */
+#define FWLAT_GENERATION 0x80c3d2dea2977c8
+
 /* The one place where the precision is chosen. */
 #define FWLAT_PRECISION_DOUBLE 0
 typedef float fwlat_real;

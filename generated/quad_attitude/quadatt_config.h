@@ -8,6 +8,13 @@
 #ifndef QUADATT_CONFIG_H
 #define QUADATT_CONFIG_H
 
+/*
+ * This tree's generation (config, generator and templates). Every other generated file
+ * stops the build unless it is of the same one: a regeneration interrupted between two
+ * of its file moves leaves no mixed tree that compiles.
+ */
+#define QUADATT_GENERATION 0x0ae764a7fd74bb6
+
 /* The one place where the precision is chosen. */
 #define QUADATT_PRECISION_DOUBLE 1
 typedef double quadatt_real;

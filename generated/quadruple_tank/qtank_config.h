@@ -8,6 +8,13 @@
 #ifndef QTANK_CONFIG_H
 #define QTANK_CONFIG_H
 
+/*
+ * This tree's generation (config, generator and templates). Every other generated file
+ * stops the build unless it is of the same one: a regeneration interrupted between two
+ * of its file moves leaves no mixed tree that compiles.
+ */
+#define QTANK_GENERATION 0x23ddea7f7041a27
+
 /* The one place where the precision is chosen. */
 #define QTANK_PRECISION_DOUBLE 1
 typedef double qtank_real;

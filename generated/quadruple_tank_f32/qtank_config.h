@@ -8,6 +8,13 @@
 #ifndef QTANK_CONFIG_H
 #define QTANK_CONFIG_H
 
+/*
+ * This tree's generation (config, generator and templates). Every other generated file
+ * stops the build unless it is of the same one: a regeneration interrupted between two
+ * of its file moves leaves no mixed tree that compiles.
+ */
+#define QTANK_GENERATION 0xb800b0ae5dcfec4
+
 /* The one place where the precision is chosen. */
 #define QTANK_PRECISION_DOUBLE 0
 typedef float qtank_real;

@@ -8,6 +8,13 @@
 #ifndef ZONES_CONFIG_H
 #define ZONES_CONFIG_H
 
+/*
+ * This tree's generation (config, generator and templates). Every other generated file
+ * stops the build unless it is of the same one: a regeneration interrupted between two
+ * of its file moves leaves no mixed tree that compiles.
+ */
+#define ZONES_GENERATION 0xbb74893a348fc79
+
 /* The one place where the precision is chosen. */
 #define ZONES_PRECISION_DOUBLE 1
 typedef double zones_real;

@@ -8,6 +8,13 @@
 #ifndef ZRATE_CONFIG_H
 #define ZRATE_CONFIG_H
 
+/*
+ * This tree's generation (config, generator and templates). Every other generated file
+ * stops the build unless it is of the same one: a regeneration interrupted between two
+ * of its file moves leaves no mixed tree that compiles.
+ */
+#define ZRATE_GENERATION 0x5f72bc0f8ac0f17
+
 /* The one place where the precision is chosen. */
 #define ZRATE_PRECISION_DOUBLE 1
 typedef double zrate_real;

@@ -8,6 +8,13 @@
 #ifndef DRIVES_CONFIG_H
 #define DRIVES_CONFIG_H
 
+/*
+ * This tree's generation (config, generator and templates). Every other generated file
+ * stops the build unless it is of the same one: a regeneration interrupted between two
+ * of its file moves leaves no mixed tree that compiles.
+ */
+#define DRIVES_GENERATION 0x574a0fecf712519
+
 /* The one place where the precision is chosen. */
 #define DRIVES_PRECISION_DOUBLE 0
 typedef float drives_real;

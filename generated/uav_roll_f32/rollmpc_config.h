@@ -8,6 +8,13 @@
 #ifndef ROLLMPC_CONFIG_H
 #define ROLLMPC_CONFIG_H
 
+/*
+ * This tree's generation (config, generator and templates). Every other generated file
+ * stops the build unless it is of the same one: a regeneration interrupted between two
+ * of its file moves leaves no mixed tree that compiles.
+ */
+#define ROLLMPC_GENERATION 0xf3a80afcc5db856
+
 /* The one place where the precision is chosen. */
 #define ROLLMPC_PRECISION_DOUBLE 0
 typedef float rollmpc_real;

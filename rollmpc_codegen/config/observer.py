@@ -2,6 +2,8 @@
 predictor, and the disturbance model of offset-free tracking) and its innovation limit."""
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 from .errors import ConfigError
@@ -73,4 +75,9 @@ def parse_innovation_limit(o: Reader | None, key: str, outputs: tuple[str, ...],
             raise ConfigError(key, f"has no default for output {outputs[a]!r}: no finite "
                               "bound and a scenario reference of 0 give it no range; give "
                               "one (.inf: never clip)")
+        if not math.isfinite(value):  # the clip would be silently off
+            raise ConfigError(key, f"has no finite default for output {outputs[a]!r}: ten "
+                              f"spans of its range [{y_min[a]:g}, {y_max[a]:g}] overflow; "
+                              "give bounds the output can reach, or the limit (.inf: never "
+                              "clip)")
     return limit
