@@ -66,8 +66,8 @@ class Status(IntEnum):
                            "beyond ±`observer.innovation_limit` and was clipped to it "
                            "(`P_last_info()->clipped` counts the clips whatever the status)",
                            "the solution (this sample's y enters only the next one)")
-    # P_observe's plausibility check of the applied command (docs/features.md, "Applied
-    # command plausibility"): beyond the actuator's range it cannot have been applied
+    # P_observe's plausibility check of the applied command (docs/reliability.md, "Run time:
+    # one hostile sample of every input"): beyond its actuator's range it was not applied
     APPLIED_CLIPPED = (11, "an applied command beyond its actuator's range was clipped",
                        "`P_observe` only: an entry of `u_applied` was beyond the range of "
                        "its actuator (the lowest `u_min` to the highest `u_max` of the modes "

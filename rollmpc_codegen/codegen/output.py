@@ -184,8 +184,7 @@ def _stage(files: dict[str, str], where: Path, prefix: str) -> tuple[Path, int]:
         for name, text in files.items():
             (stage / name).write_text(text)
     except BaseException:
-        shutil.rmtree(stage, ignore_errors=True)
-        os.close(lock)
+        _release(stage, lock)
         raise
     return stage, lock
 
@@ -238,9 +237,13 @@ def _create(files: dict[str, str], out: Path) -> None:
 
 def _swap(files: dict[str, str], out: Path) -> bool:
     """A directory of ours only: the new tree staged beside it, then the two exchanged in
-    one step; False (nothing changed) where the system cannot exchange them."""
-    stage, lock = _stage({**files, MANIFEST: manifest_text(files)}, out.parent,
-                         f".{out.name}{STAGING_PREFIX}")
+    one step; False (nothing changed) where the system cannot exchange them, or the
+    parent directory is not ours to write in."""
+    try:
+        stage, lock = _stage({**files, MANIFEST: manifest_text(files)}, out.parent,
+                             f".{out.name}{STAGING_PREFIX}")
+    except PermissionError:
+        return False
     try:
         stage.chmod(stat.S_IMODE(os.stat(out).st_mode))
         return _exchange(stage, out)
