@@ -69,11 +69,19 @@ class Status(IntEnum):
                            "beyond ±`observer.innovation_limit` and was clipped to it "
                            "(`P_last_info()->clipped` counts the clips whatever the status)",
                            "the solution (this sample's y enters only the next one)", False, True)
+    # P_observe's plausibility check of the applied command (docs/reliability.md, "Run time:
+    # one hostile sample of every input"): beyond its actuator's range it was not applied
+    APPLIED_CLIPPED = (11, "an applied command beyond its actuator's range was clipped",
+                       "`P_observe` only: an entry of `u_applied` was beyond the range of "
+                       "its actuator (the lowest `u_min` to the highest `u_max` of the modes "
+                       "that drive it) and was clipped to that range before the observers "
+                       "used it; it wins over `MEASUREMENT_CLIPPED`",
+                       "none (`P_observe` solves nothing)")
 
 
 # the codes as module names, for the reference's and the tests' comparisons
 (OPTIMAL, MAX_ITER, INACCURATE, INFEASIBLE, NONFINITE_INPUT, NUMERICAL, BAD_ARGUMENT, BAD_BOUNDS,
- BOUND_NOT_CONFIGURED, TIME_LIMIT, MEASUREMENT_CLIPPED) = Status
+ BOUND_NOT_CONFIGURED, TIME_LIMIT, MEASUREMENT_CLIPPED, APPLIED_CLIPPED) = Status
 
 # every build's codes (the runtime_bounds ones exist only in a runtime build) -> short name;
 # P_step() returns these

@@ -58,7 +58,8 @@ def test_names_and_messages():
     assert all(getattr(status, s.name) is s for s in Status)
     assert STATUS_NAMES == {s: s.name.lower() for s in Status
                             if s <= Status.BAD_ARGUMENT or s in (Status.TIME_LIMIT,
-                                                                 Status.MEASUREMENT_CLIPPED)}
+                                                                 Status.MEASUREMENT_CLIPPED,
+                                                                 Status.APPLIED_CLIPPED)}
     messages = [s.message for s in Status] + [UNKNOWN_MESSAGE]
     assert len(set(messages)) == len(messages)
     assert not any('"' in m or "\\" in m for m in messages)  # plain C string literals

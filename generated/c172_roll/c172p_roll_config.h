@@ -23,6 +23,13 @@
 #error "c172p_roll: -freciprocal-math is not supported: it turns divisions into products with reciprocals (no longer the reference's) (c172p_roll_README.md, Build flags)"
 #endif
 
+/*
+ * This tree's generation (config, generator and templates). Every other generated file
+ * stops the build unless it is of the same one: a regeneration interrupted between two
+ * of its file moves leaves no mixed tree that compiles.
+ */
+#define C172P_ROLL_GENERATION 0xde15649e369dfbd
+
 /* The one place where the precision is chosen. */
 #define C172P_ROLL_PRECISION_DOUBLE 1
 typedef double c172p_roll_real;

@@ -7,6 +7,9 @@
 
 #include <math.h>
 #include "c172p_roll.h"
+#if C172P_ROLL_GENERATION != 0xde15649e369dfbd
+#error "c172p_roll_internal.h and c172p_roll_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
+#endif
 
 /**
  * Static data of one mode (all arrays row-major; "_p" = packed lower triangle), each

@@ -18,6 +18,9 @@
 #include <stddef.h>
 #include <stdint.h>
 #include "c172p_roll_config.h"
+#if C172P_ROLL_GENERATION != 0x12b6058b71d4446
+#error "c172p_roll.h and c172p_roll_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
+#endif
 
 #ifdef __cplusplus
 extern "C" {
@@ -54,7 +57,12 @@ typedef enum {
      *  ±`observer.innovation_limit` and was clipped to it
      *  (`c172p_roll_last_info()->clipped` counts the clips whatever the status). Command:
      *  the solution (this sample's y enters only the next one). */
-    C172P_ROLL_MEASUREMENT_CLIPPED = 10
+    C172P_ROLL_MEASUREMENT_CLIPPED = 10,
+    /** `c172p_roll_observe` only: an entry of `u_applied` was beyond the range of its
+     *  actuator (the lowest `u_min` to the highest `u_max` of the modes that drive it) and
+     *  was clipped to that range before the observers used it; it wins over
+     *  `MEASUREMENT_CLIPPED`. Command: none (`c172p_roll_observe` solves nothing). */
+    C172P_ROLL_APPLIED_CLIPPED = 11
 } c172p_roll_status;
 
 /**
@@ -174,8 +182,11 @@ int c172p_roll_step(c172p_roll_ctrl *c, const c172p_roll_real *y, const c172p_ro
  * @param sched     Scheduling signal(s) [C172P_ROLL_N_SCHEDULE] (may be NULL when there are
  *                  none); non-finite: the mode is kept and the observers run open loop.
  * @param u_applied The command applied over the last sample, for every physical actuator
- *                  [C172P_ROLL_N_ACTUATORS], in the controller's units.
- * @return C172P_ROLL_OPTIMAL after a closed-loop update; C172P_ROLL_MEASUREMENT_CLIPPED after
+ *                  [C172P_ROLL_N_ACTUATORS], in the controller's units; an entry beyond its
+ *                  actuator's range (the lowest u_min to the highest u_max of the modes
+ *                  that drive it) is clipped to that range.
+ * @return C172P_ROLL_OPTIMAL after a closed-loop update; C172P_ROLL_APPLIED_CLIPPED after one
+ *         in which an entry of u_applied was clipped; C172P_ROLL_MEASUREMENT_CLIPPED after
  *         one in which an innovation was clipped to its limit; C172P_ROLL_NONFINITE_INPUT after
  *         an open-loop one (non-finite y or sched), or with nothing changed when u_applied
  *         is not finite; C172P_ROLL_BAD_ARGUMENT for a NULL pointer. Diagnostics are not

@@ -10,6 +10,9 @@
  */
 #include <math.h>
 #include "c172p_roll_internal.h"
+#if C172P_ROLL_GENERATION != 0x12b6058b71d4446
+#error "c172p_roll_controller.c and c172p_roll_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
+#endif
 
 #define R_ C172P_ROLL_R
 
@@ -52,6 +55,47 @@ static int schedule(int current, c172p_roll_real s)
         next = sched_mode[band];
     }
     return next;
+}
+
+/*
+ * The range an applied command can have, per actuator: the lowest u_min and the highest
+ * u_max of the modes that drive it (context.actuator_range).
+ */
+static const c172p_roll_real actuator_min[C172P_ROLL_N_ACTUATORS] = {
+    -19.9799995f
+};
+static const c172p_roll_real actuator_max[C172P_ROLL_N_ACTUATORS] = {
+    14.9799995f
+};
+
+/*
+ * u_applied made plausible into u: each entry clipped to its actuator's range. A command
+ * beyond it cannot have been applied (a glitch of the servo feedback, a unit mix-up in the
+ * glue); taken in full, 1e8 pushed every estimate so far that the clipped innovations
+ * never pulled it back. Returns how many entries were clipped.
+ */
+static int plausible_applied(const c172p_roll_ctrl *c, const c172p_roll_real *u_applied,
+    c172p_roll_real *u)
+{
+    c172p_roll_real lo[C172P_ROLL_N_ACTUATORS], hi[C172P_ROLL_N_ACTUATORS];
+    int i, clipped = 0;
+    for (i = 0; i < C172P_ROLL_N_ACTUATORS; ++i) {
+        lo[i] = actuator_min[i];
+        hi[i] = actuator_max[i];
+    }
+    (void)c;
+    for (i = 0; i < C172P_ROLL_N_ACTUATORS; ++i) {
+        u[i] = u_applied[i];
+        if (u[i] > hi[i]) {
+            u[i] = hi[i];
+            ++clipped;
+        }
+        if (u[i] < lo[i]) { /* lo <= hi: never both */
+            u[i] = lo[i];
+            ++clipped;
+        }
+    }
+    return clipped;
 }
 
 /*
@@ -278,7 +322,8 @@ int c172p_roll_step(c172p_roll_ctrl *c, const c172p_roll_real *y, const c172p_ro
 int c172p_roll_observe(c172p_roll_ctrl *c, const c172p_roll_real *y,
     const c172p_roll_real *sched, const c172p_roll_real *u_applied)
 {
-    int j, use_y;
+    c172p_roll_real u[C172P_ROLL_N_ACTUATORS];
+    int j, use_y, applied_clipped;
     int clipped = 0;
     if (c == 0 || y == 0 || u_applied == 0 || (C172P_ROLL_N_SCHEDULE != 0 && sched == 0)) {
         return C172P_ROLL_BAD_ARGUMENT;
@@ -286,15 +331,19 @@ int c172p_roll_observe(c172p_roll_ctrl *c, const c172p_roll_real *y,
     if (!c172p_roll_all_finite(u_applied, C172P_ROLL_N_ACTUATORS)) {
         return C172P_ROLL_NONFINITE_INPUT; /* no input to propagate with: nothing changes */
     }
+    applied_clipped = plausible_applied(c, u_applied, u);
     use_y = c172p_roll_all_finite(y, C172P_ROLL_N_OUTPUTS) && c172p_roll_all_finite(sched, C172P_ROLL_N_SCHEDULE);
     if (use_y) {
         follow_schedule(c, sched);
     }
     for (j = 0; j < C172P_ROLL_N_MODES; ++j) {
-        clipped += observe(&c->work, &c172p_roll_modes[j], c->xhat[j], y, u_applied, use_y);
+        clipped += observe(&c->work, &c172p_roll_modes[j], c->xhat[j], y, u, use_y);
     }
     if (!use_y) {
         return C172P_ROLL_NONFINITE_INPUT;
+    }
+    if (applied_clipped > 0) {
+        return C172P_ROLL_APPLIED_CLIPPED; /* the feedback's fault wins over the sensor's */
     }
     return (clipped > 0) ? C172P_ROLL_MEASUREMENT_CLIPPED : C172P_ROLL_OPTIMAL;
 }
@@ -342,6 +391,7 @@ const char *c172p_roll_status_message(int status)
     case C172P_ROLL_BAD_ARGUMENT: return "bad argument";
     case C172P_ROLL_TIME_LIMIT: return "work budget reached; best command so far";
     case C172P_ROLL_MEASUREMENT_CLIPPED: return "optimal; an implausible measurement was clipped";
+    case C172P_ROLL_APPLIED_CLIPPED: return "an applied command beyond its actuator's range was clipped";
     default: return "unknown status";
     }
 }

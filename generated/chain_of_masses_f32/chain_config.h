@@ -23,6 +23,13 @@
 #error "chain: -freciprocal-math is not supported: it turns divisions into products with reciprocals (no longer the reference's) (chain_README.md, Build flags)"
 #endif
 
+/*
+ * This tree's generation (config, generator and templates). Every other generated file
+ * stops the build unless it is of the same one: a regeneration interrupted between two
+ * of its file moves leaves no mixed tree that compiles.
+ */
+#define CHAIN_GENERATION 0x0164dd224c1f231
+
 /* The one place where the precision is chosen. */
 #define CHAIN_PRECISION_DOUBLE 0
 typedef float chain_real;

@@ -10,9 +10,53 @@
  */
 #include <math.h>
 #include "chain_internal.h"
+#if CHAIN_GENERATION != 0x0164dd224c1f231
+#error "chain_controller.c and chain_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
+#endif
 
 #define R_ CHAIN_R
 
+
+/*
+ * The range an applied command can have, per actuator: the lowest u_min and the highest
+ * u_max of the modes that drive it (context.actuator_range).
+ */
+static const chain_real actuator_min[CHAIN_N_ACTUATORS] = {
+    -0.5f, -0.5f, -0.5f, -0.5f
+};
+static const chain_real actuator_max[CHAIN_N_ACTUATORS] = {
+    0.5f, 0.5f, 0.5f, 0.5f
+};
+
+/*
+ * u_applied made plausible into u: each entry clipped to its actuator's range. A command
+ * beyond it cannot have been applied (a glitch of the servo feedback, a unit mix-up in the
+ * glue); taken in full, 1e8 pushed every estimate so far that the clipped innovations
+ * never pulled it back. Returns how many entries were clipped.
+ */
+static int plausible_applied(const chain_ctrl *c, const chain_real *u_applied,
+    chain_real *u)
+{
+    chain_real lo[CHAIN_N_ACTUATORS], hi[CHAIN_N_ACTUATORS];
+    int i, clipped = 0;
+    for (i = 0; i < CHAIN_N_ACTUATORS; ++i) {
+        lo[i] = actuator_min[i];
+        hi[i] = actuator_max[i];
+    }
+    (void)c;
+    for (i = 0; i < CHAIN_N_ACTUATORS; ++i) {
+        u[i] = u_applied[i];
+        if (u[i] > hi[i]) {
+            u[i] = hi[i];
+            ++clipped;
+        }
+        if (u[i] < lo[i]) { /* lo <= hi: never both */
+            u[i] = lo[i];
+            ++clipped;
+        }
+    }
+    return clipped;
+}
 
 /*
  * One observer update; use_y = 0 propagates open loop (no valid measurement). Each
@@ -230,7 +274,8 @@ int chain_step(chain_ctrl *c, const chain_real *y, const chain_real *sched,
 int chain_observe(chain_ctrl *c, const chain_real *y,
     const chain_real *sched, const chain_real *u_applied)
 {
-    int j, use_y;
+    chain_real u[CHAIN_N_ACTUATORS];
+    int j, use_y, applied_clipped;
     int clipped = 0;
     if (c == 0 || y == 0 || u_applied == 0 || (CHAIN_N_SCHEDULE != 0 && sched == 0)) {
         return CHAIN_BAD_ARGUMENT;
@@ -238,15 +283,19 @@ int chain_observe(chain_ctrl *c, const chain_real *y,
     if (!chain_all_finite(u_applied, CHAIN_N_ACTUATORS)) {
         return CHAIN_NONFINITE_INPUT; /* no input to propagate with: nothing changes */
     }
+    applied_clipped = plausible_applied(c, u_applied, u);
     use_y = chain_all_finite(y, CHAIN_N_OUTPUTS) && chain_all_finite(sched, CHAIN_N_SCHEDULE);
     if (use_y) {
         follow_schedule(c, sched);
     }
     for (j = 0; j < CHAIN_N_MODES; ++j) {
-        clipped += observe(&c->work, &chain_modes[j], c->xhat[j], y, u_applied, use_y);
+        clipped += observe(&c->work, &chain_modes[j], c->xhat[j], y, u, use_y);
     }
     if (!use_y) {
         return CHAIN_NONFINITE_INPUT;
+    }
+    if (applied_clipped > 0) {
+        return CHAIN_APPLIED_CLIPPED; /* the feedback's fault wins over the sensor's */
     }
     return (clipped > 0) ? CHAIN_MEASUREMENT_CLIPPED : CHAIN_OPTIMAL;
 }
@@ -294,6 +343,7 @@ const char *chain_status_message(int status)
     case CHAIN_BAD_ARGUMENT: return "bad argument";
     case CHAIN_TIME_LIMIT: return "work budget reached; best command so far";
     case CHAIN_MEASUREMENT_CLIPPED: return "optimal; an implausible measurement was clipped";
+    case CHAIN_APPLIED_CLIPPED: return "an applied command beyond its actuator's range was clipped";
     default: return "unknown status";
     }
 }

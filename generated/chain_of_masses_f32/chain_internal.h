@@ -7,6 +7,9 @@
 
 #include <math.h>
 #include "chain.h"
+#if CHAIN_GENERATION != 0x0164dd224c1f231
+#error "chain_internal.h and chain_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
+#endif
 
 /**
  * Static data of one mode (all arrays row-major; "_p" = packed lower triangle), each

@@ -18,6 +18,9 @@
 #include <stddef.h>
 #include <stdint.h>
 #include "chain_rb_config.h"
+#if CHAIN_RB_GENERATION != 0x565dfdbfb3cc667
+#error "chain_rb.h and chain_rb_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
+#endif
 
 #ifdef __cplusplus
 extern "C" {
@@ -60,7 +63,12 @@ typedef enum {
      *  ±`observer.innovation_limit` and was clipped to it (`chain_rb_last_info()->clipped`
      *  counts the clips whatever the status). Command: the solution (this sample's y enters
      *  only the next one). */
-    CHAIN_RB_MEASUREMENT_CLIPPED = 10
+    CHAIN_RB_MEASUREMENT_CLIPPED = 10,
+    /** `chain_rb_observe` only: an entry of `u_applied` was beyond the range of its
+     *  actuator (the lowest `u_min` to the highest `u_max` of the modes that drive it) and
+     *  was clipped to that range before the observers used it; it wins over
+     *  `MEASUREMENT_CLIPPED`. Command: none (`chain_rb_observe` solves nothing). */
+    CHAIN_RB_APPLIED_CLIPPED = 11
 } chain_rb_status;
 
 /**
@@ -192,8 +200,11 @@ int chain_rb_step(chain_rb_ctrl *c, const chain_rb_real *y, const chain_rb_real 
  * @param sched     Scheduling signal(s) [CHAIN_RB_N_SCHEDULE] (may be NULL when there are
  *                  none); non-finite: the mode is kept and the observers run open loop.
  * @param u_applied The command applied over the last sample, for every physical actuator
- *                  [CHAIN_RB_N_ACTUATORS], in the controller's units.
- * @return CHAIN_RB_OPTIMAL after a closed-loop update; CHAIN_RB_MEASUREMENT_CLIPPED after
+ *                  [CHAIN_RB_N_ACTUATORS], in the controller's units; an entry beyond its
+ *                  actuator's range (the lowest u_min to the highest u_max of the modes
+ *                  that drive it) is clipped to that range.
+ * @return CHAIN_RB_OPTIMAL after a closed-loop update; CHAIN_RB_APPLIED_CLIPPED after one
+ *         in which an entry of u_applied was clipped; CHAIN_RB_MEASUREMENT_CLIPPED after
  *         one in which an innovation was clipped to its limit; CHAIN_RB_NONFINITE_INPUT after
  *         an open-loop one (non-finite y or sched), or with nothing changed when u_applied
  *         is not finite; CHAIN_RB_BAD_ARGUMENT for a NULL pointer. Diagnostics are not

@@ -10,6 +10,9 @@
  */
 #include <math.h>
 #include "chain_rb_internal.h"
+#if CHAIN_RB_GENERATION != 0x565dfdbfb3cc667
+#error "chain_rb_controller.c and chain_rb_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
+#endif
 
 #define R_ CHAIN_RB_R
 
@@ -20,6 +23,54 @@ static const chain_rb_bounds config_bounds[CHAIN_RB_N_MODES] = {
       { -0.6, -0.6, -0.6, -0.6, -HUGE_VAL, -HUGE_VAL },
       { 0.6, 0.6, 0.6, 0.6, 0.6, HUGE_VAL } }
 };
+
+/*
+ * The range an applied command can have, per actuator: the lowest u_min and the highest
+ * u_max of the modes that drive it (context.actuator_range); P_set_bounds() widens it.
+ */
+static const chain_rb_real actuator_min[CHAIN_RB_N_ACTUATORS] = {
+    -0.5, -0.5, -0.5, -0.5
+};
+static const chain_rb_real actuator_max[CHAIN_RB_N_ACTUATORS] = {
+    0.5, 0.5, 0.5, 0.5
+};
+
+/*
+ * u_applied made plausible into u: each entry clipped to its actuator's range. A command
+ * beyond it cannot have been applied (a glitch of the servo feedback, a unit mix-up in the
+ * glue); taken in full, 1e8 pushed every estimate so far that the clipped innovations
+ * never pulled it back. Returns how many entries were clipped.
+ */
+static int plausible_applied(const chain_rb_ctrl *c, const chain_rb_real *u_applied,
+    chain_rb_real *u)
+{
+    chain_rb_real lo[CHAIN_RB_N_ACTUATORS], hi[CHAIN_RB_N_ACTUATORS];
+    int i, clipped = 0;
+    int j;
+    for (i = 0; i < CHAIN_RB_N_ACTUATORS; ++i) {
+        lo[i] = actuator_min[i];
+        hi[i] = actuator_max[i];
+    }
+    for (j = 0; j < CHAIN_RB_N_MODES; ++j) { /* the live bounds may be wider */
+        for (i = 0; i < chain_rb_modes[j].nu; ++i) {
+            const int a = chain_rb_modes[j].actuator_index[i];
+            lo[a] = (c->bounds[j].u_min[i] < lo[a]) ? c->bounds[j].u_min[i] : lo[a];
+            hi[a] = (c->bounds[j].u_max[i] > hi[a]) ? c->bounds[j].u_max[i] : hi[a];
+        }
+    }
+    for (i = 0; i < CHAIN_RB_N_ACTUATORS; ++i) {
+        u[i] = u_applied[i];
+        if (u[i] > hi[i]) {
+            u[i] = hi[i];
+            ++clipped;
+        }
+        if (u[i] < lo[i]) { /* lo <= hi: never both */
+            u[i] = lo[i];
+            ++clipped;
+        }
+    }
+    return clipped;
+}
 
 /*
  * One observer update; use_y = 0 propagates open loop (no valid measurement). Each
@@ -243,7 +294,8 @@ int chain_rb_step(chain_rb_ctrl *c, const chain_rb_real *y, const chain_rb_real 
 int chain_rb_observe(chain_rb_ctrl *c, const chain_rb_real *y,
     const chain_rb_real *sched, const chain_rb_real *u_applied)
 {
-    int j, use_y;
+    chain_rb_real u[CHAIN_RB_N_ACTUATORS];
+    int j, use_y, applied_clipped;
     int clipped = 0;
     if (c == 0 || y == 0 || u_applied == 0 || (CHAIN_RB_N_SCHEDULE != 0 && sched == 0)) {
         return CHAIN_RB_BAD_ARGUMENT;
@@ -251,15 +303,19 @@ int chain_rb_observe(chain_rb_ctrl *c, const chain_rb_real *y,
     if (!chain_rb_all_finite(u_applied, CHAIN_RB_N_ACTUATORS)) {
         return CHAIN_RB_NONFINITE_INPUT; /* no input to propagate with: nothing changes */
     }
+    applied_clipped = plausible_applied(c, u_applied, u);
     use_y = chain_rb_all_finite(y, CHAIN_RB_N_OUTPUTS) && chain_rb_all_finite(sched, CHAIN_RB_N_SCHEDULE);
     if (use_y) {
         follow_schedule(c, sched);
     }
     for (j = 0; j < CHAIN_RB_N_MODES; ++j) {
-        clipped += observe(&c->work, &chain_rb_modes[j], c->xhat[j], y, u_applied, use_y);
+        clipped += observe(&c->work, &chain_rb_modes[j], c->xhat[j], y, u, use_y);
     }
     if (!use_y) {
         return CHAIN_RB_NONFINITE_INPUT;
+    }
+    if (applied_clipped > 0) {
+        return CHAIN_RB_APPLIED_CLIPPED; /* the feedback's fault wins over the sensor's */
     }
     return (clipped > 0) ? CHAIN_RB_MEASUREMENT_CLIPPED : CHAIN_RB_OPTIMAL;
 }
@@ -391,6 +447,7 @@ const char *chain_rb_status_message(int status)
     case CHAIN_RB_BOUND_NOT_CONFIGURED: return "bound not in the config (no constraint rows); nothing changed";
     case CHAIN_RB_TIME_LIMIT: return "work budget reached; best command so far";
     case CHAIN_RB_MEASUREMENT_CLIPPED: return "optimal; an implausible measurement was clipped";
+    case CHAIN_RB_APPLIED_CLIPPED: return "an applied command beyond its actuator's range was clipped";
     default: return "unknown status";
     }
 }

@@ -23,6 +23,13 @@
 #error "chain_rb: -freciprocal-math is not supported: it turns divisions into products with reciprocals (no longer the reference's) (chain_rb_README.md, Build flags)"
 #endif
 
+/*
+ * This tree's generation (config, generator and templates). Every other generated file
+ * stops the build unless it is of the same one: a regeneration interrupted between two
+ * of its file moves leaves no mixed tree that compiles.
+ */
+#define CHAIN_RB_GENERATION 0xd55e741792993e3
+
 /* The one place where the precision is chosen. */
 #define CHAIN_RB_PRECISION_DOUBLE 0
 typedef float chain_rb_real;

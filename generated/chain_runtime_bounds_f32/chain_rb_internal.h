@@ -7,6 +7,9 @@
 
 #include <math.h>
 #include "chain_rb.h"
+#if CHAIN_RB_GENERATION != 0xd55e741792993e3
+#error "chain_rb_internal.h and chain_rb_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
+#endif
 
 /**
  * Static data of one mode (all arrays row-major; "_p" = packed lower triangle), each

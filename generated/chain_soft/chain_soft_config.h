@@ -23,6 +23,13 @@
 #error "chain_soft: -freciprocal-math is not supported: it turns divisions into products with reciprocals (no longer the reference's) (chain_soft_README.md, Build flags)"
 #endif
 
+/*
+ * This tree's generation (config, generator and templates). Every other generated file
+ * stops the build unless it is of the same one: a regeneration interrupted between two
+ * of its file moves leaves no mixed tree that compiles.
+ */
+#define CHAIN_SOFT_GENERATION 0x51abcd646b8ac8e
+
 /* The one place where the precision is chosen. */
 #define CHAIN_SOFT_PRECISION_DOUBLE 1
 typedef double chain_soft_real;

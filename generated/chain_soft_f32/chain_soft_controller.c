@@ -10,9 +10,53 @@
  */
 #include <math.h>
 #include "chain_soft_internal.h"
+#if CHAIN_SOFT_GENERATION != 0xb7fa0b3f848b16c
+#error "chain_soft_controller.c and chain_soft_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
+#endif
 
 #define R_ CHAIN_SOFT_R
 
+
+/*
+ * The range an applied command can have, per actuator: the lowest u_min and the highest
+ * u_max of the modes that drive it (context.actuator_range).
+ */
+static const chain_soft_real actuator_min[CHAIN_SOFT_N_ACTUATORS] = {
+    -0.5f, -0.5f, -0.5f, -0.5f
+};
+static const chain_soft_real actuator_max[CHAIN_SOFT_N_ACTUATORS] = {
+    0.5f, 0.5f, 0.5f, 0.5f
+};
+
+/*
+ * u_applied made plausible into u: each entry clipped to its actuator's range. A command
+ * beyond it cannot have been applied (a glitch of the servo feedback, a unit mix-up in the
+ * glue); taken in full, 1e8 pushed every estimate so far that the clipped innovations
+ * never pulled it back. Returns how many entries were clipped.
+ */
+static int plausible_applied(const chain_soft_ctrl *c, const chain_soft_real *u_applied,
+    chain_soft_real *u)
+{
+    chain_soft_real lo[CHAIN_SOFT_N_ACTUATORS], hi[CHAIN_SOFT_N_ACTUATORS];
+    int i, clipped = 0;
+    for (i = 0; i < CHAIN_SOFT_N_ACTUATORS; ++i) {
+        lo[i] = actuator_min[i];
+        hi[i] = actuator_max[i];
+    }
+    (void)c;
+    for (i = 0; i < CHAIN_SOFT_N_ACTUATORS; ++i) {
+        u[i] = u_applied[i];
+        if (u[i] > hi[i]) {
+            u[i] = hi[i];
+            ++clipped;
+        }
+        if (u[i] < lo[i]) { /* lo <= hi: never both */
+            u[i] = lo[i];
+            ++clipped;
+        }
+    }
+    return clipped;
+}
 
 /*
  * One observer update; use_y = 0 propagates open loop (no valid measurement). Each
@@ -234,7 +278,8 @@ int chain_soft_step(chain_soft_ctrl *c, const chain_soft_real *y, const chain_so
 int chain_soft_observe(chain_soft_ctrl *c, const chain_soft_real *y,
     const chain_soft_real *sched, const chain_soft_real *u_applied)
 {
-    int j, use_y;
+    chain_soft_real u[CHAIN_SOFT_N_ACTUATORS];
+    int j, use_y, applied_clipped;
     int clipped = 0;
     if (c == 0 || y == 0 || u_applied == 0 || (CHAIN_SOFT_N_SCHEDULE != 0 && sched == 0)) {
         return CHAIN_SOFT_BAD_ARGUMENT;
@@ -242,15 +287,19 @@ int chain_soft_observe(chain_soft_ctrl *c, const chain_soft_real *y,
     if (!chain_soft_all_finite(u_applied, CHAIN_SOFT_N_ACTUATORS)) {
         return CHAIN_SOFT_NONFINITE_INPUT; /* no input to propagate with: nothing changes */
     }
+    applied_clipped = plausible_applied(c, u_applied, u);
     use_y = chain_soft_all_finite(y, CHAIN_SOFT_N_OUTPUTS) && chain_soft_all_finite(sched, CHAIN_SOFT_N_SCHEDULE);
     if (use_y) {
         follow_schedule(c, sched);
     }
     for (j = 0; j < CHAIN_SOFT_N_MODES; ++j) {
-        clipped += observe(&c->work, &chain_soft_modes[j], c->xhat[j], y, u_applied, use_y);
+        clipped += observe(&c->work, &chain_soft_modes[j], c->xhat[j], y, u, use_y);
     }
     if (!use_y) {
         return CHAIN_SOFT_NONFINITE_INPUT;
+    }
+    if (applied_clipped > 0) {
+        return CHAIN_SOFT_APPLIED_CLIPPED; /* the feedback's fault wins over the sensor's */
     }
     return (clipped > 0) ? CHAIN_SOFT_MEASUREMENT_CLIPPED : CHAIN_SOFT_OPTIMAL;
 }
@@ -298,6 +347,7 @@ const char *chain_soft_status_message(int status)
     case CHAIN_SOFT_BAD_ARGUMENT: return "bad argument";
     case CHAIN_SOFT_TIME_LIMIT: return "work budget reached; best command so far";
     case CHAIN_SOFT_MEASUREMENT_CLIPPED: return "optimal; an implausible measurement was clipped";
+    case CHAIN_SOFT_APPLIED_CLIPPED: return "an applied command beyond its actuator's range was clipped";
     default: return "unknown status";
     }
 }

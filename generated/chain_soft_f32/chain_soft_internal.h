@@ -7,6 +7,9 @@
 
 #include <math.h>
 #include "chain_soft.h"
+#if CHAIN_SOFT_GENERATION != 0xb7fa0b3f848b16c
+#error "chain_soft_internal.h and chain_soft_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
+#endif
 
 /**
  * Static data of one mode (all arrays row-major; "_p" = packed lower triangle), each

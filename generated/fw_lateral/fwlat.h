@@ -18,6 +18,9 @@
 #include <stddef.h>
 #include <stdint.h>
 #include "fwlat_config.h"
+#if FWLAT_GENERATION != 0x899603387d982f0
+#error "fwlat.h and fwlat_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
+#endif
 
 #ifdef __cplusplus
 extern "C" {
@@ -54,7 +57,12 @@ typedef enum {
      *  ±`observer.innovation_limit` and was clipped to it (`fwlat_last_info()->clipped`
      *  counts the clips whatever the status). Command: the solution (this sample's y enters
      *  only the next one). */
-    FWLAT_MEASUREMENT_CLIPPED = 10
+    FWLAT_MEASUREMENT_CLIPPED = 10,
+    /** `fwlat_observe` only: an entry of `u_applied` was beyond the range of its actuator
+     *  (the lowest `u_min` to the highest `u_max` of the modes that drive it) and was
+     *  clipped to that range before the observers used it; it wins over
+     *  `MEASUREMENT_CLIPPED`. Command: none (`fwlat_observe` solves nothing). */
+    FWLAT_APPLIED_CLIPPED = 11
 } fwlat_status;
 
 /**
@@ -181,8 +189,11 @@ int fwlat_step(fwlat_ctrl *c, const fwlat_real *y, const fwlat_real *sched,
  * @param sched     Scheduling signal(s) [FWLAT_N_SCHEDULE] (may be NULL when there are
  *                  none); non-finite: the mode is kept and the observers run open loop.
  * @param u_applied The command applied over the last sample, for every physical actuator
- *                  [FWLAT_N_ACTUATORS], in the controller's units.
- * @return FWLAT_OPTIMAL after a closed-loop update; FWLAT_MEASUREMENT_CLIPPED after
+ *                  [FWLAT_N_ACTUATORS], in the controller's units; an entry beyond its
+ *                  actuator's range (the lowest u_min to the highest u_max of the modes
+ *                  that drive it) is clipped to that range.
+ * @return FWLAT_OPTIMAL after a closed-loop update; FWLAT_APPLIED_CLIPPED after one
+ *         in which an entry of u_applied was clipped; FWLAT_MEASUREMENT_CLIPPED after
  *         one in which an innovation was clipped to its limit; FWLAT_NONFINITE_INPUT after
  *         an open-loop one (non-finite y or sched), or with nothing changed when u_applied
  *         is not finite; FWLAT_BAD_ARGUMENT for a NULL pointer. Diagnostics are not

@@ -10,9 +10,53 @@
  */
 #include <math.h>
 #include "fwlat_internal.h"
+#if FWLAT_GENERATION != 0x899603387d982f0
+#error "fwlat_controller.c and fwlat_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
+#endif
 
 #define R_ FWLAT_R
 
+
+/*
+ * The range an applied command can have, per actuator: the lowest u_min and the highest
+ * u_max of the modes that drive it (context.actuator_range).
+ */
+static const fwlat_real actuator_min[FWLAT_N_ACTUATORS] = {
+    -25.0, -30.0
+};
+static const fwlat_real actuator_max[FWLAT_N_ACTUATORS] = {
+    25.0, 30.0
+};
+
+/*
+ * u_applied made plausible into u: each entry clipped to its actuator's range. A command
+ * beyond it cannot have been applied (a glitch of the servo feedback, a unit mix-up in the
+ * glue); taken in full, 1e8 pushed every estimate so far that the clipped innovations
+ * never pulled it back. Returns how many entries were clipped.
+ */
+static int plausible_applied(const fwlat_ctrl *c, const fwlat_real *u_applied,
+    fwlat_real *u)
+{
+    fwlat_real lo[FWLAT_N_ACTUATORS], hi[FWLAT_N_ACTUATORS];
+    int i, clipped = 0;
+    for (i = 0; i < FWLAT_N_ACTUATORS; ++i) {
+        lo[i] = actuator_min[i];
+        hi[i] = actuator_max[i];
+    }
+    (void)c;
+    for (i = 0; i < FWLAT_N_ACTUATORS; ++i) {
+        u[i] = u_applied[i];
+        if (u[i] > hi[i]) {
+            u[i] = hi[i];
+            ++clipped;
+        }
+        if (u[i] < lo[i]) { /* lo <= hi: never both */
+            u[i] = lo[i];
+            ++clipped;
+        }
+    }
+    return clipped;
+}
 
 /*
  * One observer update; use_y = 0 propagates open loop (no valid measurement). Each
@@ -234,7 +278,8 @@ int fwlat_step(fwlat_ctrl *c, const fwlat_real *y, const fwlat_real *sched,
 int fwlat_observe(fwlat_ctrl *c, const fwlat_real *y,
     const fwlat_real *sched, const fwlat_real *u_applied)
 {
-    int j, use_y;
+    fwlat_real u[FWLAT_N_ACTUATORS];
+    int j, use_y, applied_clipped;
     int clipped = 0;
     if (c == 0 || y == 0 || u_applied == 0 || (FWLAT_N_SCHEDULE != 0 && sched == 0)) {
         return FWLAT_BAD_ARGUMENT;
@@ -242,15 +287,19 @@ int fwlat_observe(fwlat_ctrl *c, const fwlat_real *y,
     if (!fwlat_all_finite(u_applied, FWLAT_N_ACTUATORS)) {
         return FWLAT_NONFINITE_INPUT; /* no input to propagate with: nothing changes */
     }
+    applied_clipped = plausible_applied(c, u_applied, u);
     use_y = fwlat_all_finite(y, FWLAT_N_OUTPUTS) && fwlat_all_finite(sched, FWLAT_N_SCHEDULE);
     if (use_y) {
         follow_schedule(c, sched);
     }
     for (j = 0; j < FWLAT_N_MODES; ++j) {
-        clipped += observe(&c->work, &fwlat_modes[j], c->xhat[j], y, u_applied, use_y);
+        clipped += observe(&c->work, &fwlat_modes[j], c->xhat[j], y, u, use_y);
     }
     if (!use_y) {
         return FWLAT_NONFINITE_INPUT;
+    }
+    if (applied_clipped > 0) {
+        return FWLAT_APPLIED_CLIPPED; /* the feedback's fault wins over the sensor's */
     }
     return (clipped > 0) ? FWLAT_MEASUREMENT_CLIPPED : FWLAT_OPTIMAL;
 }
@@ -298,6 +347,7 @@ const char *fwlat_status_message(int status)
     case FWLAT_BAD_ARGUMENT: return "bad argument";
     case FWLAT_TIME_LIMIT: return "work budget reached; best command so far";
     case FWLAT_MEASUREMENT_CLIPPED: return "optimal; an implausible measurement was clipped";
+    case FWLAT_APPLIED_CLIPPED: return "an applied command beyond its actuator's range was clipped";
     default: return "unknown status";
     }
 }

@@ -7,6 +7,9 @@
 
 #include <math.h>
 #include "fwlat.h"
+#if FWLAT_GENERATION != 0x1be48d93c510597
+#error "fwlat_internal.h and fwlat_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
+#endif
 
 /**
  * Static data of one mode (all arrays row-major; "_p" = packed lower triangle), each

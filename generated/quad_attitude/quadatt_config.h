@@ -23,6 +23,13 @@
 #error "quadatt: -freciprocal-math is not supported: it turns divisions into products with reciprocals (no longer the reference's) (quadatt_README.md, Build flags)"
 #endif
 
+/*
+ * This tree's generation (config, generator and templates). Every other generated file
+ * stops the build unless it is of the same one: a regeneration interrupted between two
+ * of its file moves leaves no mixed tree that compiles.
+ */
+#define QUADATT_GENERATION 0x86f38cf5c3f0268
+
 /* The one place where the precision is chosen. */
 #define QUADATT_PRECISION_DOUBLE 1
 typedef double quadatt_real;

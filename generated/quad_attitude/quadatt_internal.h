@@ -7,6 +7,9 @@
 
 #include <math.h>
 #include "quadatt.h"
+#if QUADATT_GENERATION != 0x86f38cf5c3f0268
+#error "quadatt_internal.h and quadatt_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
+#endif
 
 /**
  * Static data of one mode (all arrays row-major; "_p" = packed lower triangle), each

@@ -18,6 +18,9 @@
 #include <stddef.h>
 #include <stdint.h>
 #include "quadatt_config.h"
+#if QUADATT_GENERATION != 0x467235b30c72bc6
+#error "quadatt.h and quadatt_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
+#endif
 
 #ifdef __cplusplus
 extern "C" {
@@ -54,7 +57,12 @@ typedef enum {
      *  ±`observer.innovation_limit` and was clipped to it (`quadatt_last_info()->clipped`
      *  counts the clips whatever the status). Command: the solution (this sample's y enters
      *  only the next one). */
-    QUADATT_MEASUREMENT_CLIPPED = 10
+    QUADATT_MEASUREMENT_CLIPPED = 10,
+    /** `quadatt_observe` only: an entry of `u_applied` was beyond the range of its actuator
+     *  (the lowest `u_min` to the highest `u_max` of the modes that drive it) and was
+     *  clipped to that range before the observers used it; it wins over
+     *  `MEASUREMENT_CLIPPED`. Command: none (`quadatt_observe` solves nothing). */
+    QUADATT_APPLIED_CLIPPED = 11
 } quadatt_status;
 
 /**
@@ -174,8 +182,11 @@ int quadatt_step(quadatt_ctrl *c, const quadatt_real *y, const quadatt_real *sch
  * @param sched     Scheduling signal(s) [QUADATT_N_SCHEDULE] (may be NULL when there are
  *                  none); non-finite: the mode is kept and the observers run open loop.
  * @param u_applied The command applied over the last sample, for every physical actuator
- *                  [QUADATT_N_ACTUATORS], in the controller's units.
- * @return QUADATT_OPTIMAL after a closed-loop update; QUADATT_MEASUREMENT_CLIPPED after
+ *                  [QUADATT_N_ACTUATORS], in the controller's units; an entry beyond its
+ *                  actuator's range (the lowest u_min to the highest u_max of the modes
+ *                  that drive it) is clipped to that range.
+ * @return QUADATT_OPTIMAL after a closed-loop update; QUADATT_APPLIED_CLIPPED after one
+ *         in which an entry of u_applied was clipped; QUADATT_MEASUREMENT_CLIPPED after
  *         one in which an innovation was clipped to its limit; QUADATT_NONFINITE_INPUT after
  *         an open-loop one (non-finite y or sched), or with nothing changed when u_applied
  *         is not finite; QUADATT_BAD_ARGUMENT for a NULL pointer. Diagnostics are not

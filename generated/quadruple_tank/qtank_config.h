@@ -23,6 +23,13 @@
 #error "qtank: -freciprocal-math is not supported: it turns divisions into products with reciprocals (no longer the reference's) (qtank_README.md, Build flags)"
 #endif
 
+/*
+ * This tree's generation (config, generator and templates). Every other generated file
+ * stops the build unless it is of the same one: a regeneration interrupted between two
+ * of its file moves leaves no mixed tree that compiles.
+ */
+#define QTANK_GENERATION 0xe3e368c892947cb
+
 /* The one place where the precision is chosen. */
 #define QTANK_PRECISION_DOUBLE 1
 typedef double qtank_real;

@@ -18,6 +18,9 @@
 #include <stddef.h>
 #include <stdint.h>
 #include "qtank_config.h"
+#if QTANK_GENERATION != 0x68a75aedc86dbb8
+#error "qtank.h and qtank_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
+#endif
 
 #ifdef __cplusplus
 extern "C" {
@@ -54,7 +57,12 @@ typedef enum {
      *  ±`observer.innovation_limit` and was clipped to it (`qtank_last_info()->clipped`
      *  counts the clips whatever the status). Command: the solution (this sample's y enters
      *  only the next one). */
-    QTANK_MEASUREMENT_CLIPPED = 10
+    QTANK_MEASUREMENT_CLIPPED = 10,
+    /** `qtank_observe` only: an entry of `u_applied` was beyond the range of its actuator
+     *  (the lowest `u_min` to the highest `u_max` of the modes that drive it) and was
+     *  clipped to that range before the observers used it; it wins over
+     *  `MEASUREMENT_CLIPPED`. Command: none (`qtank_observe` solves nothing). */
+    QTANK_APPLIED_CLIPPED = 11
 } qtank_status;
 
 /**
@@ -174,8 +182,11 @@ int qtank_step(qtank_ctrl *c, const qtank_real *y, const qtank_real *sched,
  * @param sched     Scheduling signal(s) [QTANK_N_SCHEDULE] (may be NULL when there are
  *                  none); non-finite: the mode is kept and the observers run open loop.
  * @param u_applied The command applied over the last sample, for every physical actuator
- *                  [QTANK_N_ACTUATORS], in the controller's units.
- * @return QTANK_OPTIMAL after a closed-loop update; QTANK_MEASUREMENT_CLIPPED after
+ *                  [QTANK_N_ACTUATORS], in the controller's units; an entry beyond its
+ *                  actuator's range (the lowest u_min to the highest u_max of the modes
+ *                  that drive it) is clipped to that range.
+ * @return QTANK_OPTIMAL after a closed-loop update; QTANK_APPLIED_CLIPPED after one
+ *         in which an entry of u_applied was clipped; QTANK_MEASUREMENT_CLIPPED after
  *         one in which an innovation was clipped to its limit; QTANK_NONFINITE_INPUT after
  *         an open-loop one (non-finite y or sched), or with nothing changed when u_applied
  *         is not finite; QTANK_BAD_ARGUMENT for a NULL pointer. Diagnostics are not

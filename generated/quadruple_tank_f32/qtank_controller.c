@@ -10,9 +10,53 @@
  */
 #include <math.h>
 #include "qtank_internal.h"
+#if QTANK_GENERATION != 0x68a75aedc86dbb8
+#error "qtank_controller.c and qtank_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
+#endif
 
 #define R_ QTANK_R
 
+
+/*
+ * The range an applied command can have, per actuator: the lowest u_min and the highest
+ * u_max of the modes that drive it (context.actuator_range).
+ */
+static const qtank_real actuator_min[QTANK_N_ACTUATORS] = {
+    -3.0f, -3.0f
+};
+static const qtank_real actuator_max[QTANK_N_ACTUATORS] = {
+    3.0f, 3.0f
+};
+
+/*
+ * u_applied made plausible into u: each entry clipped to its actuator's range. A command
+ * beyond it cannot have been applied (a glitch of the servo feedback, a unit mix-up in the
+ * glue); taken in full, 1e8 pushed every estimate so far that the clipped innovations
+ * never pulled it back. Returns how many entries were clipped.
+ */
+static int plausible_applied(const qtank_ctrl *c, const qtank_real *u_applied,
+    qtank_real *u)
+{
+    qtank_real lo[QTANK_N_ACTUATORS], hi[QTANK_N_ACTUATORS];
+    int i, clipped = 0;
+    for (i = 0; i < QTANK_N_ACTUATORS; ++i) {
+        lo[i] = actuator_min[i];
+        hi[i] = actuator_max[i];
+    }
+    (void)c;
+    for (i = 0; i < QTANK_N_ACTUATORS; ++i) {
+        u[i] = u_applied[i];
+        if (u[i] > hi[i]) {
+            u[i] = hi[i];
+            ++clipped;
+        }
+        if (u[i] < lo[i]) { /* lo <= hi: never both */
+            u[i] = lo[i];
+            ++clipped;
+        }
+    }
+    return clipped;
+}
 
 /*
  * One observer update; use_y = 0 propagates open loop (no valid measurement). Each
@@ -230,7 +274,8 @@ int qtank_step(qtank_ctrl *c, const qtank_real *y, const qtank_real *sched,
 int qtank_observe(qtank_ctrl *c, const qtank_real *y,
     const qtank_real *sched, const qtank_real *u_applied)
 {
-    int j, use_y;
+    qtank_real u[QTANK_N_ACTUATORS];
+    int j, use_y, applied_clipped;
     int clipped = 0;
     if (c == 0 || y == 0 || u_applied == 0 || (QTANK_N_SCHEDULE != 0 && sched == 0)) {
         return QTANK_BAD_ARGUMENT;
@@ -238,15 +283,19 @@ int qtank_observe(qtank_ctrl *c, const qtank_real *y,
     if (!qtank_all_finite(u_applied, QTANK_N_ACTUATORS)) {
         return QTANK_NONFINITE_INPUT; /* no input to propagate with: nothing changes */
     }
+    applied_clipped = plausible_applied(c, u_applied, u);
     use_y = qtank_all_finite(y, QTANK_N_OUTPUTS) && qtank_all_finite(sched, QTANK_N_SCHEDULE);
     if (use_y) {
         follow_schedule(c, sched);
     }
     for (j = 0; j < QTANK_N_MODES; ++j) {
-        clipped += observe(&c->work, &qtank_modes[j], c->xhat[j], y, u_applied, use_y);
+        clipped += observe(&c->work, &qtank_modes[j], c->xhat[j], y, u, use_y);
     }
     if (!use_y) {
         return QTANK_NONFINITE_INPUT;
+    }
+    if (applied_clipped > 0) {
+        return QTANK_APPLIED_CLIPPED; /* the feedback's fault wins over the sensor's */
     }
     return (clipped > 0) ? QTANK_MEASUREMENT_CLIPPED : QTANK_OPTIMAL;
 }
@@ -294,6 +343,7 @@ const char *qtank_status_message(int status)
     case QTANK_BAD_ARGUMENT: return "bad argument";
     case QTANK_TIME_LIMIT: return "work budget reached; best command so far";
     case QTANK_MEASUREMENT_CLIPPED: return "optimal; an implausible measurement was clipped";
+    case QTANK_APPLIED_CLIPPED: return "an applied command beyond its actuator's range was clipped";
     default: return "unknown status";
     }
 }

@@ -7,6 +7,9 @@
 
 #include <math.h>
 #include "qtank.h"
+#if QTANK_GENERATION != 0x68a75aedc86dbb8
+#error "qtank_internal.h and qtank_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
+#endif
 
 /**
  * Static data of one mode (all arrays row-major; "_p" = packed lower triangle), each

@@ -10,9 +10,53 @@
  */
 #include <math.h>
 #include "zones_internal.h"
+#if ZONES_GENERATION != 0xcc99f7d26c867f7
+#error "zones_controller.c and zones_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
+#endif
 
 #define R_ ZONES_R
 
+
+/*
+ * The range an applied command can have, per actuator: the lowest u_min and the highest
+ * u_max of the modes that drive it (context.actuator_range).
+ */
+static const zones_real actuator_min[ZONES_N_ACTUATORS] = {
+    -2.0, -2.0
+};
+static const zones_real actuator_max[ZONES_N_ACTUATORS] = {
+    2.0, 2.0
+};
+
+/*
+ * u_applied made plausible into u: each entry clipped to its actuator's range. A command
+ * beyond it cannot have been applied (a glitch of the servo feedback, a unit mix-up in the
+ * glue); taken in full, 1e8 pushed every estimate so far that the clipped innovations
+ * never pulled it back. Returns how many entries were clipped.
+ */
+static int plausible_applied(const zones_ctrl *c, const zones_real *u_applied,
+    zones_real *u)
+{
+    zones_real lo[ZONES_N_ACTUATORS], hi[ZONES_N_ACTUATORS];
+    int i, clipped = 0;
+    for (i = 0; i < ZONES_N_ACTUATORS; ++i) {
+        lo[i] = actuator_min[i];
+        hi[i] = actuator_max[i];
+    }
+    (void)c;
+    for (i = 0; i < ZONES_N_ACTUATORS; ++i) {
+        u[i] = u_applied[i];
+        if (u[i] > hi[i]) {
+            u[i] = hi[i];
+            ++clipped;
+        }
+        if (u[i] < lo[i]) { /* lo <= hi: never both */
+            u[i] = lo[i];
+            ++clipped;
+        }
+    }
+    return clipped;
+}
 
 /*
  * One observer update; use_y = 0 propagates open loop (no valid measurement). Each
@@ -230,7 +274,8 @@ int zones_step(zones_ctrl *c, const zones_real *y, const zones_real *sched,
 int zones_observe(zones_ctrl *c, const zones_real *y,
     const zones_real *sched, const zones_real *u_applied)
 {
-    int j, use_y;
+    zones_real u[ZONES_N_ACTUATORS];
+    int j, use_y, applied_clipped;
     int clipped = 0;
     if (c == 0 || y == 0 || u_applied == 0 || (ZONES_N_SCHEDULE != 0 && sched == 0)) {
         return ZONES_BAD_ARGUMENT;
@@ -238,15 +283,19 @@ int zones_observe(zones_ctrl *c, const zones_real *y,
     if (!zones_all_finite(u_applied, ZONES_N_ACTUATORS)) {
         return ZONES_NONFINITE_INPUT; /* no input to propagate with: nothing changes */
     }
+    applied_clipped = plausible_applied(c, u_applied, u);
     use_y = zones_all_finite(y, ZONES_N_OUTPUTS) && zones_all_finite(sched, ZONES_N_SCHEDULE);
     if (use_y) {
         follow_schedule(c, sched);
     }
     for (j = 0; j < ZONES_N_MODES; ++j) {
-        clipped += observe(&c->work, &zones_modes[j], c->xhat[j], y, u_applied, use_y);
+        clipped += observe(&c->work, &zones_modes[j], c->xhat[j], y, u, use_y);
     }
     if (!use_y) {
         return ZONES_NONFINITE_INPUT;
+    }
+    if (applied_clipped > 0) {
+        return ZONES_APPLIED_CLIPPED; /* the feedback's fault wins over the sensor's */
     }
     return (clipped > 0) ? ZONES_MEASUREMENT_CLIPPED : ZONES_OPTIMAL;
 }
@@ -294,6 +343,7 @@ const char *zones_status_message(int status)
     case ZONES_BAD_ARGUMENT: return "bad argument";
     case ZONES_TIME_LIMIT: return "work budget reached; best command so far";
     case ZONES_MEASUREMENT_CLIPPED: return "optimal; an implausible measurement was clipped";
+    case ZONES_APPLIED_CLIPPED: return "an applied command beyond its actuator's range was clipped";
     default: return "unknown status";
     }
 }

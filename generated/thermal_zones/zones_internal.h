@@ -7,6 +7,9 @@
 
 #include <math.h>
 #include "zones.h"
+#if ZONES_GENERATION != 0xcc99f7d26c867f7
+#error "zones_internal.h and zones_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
+#endif
 
 /**
  * Static data of one mode (all arrays row-major; "_p" = packed lower triangle), each

@@ -18,6 +18,9 @@
 #include <stddef.h>
 #include <stdint.h>
 #include "zones_config.h"
+#if ZONES_GENERATION != 0x14e8f1075220262
+#error "zones.h and zones_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
+#endif
 
 #ifdef __cplusplus
 extern "C" {
@@ -54,7 +57,12 @@ typedef enum {
      *  ±`observer.innovation_limit` and was clipped to it (`zones_last_info()->clipped`
      *  counts the clips whatever the status). Command: the solution (this sample's y enters
      *  only the next one). */
-    ZONES_MEASUREMENT_CLIPPED = 10
+    ZONES_MEASUREMENT_CLIPPED = 10,
+    /** `zones_observe` only: an entry of `u_applied` was beyond the range of its actuator
+     *  (the lowest `u_min` to the highest `u_max` of the modes that drive it) and was
+     *  clipped to that range before the observers used it; it wins over
+     *  `MEASUREMENT_CLIPPED`. Command: none (`zones_observe` solves nothing). */
+    ZONES_APPLIED_CLIPPED = 11
 } zones_status;
 
 /**
@@ -174,8 +182,11 @@ int zones_step(zones_ctrl *c, const zones_real *y, const zones_real *sched,
  * @param sched     Scheduling signal(s) [ZONES_N_SCHEDULE] (may be NULL when there are
  *                  none); non-finite: the mode is kept and the observers run open loop.
  * @param u_applied The command applied over the last sample, for every physical actuator
- *                  [ZONES_N_ACTUATORS], in the controller's units.
- * @return ZONES_OPTIMAL after a closed-loop update; ZONES_MEASUREMENT_CLIPPED after
+ *                  [ZONES_N_ACTUATORS], in the controller's units; an entry beyond its
+ *                  actuator's range (the lowest u_min to the highest u_max of the modes
+ *                  that drive it) is clipped to that range.
+ * @return ZONES_OPTIMAL after a closed-loop update; ZONES_APPLIED_CLIPPED after one
+ *         in which an entry of u_applied was clipped; ZONES_MEASUREMENT_CLIPPED after
  *         one in which an innovation was clipped to its limit; ZONES_NONFINITE_INPUT after
  *         an open-loop one (non-finite y or sched), or with nothing changed when u_applied
  *         is not finite; ZONES_BAD_ARGUMENT for a NULL pointer. Diagnostics are not

@@ -23,6 +23,13 @@
 #error "zones: -freciprocal-math is not supported: it turns divisions into products with reciprocals (no longer the reference's) (zones_README.md, Build flags)"
 #endif
 
+/*
+ * This tree's generation (config, generator and templates). Every other generated file
+ * stops the build unless it is of the same one: a regeneration interrupted between two
+ * of its file moves leaves no mixed tree that compiles.
+ */
+#define ZONES_GENERATION 0x14e8f1075220262
+
 /* The one place where the precision is chosen. */
 #define ZONES_PRECISION_DOUBLE 0
 typedef float zones_real;

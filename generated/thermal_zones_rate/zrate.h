@@ -18,6 +18,9 @@
 #include <stddef.h>
 #include <stdint.h>
 #include "zrate_config.h"
+#if ZRATE_GENERATION != 0x0c24e9bade91444
+#error "zrate.h and zrate_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
+#endif
 
 #ifdef __cplusplus
 extern "C" {
@@ -54,7 +57,12 @@ typedef enum {
      *  ±`observer.innovation_limit` and was clipped to it (`zrate_last_info()->clipped`
      *  counts the clips whatever the status). Command: the solution (this sample's y enters
      *  only the next one). */
-    ZRATE_MEASUREMENT_CLIPPED = 10
+    ZRATE_MEASUREMENT_CLIPPED = 10,
+    /** `zrate_observe` only: an entry of `u_applied` was beyond the range of its actuator
+     *  (the lowest `u_min` to the highest `u_max` of the modes that drive it) and was
+     *  clipped to that range before the observers used it; it wins over
+     *  `MEASUREMENT_CLIPPED`. Command: none (`zrate_observe` solves nothing). */
+    ZRATE_APPLIED_CLIPPED = 11
 } zrate_status;
 
 /**
@@ -174,8 +182,11 @@ int zrate_step(zrate_ctrl *c, const zrate_real *y, const zrate_real *sched,
  * @param sched     Scheduling signal(s) [ZRATE_N_SCHEDULE] (may be NULL when there are
  *                  none); non-finite: the mode is kept and the observers run open loop.
  * @param u_applied The command applied over the last sample, for every physical actuator
- *                  [ZRATE_N_ACTUATORS], in the controller's units.
- * @return ZRATE_OPTIMAL after a closed-loop update; ZRATE_MEASUREMENT_CLIPPED after
+ *                  [ZRATE_N_ACTUATORS], in the controller's units; an entry beyond its
+ *                  actuator's range (the lowest u_min to the highest u_max of the modes
+ *                  that drive it) is clipped to that range.
+ * @return ZRATE_OPTIMAL after a closed-loop update; ZRATE_APPLIED_CLIPPED after one
+ *         in which an entry of u_applied was clipped; ZRATE_MEASUREMENT_CLIPPED after
  *         one in which an innovation was clipped to its limit; ZRATE_NONFINITE_INPUT after
  *         an open-loop one (non-finite y or sched), or with nothing changed when u_applied
  *         is not finite; ZRATE_BAD_ARGUMENT for a NULL pointer. Diagnostics are not

@@ -23,6 +23,13 @@
 #error "zrate: -freciprocal-math is not supported: it turns divisions into products with reciprocals (no longer the reference's) (zrate_README.md, Build flags)"
 #endif
 
+/*
+ * This tree's generation (config, generator and templates). Every other generated file
+ * stops the build unless it is of the same one: a regeneration interrupted between two
+ * of its file moves leaves no mixed tree that compiles.
+ */
+#define ZRATE_GENERATION 0xa54e2932227757a
+
 /* The one place where the precision is chosen. */
 #define ZRATE_PRECISION_DOUBLE 0
 typedef float zrate_real;

@@ -10,9 +10,53 @@
  */
 #include <math.h>
 #include "zrate_internal.h"
+#if ZRATE_GENERATION != 0xa54e2932227757a
+#error "zrate_controller.c and zrate_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
+#endif
 
 #define R_ ZRATE_R
 
+
+/*
+ * The range an applied command can have, per actuator: the lowest u_min and the highest
+ * u_max of the modes that drive it (context.actuator_range).
+ */
+static const zrate_real actuator_min[ZRATE_N_ACTUATORS] = {
+    -2.0f, -2.0f
+};
+static const zrate_real actuator_max[ZRATE_N_ACTUATORS] = {
+    2.0f, 2.0f
+};
+
+/*
+ * u_applied made plausible into u: each entry clipped to its actuator's range. A command
+ * beyond it cannot have been applied (a glitch of the servo feedback, a unit mix-up in the
+ * glue); taken in full, 1e8 pushed every estimate so far that the clipped innovations
+ * never pulled it back. Returns how many entries were clipped.
+ */
+static int plausible_applied(const zrate_ctrl *c, const zrate_real *u_applied,
+    zrate_real *u)
+{
+    zrate_real lo[ZRATE_N_ACTUATORS], hi[ZRATE_N_ACTUATORS];
+    int i, clipped = 0;
+    for (i = 0; i < ZRATE_N_ACTUATORS; ++i) {
+        lo[i] = actuator_min[i];
+        hi[i] = actuator_max[i];
+    }
+    (void)c;
+    for (i = 0; i < ZRATE_N_ACTUATORS; ++i) {
+        u[i] = u_applied[i];
+        if (u[i] > hi[i]) {
+            u[i] = hi[i];
+            ++clipped;
+        }
+        if (u[i] < lo[i]) { /* lo <= hi: never both */
+            u[i] = lo[i];
+            ++clipped;
+        }
+    }
+    return clipped;
+}
 
 /*
  * One observer update; use_y = 0 propagates open loop (no valid measurement). Each
@@ -230,7 +274,8 @@ int zrate_step(zrate_ctrl *c, const zrate_real *y, const zrate_real *sched,
 int zrate_observe(zrate_ctrl *c, const zrate_real *y,
     const zrate_real *sched, const zrate_real *u_applied)
 {
-    int j, use_y;
+    zrate_real u[ZRATE_N_ACTUATORS];
+    int j, use_y, applied_clipped;
     int clipped = 0;
     if (c == 0 || y == 0 || u_applied == 0 || (ZRATE_N_SCHEDULE != 0 && sched == 0)) {
         return ZRATE_BAD_ARGUMENT;
@@ -238,15 +283,19 @@ int zrate_observe(zrate_ctrl *c, const zrate_real *y,
     if (!zrate_all_finite(u_applied, ZRATE_N_ACTUATORS)) {
         return ZRATE_NONFINITE_INPUT; /* no input to propagate with: nothing changes */
     }
+    applied_clipped = plausible_applied(c, u_applied, u);
     use_y = zrate_all_finite(y, ZRATE_N_OUTPUTS) && zrate_all_finite(sched, ZRATE_N_SCHEDULE);
     if (use_y) {
         follow_schedule(c, sched);
     }
     for (j = 0; j < ZRATE_N_MODES; ++j) {
-        clipped += observe(&c->work, &zrate_modes[j], c->xhat[j], y, u_applied, use_y);
+        clipped += observe(&c->work, &zrate_modes[j], c->xhat[j], y, u, use_y);
     }
     if (!use_y) {
         return ZRATE_NONFINITE_INPUT;
+    }
+    if (applied_clipped > 0) {
+        return ZRATE_APPLIED_CLIPPED; /* the feedback's fault wins over the sensor's */
     }
     return (clipped > 0) ? ZRATE_MEASUREMENT_CLIPPED : ZRATE_OPTIMAL;
 }
@@ -294,6 +343,7 @@ const char *zrate_status_message(int status)
     case ZRATE_BAD_ARGUMENT: return "bad argument";
     case ZRATE_TIME_LIMIT: return "work budget reached; best command so far";
     case ZRATE_MEASUREMENT_CLIPPED: return "optimal; an implausible measurement was clipped";
+    case ZRATE_APPLIED_CLIPPED: return "an applied command beyond its actuator's range was clipped";
     default: return "unknown status";
     }
 }

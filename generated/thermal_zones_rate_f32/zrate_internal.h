@@ -7,6 +7,9 @@
 
 #include <math.h>
 #include "zrate.h"
+#if ZRATE_GENERATION != 0xa54e2932227757a
+#error "zrate_internal.h and zrate_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
+#endif
 
 /**
  * Static data of one mode (all arrays row-major; "_p" = packed lower triangle), each

@@ -18,6 +18,9 @@
 #include <stddef.h>
 #include <stdint.h>
 #include "drives_config.h"
+#if DRIVES_GENERATION != 0x742bccb7c6244ac
+#error "drives.h and drives_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
+#endif
 
 #ifdef __cplusplus
 extern "C" {
@@ -54,7 +57,12 @@ typedef enum {
      *  ±`observer.innovation_limit` and was clipped to it (`drives_last_info()->clipped`
      *  counts the clips whatever the status). Command: the solution (this sample's y enters
      *  only the next one). */
-    DRIVES_MEASUREMENT_CLIPPED = 10
+    DRIVES_MEASUREMENT_CLIPPED = 10,
+    /** `drives_observe` only: an entry of `u_applied` was beyond the range of its actuator
+     *  (the lowest `u_min` to the highest `u_max` of the modes that drive it) and was
+     *  clipped to that range before the observers used it; it wins over
+     *  `MEASUREMENT_CLIPPED`. Command: none (`drives_observe` solves nothing). */
+    DRIVES_APPLIED_CLIPPED = 11
 } drives_status;
 
 /**
@@ -174,8 +182,11 @@ int drives_step(drives_ctrl *c, const drives_real *y, const drives_real *sched,
  * @param sched     Scheduling signal(s) [DRIVES_N_SCHEDULE] (may be NULL when there are
  *                  none); non-finite: the mode is kept and the observers run open loop.
  * @param u_applied The command applied over the last sample, for every physical actuator
- *                  [DRIVES_N_ACTUATORS], in the controller's units.
- * @return DRIVES_OPTIMAL after a closed-loop update; DRIVES_MEASUREMENT_CLIPPED after
+ *                  [DRIVES_N_ACTUATORS], in the controller's units; an entry beyond its
+ *                  actuator's range (the lowest u_min to the highest u_max of the modes
+ *                  that drive it) is clipped to that range.
+ * @return DRIVES_OPTIMAL after a closed-loop update; DRIVES_APPLIED_CLIPPED after one
+ *         in which an entry of u_applied was clipped; DRIVES_MEASUREMENT_CLIPPED after
  *         one in which an innovation was clipped to its limit; DRIVES_NONFINITE_INPUT after
  *         an open-loop one (non-finite y or sched), or with nothing changed when u_applied
  *         is not finite; DRIVES_BAD_ARGUMENT for a NULL pointer. Diagnostics are not

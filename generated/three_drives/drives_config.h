@@ -23,6 +23,13 @@
 #error "drives: -freciprocal-math is not supported: it turns divisions into products with reciprocals (no longer the reference's) (drives_README.md, Build flags)"
 #endif
 
+/*
+ * This tree's generation (config, generator and templates). Every other generated file
+ * stops the build unless it is of the same one: a regeneration interrupted between two
+ * of its file moves leaves no mixed tree that compiles.
+ */
+#define DRIVES_GENERATION 0x742bccb7c6244ac
+
 /* The one place where the precision is chosen. */
 #define DRIVES_PRECISION_DOUBLE 1
 typedef double drives_real;

@@ -10,6 +10,9 @@
  */
 #include <math.h>
 #include "drives_internal.h"
+#if DRIVES_GENERATION != 0x742bccb7c6244ac
+#error "drives_controller.c and drives_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
+#endif
 
 #define R_ DRIVES_R
 
@@ -52,6 +55,47 @@ static int schedule(int current, drives_real s)
         next = sched_mode[band];
     }
     return next;
+}
+
+/*
+ * The range an applied command can have, per actuator: the lowest u_min and the highest
+ * u_max of the modes that drive it (context.actuator_range).
+ */
+static const drives_real actuator_min[DRIVES_N_ACTUATORS] = {
+    -1.0, -1.0, -1.0
+};
+static const drives_real actuator_max[DRIVES_N_ACTUATORS] = {
+    1.0, 1.0, 1.0
+};
+
+/*
+ * u_applied made plausible into u: each entry clipped to its actuator's range. A command
+ * beyond it cannot have been applied (a glitch of the servo feedback, a unit mix-up in the
+ * glue); taken in full, 1e8 pushed every estimate so far that the clipped innovations
+ * never pulled it back. Returns how many entries were clipped.
+ */
+static int plausible_applied(const drives_ctrl *c, const drives_real *u_applied,
+    drives_real *u)
+{
+    drives_real lo[DRIVES_N_ACTUATORS], hi[DRIVES_N_ACTUATORS];
+    int i, clipped = 0;
+    for (i = 0; i < DRIVES_N_ACTUATORS; ++i) {
+        lo[i] = actuator_min[i];
+        hi[i] = actuator_max[i];
+    }
+    (void)c;
+    for (i = 0; i < DRIVES_N_ACTUATORS; ++i) {
+        u[i] = u_applied[i];
+        if (u[i] > hi[i]) {
+            u[i] = hi[i];
+            ++clipped;
+        }
+        if (u[i] < lo[i]) { /* lo <= hi: never both */
+            u[i] = lo[i];
+            ++clipped;
+        }
+    }
+    return clipped;
 }
 
 /*
@@ -278,7 +322,8 @@ int drives_step(drives_ctrl *c, const drives_real *y, const drives_real *sched,
 int drives_observe(drives_ctrl *c, const drives_real *y,
     const drives_real *sched, const drives_real *u_applied)
 {
-    int j, use_y;
+    drives_real u[DRIVES_N_ACTUATORS];
+    int j, use_y, applied_clipped;
     int clipped = 0;
     if (c == 0 || y == 0 || u_applied == 0 || (DRIVES_N_SCHEDULE != 0 && sched == 0)) {
         return DRIVES_BAD_ARGUMENT;
@@ -286,15 +331,19 @@ int drives_observe(drives_ctrl *c, const drives_real *y,
     if (!drives_all_finite(u_applied, DRIVES_N_ACTUATORS)) {
         return DRIVES_NONFINITE_INPUT; /* no input to propagate with: nothing changes */
     }
+    applied_clipped = plausible_applied(c, u_applied, u);
     use_y = drives_all_finite(y, DRIVES_N_OUTPUTS) && drives_all_finite(sched, DRIVES_N_SCHEDULE);
     if (use_y) {
         follow_schedule(c, sched);
     }
     for (j = 0; j < DRIVES_N_MODES; ++j) {
-        clipped += observe(&c->work, &drives_modes[j], c->xhat[j], y, u_applied, use_y);
+        clipped += observe(&c->work, &drives_modes[j], c->xhat[j], y, u, use_y);
     }
     if (!use_y) {
         return DRIVES_NONFINITE_INPUT;
+    }
+    if (applied_clipped > 0) {
+        return DRIVES_APPLIED_CLIPPED; /* the feedback's fault wins over the sensor's */
     }
     return (clipped > 0) ? DRIVES_MEASUREMENT_CLIPPED : DRIVES_OPTIMAL;
 }
@@ -342,6 +391,7 @@ const char *drives_status_message(int status)
     case DRIVES_BAD_ARGUMENT: return "bad argument";
     case DRIVES_TIME_LIMIT: return "work budget reached; best command so far";
     case DRIVES_MEASUREMENT_CLIPPED: return "optimal; an implausible measurement was clipped";
+    case DRIVES_APPLIED_CLIPPED: return "an applied command beyond its actuator's range was clipped";
     default: return "unknown status";
     }
 }

@@ -7,6 +7,9 @@
 
 #include <math.h>
 #include "drives.h"
+#if DRIVES_GENERATION != 0x742bccb7c6244ac
+#error "drives_internal.h and drives_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
+#endif
 
 /**
  * Static data of one mode (all arrays row-major; "_p" = packed lower triangle), each

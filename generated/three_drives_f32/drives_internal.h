@@ -7,6 +7,9 @@
 
 #include <math.h>
 #include "drives.h"
+#if DRIVES_GENERATION != 0x465b7c1904c51b9
+#error "drives_internal.h and drives_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
+#endif
 
 /**
  * Static data of one mode (all arrays row-major; "_p" = packed lower triangle), each

@@ -25,6 +25,9 @@
  */
 #include <math.h>
 #include "drives_internal.h"
+#if DRIVES_GENERATION != 0x465b7c1904c51b9
+#error "drives_solver.c and drives_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
+#endif
 
 #define R_ DRIVES_R
 
@@ -1606,7 +1609,7 @@ static int primal_diff(const drives_work *ws, int n, int *from, int *head, int *
 static void primal_order(drives_work *ws, int n, int form, int update, int k, int head,
     int newest)
 {
-    const int down = form == FORM_FREE, step = down ? -1 : 1;
+    const int down = form == FORM_FREE, stride = down ? -1 : 1;
     int i, h = down ? head - 1 : 0, t = down ? k - 1 : head, rest = k;
     for (i = 0; i < n; ++i) {
         const int role = ws->input_role[i], bound = role & ROLE_BOUND;
@@ -1615,13 +1618,13 @@ static void primal_order(drives_work *ws, int n, int form, int update, int k, in
             ws->input_role[i] = (uint8_t)bound;
         } else if (!update || (role & ROLE_HEAD)) {
             ws->tmp[h] = (int16_t)i;
-            h += step;
+            h += stride;
             ws->input_role[i] = (uint8_t)(bound | ROLE_HEAD);
         } else {
             const int g = (role & ROLE_TAIL) ? role_gen(role) : newest + 1;
             const int tail_role = bound | ROLE_TAIL | (g * ROLE_GEN_ONE);
             ws->tmp[t] = (int16_t)i;
-            t += step;
+            t += stride;
             ws->input_role[i] = (uint8_t)tail_role;
         }
     }
@@ -1637,7 +1640,7 @@ static void primal_order(drives_work *ws, int n, int form, int update, int k, in
  */
 static int primal_old_order(drives_work *ws, int n)
 {
-    const int down = ws->primal_form == FORM_FREE, step = down ? -1 : 1;
+    const int down = ws->primal_form == FORM_FREE, stride = down ? -1 : 1;
     int i, heads = 0, rows = 0, h, t;
     for (i = 0; i < n; ++i) {
         heads += (ws->input_role[i] & ROLE_HEAD) != 0;
@@ -1649,11 +1652,11 @@ static int primal_old_order(drives_work *ws, int n)
         const int role = ws->input_role[i];
         if (role & ROLE_HEAD) {
             ws->tmp[h] = (int16_t)i;
-            h += step;
+            h += stride;
         }
         if (role & ROLE_TAIL) {
             ws->tmp[t] = (int16_t)i;
-            t += step;
+            t += stride;
         }
     }
     sort_by_generation(ws, heads, rows);
@@ -2262,10 +2265,10 @@ static int seed_from_multipliers(drives_work *ws, const drives_mode_data *md,
 /*
  * Working set from the previous active set (optimal, or where a TIME_LIMIT stopped)
  * shifted one stage along the horizon (row r joins when its next-stage row was active):
- * the receding-horizon guess; -1 if more than the working set holds (truncate: its first).
+ * the receding-horizon guess; -1 if more than the working set holds (keep_first: its first).
  */
 static int seed_shifted(drives_work *ws, const drives_mode_data *md,
-    const drives_real *lam, int truncate)
+    const drives_real *lam, int keep_first)
 {
     int r, nw = 0;
     new_working_set(ws);
@@ -2273,7 +2276,7 @@ static int seed_shifted(drives_work *ws, const drives_mode_data *md,
     for (r = 0; r < md->m; ++r) {
         if (lam[md->row_next[r]] > R_(0.0)) {
             if (nw == md->n) {
-                return truncate ? nw : -1;
+                return keep_first ? nw : -1;
             }
             ws->wset[nw++] = (int16_t)r;
         }
@@ -2493,12 +2496,12 @@ static int working_set_holds(drives_work *ws, const drives_mode_data *md, int nw
  */
 static int refine_dual(drives_work *ws, const drives_mode_data *md, int nw)
 {
-    int round, i;
+    int pass, i;
     if (!afford(ws, md, 2u * (2u * tri_work(nw) + correct_work(md, nw) + 2u * scan_work(md))
                         + (uint32_t)md->m)) {
         return OUT_OF_WORK;
     }
-    for (round = 0; round < 2; ++round) {
+    for (pass = 0; pass < 2; ++pass) {
         int negative = 0;
         if (md->GEinvGt_p != 0) {
             predict_outputs(ws, md, ws->th);
@@ -2537,7 +2540,7 @@ static void keep_working_set(const drives_work *ws, const drives_mode_data *md,
 }
 
 /* The polish converged: the working set and its multipliers become the warm start. */
-static int accept(drives_work *ws, const drives_mode_data *md, drives_real *lam,
+static int converged(drives_work *ws, const drives_mode_data *md, drives_real *lam,
     int nw, int *active)
 {
     ws->work += (uint32_t)md->m;
@@ -2659,7 +2662,7 @@ static int polish(drives_work *ws, const drives_mode_data *md, drives_real *lam,
                     known = nw;
                     continue;
                 }
-                return accept(ws, md, lam, nw, active);
+                return converged(ws, md, lam, nw, active);
             }
         } else {
             code = dual_solve(ws, md, nw);
@@ -2686,7 +2689,7 @@ static int polish(drives_work *ws, const drives_mode_data *md, drives_real *lam,
                 /* a (near-)singular H_WW, e.g. parallel rows of an infeasible QP, can give
                  * multipliers whose point misses its own working set: not optimal */
                 code = working_set_holds(ws, md, nw, 1) ? 0 : refine_dual(ws, md, nw);
-                return (code == 0) ? accept(ws, md, lam, nw, active) : stopped(ws, nw, known, code);
+                return (code == 0) ? converged(ws, md, lam, nw, active) : stopped(ws, nw, known, code);
             }
         }
         dual = (guess && DRIVES_SOLVER_ACTIVE_SET
@@ -2859,11 +2862,11 @@ static int add_to_set(drives_work *ws, const drives_mode_data *md, int p, int re
 static int resume_working_set(drives_work *ws, const drives_mode_data *md,
     const drives_real *lam, int from, int *steps)
 {
-    int i, round, code, nw = (from >= 0) ? from : seed_shifted(ws, md, lam, 1);
+    int i, pass, code, nw = (from >= 0) ? from : seed_shifted(ws, md, lam, 1);
     for (i = 0; i < nw; ++i) {
         ws->in_set[ws->wset[i]] = 1;
     }
-    for (round = 0; nw > 0 && round < DRIVES_SOLVER_POLISH_MAX; ++round) {
+    for (pass = 0; nw > 0 && pass < DRIVES_SOLVER_POLISH_MAX; ++pass) {
         int known;
         ++*steps;
         code = dual_solve(ws, md, nw);
@@ -2972,7 +2975,7 @@ static int dual_active_set(drives_work *ws, const drives_mode_data *md,
     }
     *iterations += steps;
     if (nw == 0 && code != OUT_OF_WORK) { /* code 0: violations of th0 within the tolerance only */
-        return (code == 0) ? accept(ws, md, lam, 0, active) : code;
+        return (code == 0) ? converged(ws, md, lam, 0, active) : code;
     }
     /* the next sample's warm start, until polish() replaces it (its cost is part of the
      * finish() every check reserves: finish() then leaves lam as it is) */

@@ -12,6 +12,9 @@
  */
 #include <math.h>
 #include "rollmpc_internal.h"
+#if ROLLMPC_GENERATION != 0xfbbd5451fcdf4cb
+#error "rollmpc_linalg.c and rollmpc_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
+#endif
 
 /*
  * Entries (i, j), (i, j + 1), (i + 1, j), (i + 1, j + 1) of L, from rows i, i + 1 of A
@@ -23,32 +26,32 @@ static void cholesky_block(rollmpc_real *r0, rollmpc_real *r1, const rollmpc_rea
 {
     const rollmpc_real *q1 = q0 + j + 1;
     rollmpc_real s00 = r0[j], s01 = r0[j + 1], s10 = r1[j], s11 = r1[j + 1];
-    const rollmpc_real *x0 = r0, *x1 = r1, *y0 = q0, *y1 = q1, *end = q0 + j;
+    const rollmpc_real *x0 = r0, *x1 = r1, *v0 = q0, *v1 = q1, *end = q0 + j;
     if (j & 1) {
-        const rollmpc_real a0 = *x0++, a1 = *x1++, b0 = *y0++, b1 = *y1++;
+        const rollmpc_real a0 = *x0++, a1 = *x1++, b0 = *v0++, b1 = *v1++;
         s00 -= a0 * b0;
         s01 -= a0 * b1;
         s10 -= a1 * b0;
         s11 -= a1 * b1;
     }
-    while (y0 != end) { /* two k per trip */
-        rollmpc_real a0 = x0[0], a1 = x1[0], b0 = y0[0], b1 = y1[0];
+    while (v0 != end) { /* two k per trip */
+        rollmpc_real a0 = x0[0], a1 = x1[0], b0 = v0[0], b1 = v1[0];
         s00 -= a0 * b0;
         s01 -= a0 * b1;
         s10 -= a1 * b0;
         s11 -= a1 * b1;
         a0 = x0[1];
         a1 = x1[1];
-        b0 = y0[1];
-        b1 = y1[1];
+        b0 = v0[1];
+        b1 = v1[1];
         s00 -= a0 * b0;
         s01 -= a0 * b1;
         s10 -= a1 * b0;
         s11 -= a1 * b1;
         x0 += 2;
         x1 += 2;
-        y0 += 2;
-        y1 += 2;
+        v0 += 2;
+        v1 += 2;
     }
     r0[j] = s00 / q0[j];
     r1[j] = s10 / q0[j];
@@ -96,10 +99,10 @@ static void cholesky_block44(rollmpc_real *r0, rollmpc_real *r1, rollmpc_real *r
     rollmpc_real s20 = r2[j], s21 = r2[j + 1], s22 = r2[j + 2], s23 = r2[j + 3];
     rollmpc_real s30 = r3[j], s31 = r3[j + 1], s32 = r3[j + 2], s33 = r3[j + 3];
     const rollmpc_real *x0 = r0, *x1 = r1, *x2 = r2, *x3 = r3;
-    const rollmpc_real *y0 = q0, *y1 = q1, *y2 = q2, *y3 = q3, *end = q0 + j;
-    while (y0 != end) { /* one k per trip */
+    const rollmpc_real *v0 = q0, *v1 = q1, *v2 = q2, *v3 = q3, *end = q0 + j;
+    while (v0 != end) { /* one k per trip */
         const rollmpc_real a0 = *x0++, a1 = *x1++, a2 = *x2++, a3 = *x3++;
-        const rollmpc_real b0 = *y0++, b1 = *y1++, b2 = *y2++, b3 = *y3++;
+        const rollmpc_real b0 = *v0++, b1 = *v1++, b2 = *v2++, b3 = *v3++;
         s00 -= a0 * b0;
         s01 -= a0 * b1;
         s02 -= a0 * b2;
@@ -134,10 +137,10 @@ static void cholesky_block4(rollmpc_real *r0, rollmpc_real *r1, const rollmpc_re
     const rollmpc_real *q1 = q0 + j + 1, *q2 = q1 + j + 2, *q3 = q2 + j + 3;
     rollmpc_real s00 = r0[j], s01 = r0[j + 1], s02 = r0[j + 2], s03 = r0[j + 3];
     rollmpc_real s10 = r1[j], s11 = r1[j + 1], s12 = r1[j + 2], s13 = r1[j + 3];
-    const rollmpc_real *x0 = r0, *x1 = r1, *y0 = q0, *y1 = q1, *y2 = q2, *y3 = q3;
+    const rollmpc_real *x0 = r0, *x1 = r1, *v0 = q0, *v1 = q1, *v2 = q2, *v3 = q3;
     const rollmpc_real *end = q0 + j;
-    while (y0 != end) { /* two k per trip */
-        rollmpc_real a0 = x0[0], a1 = x1[0], b0 = y0[0], b1 = y1[0], b2 = y2[0], b3 = y3[0];
+    while (v0 != end) { /* two k per trip */
+        rollmpc_real a0 = x0[0], a1 = x1[0], b0 = v0[0], b1 = v1[0], b2 = v2[0], b3 = v3[0];
         s00 -= a0 * b0;
         s01 -= a0 * b1;
         s02 -= a0 * b2;
@@ -148,10 +151,10 @@ static void cholesky_block4(rollmpc_real *r0, rollmpc_real *r1, const rollmpc_re
         s13 -= a1 * b3;
         a0 = x0[1];
         a1 = x1[1];
-        b0 = y0[1];
-        b1 = y1[1];
-        b2 = y2[1];
-        b3 = y3[1];
+        b0 = v0[1];
+        b1 = v1[1];
+        b2 = v2[1];
+        b3 = v3[1];
         s00 -= a0 * b0;
         s01 -= a0 * b1;
         s02 -= a0 * b2;
@@ -162,10 +165,10 @@ static void cholesky_block4(rollmpc_real *r0, rollmpc_real *r1, const rollmpc_re
         s13 -= a1 * b3;
         x0 += 2;
         x1 += 2;
-        y0 += 2;
-        y1 += 2;
-        y2 += 2;
-        y3 += 2;
+        v0 += 2;
+        v1 += 2;
+        v2 += 2;
+        v3 += 2;
     }
     finish_four(r0, s00, s01, s02, s03, q0, j);
     finish_four(r1, s10, s11, s12, s13, q0, j);
@@ -176,9 +179,9 @@ static void cholesky_column(rollmpc_real *r0, rollmpc_real *r1, const rollmpc_re
     int j)
 {
     rollmpc_real s0 = r0[j], s1 = r1[j];
-    const rollmpc_real *x0 = r0, *x1 = r1, *y0 = q0, *end = q0 + j;
-    while (y0 != end) {
-        const rollmpc_real b0 = *y0++;
+    const rollmpc_real *x0 = r0, *x1 = r1, *v0 = q0, *end = q0 + j;
+    while (v0 != end) {
+        const rollmpc_real b0 = *v0++;
         s0 -= *x0++ * b0;
         s1 -= *x1++ * b0;
     }
@@ -243,13 +246,13 @@ static int cholesky_row(rollmpc_real *a, rollmpc_real *r, int i)
     rollmpc_real s;
     const rollmpc_real *x, *end;
     for (; j + 1 < i; j += 2) {
-        const rollmpc_real *q0 = &a[ROLLMPC_TRI(j, 0)], *q1 = q0 + j + 1, *y0 = q0, *y1 = q1;
+        const rollmpc_real *q0 = &a[ROLLMPC_TRI(j, 0)], *q1 = q0 + j + 1, *v0 = q0, *v1 = q1;
         rollmpc_real s0 = r[j], s1 = r[j + 1];
         x = r;
         end = r + j;
         while (x != end) {
-            s0 -= *x * *y0++;
-            s1 -= *x * *y1++;
+            s0 -= *x * *v0++;
+            s1 -= *x * *v1++;
             ++x;
         }
         r[j] = s0 / q0[j];

@@ -23,6 +23,13 @@
 #error "rollmpc: -freciprocal-math is not supported: it turns divisions into products with reciprocals (no longer the reference's) (rollmpc_README.md, Build flags)"
 #endif
 
+/*
+ * This tree's generation (config, generator and templates). Every other generated file
+ * stops the build unless it is of the same one: a regeneration interrupted between two
+ * of its file moves leaves no mixed tree that compiles.
+ */
+#define ROLLMPC_GENERATION 0x64246d032f78cb6
+
 /* The one place where the precision is chosen. */
 #define ROLLMPC_PRECISION_DOUBLE 1
 typedef double rollmpc_real;

@@ -18,6 +18,9 @@
 #include <stddef.h>
 #include <stdint.h>
 #include "rollmpc_config.h"
+#if ROLLMPC_GENERATION != 0xe1131daa46fe6e8
+#error "rollmpc.h and rollmpc_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
+#endif
 
 #ifdef __cplusplus
 extern "C" {
@@ -54,7 +57,12 @@ typedef enum {
      *  ±`observer.innovation_limit` and was clipped to it (`rollmpc_last_info()->clipped`
      *  counts the clips whatever the status). Command: the solution (this sample's y enters
      *  only the next one). */
-    ROLLMPC_MEASUREMENT_CLIPPED = 10
+    ROLLMPC_MEASUREMENT_CLIPPED = 10,
+    /** `rollmpc_observe` only: an entry of `u_applied` was beyond the range of its actuator
+     *  (the lowest `u_min` to the highest `u_max` of the modes that drive it) and was
+     *  clipped to that range before the observers used it; it wins over
+     *  `MEASUREMENT_CLIPPED`. Command: none (`rollmpc_observe` solves nothing). */
+    ROLLMPC_APPLIED_CLIPPED = 11
 } rollmpc_status;
 
 /**
@@ -174,8 +182,11 @@ int rollmpc_step(rollmpc_ctrl *c, const rollmpc_real *y, const rollmpc_real *sch
  * @param sched     Scheduling signal(s) [ROLLMPC_N_SCHEDULE] (may be NULL when there are
  *                  none); non-finite: the mode is kept and the observers run open loop.
  * @param u_applied The command applied over the last sample, for every physical actuator
- *                  [ROLLMPC_N_ACTUATORS], in the controller's units.
- * @return ROLLMPC_OPTIMAL after a closed-loop update; ROLLMPC_MEASUREMENT_CLIPPED after
+ *                  [ROLLMPC_N_ACTUATORS], in the controller's units; an entry beyond its
+ *                  actuator's range (the lowest u_min to the highest u_max of the modes
+ *                  that drive it) is clipped to that range.
+ * @return ROLLMPC_OPTIMAL after a closed-loop update; ROLLMPC_APPLIED_CLIPPED after one
+ *         in which an entry of u_applied was clipped; ROLLMPC_MEASUREMENT_CLIPPED after
  *         one in which an innovation was clipped to its limit; ROLLMPC_NONFINITE_INPUT after
  *         an open-loop one (non-finite y or sched), or with nothing changed when u_applied
  *         is not finite; ROLLMPC_BAD_ARGUMENT for a NULL pointer. Diagnostics are not

@@ -10,6 +10,9 @@
  */
 #include <math.h>
 #include "rollmpc_internal.h"
+#if ROLLMPC_GENERATION != 0xe1131daa46fe6e8
+#error "rollmpc_controller.c and rollmpc_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
+#endif
 
 #define R_ ROLLMPC_R
 
@@ -52,6 +55,47 @@ static int schedule(int current, rollmpc_real s)
         next = sched_mode[band];
     }
     return next;
+}
+
+/*
+ * The range an applied command can have, per actuator: the lowest u_min and the highest
+ * u_max of the modes that drive it (context.actuator_range).
+ */
+static const rollmpc_real actuator_min[ROLLMPC_N_ACTUATORS] = {
+    -15.0f, -15.0f
+};
+static const rollmpc_real actuator_max[ROLLMPC_N_ACTUATORS] = {
+    15.0f, 15.0f
+};
+
+/*
+ * u_applied made plausible into u: each entry clipped to its actuator's range. A command
+ * beyond it cannot have been applied (a glitch of the servo feedback, a unit mix-up in the
+ * glue); taken in full, 1e8 pushed every estimate so far that the clipped innovations
+ * never pulled it back. Returns how many entries were clipped.
+ */
+static int plausible_applied(const rollmpc_ctrl *c, const rollmpc_real *u_applied,
+    rollmpc_real *u)
+{
+    rollmpc_real lo[ROLLMPC_N_ACTUATORS], hi[ROLLMPC_N_ACTUATORS];
+    int i, clipped = 0;
+    for (i = 0; i < ROLLMPC_N_ACTUATORS; ++i) {
+        lo[i] = actuator_min[i];
+        hi[i] = actuator_max[i];
+    }
+    (void)c;
+    for (i = 0; i < ROLLMPC_N_ACTUATORS; ++i) {
+        u[i] = u_applied[i];
+        if (u[i] > hi[i]) {
+            u[i] = hi[i];
+            ++clipped;
+        }
+        if (u[i] < lo[i]) { /* lo <= hi: never both */
+            u[i] = lo[i];
+            ++clipped;
+        }
+    }
+    return clipped;
 }
 
 /*
@@ -278,7 +322,8 @@ int rollmpc_step(rollmpc_ctrl *c, const rollmpc_real *y, const rollmpc_real *sch
 int rollmpc_observe(rollmpc_ctrl *c, const rollmpc_real *y,
     const rollmpc_real *sched, const rollmpc_real *u_applied)
 {
-    int j, use_y;
+    rollmpc_real u[ROLLMPC_N_ACTUATORS];
+    int j, use_y, applied_clipped;
     int clipped = 0;
     if (c == 0 || y == 0 || u_applied == 0 || (ROLLMPC_N_SCHEDULE != 0 && sched == 0)) {
         return ROLLMPC_BAD_ARGUMENT;
@@ -286,15 +331,19 @@ int rollmpc_observe(rollmpc_ctrl *c, const rollmpc_real *y,
     if (!rollmpc_all_finite(u_applied, ROLLMPC_N_ACTUATORS)) {
         return ROLLMPC_NONFINITE_INPUT; /* no input to propagate with: nothing changes */
     }
+    applied_clipped = plausible_applied(c, u_applied, u);
     use_y = rollmpc_all_finite(y, ROLLMPC_N_OUTPUTS) && rollmpc_all_finite(sched, ROLLMPC_N_SCHEDULE);
     if (use_y) {
         follow_schedule(c, sched);
     }
     for (j = 0; j < ROLLMPC_N_MODES; ++j) {
-        clipped += observe(&c->work, &rollmpc_modes[j], c->xhat[j], y, u_applied, use_y);
+        clipped += observe(&c->work, &rollmpc_modes[j], c->xhat[j], y, u, use_y);
     }
     if (!use_y) {
         return ROLLMPC_NONFINITE_INPUT;
+    }
+    if (applied_clipped > 0) {
+        return ROLLMPC_APPLIED_CLIPPED; /* the feedback's fault wins over the sensor's */
     }
     return (clipped > 0) ? ROLLMPC_MEASUREMENT_CLIPPED : ROLLMPC_OPTIMAL;
 }
@@ -342,6 +391,7 @@ const char *rollmpc_status_message(int status)
     case ROLLMPC_BAD_ARGUMENT: return "bad argument";
     case ROLLMPC_TIME_LIMIT: return "work budget reached; best command so far";
     case ROLLMPC_MEASUREMENT_CLIPPED: return "optimal; an implausible measurement was clipped";
+    case ROLLMPC_APPLIED_CLIPPED: return "an applied command beyond its actuator's range was clipped";
     default: return "unknown status";
     }
 }

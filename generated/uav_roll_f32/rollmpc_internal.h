@@ -7,6 +7,9 @@
 
 #include <math.h>
 #include "rollmpc.h"
+#if ROLLMPC_GENERATION != 0xe1131daa46fe6e8
+#error "rollmpc_internal.h and rollmpc_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
+#endif
 
 /**
  * Static data of one mode (all arrays row-major; "_p" = packed lower triangle), each

@@ -25,6 +25,7 @@ from ..qp.work import (ADD_BATCH, CHOL_UNITS_PER_OP, GUESS_SAMPLE_MIN, PREDICT_U
 from ..info_struct import context_info_fields
 from ..solver_codes import context_codes
 from ..status import UNKNOWN_MESSAGE, context_statuses
+from .templates import generation_stamp
 
 
 # Flags of features added after designs were generated, all False there: the context
@@ -56,6 +57,18 @@ def _solver_flags(method: str) -> dict:
 
 def _arr(a) -> list:
     return np.asarray(a).tolist()
+
+
+def actuator_range(modes: list[dict], n_actuators: int) -> tuple[list, list]:
+    """Per actuator, the lowest u_min and highest u_max of the modes that drive it (the
+    stored bounds, so already in the precision; 0 for an actuator no mode drives): the
+    range an applied command can have, which P_observe() clips ``u_applied`` to."""
+    lo, hi = np.zeros(n_actuators), np.zeros(n_actuators)
+    for m in modes:
+        act = np.asarray(m["actuator_index"])
+        lo[act] = np.minimum(lo[act], m["u_min"])
+        hi[act] = np.maximum(hi[act], m["u_max"])
+    return lo.tolist(), hi.tolist()
 
 
 def build_context(model: ControllerModel) -> dict:
@@ -109,6 +122,7 @@ def build_context(model: ControllerModel) -> dict:
     return {
         "generator": {"name": "rollmpc-codegen", "version": __version__},
         "config_hash": cfg.config_hash,
+        "generation": generation_stamp(cfg.config_hash),  # templates/generation_check.j2
         "prefix": cfg.prefix,
         "PREFIX": cfg.prefix.upper(),
         "precision": cfg.precision,
@@ -119,6 +133,8 @@ def build_context(model: ControllerModel) -> dict:
         "actuators": list(cfg.actuators),
         "n_outputs": cfg.n_outputs,
         "n_actuators": len(cfg.actuators),
+        # P_observe's plausibility check of u_applied (templates/controller.c.j2)
+        **dict(zip(("actuator_min", "actuator_max"), actuator_range(modes, len(cfg.actuators)))),
         "n_schedule": cfg.n_schedule,
         "n_modes": len(modes),
         "initial_mode": 0 if sched is None else sched["initial"],

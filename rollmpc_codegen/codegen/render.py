@@ -7,7 +7,6 @@ from __future__ import annotations
 
 import functools
 import math
-from pathlib import Path
 
 import jinja2
 import numpy as np
@@ -21,10 +20,12 @@ from .build_flags import context_build_flags
 from .context import context_json, rendering_context
 from .misra_deviations import DEVIATIONS
 from .output import MANIFEST
+from .templates import templates_dir
 
+CONFIG_HEADER = "{p}_config.h"
 # generated file name ({p}: the prefix) -> template
 GENERATED_FILES = {
-    "{p}_config.h": "config.h.j2",
+    CONFIG_HEADER: "config.h.j2",
     "{p}.h": "api.h.j2",
     "{p}_internal.h": "internal.h.j2",
     "{p}_data.c": "data.c.j2",
@@ -55,18 +56,6 @@ FILE_ROLES = {
     CONTEXT_FILE: "every number the C is compiled with, as JSON (for tools; not compiled)",
     MANIFEST: "the files rollmpc replaces when it regenerates this directory (others stay)",
 }
-
-
-def templates_dir() -> Path:
-    """templates/ of the source tree, or the copy shipped inside the wheel."""
-    import sys
-
-    here = Path(__file__).resolve().parents[1]  # the rollmpc_codegen package
-    shared = Path(sys.prefix) / "share" / "rollmpc" / "templates"
-    for cand in (here / "templates", here.parent / "templates", shared):
-        if cand.is_dir():
-            return cand
-    raise FileNotFoundError("rollmpc templates directory not found")
 
 
 def format_real(value: float, precision: str) -> str:
@@ -146,13 +135,16 @@ def environment(precision: str) -> jinja2.Environment:
 
 
 def render_sources(ctx: dict) -> dict[str, str]:
-    """File name -> text for every generated file (nothing written)."""
+    """File name -> text for every generated file (nothing written), the config header
+    last: codegen/output.py moves the files in this order, and every other file refuses
+    to compile beside a config header of another generation (generation_check.j2), so a
+    move interrupted once any C file has moved leaves a tree that does not build."""
     env = environment(ctx["precision"])
-    out = {}
-    for name, template in GENERATED_FILES.items():
-        out[name.format(p=ctx["prefix"])] = env.get_template(template).render(
-            template_vars(ctx))
-    out[CONTEXT_FILE.format(p=ctx["prefix"])] = context_json(ctx)
+    out = {name.format(p=ctx["prefix"]): env.get_template(template).render(template_vars(ctx))
+           for name, template in GENERATED_FILES.items()}
+    out[CONTEXT_FILE.format(p=ctx["prefix"])] = context_json(ctx)  # after a C file: see above
+    config_header = CONFIG_HEADER.format(p=ctx["prefix"])
+    out[config_header] = out.pop(config_header)
     return out
 
 

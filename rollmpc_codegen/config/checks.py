@@ -70,7 +70,16 @@ def check_rate_bounds(runtime_bounds: bool, modes: tuple[ModeConfig, ...]) -> No
                               "stage); remove one of them")
 
 
-def check_representable(precision: str, sample_time: float, modes: tuple[ModeConfig, ...],
+def check_literal(precision: str, key: str, value: Any) -> None:
+    """A number the C is compiled with as a literal must be a normal number of the storage
+    precision (``sample_time`` is checked so before the sections that divide by it)."""
+    lo, hi = storage_range(precision)
+    for v in _nonzero(value):
+        if not lo <= abs(v) <= hi:
+            raise ConfigError(key, _out_of_range(float(v), "literal", precision, lo, hi))
+
+
+def check_representable(precision: str, modes: tuple[ModeConfig, ...],
                         scheduler: SchedulerConfig | None, solver: SolverConfig) -> None:
     """Every number the C is compiled with must survive the cast to the storage precision.
 
@@ -82,7 +91,7 @@ def check_representable(precision: str, sample_time: float, modes: tuple[ModeCon
     tiny, huge = storage_range(precision)
     ranges = {"literal": (tiny, huge),
               "weight": (max(tiny / 2, 0.5 / huge), min(huge / 2, 0.5 / tiny))}
-    checked: list[tuple[str, str, Any]] = [("literal", "sample_time", sample_time)]
+    checked: list[tuple[str, str, Any]] = []
     for i, m in enumerate(modes):
         k = f"modes[{i}]"
         checked += [("weight", f"{k}.weights.{name}", getattr(m, name)) for name in WEIGHT_KEYS]

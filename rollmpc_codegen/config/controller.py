@@ -5,8 +5,9 @@ from __future__ import annotations
 import re
 from typing import Any
 
+from ..codegen.c_names import prefix_collisions
 from ..features.move_blocking import blocks_of
-from .checks import (check_horizon, check_rate_bounds, check_representable,
+from .checks import (check_horizon, check_literal, check_rate_bounds, check_representable,
                      check_schedule_source, check_unique_names)
 from .errors import ConfigError
 from .mode import parse_mode
@@ -32,8 +33,15 @@ def parse(data: Any) -> ControllerConfig:
     if prefix in RESERVED_PREFIXES:
         raise ConfigError("prefix", f"{prefix!r} would write {prefix}.h, which shadows the "
                           f"system header <{prefix}.h>; choose another prefix")
+    clash = prefix_collisions(prefix)
+    if clash:
+        more = f" (and {len(clash) - 1} more)" if len(clash) > 1 else ""
+        raise ConfigError("prefix", f"{prefix!r} would define {clash[0]}{more}, a name of "
+                          "the C, POSIX or newlib library: a build that sees its header "
+                          "fails or links the wrong function; choose another prefix")
     precision = r.string("precision", DEFAULT_PRECISION, choices=PRECISIONS)
     sample_time = r.number("sample_time", positive=True)
+    check_literal(precision, "sample_time", sample_time)  # the scenario divides by it
     horizon = r.integer("horizon", minimum=1)
     if horizon > MAX_ROWS:  # before anything is sized by it (check_horizon: the exact rows)
         raise ConfigError("horizon", f"too long: {horizon} stages need more than the "
@@ -67,7 +75,7 @@ def parse(data: Any) -> ControllerConfig:
     units = (parse_units(r.sub("units", UNITS_KEYS), outputs, actuators)
              if r.has("units") else UnitsConfig())
     target = parse_target(r.sub("target", TARGET_KEYS, {}))
-    check_representable(precision, sample_time, modes, scheduler, solver)
+    check_representable(precision, modes, scheduler, solver)
     check_schedule_source(simulation, scheduler, modes)
     return ControllerConfig(prefix=prefix, precision=precision, sample_time=sample_time,
                             horizon=horizon, outputs=outputs, actuators=actuators, modes=modes,

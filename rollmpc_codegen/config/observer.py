@@ -2,6 +2,8 @@
 predictor, and the disturbance model of offset-free tracking) and its innovation limit."""
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 from .errors import ConfigError
@@ -73,4 +75,10 @@ def parse_innovation_limit(o: Reader | None, key: str, outputs: tuple[str, ...],
     # where nothing in the config gives a range, the model's reach does (pipeline.py,
     # model/reach.py): NaN until then
     limit = default_innovation_limit(y_min, y_max, levels)
+    for a, value in enumerate(limit):
+        if not math.isfinite(value):  # the clip would be silently off
+            raise ConfigError(key, f"has no finite default for output {outputs[a]!r}: ten "
+                              f"spans of its range [{y_min[a]:g}, {y_max[a]:g}] overflow; "
+                              "give bounds the output can reach, or the limit (.inf: never "
+                              "clip)")
     return np.where(limit > 0.0, limit, DERIVED_FROM_MODEL)

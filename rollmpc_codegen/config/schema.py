@@ -105,13 +105,16 @@ def default_innovation_limit(y_min: np.ndarray, y_max: np.ndarray,
     expected range, the hull of 0 (the estimate after P_init), its finite bounds and, when
     a side is unbounded, the scenario's reference ``levels`` (levels x outputs).  While the
     measurement and the prediction both lie in that range, no innovation exceeds its span.
-    0 where nothing gives a range (the model's reach then gives one, model/reach.py)."""
+    0 where nothing gives a range (the model's reach then gives one, model/reach.py); inf
+    where the range is too wide for a finite limit (bounds near the largest double: the
+    parser refuses it)."""
     out = np.empty(len(y_min))
     for a, bounds in enumerate(zip(y_min, y_max)):
         values = [0.0, *(b for b in bounds if math.isfinite(b))]
         if len(values) < 3:  # a side without a bound: the reference spans it
             values += list(levels[:, a])
-        out[a] = INNOVATION_LIMIT_SPANS * (max(values) - min(values))
+        with np.errstate(over="ignore"):  # an overflow is the inf the parser refuses
+            out[a] = INNOVATION_LIMIT_SPANS * (max(values) - min(values))
     return out
 
 

@@ -41,10 +41,8 @@ def soak_parameters(cfg) -> dict:
 def write_soak_program(config: str | Path, out_dir: Path, precision: str | None = None) -> Path:
     """Generated sources + ``<prefix>_soak.c`` in ``out_dir`` (codegen/output.py)."""
     model, ctx = load_model(config, precision)
-    files = render_sources(ctx)
-    files[f"{ctx['prefix']}_soak.c"] = render_template(
-        ctx, "host/soak.c.j2", **soak_parameters(model.config))
-    return write_output(files, out_dir)
+    program = render_template(ctx, "host/soak.c.j2", **soak_parameters(model.config))
+    return write_output({f"{ctx['prefix']}_soak.c": program, **render_sources(ctx)}, out_dir)
 
 
 def compile_program(src_dir: Path, exe: Path, flags: tuple[str, ...], cc: str = "gcc") -> Path:

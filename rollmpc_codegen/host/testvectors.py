@@ -72,11 +72,12 @@ def write_test_vectors(config: str | Path, out_dir: str | Path, precision: str |
     log = run_closed_loop(model.config, Recorder(), steps=steps)
     dt = model.dtype
     reference = scenario_reference(model.config)  # (samples, n_outputs)
-    files = render_sources(ctx)
-    files[f"{ctx['prefix']}_test_vectors.c"] = render_template(
+    program = render_template(
         ctx, "host/test_vectors.c.j2", steps=len(log.t), ref_len=len(reference),
         ref=reference.ravel().astype(dt),
         y=log.y.astype(dt), sched=log.sched.astype(dt),
         u=np.array(log.u_raw, dtype=dt), status=log.status,
         qp_cases=qp_cases_from_log(model, ctx, log, xs))
-    return write_output(files, out_dir, force)
+    # the config header, which completes the tree, stays the last file (codegen/output.py)
+    return write_output({f"{ctx['prefix']}_test_vectors.c": program, **render_sources(ctx)},
+                        out_dir, force)

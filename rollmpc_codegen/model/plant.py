@@ -9,14 +9,19 @@ transfer-function *matrix* is realised minimally by :mod:`rollmpc_codegen.model.
 """
 from __future__ import annotations
 
+import cmath
 from dataclasses import dataclass
+
+import warnings
 
 import control
 import numpy as np
 import scipy.linalg
+import scipy.signal
 
 from . import tf_realisation
-from .pbh import RANK_TOL, Defect, defect_text, more_text, pbh_defects, state_names
+from .pbh import (RANK_TOL, Defect, defect_text, eigenvalue_text, more_text, pbh_defects,
+                  state_names)
 from ..config import ConfigError, ModeConfig, PlantConfig
 
 
@@ -84,13 +89,24 @@ def _balanced(A: np.ndarray, B: np.ndarray, C: np.ndarray):
     return Ti @ A @ T, Ti @ B, C @ T
 
 
-def g_realisation(plant: PlantConfig) -> tuple[np.ndarray, ...]:
-    """(A, B, C, D) of the continuous G(s) of a plant config, before any integrator."""
+def g_realisation(plant: PlantConfig, key: str = "plant") -> tuple[np.ndarray, ...]:
+    """(A, B, C, D) of the continuous G(s) of a plant config (``key``), before any
+    integrator."""
+    key_of_num = f"{key}.transfer_function.num"
     if plant.tf_matrix is not None:  # MIMO: minimal realisation (tf_realisation)
         A, B, C, D = tf_realisation.realise(plant.tf_matrix)
         A, B, C = _balanced(A, B, C)
     elif plant.kind == "transfer_function":
-        sys = control.tf2ss(control.tf(list(plant.num), list(plant.den)))
+        with warnings.catch_warnings():  # scipy drops numerator terms it deems zero
+            warnings.simplefilter("error", scipy.signal.BadCoefficients)
+            try:
+                sys = control.tf2ss(control.tf(list(plant.num), list(plant.den)))
+            except scipy.signal.BadCoefficients:
+                num = ", ".join(f"{c:g}" for c in plant.num)
+                raise ConfigError(key_of_num, f"[{num}] is numerically zero next "
+                                  f"to den's leading coefficient {plant.den[0]:g}: scipy's "
+                                  "realisation drops every term below 1e-14 of it; write "
+                                  "such a term as 0, or rescale the units") from None
         A, B, C, D = (np.atleast_2d(np.asarray(m, dtype=float)) for m in
                       (sys.A, sys.B, sys.C, sys.D))
         if A.size == 0:  # static gain (only legal with an integrator)
@@ -118,7 +134,7 @@ def with_integrator(A: np.ndarray, B: np.ndarray, C: np.ndarray, D: np.ndarray,
 
 def continuous_realisation(plant: PlantConfig, key: str) -> ContinuousPlant:
     """Realise a continuous plant config (G(s), then its integrators); ``key`` names it."""
-    return with_integrator(*g_realisation(plant), plant.integrator)
+    return with_integrator(*g_realisation(plant, f"{key}.plant"), plant.integrator)
 
 
 def zoh(cont: ContinuousPlant, Ts: float) -> DiscretePlant:
@@ -130,6 +146,12 @@ def zoh(cont: ContinuousPlant, Ts: float) -> DiscretePlant:
     expM = scipy.linalg.expm(M * Ts)
     return DiscretePlant(A=expM[:nx, :nx], B=expM[:nx, nx:], C=cont.C.copy(),
                          Cr=cont.Cr, Dr=cont.Dr)
+
+
+def _has_zero_at(num: tuple[float, ...], s: complex) -> bool:
+    """num(s) = 0 up to rounding: G(s) really has that zero (not a number too small)."""
+    terms = [c * s ** (len(num) - 1 - i) for i, c in enumerate(num)]
+    return abs(sum(terms)) <= RANK_TOL * sum(abs(v) for v in terms)
 
 
 def _remedy(mode: ModeConfig, defect: Defect, inputs: bool) -> str:
@@ -145,14 +167,44 @@ def _remedy(mode: ModeConfig, defect: Defect, inputs: bool) -> str:
     return "does not reach any output; drop it or measure it (C)"
 
 
+def _numerical_defect(cont: ContinuousPlant | None, mode: ModeConfig, defect: Defect,
+                      inputs: bool, sample_time: float | None, key: str) -> ConfigError | None:
+    """The error when the defect is the numbers', not the model's (else None): a sampling
+    that loses the pole (``sample_time`` too short, or pathological), or a SISO transfer
+    function whose coefficients hide a pole that no zero cancels."""
+    if cont is None:  # a discrete plant: the model is what the user wrote
+        return None
+    value, _ = eigenvalue_text(defect.eigenvalue, sample_time)
+    prop = "controllable" if inputs else "observable"
+    if not pbh_defects(cont.A, cont.B if inputs else cont.C, inputs):
+        return ConfigError("sample_time", f"{sample_time:g} s loses the {value} of mode "
+                           f"{mode.name!r}: its continuous model is {prop}, sampled it is "
+                           "not (too short a sample time for that pole to move, or a "
+                           "pathological one); choose another sample time")
+    plant = mode.plant
+    if plant.kind == "transfer_function" and plant.tf_matrix is None:
+        s = 0.0 if plant.integrator and abs(defect.eigenvalue - 1.0) <= RANK_TOL else (
+            cmath.log(defect.eigenvalue) / sample_time)
+        if not _has_zero_at(plant.num, s):
+            return ConfigError(f"{key}.plant.transfer_function", f"mode {mode.name!r} is "
+                               f"numerically not {prop} at its {value} although num has no "
+                               "zero there: the coefficients of num and den differ too much "
+                               "in size; rescale the units")
+    return None
+
+
 def _check_pbh(disc: DiscretePlant, mode: ModeConfig, key: str, sample_time: float | None,
-               outputs: tuple[str, ...] | None) -> None:
+               outputs: tuple[str, ...] | None, cont: ContinuousPlant | None = None) -> None:
     """Controllability, then observability (PBH per eigenvalue, model/pbh.py): the first
-    eigenvalue that fails, its direction and the remedy, as one line."""
+    eigenvalue that fails, its direction and the remedy, as one line (``cont``: the
+    continuous model sampled, which tells a lost pole from a cancelled one)."""
     names = state_names(mode, disc.nx, 0, 0, outputs)
     for inputs, X, prop in ((True, disc.B, "controllable"), (False, disc.C, "observable")):
         defects = pbh_defects(disc.A, X, inputs)
         if defects:
+            numerical = _numerical_defect(cont, mode, defects[0], inputs, sample_time, key)
+            if numerical is not None:
+                raise numerical
             raise ConfigError(f"{key}.plant", f"the discrete model of mode {mode.name!r} is "
                               f"not {prop}: {defect_text(defects[0], names, sample_time, inputs)} "
                               f"{_remedy(mode, defects[0], inputs)}{more_text(defects)}")
@@ -163,11 +215,13 @@ def discretise(mode: ModeConfig, Ts: float, key: str,
     """The mode's discrete model for prediction, checked for controllability/observability
     (``outputs``: the output names its errors use)."""
     plant = mode.plant
+    cont = None
     if plant.kind == "state_space" and plant.discrete:
         disc = DiscretePlant(A=plant.A, B=plant.B, C=plant.C, Cr=None, Dr=None)
     else:
-        disc = zoh(continuous_realisation(plant, key), Ts)
+        cont = continuous_realisation(plant, key)
+        disc = zoh(cont, Ts)
     if not np.all(np.isfinite(disc.A)) or not np.all(np.isfinite(disc.B)):
         raise ConfigError(f"{key}.plant", "sampling produced non-finite matrices")
-    _check_pbh(disc, mode, key, None if plant.discrete else Ts, outputs)
+    _check_pbh(disc, mode, key, None if plant.discrete else Ts, outputs, cont)
     return disc

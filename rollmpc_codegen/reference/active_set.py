@@ -215,7 +215,7 @@ class ActiveSetMixin:
         W = st["W"]
         if not W.size and code != OUT_OF_WORK:
             if code == 0:
-                self.accept(lam, W, st["z"])
+                self.converged(lam, W, st["z"])
             return code, th, 0, st["steps"]
         self.keep_working_set(lam, W, st["z"])  # the warm start, until the polish's
         if code == OUT_OF_WORK:

@@ -11,8 +11,8 @@ import numpy as np
 
 from ..features import runtime_bounds
 from .scheduler import scheduled_mode
-from ..status import (BAD_ARGUMENT, MEASUREMENT_CLIPPED, NONFINITE_INPUT, OPTIMAL,
-                      UNKNOWN_MESSAGE, Status)
+from ..status import (APPLIED_CLIPPED, BAD_ARGUMENT, MEASUREMENT_CLIPPED, NONFINITE_INPUT,
+                      OPTIMAL, UNKNOWN_MESSAGE, Status)
 from .linalg import seqsum
 from .solver import LastPlan, SolverRef
 
@@ -190,13 +190,15 @@ class ControllerRef:
                 self.mode_switches += 1
 
     def observe(self, y, sched, u_applied):
-        """Mirror of ``P_observe``: scheduler and observers on the applied command."""
+        """Mirror of ``P_observe``: scheduler and observers on the applied command, made
+        plausible first."""
         dt = self.md[0].Kx.dtype
         y = np.asarray(y, dt)
         sched = np.asarray(sched if sched is not None else [], dt)
         u = np.asarray(u_applied, dt)
         if not np.all(np.isfinite(u)):
             return NONFINITE_INPUT
+        applied_clipped, u = self.plausible_applied(u)
         use_y = bool(np.all(np.isfinite(y)) and np.all(np.isfinite(sched)))
         if use_y:
             self.follow_schedule(sched)
@@ -204,7 +206,22 @@ class ControllerRef:
                       for j, md in enumerate(self.md))
         if not use_y:
             return NONFINITE_INPUT
+        if applied_clipped:
+            return APPLIED_CLIPPED
         return MEASUREMENT_CLIPPED if clipped else OPTIMAL
+
+    def plausible_applied(self, u_applied):
+        """Mirror of plausible_applied(): (how many entries were clipped, u_applied clipped
+        to each actuator's range, widened by the live input bounds in a runtime build)."""
+        lo = np.array(self.ctx["actuator_min"], self.dt)
+        hi = np.array(self.ctx["actuator_max"], self.dt)
+        if self.ctx.get("runtime_bounds"):
+            for md, b in zip(self.md, self.bounds):
+                act = md.actuator_index
+                lo[act] = np.where(b["u_min"] < lo[act], b["u_min"], lo[act])
+                hi[act] = np.where(b["u_max"] > hi[act], b["u_max"], hi[act])
+        clipped = int(np.count_nonzero(u_applied > hi) + np.count_nonzero(u_applied < lo))
+        return clipped, np.where(u_applied > hi, hi, np.where(u_applied < lo, lo, u_applied))
 
     def step(self, y, sched, r):
         """Returns (status, u) exactly as ``P_step``."""

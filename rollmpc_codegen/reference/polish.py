@@ -88,8 +88,8 @@ class PolishMixin:
         lam[:] = 0
         lam[W] = z
 
-    def accept(self, lam, W, z):
-        """Mirror of accept(): W's multipliers become the warm start; returns |W|."""
+    def converged(self, lam, W, z):
+        """Mirror of converged(): W's multipliers become the warm start; returns |W|."""
         self.work += self.md.m
         self.keep_working_set(lam, W, z)
         return W.size
@@ -157,7 +157,7 @@ class PolishMixin:
                     if code:
                         known = W.size
                         continue
-                    return 0, th, self.accept(lam, W, z), its
+                    return 0, th, self.converged(lam, W, z), its
             else:
                 code, zd = self.dual_solve(W, K)
                 if code:
@@ -186,7 +186,7 @@ class PolishMixin:
                         code, th, z = self.refine_dual(W, z, th0, K, gam, th)
                     if code:
                         return self.stopped(W, z, known, code), th, 0, its
-                    return 0, th, self.accept(lam, W, z), its
+                    return 0, th, self.converged(lam, W, z), its
             dual = (W.size if guess and self.active_set and self.chol_holds == CHOL_DUAL
                     else -1)  # a guess' dual-feasible, factored working set
             if add.size > self.wcap - W.size:

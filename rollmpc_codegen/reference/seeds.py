@@ -32,16 +32,16 @@ class SeedsMixin:
         self.set_state(seed, lam[seed])
         return seed
 
-    def seed_shifted(self, lam, truncate=False):
+    def seed_shifted(self, lam, keep_first=False):
         """Mirror of seed_shifted(): row r where its next-stage row was active, slack where
-        that row's lam > l1 (with ``truncate``, only the first wcap such rows)."""
+        that row's lam > l1 (with ``keep_first``, only the first wcap such rows)."""
         self.new_working_set()
         self.work += self.md.m
         row_next = self.md.row_next
         W = np.flatnonzero(lam[row_next] > 0)
         head = W[:self.wcap]  # the C sets the states of the rows it stores, then gives up
         self.set_state(head, lam[row_next[head]])
-        return head if truncate else W
+        return head if keep_first else W
 
     def seed_from_violated(self, K):
         """Mirror of seed_from_violated(): the rows th0 violates (K < 0), all tight."""

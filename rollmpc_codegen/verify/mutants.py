@@ -6,7 +6,9 @@ Each :class:`Mutant` is one plausible bug: an exact text of one file of the repo
 notice it (a few fast test files, and the byte comparison of the generated files that
 the changed code renders).  The first six are the bugs of issue 15's table; the others
 cover the rest of the pipeline: observer, scheduler, clamp, soft rows, Δu rows, move
-blocking, status, NaN checks, run-time bounds, disturbance model, innovation limit.
+blocking, status, NaN checks, run-time bounds, disturbance model, innovation limit; the
+last twelve issue 49's audit (per-output limits, held commands, P_observe's applied
+command, the output writer, the prefix check).
 
 Every mutant here changes behaviour (commands, statuses or accepted arguments), so the
 run requires each to be caught by a test other than ``tests/test_generated.py``.
@@ -16,6 +18,13 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 FORMULATION = "tests/test_independent_formulation.py"
+OBSERVERS = "templates/controller/observers.c.j2"
+LIMITS = "tests/reliability/test_innovation_limit_per_output.py"
+HELD = "tests/reliability/test_held_command_bounds.py"
+APPLIED = "tests/reliability/test_applied_command.py"
+ATOMIC = "tests/codegen/test_atomic_output.py"
+SPIKES_MIMO = "tests/test_observer_bound.py::test_step_bit_exact_through_spikes_mimo"
+GLUE_HOLD = "tests/test_glue_core.py::test_a_held_command_is_the_active_modes_after_observe_switches"
 
 
 def regenerated(*examples: str) -> tuple[str, ...]:
@@ -44,7 +53,7 @@ MUTANTS = (
            "lam[i] = R_(0.0); /* no sticky warm start after a failed sample */",
            "lam[i] = lam[i] * R_(1.0); /* mutant: the warm start survives a failure */",
            (FORMULATION, "tests/test_active_set.py", *regenerated("uav_roll"))),
-    Mutant("observer gain read as L[a*nx+i] instead of L[i*ny+a]", "templates/controller.c.j2",
+    Mutant("observer gain read as L[a*nx+i] instead of L[i*ny+a]", OBSERVERS,
            "acc += md->L[i * md->ny + a] * ws->innov[a];",
            "acc += md->L[a * md->nx + i] * ws->innov[a];",
            (FORMULATION, "tests/test_api.py", *regenerated("uav_roll", "chain_of_masses"))),
@@ -60,7 +69,7 @@ MUTANTS = (
            "F = 2.0 * Gamma.T @ Omega", "F = -2.0 * Gamma.T @ Omega",
            (FORMULATION, "tests/test_api.py", "tests/test_maths.py", *regenerated("uav_roll"))),
     # the rest of the pipeline
-    Mutant("observer innovation sign (C x - y)", "templates/controller.c.j2",
+    Mutant("observer innovation sign (C x - y)", OBSERVERS,
            "ws->innov[a] = y[a] - acc;", "ws->innov[a] = acc - y[a];",
            (FORMULATION, "tests/test_api.py", *regenerated("uav_roll"))),
     Mutant("observer gain halved by the generator", "rollmpc_codegen/model/observer.py",
@@ -112,7 +121,7 @@ MUTANTS = (
            ": -b->u_min[q % md->nu];", ": b->u_min[q % md->nu];",
            (FORMULATION, "tests/test_runtime_bounds.py", *regenerated("chain_runtime_bounds"))),
     # the observers' innovation limit (issue 15's huge but finite measurement)
-    Mutant("innovation clipped at -2 limit on the lower side", "templates/controller.c.j2",
+    Mutant("innovation clipped at -2 limit on the lower side", OBSERVERS,
            "if (ws->innov[a] < -limit) {", "if (ws->innov[a] < -limit - limit) {",
            ("tests/test_observer_bound.py", *regenerated("uav_roll"))),
     Mutant("a clip reported only beyond two clipped innovations", "templates/controller.c.j2",
@@ -124,4 +133,52 @@ MUTANTS = (
            "out[a] = INNOVATION_LIMIT_SPANS * (max(values) - min(values))",
            "out[a] = INNOVATION_LIMIT_SPANS * max(values)",
            ("tests/test_observer_bound.py", *regenerated("uav_roll"))),
+    # issue 49's audit: the three no behavioural test caught
+    Mutant("every output clipped at output 0's innovation limit", OBSERVERS,
+           "const {{ prefix }}_real limit = md->innovation_limit[a];",
+           "const {{ prefix }}_real limit = md->innovation_limit[0];",
+           (LIMITS, SPIKES_MIMO, *regenerated("chain_of_masses"))),
+    Mutant("a held command above its range clamped to the lower bound",
+           "templates/controller.c.j2",
+           "held[md->actuator_index[i]] = (v < lo) ? lo : ((v > hi) ? hi : v);",
+           "held[md->actuator_index[i]] = (v < lo) ? lo : ((v > hi) ? lo : v);",
+           (HELD, "tests/test_runtime_bounds.py", *regenerated("chain_runtime_bounds"))),
+    Mutant("reference: every output clipped at output 0's innovation limit",
+           "rollmpc_codegen/reference/controller.py",
+           "limit = md.innovation_limit[a]", "limit = md.innovation_limit[0]",
+           (LIMITS, SPIKES_MIMO)),
+    # and nine more of the areas that audit went through: held commands, P_observe, the
+    # applied command's plausibility, the writer of output directories, the prefix check
+    Mutant("a held command keeps the other mode's actuators (not 0)", "templates/controller.c.j2",
+           "held[i] = R_(0.0);", "held[i] = c->u_last[i];",
+           (GLUE_HOLD, HELD, *regenerated("uav_roll"))),
+    Mutant("the incoming mode keeps stale multipliers (no cold start)", "templates/controller.c.j2",
+           "c->lam[j][i] = R_(0.0); /* stale multipliers of the incoming mode: cold start */",
+           "c->lam[j][i] *= R_(1.0); /* mutant: the incoming mode starts warm */",
+           ("tests/test_scheduler_bands.py", "tests/test_glue_core.py", *regenerated("uav_roll"))),
+    Mutant("P_observe does not follow the scheduler", "templates/controller.c.j2",
+           "    if (use_y) {\n        follow_schedule(c, sched);\n    }",
+           "    if (use_y && 0) {\n        follow_schedule(c, sched);\n    }",
+           ("tests/test_glue_core.py", *regenerated("uav_roll"))),
+    Mutant("applied command clipped one span above its range", OBSERVERS,
+           "if (u[i] > hi[i]) {", "if (u[i] > hi[i] + (hi[i] - lo[i])) {",
+           (APPLIED, *regenerated("uav_roll"))),
+    Mutant("an applied command's clip reported only beyond two entries",
+           "templates/controller.c.j2",
+           "if (applied_clipped > 0) {", "if (applied_clipped > 1) {",
+           (APPLIED, *regenerated("uav_roll"))),
+    Mutant("run-time bounds do not widen the applied command's range", OBSERVERS,
+           "hi[a] = (c->bounds[j].u_max[i] > hi[a]) ? c->bounds[j].u_max[i] : hi[a];",
+           "hi[a] = (c->bounds[j].u_max[i] > hi[a]) ? hi[a] : hi[a];",
+           (APPLIED, *regenerated("chain_runtime_bounds"))),
+    Mutant("a failed file move is not undone", "rollmpc_codegen/codegen/output.py",
+           "        _undo(out, backup, changed)\n        raise", "        raise",
+           (ATOMIC, "tests/test_data_safety.py")),
+    Mutant("only the output path itself is checked for a symbolic link",
+           "rollmpc_codegen/codegen/output.py",
+           "        if path.is_symlink():", "        if path == out and path.is_symlink():",
+           (ATOMIC, "tests/test_data_safety.py")),
+    Mutant("a prefix with a single library collision passes", "rollmpc_codegen/config/controller.py",
+           "    if clash:\n", "    if len(clash) > 1:\n",
+           ("tests/reliability/test_prefix_library_names.py", "tests/test_hostile_config.py")),
 )

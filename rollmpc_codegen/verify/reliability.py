@@ -14,7 +14,10 @@
 * ``misra``: cppcheck + MISRA addon findings per rule on generated/, and how many are
   not covered by rollmpc_codegen/codegen/misra_deviations.py;
 * ``spikes``: one huge but finite measurement in the closed loop of three examples, and the
-  samples to recovery (:mod:`rollmpc_codegen.verify.spike_recovery`).
+  samples to recovery (:mod:`rollmpc_codegen.verify.spike_recovery`);
+* ``hostile``: one hostile sample (1e7, 1e8, 1e30, NaN, Inf) of each input, y, the
+  schedule signal, r and P_observe's u_applied, on the UAV and a scheduled MIMO design,
+  and the samples to recovery (the same module).
 
 Each section writes ``<out>/<section>.json`` (with the commit and template hashes it
 measured); failing records go to ``<out>/<section>_failures.json`` with x and r, and
@@ -33,7 +36,7 @@ import time
 from pathlib import Path
 
 from . import qp_campaign as qc
-from .spike_recovery import measure_spikes
+from .spike_recovery import measure_hostile, measure_spikes
 from ..host.programs import (SANITIZE, SOAK_SUMMARY, VALGRIND_BUILD, VECTORS_SUMMARY,
                             compile_program, run_program, write_soak_program)
 from ..parts import CORES
@@ -42,7 +45,7 @@ from ..status import STATUS_NAMES
 
 ROOT = Path(__file__).resolve().parents[2]
 UAV = ROOT / "examples" / "uav_roll.yaml"
-SECTIONS = ("qp", "infeasible", "memory", "stack", "misra", "spikes")
+SECTIONS = ("qp", "infeasible", "memory", "stack", "misra", "spikes", "hostile")
 FREESTANDING = ("-ffreestanding", "-fno-math-errno")  # beside each core's flags (parts.py)
 
 
@@ -216,7 +219,8 @@ def main(argv: list[str] | None = None) -> int:
         else:
             summary = {"memory": measure_memory, "stack": measure_stack,
                        "misra": measure_misra,
-                       "spikes": lambda _: measure_spikes(ROOT / "examples")}[section](sub)
+                       "spikes": lambda _: measure_spikes(ROOT / "examples"),
+                       "hostile": lambda _: measure_hostile()}[section](sub)
         summary["seconds"] = round(time.time() - t0, 1)
         summary["provenance"] = provenance()
         qc.write_json(out / f"{section}.json", summary)

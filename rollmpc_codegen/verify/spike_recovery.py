@@ -9,18 +9,30 @@ The scenario runs twice in closed loop on the host C: without a spike, and with 
 spiked run *recovers* at the first sample from which every status is OPTIMAL and every
 command is within :data:`RECOVERY_TOL` of the largest input span of the spike-free run's
 command; :attr:`SpikeRun.recovery` counts the samples from the spike to there.
+
+:func:`hostile_runs` does the same for one hostile sample of *each* input of the C API
+(issue 49): the first output y, the schedule signal, the whole reference preview r, and
+the applied command ``u_applied`` of ``P_observe`` (a sample that another controller flies
+holding the last command, while the feedback reports the hostile value for every
+actuator), each at 1e7, 1e8, 1e30, NaN and Inf, on a single-output design (the paper's
+UAV) and a scheduled MIMO one (:func:`scheduled_tank`).
 """
 from __future__ import annotations
 
+import math
 from dataclasses import asdict, dataclass
 from pathlib import Path
 
 import numpy as np
+import yaml
 
+from ..config import ControllerConfig, load, parse
 from ..host.build import build_host_controller
-from ..pipeline import load_model
+from ..pipeline import load_model, load_model_from_config
 from ..sim.simulate import run_closed_loop
 from ..status import MEASUREMENT_CLIPPED, OPTIMAL
+
+EXAMPLES = Path(__file__).resolve().parents[2] / "examples"
 
 RECOVERY_TOL = 1e-3  # of the largest input span (u_max - u_min) of the config
 # (example, sample of the spike, samples run): the spike lands while a level is held
@@ -44,14 +56,18 @@ class SpikeRun:
 
 
 def _input_envelope(ctx: dict) -> tuple[np.ndarray, np.ndarray]:
-    """Per actuator, the lowest u_min and highest u_max of the modes that drive it (0 for
-    an actuator no mode drives)."""
-    lo, hi = np.zeros(ctx["n_actuators"]), np.zeros(ctx["n_actuators"])
-    for m in ctx["modes"]:
-        act = np.asarray(m["actuator_index"])
-        lo[act] = np.minimum(lo[act], m["u_min"])
-        hi[act] = np.maximum(hi[act], m["u_max"])
-    return lo, hi
+    """Per actuator, the lowest u_min and highest u_max of the modes that drive it
+    (codegen.context.actuator_range)."""
+    return np.array(ctx["actuator_min"]), np.array(ctx["actuator_max"])
+
+
+def _recovery(log, free, at: int, tol: float) -> int | None:
+    """Samples from ``at`` until every status is OPTIMAL and every command within ``tol``
+    of the undisturbed run ``free``'s, for good (None: not by the end of the run)."""
+    bad = (log.status != OPTIMAL) | (np.abs(log.u - free.u).max(axis=1) > tol)
+    bad[:at] = False
+    last_bad = int(np.flatnonzero(bad)[-1]) if bad.any() else at - 1
+    return None if last_bad == len(bad) - 1 else last_bad - at + 1
 
 
 class Spiked:
@@ -93,14 +109,11 @@ def spiked_runs(config: str | Path, precision: str, spikes, at: int, steps: int,
     for spike in spikes:
         log, clipped = run(spike)
         after = np.arange(len(log.status)) > at
-        bad = (log.status != OPTIMAL) | (np.abs(log.u - free.u).max(axis=1) > tol)
-        bad[:at] = False
-        last_bad = int(np.flatnonzero(bad)[-1]) if bad.any() else at - 1
         out.append(SpikeRun(
             spike=spike, status_at_spike=int(log.status[at]), clipped_at_spike=clipped[at],
             command_at_spike_unchanged=log.u_raw[at].tobytes() == free.u_raw[at].tobytes(),
             not_optimal_after=int(np.count_nonzero(after & (log.status != OPTIMAL))),
-            recovery=None if last_bad == len(bad) - 1 else last_bad - at + 1,
+            recovery=_recovery(log, free, at, tol),
             finite=bool(np.all(np.isfinite(log.u))),
             within_limits=bool(np.all((log.u >= lo) & (log.u <= hi)))))
     return out
@@ -120,4 +133,119 @@ def measure_spikes(examples: Path, build_root: Path | None = None) -> dict:
                 None if None in worst else max(worst))
             out["cases"][f"{name}/{precision}"]["reported"] = all(
                 r.status_at_spike == MEASUREMENT_CLIPPED for r in runs)
+    return out
+
+
+# --------------------------------------------------------------------------- every input
+HOSTILE_VALUES = (1e7, 1e8, 1e30, math.nan, math.inf)  # issue 49's: huge, and no number
+HOSTILE_INPUTS = ("y", "sched", "r", "u_applied")
+# (design, sample of the hostile value, samples run): a level is held there
+HOSTILE_CASES = (("uav_roll", 1500, 3000), ("quadruple_tank_scheduled", 280, 400))
+
+
+@dataclass(frozen=True)
+class HostileRun:
+    """What one hostile value of one input did to the closed loop."""
+
+    input: str
+    value: float
+    status_at: int  # P_step's (u_applied: P_observe's) status for the hostile sample
+    not_optimal_after: int
+    recovery: int | None  # samples from the hostile one to rejoining the clean run
+    finite: bool
+    within_limits: bool
+
+
+class Hostile:
+    """``controller`` (anything with ``step`` and ``observe``) given ``value`` in place of
+    input ``which`` at sample ``at``: the first output of y, the schedule signal, every
+    entry of the preview r; or, for ``u_applied``, a sample flown by another controller
+    that holds the last command while ``P_observe`` is told ``value`` for every actuator
+    (``value`` None: told the command it really held, the clean run of that input)."""
+
+    def __init__(self, controller, which: str, value: float | None, at: int):
+        self.controller, self.which, self.value, self.at = controller, which, value, at
+        self.k, self.held = 0, None
+
+    def step(self, y, sched, r):
+        k, self.k = self.k, self.k + 1
+        if k == self.at and self.which == "u_applied":
+            told = self.held if self.value is None else np.full_like(self.held, self.value)
+            return self.controller.observe(y, sched, told), self.held
+        if k == self.at and self.value is not None:
+            y, sched, r = (np.array(v, float) for v in (y, sched, r))
+            target = {"y": y[:1], "sched": sched[:1], "r": r}[self.which]
+            target[...] = self.value
+        status, u = self.controller.step(y, sched, r)
+        self.held = np.array(u, float)
+        return status, u
+
+
+def scheduled_tank(precision: str = "double") -> ControllerConfig:
+    """quadruple_tank with a second operating mode (the same plant, twice the input
+    weight) scheduled on the first level (above 2.5 cm: "high", below 1.5 cm: "low"), so
+    that a MIMO design has a schedule signal to be hostile in."""
+    data = yaml.safe_load((EXAMPLES / "quadruple_tank.yaml").read_text())
+    low = data["modes"][0]
+    low["name"] = "low"
+    high = {**low, "name": "high", "weights": {**low["weights"], "R": 0.02}}
+    data["modes"] = [low, high]
+    data["scheduler"] = {"signal": "h1", "epsilon": 0.5, "initial": "low",
+                         "bands": [{"mode": "low", "below": 2.0}, {"mode": "high"}]}
+    data["simulation"]["schedule_source"] = "output"
+    data["precision"] = precision
+    return parse(data)
+
+
+def hostile_runs(cfg: ControllerConfig, at: int, steps: int, inputs=HOSTILE_INPUTS,
+                 values=HOSTILE_VALUES, build_root: Path | None = None) -> list[HostileRun]:
+    """One :class:`HostileRun` per input and value (an input the design lacks, a schedule
+    signal without a scheduler, is skipped), each against its clean run."""
+    model, ctx = load_model_from_config(cfg)
+    lo, hi = _input_envelope(ctx)
+    tol = RECOVERY_TOL * float(np.max(hi - lo))
+
+    def run(which: str, value: float | None):
+        loop = Hostile(build_host_controller(ctx, build_root), which, value, at)
+        return run_closed_loop(model.config, loop, steps=steps)
+
+    out = []
+    for which in inputs:
+        if which == "sched" and ctx["n_schedule"] == 0:
+            continue
+        free = run(which, None)
+        for value in values:
+            log = run(which, value)
+            after = np.arange(len(log.status)) > at
+            out.append(HostileRun(
+                input=which, value=value, status_at=int(log.status[at]),
+                not_optimal_after=int(np.count_nonzero(after & (log.status != OPTIMAL))),
+                recovery=_recovery(log, free, at, tol),
+                finite=bool(np.all(np.isfinite(log.u))),
+                within_limits=bool(np.all((log.u >= lo) & (log.u <= hi)))))
+    return out
+
+
+def hostile_design(name: str, precision: str) -> ControllerConfig:
+    """A design of :data:`HOSTILE_CASES` by name, in ``precision``."""
+    if name == "quadruple_tank_scheduled":
+        return scheduled_tank(precision)
+    return load(EXAMPLES / f"{name}.yaml", precision)
+
+
+def measure_hostile(build_root: Path | None = None) -> dict:
+    """Every case of :data:`HOSTILE_CASES` in both precisions (``--only hostile``)."""
+    out: dict = {"recovery_tol": RECOVERY_TOL, "cases": {}}
+    for name, at, steps in HOSTILE_CASES:
+        for precision in ("double", "float"):
+            runs = hostile_runs(hostile_design(name, precision), at, steps,
+                                build_root=build_root)
+            worst = {}
+            for r in runs:  # None: some value was not recovered by the end of the run
+                before = worst.get(r.input, 0)
+                worst[r.input] = (None if None in (before, r.recovery)
+                                  else max(before, r.recovery))
+            out["cases"][f"{name}/{precision}"] = {
+                "at": at, "steps": steps, "worst_recovery": worst,
+                "runs": [{**asdict(r), "value": repr(r.value)} for r in runs]}
     return out
