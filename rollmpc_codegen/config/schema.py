@@ -44,8 +44,7 @@ MAX_STATES = 256  # of a mode's prediction model: its observer and PBH tests cos
 # the maths (qp/sizes.py): beyond the memory of any microcontroller.
 MAX_STORED_BYTES = 16 << 20
 MAX_STRUCT_BYTES = 4 << 20
-# Condensing builds dense N ny x N ny, N nu x N nu and N ny x N nu matrices whatever the
-# move blocking (a control horizon of 1 keeps n small, not them).
+# the dense N ny x N ny, N nu x N nu and N ny x N nu matrices condensing builds, blocked or not
 MAX_CONDENSING_BYTES = 512 << 20
 # The prefix names the generated files, <prefix>.h among them, so it must not be a
 # header the generated C or its users include: <prefix>.h would shadow it on the include
@@ -105,9 +104,8 @@ def default_innovation_limit(y_min: np.ndarray, y_max: np.ndarray,
     expected range, the hull of 0 (the estimate after P_init), its finite bounds and, when
     a side is unbounded, the scenario's reference ``levels`` (levels x outputs).  While the
     measurement and the prediction both lie in that range, no innovation exceeds its span.
-    0 where nothing gives a range (the model's reach then gives one, model/reach.py); inf
-    where the range is too wide for a finite limit (bounds near the largest double: the
-    parser refuses it)."""
+    0 where nothing gives a range (the model's reach then gives one, model/reach.py), inf
+    where it overflows (bounds near the largest double: the parser refuses it)."""
     out = np.empty(len(y_min))
     for a, bounds in enumerate(zip(y_min, y_max)):
         values = [0.0, *(b for b in bounds if math.isfinite(b))]

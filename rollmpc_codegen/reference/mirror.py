@@ -18,6 +18,7 @@ PARTIAL_MODULES = {
     "controller.c.j2": ("reference/controller.py", "reference/scheduler.py",
                         "reference/solver.py"),
     "controller/runtime_bounds.c.j2": ("reference/controller.py", "features/runtime_bounds.py"),
+    "controller/observers.c.j2": ("reference/controller.py",),
     "linalg/cholesky_blocks.c.j2": ("reference/linalg.py",),
     "solver/bounds.c.j2": ("features/runtime_bounds.py",),
     "solver/qp_solve.c.j2": ("reference/solver.py",),

@@ -67,7 +67,7 @@ def partial_functions(tree: str) -> dict[str, set[str]]:
     for top, suffix in SOURCES.items():
         whole = c_functions(files[ctx["prefix"] + suffix], ctx["prefix"])
         for partial in _included(top):
-            out[partial] = c_functions(render_template(ctx, partial), ctx["prefix"]) & whole
+            out[partial] = c_functions(render_template(ctx, partial, this_file=""), ctx["prefix"]) & whole
         out[top] = whole - set().union(*(out[p] for p in _included(top)))
     return out
 

@@ -48,7 +48,7 @@ def test_hostile_applied_command_is_clipped_bit_exact(short_uav):
     c, ref = built.c, built.reference()
     for value in (1e7, 1e8, 1e30, -huge, huge, 15.0, -15.0, 14.5):
         c.init()
-        ref.reset()
+        ref.init()
         u = np.array([value, -value])
         expected = APPLIED_CLIPPED if abs(value) > 15.0 else OPTIMAL
         assert c.observe([1.0], [0.0], u) == ref.observe([1.0], [0.0], u) == expected, value
@@ -91,7 +91,7 @@ def test_live_bounds_widen_the_range(build_root, precision):
     for limit, value, expected in ((0.8, 0.7, OPTIMAL), (0.8, 0.9, APPLIED_CLIPPED),
                                    (0.05, 0.5, OPTIMAL), (0.05, 0.51, APPLIED_CLIPPED)):
         c.init()
-        ref.reset()
+        ref.init()
         live = dict(bounds, u_min=[-limit] * 4, u_max=[limit] * 4)
         assert c.set_bounds(0, **live) == ref.set_bounds(0, **live) == OPTIMAL
         u = np.array([value, -value, 0.0, 0.0])
