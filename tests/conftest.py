@@ -16,6 +16,22 @@ import rollmpc_codegen  # noqa: E402,F401  pins OpenBLAS's kernels before NumPy 
 ROOT = Path(__file__).resolve().parents[1]
 UAV = ROOT / "examples" / "uav_roll.yaml"
 
+# a design of our own (not among examples/): the UAV's inner loop alone, roll kept within
+# 45 deg; its soft form (ROLL45_SOFT on both bounds) meets the polish's capped guesses
+ROLL45 = {
+    "prefix": "roll45", "sample_time": 0.01, "horizon": 60, "outputs": ["roll"],
+    "actuators": ["ail"],
+    "modes": [{"name": "only",
+               "plant": {"transfer_function": {"num": [-74.15, 8892],
+                                               "den": [1, 59.11, 1599, 7936]},
+                         "integrator": True},
+               "weights": {"Q": 10, "R": 1, "P": 1000},
+               "bounds": {"u_min": -15, "u_max": 15, "y_min": -45, "y_max": 45}}],
+    "units": {"outputs": "deg", "actuators": "deg"},
+    "simulation": {"reference": {"segment": 6.0, "levels": [0, 60, 0]}},
+}
+ROLL45_SOFT = {"y_max": {"l1": 1000, "l2": 100}, "y_min": {"l1": 1000, "l2": 100}}
+
 
 def pytest_addoption(parser):
     parser.addoption("--runslow", action="store_true", help="run the long (slow) tests")

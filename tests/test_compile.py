@@ -8,16 +8,9 @@ from pathlib import Path
 
 import pytest
 
+from compile_flags import ARM_HINT, AUTOPILOT, CLANG_HINT, STRICT, compile_objects
 from conftest import UAV, require_tool
 from rollmpc_codegen.pipeline import generate
-
-STRICT = ["-std=c99", "-Wall", "-Wextra", "-Wpedantic", "-Wconversion", "-Wshadow",
-          "-Wdouble-promotion", "-Wvla", "-Werror"]
-# PX4's C flags and ArduPilot's frame limit (shared/design.md)
-AUTOPILOT = ["-Wfloat-equal", "-Wcast-align", "-Wstrict-prototypes", "-Wbad-function-cast",
-             "-Wnested-externs", "-fno-common", "-Wframe-larger-than=1300"]
-CLANG_HINT = "apt-get install -y --no-install-recommends clang"
-ARM_HINT = "apt-get install -y --no-install-recommends gcc-arm-none-eabi libnewlib-arm-none-eabi"
 
 
 @pytest.fixture(scope="module", params=["double", "float"])
@@ -27,29 +20,16 @@ def sources(request, tmp_path_factory) -> Path:
     return out
 
 
-def _compile(cc: str, src: Path, flags: list[str], out: Path) -> subprocess.CompletedProcess:
-    out.mkdir(parents=True, exist_ok=True)
-    objs = []
-    for c in sorted(src.glob("*.c")):
-        obj = out / (c.stem + ".o")
-        cmd = [cc, *flags, f"-I{src}", "-c", str(c), "-o", str(obj)]
-        proc = subprocess.run(cmd, capture_output=True, text=True)
-        if proc.returncode != 0 or proc.stderr.strip():
-            return proc
-        objs.append(obj)
-    return subprocess.CompletedProcess(args=[], returncode=0, stdout="", stderr="")
-
-
 @pytest.mark.parametrize("opt", ["-O0", "-O2", "-Os"])
 def test_gcc_strict_no_warnings(sources, tmp_path, opt):
-    proc = _compile("gcc", sources, [opt, *STRICT, *AUTOPILOT], tmp_path)
+    proc = compile_objects("gcc", sources, [opt, *STRICT, *AUTOPILOT], tmp_path)
     assert proc.returncode == 0 and proc.stderr == "", proc.stderr
 
 
 @pytest.mark.parametrize("opt", ["-O0", "-O2"])
 def test_clang_strict_no_warnings(sources, tmp_path, opt):
     cc = require_tool("clang", CLANG_HINT)
-    proc = _compile(cc, sources, [opt, *STRICT, *AUTOPILOT], tmp_path)
+    proc = compile_objects(cc, sources, [opt, *STRICT, *AUTOPILOT], tmp_path)
     assert proc.returncode == 0 and proc.stderr == "", proc.stderr
 
 
@@ -57,7 +37,7 @@ def test_arm_cortex_m4f_no_warnings(sources, tmp_path):
     cc = require_tool("arm-none-eabi-gcc", ARM_HINT)
     flags = ["-mcpu=cortex-m4", "-mthumb", "-mfpu=fpv4-sp-d16", "-mfloat-abi=hard", "-O2",
              "-ffreestanding", "-fno-math-errno", "-ffp-contract=off", *STRICT, *AUTOPILOT]
-    proc = _compile(cc, sources, flags, tmp_path)
+    proc = compile_objects(cc, sources, flags, tmp_path)
     assert proc.returncode == 0 and proc.stderr == "", proc.stderr
 
 
@@ -74,7 +54,7 @@ def test_float_build_has_no_double_literals(tmp_path_factory):
 
 
 def test_static_memory_only(sources, tmp_path):
-    proc = _compile("gcc", sources, ["-O2", *STRICT], tmp_path)
+    proc = compile_objects("gcc", sources, ["-O2", *STRICT], tmp_path)
     assert proc.returncode == 0, proc.stderr
     nm = require_tool("nm", "apt-get install -y binutils")
     undefined, defined = set(), set()
@@ -117,8 +97,8 @@ def test_single_precision_constant_flag(tmp_path_factory, precision):
     reason; the float tree (every literal already float) compiles warning-free."""
     out = tmp_path_factory.mktemp(f"spc_{precision}") / "uav_roll"
     generate(UAV, out, precision)
-    proc = _compile("gcc", out, ["-O2", *STRICT, "-fsingle-precision-constant"],
-                    out.parent / "obj")
+    proc = compile_objects("gcc", out, ["-O2", *STRICT, "-fsingle-precision-constant"],
+                           out.parent / "obj")
     if precision == "float":
         assert proc.returncode == 0 and proc.stderr == "", proc.stderr
     else:

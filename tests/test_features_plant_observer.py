@@ -24,6 +24,7 @@ import yaml
 
 from conftest import (ROOT, UAV, Built, config_error, edited_config,
                       sampled_qps_against_independent_solvers, simulate_and_bench)
+from lockstep import Lockstep
 from rollmpc_codegen.host.build import build_host_controller
 from rollmpc_codegen.cli.main import main
 from rollmpc_codegen.config import load, parse
@@ -36,7 +37,6 @@ from rollmpc_codegen.sim.simulate import run_closed_loop
 from rollmpc_codegen.status import OPTIMAL
 from rollmpc_codegen.model.tf_realisation import (column_realisation, frequency_response,
                                             matrix_response)
-from test_bitexact import Lockstep
 
 TANK = ROOT / "examples" / "quadruple_tank.yaml"
 DIST = 0.3  # V on both pumps, the constant input disturbance of the closed-loop runs
@@ -315,12 +315,12 @@ def test_simulate_and_bench_cli_on_tank(tmp_path):
 
 @pytest.mark.parametrize("precision", ["double", "float"])
 def test_tank_generates_and_compiles_strict(tmp_path, precision):
-    from test_compile import STRICT, _compile
+    from compile_flags import STRICT, compile_objects
 
     _, ctx = generate(TANK, tmp_path / "qtank", precision)
     assert [m["nx"] for m in ctx["modes"]] == [6]  # 4 plant + 2 disturbance states
-    proc = _compile("gcc", tmp_path / "qtank", ["-O2", "-ffp-contract=off", *STRICT],
-                    tmp_path / "obj")
+    proc = compile_objects("gcc", tmp_path / "qtank", ["-O2", "-ffp-contract=off", *STRICT],
+                           tmp_path / "obj")
     assert proc.returncode == 0 and not proc.stderr.strip(), proc.stderr
 
 

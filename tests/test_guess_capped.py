@@ -1,7 +1,7 @@
 """A shifted guess whose polish spends every round switching soft states or dropping rows
 (GUESS_CAPPED) is not resumed by the dual active set: resume_working_set() would repeat it
 round for round before starting cold (docs/solver.md, "The default method", step 5). The
-soft 45 deg roll design of tests/test_sim_metrics.py without a budget meets it on its
+soft 45 deg roll design (conftest.ROLL45) without a budget meets it on its
 plateau beyond the bound; C and reference stay bit for bit."""
 from __future__ import annotations
 
@@ -9,8 +9,7 @@ import json
 
 import yaml
 
-from conftest import Built, lockstep_closed_loop
-from test_sim_metrics import ROLL, SOFT
+from conftest import ROLL45, ROLL45_SOFT, Built, lockstep_closed_loop
 
 STEPS = 900  # the plateau beyond 45 deg starts near sample 600
 
@@ -19,9 +18,9 @@ def test_capped_guess_is_not_repeated(tmp_path, build_root):
     from rollmpc_codegen.qp.work import UNBOUNDED_WORK
     from rollmpc_codegen.reference import solver as solver_mod
 
-    data = json.loads(json.dumps(ROLL))
+    data = json.loads(json.dumps(ROLL45))
     data.update(precision="float", solver={"work_budget": UNBOUNDED_WORK})
-    data["modes"][0]["bounds"]["soft"] = SOFT
+    data["modes"][0]["bounds"]["soft"] = ROLL45_SOFT
     path = tmp_path / "roll45_soft.yaml"
     path.write_text(yaml.safe_dump(data, sort_keys=False))
     built = Built(path, "float", build_root)

@@ -19,12 +19,12 @@ import pytest
 
 from conftest import (ROOT, Built, config_error, edited_config,
                       sampled_qps_against_independent_solvers, simulate_and_bench)
+from lockstep import Lockstep
 from rollmpc_codegen.host.build import build_host_controller
 from rollmpc_codegen.pipeline import load_model
 from rollmpc_codegen.sim.scenario import scenario_reference
 from rollmpc_codegen.sim.simulate import run_closed_loop
 from rollmpc_codegen.status import OPTIMAL
-from test_bitexact import Lockstep
 
 ZONES = ROOT / "examples" / "thermal_zones.yaml"
 DRIVES = ROOT / "examples" / "three_drives.yaml"

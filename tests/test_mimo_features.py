@@ -20,7 +20,9 @@ import numpy as np
 import pytest
 import yaml
 
+from compile_flags import STRICT, compile_objects
 from conftest import ROOT, Built, config_error
+from lockstep import Lockstep
 from rollmpc_codegen.cli.main import main
 from rollmpc_codegen.config import load
 from rollmpc_codegen.qp.exact import qp_data, solve_exact
@@ -29,8 +31,6 @@ from rollmpc_codegen.sim.scenario import preview, scenario_reference
 from rollmpc_codegen.sim.simulate import run_closed_loop
 from rollmpc_codegen.reference.solver import SolverRef
 from rollmpc_codegen.status import OPTIMAL
-from test_bitexact import Lockstep
-from test_compile import STRICT, _compile
 
 CHAIN = ROOT / "examples" / "chain_of_masses.yaml"
 
@@ -69,8 +69,8 @@ def test_config_is_one_mode_mimo_state_space():
 def test_generates_and_compiles_strict(tmp_path, precision):
     _, ctx = generate(CHAIN, tmp_path / "chain", precision)
     assert ctx["n_schedule"] == 0 and ctx["n_outputs"] == 6 and ctx["n_actuators"] == 4
-    proc = _compile("gcc", tmp_path / "chain", ["-O2", "-ffp-contract=off", *STRICT],
-                    tmp_path / "obj")
+    proc = compile_objects("gcc", tmp_path / "chain", ["-O2", "-ffp-contract=off", *STRICT],
+                           tmp_path / "obj")
     assert proc.returncode == 0 and not proc.stderr.strip(), proc.stderr
 
 

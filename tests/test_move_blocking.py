@@ -5,8 +5,7 @@ with ``control_horizon: 3`` (output rows active: the blocked prediction is exerc
 thermal_zones with a per-mode pattern and Δu weighting.  Checked: the blocked QP is the
 full QP restricted to U = T U_b; P_step bit for bit against the NumPy reference over
 closed loops (both precisions); the double QP solutions within 1e-8 of DAQP and of the
-extended-precision solution; the bounds met; run-time bounds on a blocked chain; an
-unblocked build generates the C of before; config errors name their key.
+extended-precision solution; the bounds met; an unblocked build generates the C of before; config errors name their key.
 """
 from __future__ import annotations
 
@@ -15,6 +14,7 @@ import pytest
 
 from conftest import (ROOT, Built, config_error, edited_config,
                       sampled_qps_against_independent_solvers)
+from lockstep import Lockstep
 from rollmpc_codegen.features import move_blocking
 from rollmpc_codegen.config import load
 from rollmpc_codegen.pipeline import load_model
@@ -22,11 +22,9 @@ from rollmpc_codegen.codegen.render import render_sources
 from rollmpc_codegen.sim.scenario import scenario_reference
 from rollmpc_codegen.sim.simulate import run_closed_loop
 from rollmpc_codegen.status import OPTIMAL
-from test_bitexact import Lockstep
 
 UAV_BLOCKED = ROOT / "examples" / "uav_roll_blocked.yaml"
 CHAIN = ROOT / "examples" / "chain_of_masses.yaml"
-CHAIN_RB = ROOT / "examples" / "chain_runtime_bounds.yaml"
 ZONES = ROOT / "examples" / "thermal_zones.yaml"
 
 
@@ -131,26 +129,6 @@ def test_blocks_with_delta_weighting_bit_exact(tmp_path, build_root):
                           steps=150)
     assert lock.mismatches == [], lock.mismatches[0]
     assert np.all(log.status == OPTIMAL) and np.all(np.abs(log.u) <= 2.0)
-
-
-def test_runtime_bounds_with_control_horizon_bit_exact(tmp_path, build_root):
-    """P_set_bounds on a blocked chain (row_const(): input q mod nu, per block): the
-    schedule of test_runtime_bounds (tighten, infeasible, loosen, reset, bad calls)."""
-    from test_runtime_bounds import STEPS, BoundsLockstep, _reference
-
-    path = edited_config(tmp_path, CHAIN_RB, "chain_rb_nc3", lambda d: d.update(control_horizon=3))
-    built = Built(path, "float", build_root)
-    lock = BoundsLockstep(built)
-    log = run_closed_loop(built.model.config, lock, _reference(built.model.config),
-                          info=lock.info)
-    assert len(log.t) == STEPS and built.ctx["modes"][0]["n"] == 12
-    assert lock.mismatches == [], lock.mismatches[0]
-    assert all(st_c == st_r == exp for _, st_c, st_r, exp in lock.calls)
-    dt = built.model.dtype  # the limits as the float build stores them
-    for k, (lim, u) in enumerate(zip(lock.limits, log.u)):
-        lo, hi = np.asarray(lim["u_min"], dt), np.asarray(lim["u_max"], dt)
-        assert np.all(u >= lo) and np.all(u <= hi), k
-    assert np.any(log.status == OPTIMAL) and np.any(log.status != OPTIMAL)  # infeasible phase
 
 
 # --------------------------------------------------------------------------- generation

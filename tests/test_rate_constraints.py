@@ -18,6 +18,7 @@ import pytest
 
 from conftest import (ROOT, Built, config_error, edit_bounds, edited_config,
                       sampled_qps_against_independent_solvers)
+from lockstep import Lockstep
 from rollmpc_codegen.qp.exact import qp_data, solve_exact
 from rollmpc_codegen.pipeline import load_model
 from rollmpc_codegen.codegen.render import render_sources
@@ -25,7 +26,6 @@ from rollmpc_codegen.sim.scenario import preview, scenario_reference
 from rollmpc_codegen.sim.simulate import run_closed_loop
 from rollmpc_codegen.reference.solver import SolverRef
 from rollmpc_codegen.status import INFEASIBLE, OPTIMAL
-from test_bitexact import Lockstep
 from test_input_rate import checked_closed_loop
 
 RATE = ROOT / "examples" / "thermal_zones_rate.yaml"

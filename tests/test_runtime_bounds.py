@@ -19,7 +19,9 @@ import numpy as np
 import pytest
 import yaml
 
-from conftest import ROOT, Built
+from compile_flags import AUTOPILOT, CLANG_HINT, STRICT, compile_objects
+from conftest import ROOT, Built, edited_config
+from lockstep import Lockstep
 from rollmpc_codegen.host.build import build_host_controller
 from rollmpc_codegen.config import ConfigError, load, parse
 from rollmpc_codegen.qp.exact import qp_data, solve_exact
@@ -29,8 +31,6 @@ from rollmpc_codegen.sim.scenario import preview, scenario_reference
 from rollmpc_codegen.sim.simulate import run_closed_loop
 from rollmpc_codegen.status import (BAD_ARGUMENT, BAD_BOUNDS, BOUND_NOT_CONFIGURED, INFEASIBLE,
                                     NONFINITE_INPUT, OPTIMAL)
-from test_bitexact import Lockstep
-from test_compile import AUTOPILOT, CLANG_HINT, STRICT, _compile
 
 EXAMPLE = ROOT / "examples" / "chain_runtime_bounds.yaml"
 INF = np.inf
@@ -119,7 +119,7 @@ def test_compiles_strict_with_autopilot_flags(tmp_path, cc, precision):
     if shutil.which(cc) is None:
         pytest.skip(f"{cc} not found; install with: {CLANG_HINT}")
     generate(EXAMPLE, tmp_path / "src", precision)
-    proc = _compile(cc, tmp_path / "src", ["-O2", *STRICT, *AUTOPILOT], tmp_path / "obj")
+    proc = compile_objects(cc, tmp_path / "src", ["-O2", *STRICT, *AUTOPILOT], tmp_path / "obj")
     assert proc.returncode == 0 and not proc.stderr.strip(), proc.stderr
 
 
@@ -282,3 +282,21 @@ def test_simulate_cli_runs_the_example(tmp_path, build_root):
     summary = json.loads(out.read_text())
     assert summary["samples"] == 60 and summary["non_optimal"] == 0
     assert summary["constraint_violations"]["u"] == 0 and summary["constraint_violations"]["y"] == 0
+
+
+def test_runtime_bounds_with_control_horizon_bit_exact(tmp_path, build_root):
+    """P_set_bounds on a blocked chain (row_const(): input q mod nu, per block): the
+    schedule above (tighten, infeasible, loosen, reset, bad calls)."""
+    path = edited_config(tmp_path, EXAMPLE, "chain_rb_nc3", lambda d: d.update(control_horizon=3))
+    built = Built(path, "float", build_root)
+    lock = BoundsLockstep(built)
+    log = run_closed_loop(built.model.config, lock, _reference(built.model.config),
+                          info=lock.info)
+    assert len(log.t) == STEPS and built.ctx["modes"][0]["n"] == 12
+    assert lock.mismatches == [], lock.mismatches[0]
+    assert all(st_c == st_r == exp for _, st_c, st_r, exp in lock.calls)
+    dt = built.model.dtype  # the limits as the float build stores them
+    for k, (lim, u) in enumerate(zip(lock.limits, log.u)):
+        lo, hi = np.asarray(lim["u_min"], dt), np.asarray(lim["u_max"], dt)
+        assert np.all(u >= lo) and np.all(u <= hi), k
+    assert np.any(log.status == OPTIMAL) and np.any(log.status != OPTIMAL)  # infeasible phase

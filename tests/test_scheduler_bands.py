@@ -24,7 +24,9 @@ import numpy as np
 import pytest
 import yaml
 
+from compile_flags import AUTOPILOT, CLANG_HINT, STRICT, compile_objects
 from conftest import ROOT, UAV, Built, config_error, require_tool
+from lockstep import Lockstep
 from rollmpc_codegen.reference.scheduler import scheduled_mode
 from rollmpc_codegen.cli.main import main
 from rollmpc_codegen.config import parse
@@ -39,8 +41,6 @@ from rollmpc_codegen.sim.scenario import preview, scenario_reference
 from rollmpc_codegen.sim.simulate import run_closed_loop
 from rollmpc_codegen.reference.solver import SolverRef
 from rollmpc_codegen.status import OPTIMAL
-from test_bitexact import Lockstep
-from test_compile import AUTOPILOT, CLANG_HINT, STRICT, _compile
 
 DRIVES = ROOT / "examples" / "three_drives.yaml"
 BASE = yaml.safe_load(DRIVES.read_text())
@@ -393,8 +393,8 @@ def test_generates_and_compiles_strict(tmp_path, precision):
     assert "sched_mode[DRIVES_N_SCHED_BANDS]" in text
     ccs = ["gcc"] + ([require_tool("clang", CLANG_HINT)] if precision == "double" else [])
     for cc in ccs:
-        proc = _compile(cc, tmp_path / "drives", ["-O2", "-ffp-contract=off", *STRICT,
-                                                  *AUTOPILOT], tmp_path / f"obj-{cc[-5:]}")
+        proc = compile_objects(cc, tmp_path / "drives", ["-O2", "-ffp-contract=off", *STRICT,
+                                                         *AUTOPILOT], tmp_path / f"obj-{cc[-5:]}")
         assert proc.returncode == 0 and not proc.stderr.strip(), proc.stderr
 
 

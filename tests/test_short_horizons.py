@@ -12,9 +12,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from compile_flags import AUTOPILOT, CLANG_HINT, STRICT, compile_objects
 from conftest import ROOT, UAV, Built, edited_config, require_tool
-from test_bitexact import Lockstep
-from test_compile import AUTOPILOT, CLANG_HINT, STRICT, _compile
+from lockstep import Lockstep
 from rollmpc_codegen.pipeline import generate
 from rollmpc_codegen.reference.solver import SolverRef
 from rollmpc_codegen.sim.simulate import run_closed_loop
@@ -56,7 +56,7 @@ def test_strict_compile_no_warnings(short, tmp_path, cc, opt):
     _, _, src = short
     if cc == "clang":
         cc = require_tool("clang", CLANG_HINT)
-    proc = _compile(cc, src, [opt, *STRICT, *AUTOPILOT], tmp_path)
+    proc = compile_objects(cc, src, [opt, *STRICT, *AUTOPILOT], tmp_path)
     assert proc.returncode == 0 and proc.stderr == "", proc.stderr
 
 

@@ -16,28 +16,13 @@ from rollmpc_codegen.sim.metrics import (constraint_violations, shortest_preview
                                          soft_bound_excursions, summarize)
 from rollmpc_codegen.sim.simulate import ClosedLoopLog
 
-from conftest import cli
-
-ROLL = {  # the UAV's inner loop alone, roll kept within 45 deg
-    "prefix": "roll45", "sample_time": 0.01, "horizon": 60, "outputs": ["roll"],
-    "actuators": ["ail"],
-    "modes": [{"name": "only",
-               "plant": {"transfer_function": {"num": [-74.15, 8892],
-                                               "den": [1, 59.11, 1599, 7936]},
-                         "integrator": True},
-               "weights": {"Q": 10, "R": 1, "P": 1000},
-               "bounds": {"u_min": -15, "u_max": 15, "y_min": -45, "y_max": 45}}],
-    "units": {"outputs": "deg", "actuators": "deg"},
-    "simulation": {"reference": {"segment": 6.0, "levels": [0, 60, 0]}},
-}
-SOFT = {"y_max": {"l1": 1000, "l2": 100}, "y_min": {"l1": 1000, "l2": 100}}
-
+from conftest import ROLL45, ROLL45_SOFT, cli
 
 def _config(tmp_path, name="roll45", precision="double", soft=False, **top):
-    data = json.loads(json.dumps(ROLL))
+    data = json.loads(json.dumps(ROLL45))
     data.update(precision=precision, **top)
     if soft:
-        data["modes"][0]["bounds"]["soft"] = SOFT
+        data["modes"][0]["bounds"]["soft"] = ROLL45_SOFT
         # the metric, not the real-time cap: with the default work budget this design has
         # 705 TIME_LIMIT samples whose commands pass the soft bound by 15 deg (issue 19)
         data["solver"] = dict(data.get("solver") or {}, work_budget=UNBOUNDED_WORK)

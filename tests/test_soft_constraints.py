@@ -17,6 +17,7 @@ import numpy as np
 import pytest
 
 from conftest import ROOT, Built, config_error, edit_bounds, edited_config
+from lockstep import Lockstep
 from rollmpc_codegen.qp.exact import qp_data, solve_exact
 from rollmpc_codegen.pipeline import load_model
 from rollmpc_codegen.codegen.render import render_sources
@@ -25,7 +26,6 @@ from rollmpc_codegen.sim.simulate import run_closed_loop
 from rollmpc_codegen.features.soft_constraints import explicit_qp, slacks
 from rollmpc_codegen.reference.solver import SolverRef
 from rollmpc_codegen.status import INFEASIBLE, OPTIMAL
-from test_bitexact import Lockstep
 
 SOFT = ROOT / "examples" / "chain_soft.yaml"
 CHAIN = ROOT / "examples" / "chain_of_masses.yaml"

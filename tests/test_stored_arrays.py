@@ -9,10 +9,10 @@ import re
 import numpy as np
 import pytest
 
+from compile_flags import STRICT, compile_objects
 from conftest import ROOT, edited_config, short_uav_config
 from rollmpc_codegen.pipeline import generate
 from rollmpc_codegen.qp.arrays import REAL, STORED_ARRAYS, declared_for
-from test_compile import STRICT, _compile
 
 TREES = sorted(p.name for p in (ROOT / "generated").iterdir() if p.is_dir())
 
@@ -75,7 +75,7 @@ def test_mode_without_output_rows_stores_a_null_pointer(tmp_path):
     _check_tree(out)
     data = (out / "rollmpc_data.c").read_text()
     assert ".GEinvGt_p = 0," in data and ".GEinvGt_p = rollmpc_mode1_GEinvGt_p," in data
-    proc = _compile("gcc", out, ["-O1", *STRICT], tmp_path / "obj")
+    proc = compile_objects("gcc", out, ["-O1", *STRICT], tmp_path / "obj")
     assert proc.returncode == 0 and proc.stderr == "", proc.stderr
 
     md = model.modes[1].data
