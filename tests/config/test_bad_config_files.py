@@ -1,6 +1,6 @@
 """Issue 4, item 5: malformed YAML files, as users would write them.
 
-tests/test_config_errors.py mutates the paper's config in memory (over 100 cases).  The
+tests/config/test_config_errors.py mutates the paper's config in memory (over 100 cases).  The
 files in tests/data/bad_configs/ are complete hand-readable YAML files for the cases it
 does not cover: NaN/Inf in every kind of number (matrix entries, transfer functions,
 bounds, poles, solver settings), a numerically singular Hessian, duplicate keys (PyYAML
@@ -17,7 +17,7 @@ import pytest
 from rollmpc_codegen.cli import main as cli
 from test_config_errors import CASES, _assert_clean_failure, _assert_nothing_written
 
-BAD = Path(__file__).resolve().parent / "data" / "bad_configs"
+BAD = Path(__file__).resolve().parents[1] / "data" / "bad_configs"
 FILES = sorted(BAD.glob("*.yaml"))
 
 

@@ -26,7 +26,7 @@ import yaml
 from rollmpc_codegen.cli import main as cli
 from rollmpc_codegen.config import ConfigError, load, parse
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 UAV = ROOT / "examples" / "uav_roll.yaml"
 BASE = yaml.safe_load(UAV.read_text())
 
