@@ -15,7 +15,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-FORMULATION = "tests/test_independent_formulation.py"
+FORMULATION = "tests/qp/test_independent_formulation.py"
 
 
 def regenerated(*examples: str) -> tuple[str, ...]:
@@ -51,7 +51,7 @@ MUTANTS = (
     Mutant("reference preview shifted by one sample (r_k..r_{k+N-1})", "rollmpc_codegen/sim/scenario.py",
            "idx = np.minimum(np.arange(k + 1, k + N + 1), len(ref) - 1)",
            "idx = np.minimum(np.arange(k, k + N), len(ref) - 1)",
-           (FORMULATION, "tests/test_api.py", "tests/test_mimo_features.py")),
+           (FORMULATION, "tests/test_api.py", "tests/qp/test_mimo_state_space.py")),
     Mutant("terminal weight P replaced by Q", "rollmpc_codegen/qp/condense.py",
            "Omega = _block_diag(mode.Q, N, last=mode.P)",
            "Omega = _block_diag(mode.Q, N, last=mode.Q)",
@@ -87,20 +87,20 @@ MUTANTS = (
     Mutant("soft slack sign in the polish ((l1 - z) w)", "templates/solver/soft_rows.c.j2",
            "return ws->slack_on[r] ? (z - l1) * w : R_(0.0);",
            "return ws->slack_on[r] ? (l1 - z) * w : R_(0.0);",
-           (FORMULATION, "tests/test_soft_constraints.py", *regenerated("chain_soft"))),
+           (FORMULATION, "tests/qp/test_soft_output_bounds.py", *regenerated("chain_soft"))),
     Mutant("Δu row: u_prev enters with the wrong sign", "templates/solver/rows.c.j2",
            "g = (md->row_sign[r] > 0) ? g + up : g - up;",
            "g = (md->row_sign[r] > 0) ? g - up : g + up;",
-           (FORMULATION, "tests/test_rate_constraints.py", *regenerated("thermal_zones_rate"))),
+           (FORMULATION, "tests/qp/test_input_rate_bounds.py", *regenerated("thermal_zones_rate"))),
     Mutant("Δu weight: gradient term -2 R_delta u_prev with the wrong sign",
            "rollmpc_codegen/features/input_rate.py",
            "G[:nu, nx - nu:] = -2.0 * R_delta", "G[:nu, nx - nu:] = 2.0 * R_delta",
-           (FORMULATION, "tests/test_input_rate.py", *regenerated("thermal_zones"))),
+           (FORMULATION, "tests/qp/test_input_rate_weighting.py", *regenerated("thermal_zones"))),
     Mutant("move blocking: stage -> block map of the reversed blocks",
            "rollmpc_codegen/features/move_blocking.py",
            "return np.repeat(np.arange(len(blocks)), blocks).astype(np.int32)",
            "return np.repeat(np.arange(len(blocks)), blocks[::-1]).astype(np.int32)",
-           (FORMULATION, "tests/test_move_blocking.py", *regenerated("uav_roll_blocked"))),
+           (FORMULATION, "tests/qp/test_move_blocking.py", *regenerated("uav_roll_blocked"))),
     Mutant("disturbance input target with the wrong sign",
            "rollmpc_codegen/features/disturbance_model.py",
            "Mu = sol[nx:]  # (nu, nd)", "Mu = -sol[nx:]  # (nu, nd)",

@@ -1,7 +1,7 @@
 """`rollmpc generate`'s warning on a controller that does not stabilise its own model with
 no bound active (qp/nominal_loop.py), on a cart-pole written as a new user would
 (tests/data/newuser/cart_pole.yaml: N = 40 at 10 ms, P = Q). Every example is checked
-not to warn in test_newuser_generate.py::test_no_example_warns."""
+not to warn in test_generate_design_checks.py::test_no_example_warns."""
 from __future__ import annotations
 
 import copy

@@ -26,7 +26,7 @@ from rollmpc_codegen.sim.scenario import preview, scenario_reference
 from rollmpc_codegen.sim.simulate import run_closed_loop
 from rollmpc_codegen.reference.solver import SolverRef
 from rollmpc_codegen.status import INFEASIBLE, OPTIMAL
-from test_input_rate import checked_closed_loop
+from test_input_rate_weighting import checked_closed_loop
 
 RATE = ROOT / "examples" / "thermal_zones_rate.yaml"
 ZONES = ROOT / "examples" / "thermal_zones.yaml"

@@ -168,7 +168,7 @@ TOO_LARGE = [
 def test_generate_prints_the_prediction(tmp_path, capsys):
     rc, out, err, directory = run(tmp_path, capsys, ship(precision="float"))
     assert (rc, err) == (0, "")
-    lines = out.splitlines()  # then the float check's line (tests/test_float_check.py)
+    lines = out.splitlines()  # then the float check's line (tests/host/test_float_check.py)
     assert lines[:2] == [PREDICTION, f"rollmpc: wrote {directory}/ (float; cruise: n=50 m=200)"]
     assert len(lines) == 3 and lines[2].startswith("rollmpc: float check (")
 
