@@ -43,7 +43,7 @@ MUTANTS = (
     Mutant("multipliers not cleared after a failed solve", "templates/solver/qp_solve.c.j2",
            "lam[i] = R_(0.0); /* no sticky warm start after a failed sample */",
            "lam[i] = lam[i] * R_(1.0); /* mutant: the warm start survives a failure */",
-           (FORMULATION, "tests/test_active_set.py", *regenerated("uav_roll"))),
+           (FORMULATION, "tests/solver/test_active_set.py", *regenerated("uav_roll"))),
     Mutant("observer gain read as L[a*nx+i] instead of L[i*ny+a]", "templates/controller.c.j2",
            "acc += md->L[i * md->ny + a] * ws->innov[a];",
            "acc += md->L[a * md->nx + i] * ws->innov[a];",
@@ -77,7 +77,7 @@ MUTANTS = (
     Mutant("infeasible reported as MAX_ITER", "templates/solver/qp_solve.c.j2",
            "(i == 0) ? {{ PREFIX }}_OPTIMAL : {{ PREFIX }}_INFEASIBLE, U);",
            "(i == 0) ? {{ PREFIX }}_OPTIMAL : {{ PREFIX }}_MAX_ITER, U);",
-           (FORMULATION, "tests/test_active_set.py", *regenerated("uav_roll"))),
+           (FORMULATION, "tests/solver/test_active_set.py", *regenerated("uav_roll"))),
     Mutant("NaN check of the preview covers r_1 only", "templates/controller.c.j2",
            "|| !{{ prefix }}_all_finite(sched, {{ PREFIX }}_N_SCHEDULE)\n"
            "        || !{{ prefix }}_all_finite(r, {{ PREFIX }}_HORIZON * {{ PREFIX }}_N_OUTPUTS)) {",

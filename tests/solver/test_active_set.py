@@ -116,7 +116,7 @@ def test_a_reversed_guess_is_judged_at_its_first_point():
     from rollmpc_codegen.reference.controller import ControllerRef
     from rollmpc_codegen.sim.simulate import run_closed_loop
 
-    model, ctx = load_model(Path(__file__).parents[1] / "examples" / "uav_roll.yaml", "float")
+    model, ctx = load_model(Path(__file__).parents[2] / "examples" / "uav_roll.yaml", "float")
     ref = ControllerRef(ctx, [m.data for m in model.modes])
     seen = []
 

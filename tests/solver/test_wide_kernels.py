@@ -17,7 +17,7 @@ import pytest
 from rollmpc_codegen.reference.linalg import (chol_lsolve_packed, chol_ltsolve_packed,
                                               cholesky_packed)
 
-TREE = Path(__file__).resolve().parents[1] / "generated" / "uav_roll_f32"
+TREE = Path(__file__).resolve().parents[2] / "generated" / "uav_roll_f32"
 CASES = [(n, start) for n in (1, 2, 3, 4, 5, 7, 8, 9, 13, 16, 31, 50) for start in
          sorted({0, 1, 2, 3, 4, n // 2, n - 1}) if start < n]
 
