@@ -4,7 +4,7 @@ Each :class:`Status` carries its code, the ``P_status_message()`` text, what it 
 what the command holds after it.  From these, :mod:`.codegen.context` passes the list on to
 the templates, which render the C enum (``api.h.j2``) and the message table
 (``controller.c.j2``).  The NumPy reference returns the same codes.  The README's status
-table repeats the texts, and tests/test_status.py keeps it in step.
+table repeats the texts, and tests/controller/test_status_codes.py keeps it in step.
 """
 from __future__ import annotations
 

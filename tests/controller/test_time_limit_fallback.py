@@ -11,7 +11,7 @@ import pytest
 
 from conftest import Built, short_uav_config
 
-QUAD = Path(__file__).resolve().parents[1] / "examples" / "quad_attitude.yaml"
+QUAD = Path(__file__).resolve().parents[2] / "examples" / "quad_attitude.yaml"
 HORIZON = 20
 
 
