@@ -2,7 +2,7 @@
 
 * Regeneration is byte-identical, also across interpreter processes with different hash
   seeds (no set/dict-order or id() leaks into the output), for the paper's config and a
-  random one.  (tests/test_generated.py compares against the committed tree.)
+  random one.  (tests/codegen/test_generated_snapshot.py compares against the committed tree.)
 * The same inputs give the same outputs and iteration counts on every run: the whole
   6000-step scenario twice on fresh instances, and on libraries built with other
   optimisation levels and with clang (-ffp-contract=off makes every operation round the

@@ -12,7 +12,7 @@
 * Stack: per-function frames from -fstack-usage and the call graph from
   -fcallgraph-info (GCC): no recursion, no unbounded dynamic frame, and the worst path
   from each entry point within 1 KiB on the host and on Cortex-M4F.
-(``nm`` shows no heap symbols: tests/test_compile.py::test_static_memory_only.)
+(``nm`` shows no heap symbols: tests/codegen/test_compile_flags.py::test_static_memory_only.)
 """
 from __future__ import annotations
 

@@ -10,7 +10,7 @@ The default suite checks the paper's controller with N = 8 (the same templates, 
 data: cppcheck needs about a minute for the N = 100 data tables); the long run checks
 the committed generated/uav_roll_f32 and generated/uav_roll and a single-mode random
 controller.  (0 compiler warnings with -Werror on gcc, clang and arm-none-eabi-gcc in
-both precisions: tests/test_compile.py.)
+both precisions: tests/codegen/test_compile_flags.py.)
 """
 from __future__ import annotations
 

@@ -9,7 +9,7 @@ cover the rest of the pipeline: observer, scheduler, clamp, soft rows, Δu rows,
 blocking, status, NaN checks, run-time bounds, disturbance model, innovation limit.
 
 Every mutant here changes behaviour (commands, statuses or accepted arguments), so the
-run requires each to be caught by a test other than ``tests/test_generated.py``.
+run requires each to be caught by a test other than ``tests/codegen/test_generated_snapshot.py``.
 """
 from __future__ import annotations
 
@@ -19,8 +19,8 @@ FORMULATION = "tests/qp/test_independent_formulation.py"
 
 
 def regenerated(*examples: str) -> tuple[str, ...]:
-    """The test_generated.py cases that regenerate ``examples`` in double."""
-    return tuple(f"tests/test_generated.py::test_regeneration_is_byte_identical[{e}-double-{e}]"
+    """The test_generated_snapshot.py cases that regenerate ``examples`` in double."""
+    return tuple(f"tests/codegen/test_generated_snapshot.py::test_regeneration_is_byte_identical[{e}-double-{e}]"
                  for e in examples)
 
 
