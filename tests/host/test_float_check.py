@@ -56,7 +56,7 @@ modes:
 simulation:
   reference: {segment: 3.0, levels: [0, 30, -30, 60, 0]}
 """
-CHAIN_SOFT = Path(__file__).resolve().parents[1] / "examples" / "chain_soft.yaml"
+CHAIN_SOFT = Path(__file__).resolve().parents[2] / "examples" / "chain_soft.yaml"
 FIGURE = re.compile(r"float plans within (\S+) of double \(first moves (\S+)\), stored-data "
                     r"floor (\S+),.* (\d+) of 48 not OPTIMAL in float")
 

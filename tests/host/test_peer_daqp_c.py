@@ -10,7 +10,7 @@ import pytest
 
 from conftest import UAV
 
-CHAIN = Path(__file__).resolve().parents[1] / "examples" / "chain_of_masses.yaml"
+CHAIN = Path(__file__).resolve().parents[2] / "examples" / "chain_of_masses.yaml"
 
 
 @pytest.fixture(scope="module")
