@@ -44,7 +44,7 @@ from .sizes import (ModeSizes, condensing_bytes, largest_mode, mode_sizes, store
 # correct()'s column pairs (29,016 to 32,704 at 57967e4; docs/target.md, "Before
 # generation"); the paper config's linked image keeps about 30 KB of it. It was 18 KiB,
 # then 32 KiB, until the solver grew past it: measure again when the templates grow
-# (tests/test_code_allowance.py).
+# (tests/target/test_code_flash_allowance.py).
 CODE_FLASH_BYTES = 36 * 1024
 CYCLES_PER_MAC = 10  # per multiply-add of the step's linear algebra (a fit, see above)
 CYCLES_PER_ROW = 60  # per constraint row checked

@@ -14,7 +14,7 @@ from rollmpc_codegen.target.build import CORTEX_M4F, CROSS_CC, CROSS_INSTALL_HIN
 
 from conftest import require_tool
 
-GENERATED = Path(__file__).resolve().parents[1] / "generated"
+GENERATED = Path(__file__).resolve().parents[2] / "generated"
 TREES = sorted(p for p in GENERATED.glob("*_f32") if p.is_dir())
 
 
