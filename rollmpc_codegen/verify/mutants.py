@@ -72,7 +72,7 @@ MUTANTS = (
     Mutant("upper clamp dropped in finish()", "templates/solver/qp_solve.c.j2",
            "U[i] = (v < lo) ? lo : ((v > hi) ? hi : v);",
            "U[i] = (v < lo) ? lo : ((v > hi) ? v : v);",
-           (FORMULATION, "tests/controller/test_c_api_contract.py", "tests/test_reliability_caps.py",
+           (FORMULATION, "tests/controller/test_c_api_contract.py", "tests/reliability/test_iteration_caps.py",
             *regenerated("uav_roll"))),
     Mutant("infeasible reported as MAX_ITER", "templates/solver/qp_solve.c.j2",
            "(i == 0) ? {{ PREFIX }}_OPTIMAL : {{ PREFIX }}_INFEASIBLE, U);",
@@ -83,7 +83,7 @@ MUTANTS = (
            "        || !{{ prefix }}_all_finite(r, {{ PREFIX }}_HORIZON * {{ PREFIX }}_N_OUTPUTS)) {",
            "|| !{{ prefix }}_all_finite(sched, {{ PREFIX }}_N_SCHEDULE)\n"
            "        || !{{ prefix }}_all_finite(r, {{ PREFIX }}_N_OUTPUTS)) {",
-           ("tests/controller/test_c_api_contract.py", "tests/test_reliability_inputs.py", *regenerated("uav_roll"))),
+           ("tests/controller/test_c_api_contract.py", "tests/reliability/test_nonfinite_inputs.py", *regenerated("uav_roll"))),
     Mutant("soft slack sign in the polish ((l1 - z) w)", "templates/solver/soft_rows.c.j2",
            "return ws->slack_on[r] ? (z - l1) * w : R_(0.0);",
            "return ws->slack_on[r] ? (l1 - z) * w : R_(0.0);",
