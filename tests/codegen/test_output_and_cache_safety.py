@@ -1,4 +1,4 @@
-"""Data safety (issue 15): rollmpc replaces only the files it wrote, and loads only what it built.
+"""Data safety: rollmpc replaces only the files it wrote, and loads only what it built.
 
 Each test reproduces one finding of the audit; the old writer (replace the whole output
 directory) and the old cache (``$TMPDIR/rollmpc-build``, loaded when present) fail them.

@@ -1,6 +1,6 @@
 """The Python API (rollmpc_codegen.api): the same C as the YAML, python-control plants, the
 same ConfigError messages, the YAML round trip, the host build; and the config hash of the
-effective configuration (issue 18 item 10)."""
+effective configuration."""
 from __future__ import annotations
 
 import math
@@ -107,7 +107,7 @@ def test_api_generates_the_committed_files(tmp_path, design, committed, precisio
 
 
 def test_readme_command_reproduces_the_committed_tree(tmp_path):
-    """Issue 18 item 10: without --precision (the precision from the file) the README's
+    """Without --precision (the precision from the file) the README's
     command gives the committed tree, hash lines included."""
     from rollmpc_codegen.cli.main import main
 

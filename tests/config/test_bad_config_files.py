@@ -1,4 +1,4 @@
-"""Issue 4, item 5: malformed YAML files, as users would write them.
+"""Malformed YAML files, as users would write them: one line naming the key, exit 2.
 
 tests/config/test_config_errors.py mutates the paper's config in memory (over 100 cases).  The
 files in tests/data/bad_configs/ are complete hand-readable YAML files for the cases it

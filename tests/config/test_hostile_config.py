@@ -1,4 +1,4 @@
-"""Issue 15, "Hostile configuration": each finding of the audit, with the exact one-line
+"""Hostile configurations (docs/reliability.md, "Hostile input"): each finding of an audit, with the exact one-line
 message, exit code 2 and nothing written (docs/reliability.md, "Hostile input").
 
 Each test failed on the old behaviour (46cf995): a name ending in a newline and the prefix

@@ -1,4 +1,4 @@
-"""The compiled C and the NumPy reference agree bit for bit (issue: core generator).
+"""The compiled C and the NumPy reference agree bit for bit.
 
 Over the whole 6000-step scenario of section 4.1 (P_step: every command, status and
 sweep count), and on P_solve_qp for 300 states including saturated ones, in double and

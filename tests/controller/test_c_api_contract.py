@@ -1,4 +1,4 @@
-"""The public C API contract (shared/design.md): statuses, bad inputs, safe outputs."""
+"""The public C API contract (the generated P.h): statuses, bad inputs, safe outputs."""
 from __future__ import annotations
 
 import subprocess
@@ -91,7 +91,7 @@ def test_iteration_cap_stops_exactly_with_safe_output(tmp_path, build_root, cap)
 
 
 def test_last_info_of_a_null_instance_is_null(uav):
-    """P_last_info(NULL) returned &NULL->info (a crash on the first field read): issue 15."""
+    """P_last_info(NULL) returned &NULL->info (a crash on the first field read)."""
     host = uav.c
     assert host._fn["last_info"](host.ffi.NULL) == host.ffi.NULL
     assert host._fn["last_info"](host.ctrl) != host.ffi.NULL

@@ -1,4 +1,4 @@
-"""Issue 15: one huge but finite measurement must not wreck the controller.
+"""The innovation limit: one huge but finite measurement must not wreck the controller.
 
 The observers clip each innovation y - C x̂ to ``modes[].observer.innovation_limit``
 (default: ten spans of the output's expected range, docs/features.md "Measurement
@@ -153,7 +153,7 @@ def test_observe_bit_exact_with_the_clip_off(tmp_path, build_root):
 
 
 def test_solve_near_float_overflow_matches_the_reference(tmp_path, build_root):
-    """Known failure 7 of docs/reliability.md, fixed by the dual factor updates (issue 19).
+    """Known failure 7 of docs/reliability.md, fixed by the dual factor updates.
     Found by this file: the float P_solve_qp of a state ~1e37 (the UAV's estimate after
     spikes of ±FLT_MAX with the clip off) says INFEASIBLE, the reference NUMERICAL; on
     main before the clip existed too."""
@@ -226,8 +226,7 @@ def test_single_spike_is_reported_and_recovered(build_root, name, at, steps, pre
 
 def test_without_the_clip_the_spike_still_wrecks_the_flight(tmp_path, build_root):
     """The audit's finding, with ``innovation_limit: .inf``: 1e30 in the roll, and the
-    controller is far from the spike-free run for over 500 samples after it (986 since the
-    dual factor updates of issue 19; more than the 1500 of the run before them)."""
+    controller is far from the spike-free run for over 500 samples after it (measured: 986)."""
     off = _with_limit(tmp_path, UAV, np.inf, "off")
     (run,) = spiked_runs(off, "double", (1e30,), 1500, 3000, build_root=build_root)
     assert run.status_at_spike == OPTIMAL and run.clipped_at_spike == 0

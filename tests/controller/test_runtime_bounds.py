@@ -1,4 +1,4 @@
-"""Run-time bounds (issue 5 item 7, `runtime_bounds: true`): P_set_bounds between samples.
+"""Run-time bounds (`runtime_bounds: true`): P_set_bounds between samples.
 
 On examples/chain_runtime_bounds.yaml (the chain of masses with the bounds live in the
 instance, some output bounds left infinite): the C bit for bit equal to the reference

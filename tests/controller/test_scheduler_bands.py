@@ -1,4 +1,4 @@
-"""Issue 5, item 2: any number of modes -- k bands of the scheduling signal with hysteresis
+"""Any number of modes -- k bands of the scheduling signal with hysteresis
 (eq. 3 generalised), on examples/three_drives.yaml (3 modes, 5 bands).
 
 The rule (docs/features.md): the mode becomes band b's mode only when the signal is

@@ -7,7 +7,7 @@ import re
 import pytest
 
 from conftest import ROOT
-from rollmpc_codegen import status
+from rollmpc_codegen.sim.metrics import status_counts
 from rollmpc_codegen.status import STATUS_NAMES, UNKNOWN_MESSAGE, Status, context_statuses
 
 # (committed tree, file prefix, built with runtime_bounds)
@@ -54,11 +54,20 @@ def test_readme_table_is_the_declaration():
     assert rows == [(str(int(s)), s.name, s.meaning, s.command) for s in Status]
 
 
-def test_names_and_messages():
-    assert all(getattr(status, s.name) is s for s in Status)
-    assert STATUS_NAMES == {s: s.name.lower() for s in Status
-                            if s <= Status.BAD_ARGUMENT or s in (Status.TIME_LIMIT,
-                                                                 Status.MEASUREMENT_CLIPPED)}
+def test_every_code_a_build_returns_is_counted_under_its_own_name():
+    """The summaries of simulate, bench and report count statuses by name: each code a
+    build without run-time bounds returns has a name of its own there (MEASUREMENT_CLIPPED
+    and TIME_LIMIT included), and a code no build returns keeps its number."""
+    returned = [int(s) for s in Status if not s.runtime_bounds_only]
+    counts = status_counts(returned + [int(Status.OPTIMAL), 99])
+    assert len(counts) == len(returned) + 1 and sum(counts.values()) == len(returned) + 2
+    assert counts["optimal"] == 2 and counts["99"] == 1
+    assert counts["time_limit"] == counts["measurement_clipped"] == 1
+
+
+def test_messages_are_distinct_c_string_literals():
+    """A user tells the statuses apart by P_status_message(); each text is pasted into a C
+    string literal as it is."""
     messages = [s.message for s in Status] + [UNKNOWN_MESSAGE]
     assert len(set(messages)) == len(messages)
-    assert not any('"' in m or "\\" in m for m in messages)  # plain C string literals
+    assert not any('"' in m or "\\" in m for m in messages)

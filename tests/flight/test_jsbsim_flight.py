@@ -1,4 +1,4 @@
-"""The generated C flies the JSBSim c172p (issue 16, docs/flight.md): `rollmpc identify`
+"""The generated C flies the JSBSim c172p (docs/flight.md): `rollmpc identify`
 writes examples/c172_roll.yaml, `rollmpc fly` closes the loop in turbulence against the
 PX4-style PID, and `rollmpc report --flight` replays a flight on the emulated M4F.
 
@@ -242,7 +242,7 @@ def test_matrix_of_conditions():
     for cell in matrix["cells"]:
         mpc, pid = cell["mpc"], cell["pid"]
         # the default work budget: a few TIME_LIMIT samples, nothing else (measured 2-4 a
-        # flight at 802a9c0), and the issue-19 floor of 99 % OPTIMAL
+        # flight), and at least 99 % OPTIMAL
         assert set(mpc["statuses"]) <= {"optimal", "time_limit"}, mpc["statuses"]
         assert mpc["statuses"]["optimal"] >= 0.99 * 6000
         assert mpc["rms"] < pid["rms"]

@@ -1,4 +1,4 @@
-"""`rollmpc bench` contract (issue 3): the markdown table with every row, the JSON schema,
+"""`rollmpc bench` contract: the markdown table with every row, the JSON schema,
 the plot, one-line errors.  Shortened with --steps/--max-qps/--variants; no timings are
 asserted, only that they are there and positive.
 """

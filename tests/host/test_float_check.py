@@ -20,7 +20,7 @@ from rollmpc_codegen.verify.float_floor import stored_data_floor
 
 # two inputs on two coupled integrating outputs, R = 0 with Δu weighting only, a hard
 # roll bound below a level of the scenario: float accepts plans whose later moves are
-# 1e-2 off double's (the kind of design issue 18 saw)
+# 1e-2 off double's (the kind of design a new user wrote)
 TWIN = """\
 prefix: twin
 sample_time: 0.02

@@ -130,8 +130,8 @@ def test_observer_poles_are_placed(model):
         assert np.abs(eig).max() < 1
 
 
-def test_measured_conditioning_matches_the_notes(model):
-    """cond(E): ~8.9e2 (inner) and ~2.5e6 (outer), as shared/notes/numerics.md measured."""
+def test_conditioning_of_the_paper_modes(model):
+    """cond(E): ~8.9e2 (inner) and ~2.5e6 (outer), as measured on the paper's data."""
     conds = [np.linalg.cond(mm.qp.E) for mm in model.modes]
     assert 8e2 < conds[0] < 1e3
     assert 2e6 < conds[1] < 3e6

@@ -1,4 +1,4 @@
-"""Issue 5: transfer-function matrix plants, the steady-state Kalman observer and
+"""Transfer-function matrix plants, the steady-state Kalman observer and
 offset-free tracking (disturbance models), end to end.
 
 examples/quadruple_tank.yaml has all three (a 2x2 TF matrix, realised with 4 states;

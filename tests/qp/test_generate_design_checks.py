@@ -1,4 +1,4 @@
-"""Issue 18, items 2-4, on a design of our own (tests/data/newuser/ship_heading.yaml, a
+"""What `rollmpc generate` checks, on a design of our own (tests/data/newuser/ship_heading.yaml, a
 ship's heading autopilot, not among examples/): what `rollmpc generate` says when the
 model has a part no input moves or no output sees, when the design is too large for its
 target, and when an output bound cannot be met from rest."""
@@ -138,7 +138,7 @@ PREDICTION = ("rollmpc: predicted on the target (float build): flash 65.5 of 128
               "cycles of a sample (an estimate; active bounds cost more)")
 FORCE = "; --force-size generates it anyway"
 TOO_LARGE = [
-    pytest.param({"horizon": 400},  # the issue's horizon: 12 s and 36 MB of files here
+    pytest.param({"horizon": 400},  # a user's horizon: 12 s and 36 MB of files here
                  "horizon: too large for the target: the float build needs about 1,638 KiB "
                  "of flash (1,602 KiB of data + 36 KiB of code; modes[0]: n = 400 "
                  "variables, m = 1600 rows), above target.flash_kib = 128" + FORCE,

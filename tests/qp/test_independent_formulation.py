@@ -3,7 +3,7 @@
 The other independent checks hand DAQP, quadprog and the extended-precision solver the
 E, F, L, c, W of ``qp/condense.py`` (the code that makes the C's data) and the preview of
 ``sim.scenario.preview`` (the one the C's inputs come from), so a bug in either is
-invisible to them (issue 15).  Here ``tests/independent_qp.py`` writes each mode's QP
+invisible to them.  Here ``tests/independent_qp.py`` writes each mode's QP
 from the cost's definition: its own prediction loop over A, B, C of the context JSON,
 its own preview r_{k+1..k+N} held past the end, the terminal weight P on y_N, the bounds,
 Δu terms and rows, soft slacks and move blocking read from the YAML, solved by DAQP.  The

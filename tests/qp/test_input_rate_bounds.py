@@ -1,4 +1,4 @@
-"""Issue 5, item 4 (the constraint half): Δu constraints, ``modes[].bounds.du_min/du_max``.
+"""Δu constraints (input-rate limits), ``modes[].bounds.du_min/du_max``.
 
 examples/thermal_zones_rate.yaml (the thermal plate with R = 0.01, no R_delta, and heater
 ramp limits |u_k - u_{k-1}| <= 0.3 kW, k = 0..N-1, u_{-1} = the previous command) and a

@@ -1,4 +1,4 @@
-"""Issue 5, item 4 (the weighting half): Δu weighting, ``modes[].weights.R_delta``.
+"""Δu weighting, ``modes[].weights.R_delta``.
 
 examples/thermal_zones.yaml (2x2 TF matrix, Kalman, input-disturbance model, R = 0, a
 full R_delta: 4 + 2 + 2 = 8 prediction states) and a variant of examples/three_drives.yaml

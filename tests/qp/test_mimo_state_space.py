@@ -1,4 +1,4 @@
-"""Issue 5, first slice: a plain linear MPC (one mode, no scheduler) of a MIMO state-space
+"""A plain linear MPC (one mode, no scheduler) of a MIMO state-space
 plant, end to end, on examples/chain_of_masses.yaml (12 states, 4 inputs, 6 outputs,
 N = 10: 40 variables, 200 rows).
 

@@ -1,4 +1,4 @@
-"""Issue 5, item 5: control horizon and move blocking (``control_horizon``, ``move_blocking``).
+"""Control horizon and move blocking (``control_horizon``, ``move_blocking``).
 
 examples/uav_roll_blocked.yaml (the paper's UAV, N = 100, 20 blocks), the chain of masses
 with ``control_horizon: 3`` (output rows active: the blocked prediction is exercised) and

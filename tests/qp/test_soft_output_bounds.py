@@ -1,4 +1,4 @@
-"""Issue 5, item 3: soft output bounds, ``modes[].bounds.soft`` (soft_constraints.py).
+"""Soft output bounds, ``modes[].bounds.soft`` (soft_constraints.py).
 
 examples/chain_soft.yaml: the chain of masses with |p_i| <= 0.4 m soft on both sides
 (l1 = l2 = 1000). Checked: the per-row penalties and the C's per-bound data; P_step bit

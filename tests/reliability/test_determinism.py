@@ -1,4 +1,4 @@
-"""Issue 4, item 9: determinism.
+"""Determinism: of the generated files, and of the C's outputs run to run and build to build.
 
 * Regeneration is byte-identical, also across interpreter processes with different hash
   seeds (no set/dict-order or id() leaks into the output), for the paper's config and a

@@ -1,4 +1,4 @@
-"""Issue 4, item 8: property-based fuzzing with hypothesis.
+"""Property-based fuzzing with hypothesis: random designs and random input streams.
 
 * Random valid controllers -- 1 or 2 modes (with a hysteresis scheduler), 1-2 inputs
   per mode, 1-2 outputs, random plants, weights, bounds, horizon, solver method, polish

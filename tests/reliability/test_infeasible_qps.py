@@ -1,4 +1,4 @@
-"""Issue 4, item 2: infeasible QPs.
+"""Infeasible QPs through the generated C: never OPTIMAL, safe outputs, no sticky state.
 
 Output bounds that no input sequence inside the input box can meet (a phase-1 LP shows a
 violation of at least 1e-3 max(1, |b|) on some output row), from states pushed far out.

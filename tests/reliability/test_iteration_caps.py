@@ -1,4 +1,4 @@
-"""Issue 4, item 4: iteration caps from 1 upward stop exactly at the cap, safely.
+"""Iteration caps from 1 upward stop exactly at the cap, safely.
 
 The cap (``solver.max_iterations``) is a compile-time constant, so every cap is its own
 build of the UAV controller (N = 20, small data).  The QP is a -20 deg step from rest,

@@ -1,4 +1,4 @@
-"""Issue 4, item 7: static analysis -- cppcheck with the MISRA C 2012 addon.
+"""Static analysis of the generated C: cppcheck with the MISRA C 2012 addon.
 
 Every cppcheck finding on the generated C must be covered by a reasoned deviation in
 tests/data/misra_deviations.txt (rule, files, kind, reason); cppcheck's own warnings

@@ -1,4 +1,4 @@
-"""Issue 4, item 3: bad run-time inputs, at the optimisation levels users build with.
+"""Non-finite run-time inputs, at the optimisation levels users build with.
 
 NaN, +Inf and -Inf in *every* element of every input of ``P_step`` (y, sched, each of
 the N reference values) and of ``P_solve_qp`` (each state and reference value), one at a

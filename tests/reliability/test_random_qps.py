@@ -1,4 +1,4 @@
-"""Issue 4, item 1: random feasible QPs through the generated C solver.
+"""Random feasible QPs through the generated C solver.
 
 Random controllers (rollmpc_codegen.verify.random_configs: generic plants, pure delays whose
 output rows copy input rows, twin outputs with dependent rows; n <= 100, up to 4n rows,
@@ -7,11 +7,11 @@ random states/previews of each are solved through ``P_solve_qp`` (cold, then war
 next sample).  The reference is DAQP's active set refined by a long-double KKT solve
 (rollmpc_codegen.qp.exact).
 
-Required (issue 4): OPTIMAL, and max|U - U*| / max(1, |U*|) <= 1e-8 in double for
+Required: OPTIMAL, and max|U - U*| / max(1, |U*|) <= 1e-8 in double for
 cond(E) <= 1e4, <= 1e-6 up to 1e7, and <= 1e-3 in float.
 
-The default suite runs a quick campaign: coverage of the issue's QP space, safe outputs
-(finite, inside the input bounds, documented status) for every QP, the issue's status and
+The default suite runs a quick campaign: coverage of that QP space, safe outputs
+(finite, inside the input bounds, documented status) for every QP, the required status and
 accuracy bounds in double, and the float figures.  Float meets 1e-3 only where the float
 rounding of the stored data allows it (rollmpc_codegen.verify.float_floor;
 docs/reliability.md, "Float"), so its ratchet is the figures measured on the 10,000 QPs
@@ -41,7 +41,7 @@ def quick(tmp_path_factory):
     return records, summarise_feasible(records)
 
 
-def test_quick_campaign_covers_the_issue_space(quick):
+def test_quick_campaign_covers_the_qp_space(quick):
     records, summary = quick
     assert summary["qps"] == QUICK_CONFIGS * QUICK_QPS
     for prec in ("double", "float"):
@@ -60,7 +60,7 @@ def test_quick_campaign_outputs_are_safe(quick):
     assert all(np.isfinite(r.error) for r in records if r.status == OPTIMAL)
 
 
-def test_quick_campaign_meets_the_issue_bounds_in_double(quick):
+def test_quick_campaign_meets_the_accuracy_bounds_in_double(quick):
     records, summary = quick
     double = [r for r in records if r.precision == "double"]
     assert double and failures_json(double) == [], summary["totals"]

@@ -1,4 +1,4 @@
-"""Issue 4, item 6: sanitizers, valgrind, stack usage.
+"""The generated C under sanitizers and valgrind, and its stack usage.
 
 * The host C test program of ``rollmpc testvectors`` (the ``make ctest`` suite: the whole
   scenario replayed bit for bit, plus QP solves) built with

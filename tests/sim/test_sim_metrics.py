@@ -24,7 +24,7 @@ def _config(tmp_path, name="roll45", precision="double", soft=False, **top):
     if soft:
         data["modes"][0]["bounds"]["soft"] = ROLL45_SOFT
         # the metric, not the real-time cap: with the default work budget this design has
-        # 705 TIME_LIMIT samples whose commands pass the soft bound by 15 deg (issue 19)
+        # 705 TIME_LIMIT samples whose commands pass the soft bound by 15 deg
         data["solver"] = dict(data.get("solver") or {}, work_budget=UNBOUNDED_WORK)
     path = tmp_path / f"{name}.yaml"
     path.write_text(yaml.safe_dump(data, sort_keys=False))
@@ -93,7 +93,7 @@ def test_simulate_reports_soft_excursions_apart(tmp_path):
 
 def test_simulate_warns_of_time_limited_samples(tmp_path):
     """The soft 45 deg design with the default work budget: samples stop at TIME_LIMIT,
-    and simulate says how many and what it means (issue 19); with no budget it is quiet."""
+    and simulate says how many and what it means; with no budget it is quiet."""
     path = _config(tmp_path, soft=True)
     data = yaml.safe_load(path.read_text())
     del data["solver"]  # the default budget: half of Ts at 168 MHz

@@ -1,4 +1,4 @@
-"""`rollmpc simulate` contract (issue 3): CSV columns and rows, JSON keys, the PNG, errors.
+"""`rollmpc simulate` contract: CSV columns and rows, JSON keys, the PNG, errors.
 
 The run is shortened with --steps (the 60 s scenario's first two reference steps and the
 first switches to the outer pair happen before k = 2200); timings are never asserted.

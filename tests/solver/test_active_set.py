@@ -5,7 +5,7 @@ default runs it only when the warm-started polish fails), so these QPs exercise 
 directly: the UAV's two modes (N = 20) from random states, feasible and infeasible.
 Checked: C == NumPy reference bit for bit (status, U, counters); OPTIMAL exactly when the
 extended-precision reference finds the QP feasible, INFEASIBLE otherwise; the error
-against that reference within the issue-4 bound of the mode's cond(E); no sweep ever runs.
+against that reference within the bound for the mode's cond(E) (reliability/test_random_qps.py); no sweep ever runs.
 """
 from __future__ import annotations
 

@@ -1,4 +1,4 @@
-"""Exactness and bounded work of the default solver on the paper's own QPs (issue 6).
+"""Exactness and bounded work of the default solver on the paper's own QPs.
 
 Every QP of the 6000-step scenario is replayed through the compiled C solver (warm starts
 carried over in order, as in the closed loop) and compared with an extended-precision KKT

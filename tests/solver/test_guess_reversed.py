@@ -1,4 +1,4 @@
-"""A reversed guess is given up from a sample of its multipliers (issue 19).
+"""A reversed guess is given up from a sample of its multipliers.
 
 After a reference step every multiplier of the shifted guess can be negative (the paper
 config's steps 941 and 3070: the saturation ends earlier than the guess's), and

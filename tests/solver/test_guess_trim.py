@@ -1,5 +1,5 @@
 """A reversed guess that only ran past the edge of its saturation is trimmed, not given up
-(issue 19; docs/solver.md, "The default method", step 4).
+(docs/solver.md, "The default method", step 4).
 
 Under the paper config's terminal weights (P = 1e6 and 1e9) every multiplier of a shifted
 guess whose saturated run lasts a few stages too long is negative: guess_reversed() gives

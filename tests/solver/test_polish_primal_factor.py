@@ -1,4 +1,4 @@
-"""The primal polish keeps its factor between corrections (issue 19), bit for bit.
+"""The primal polish keeps its factor between corrections, bit for bit.
 
 The C factors again only the rows of the primal factor from the first one that changed
 (templates/solver/polish_primal.c.j2). That is sound only because the row-oriented

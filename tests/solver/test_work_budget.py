@@ -1,4 +1,4 @@
-"""Issue 19: the dual factor kept by updates, and the hard work budget (TIME_LIMIT).
+"""The dual factor kept by updates, and the hard work budget (TIME_LIMIT).
 
 * The factor updates (templates/solver/factor_update.c.j2, polish_dual.c.j2) are run on
   their own, through a shim library around the generated solver: after every deletion,

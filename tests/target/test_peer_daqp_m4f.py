@@ -103,7 +103,7 @@ def test_daqp_on_target_agrees_with_host(daqp_on_target):
 def test_float_daqp_breaks_input_bounds_when_saturated(daqp_on_target):
     """With every input of the outer mode (cond(E) 2.5e6) at a bound, float DAQP's dual
     LDL' (condition ~ cond(E)) returns |u| beyond 15 while reporting optimal; the result
-    shows it (issue 19). A DAQP that fixes this fails here: update the docs, then this."""
+    shows it. A DAQP that fixes this fails here: update the docs, then this."""
     _, (result, _) = daqp_on_target
     outer = result["by_mode"]["outer"]
     assert outer["statuses"] == {"optimal": len(OUTER_SATURATED + OUTER)}

@@ -1,5 +1,5 @@
-"""rollmpc report on randomized flights (issue 19 item 3) and its verdict on the config's
-own sample time and ``target:`` section (issue 18 item 8): flights with distinct,
+"""rollmpc report on randomized flights and its verdict on the config's own sample time
+and ``target:`` section: flights with distinct,
 seeded references, replayed bit for bit and deterministic; the overall worst step named
 by flight and step; the plant mismatch within its stated fraction."""
 from __future__ import annotations
@@ -76,17 +76,41 @@ def test_flights_are_seeded_distinct_and_name_the_overall_worst(target_tools, sl
 
 
 def test_budget_uses_the_configs_sample_time_and_clock(target_tools, slow_uav, build_root):
-    """Ts = 20 ms at 84 MHz is 1.68 M cycles a sample; no flash or RAM limit is declared,
-    so there is no memory verdict."""
+    """The verdict is the worst step against the config's own Ts (20 ms) and clock (84 MHz),
+    not the paper's 10 ms at 168 MHz; the clock the report says it needs is where the worst
+    step starts to fit. No flash or RAM limit is declared: no memory verdict."""
+    from rollmpc_codegen.config import TargetConfig, load
+    from rollmpc_codegen.target.measure import budget_verdict
+
     rep = _report(slow_uav, build_root)
-    assert rep["budget"]["cpu_mhz"] == 84 and rep["budget"]["sample_time"] == 0.02
-    assert rep["budget"]["cycles_per_sample"] == 1_680_000
-    assert rep["cpu_mhz_needed"] == pytest.approx(rep["worst_step_cycles"] / 0.02 / 1e6,
-                                                  abs=0.01)
-    assert rep["budget"]["worst_load_percent"] == pytest.approx(
-        100 * rep["worst_step_cycles"] / 1_680_000, abs=0.05)
+    cfg, worst = load(slow_uav), rep["worst_step_cycles"]
+    assert rep["budget"] == budget_verdict(cfg, worst)
+    paper = dataclasses.replace(cfg, sample_time=0.01, target=TargetConfig(cpu_mhz=168.0))
+    assert rep["budget"] != budget_verdict(paper, worst)
+    def at(mhz):  # the config's sample time at another clock
+        return budget_verdict(dataclasses.replace(cfg, target=TargetConfig(cpu_mhz=mhz)), worst)
+
+    needed = rep["cpu_mhz_needed"]  # rounded to 0.01 MHz
+    assert at(needed + 0.01)["worst_fits"] and not at(needed - 0.01)["worst_fits"]
     assert rep["goals"] == {}
     assert rep["worst_flight"] is None and "flights" not in rep
+
+
+def test_the_verdict_follows_the_sample_time_and_the_clock():
+    """A step that fits in 20 ms at 84 MHz does not in 10 ms, nor at half the clock, where
+    it takes twice the share of the sample."""
+    from rollmpc_codegen.config import TargetConfig, load
+    from rollmpc_codegen.target.measure import budget_verdict
+
+    cfg = dataclasses.replace(load(UAV), sample_time=0.02, target=TargetConfig(cpu_mhz=84.0))
+    step = 1_000_000
+    fits = budget_verdict(cfg, step)
+    shorter = budget_verdict(dataclasses.replace(cfg, sample_time=0.01), step)
+    slower = budget_verdict(dataclasses.replace(cfg, target=TargetConfig(cpu_mhz=42.0)), step)
+    assert fits["worst_fits"] and not shorter["worst_fits"] and not slower["worst_fits"]
+    assert slower["worst_load_percent"] == shorter["worst_load_percent"] == pytest.approx(
+        2 * fits["worst_load_percent"], abs=0.1)
+    assert (fits["sample_time"], fits["cpu_mhz"]) == (0.02, 84.0)
 
 
 def test_the_paper_config_declares_its_memory_goals():
