@@ -92,6 +92,23 @@ def uav_double(build_root) -> Built:
     return Built(UAV, "double", build_root)
 
 
+@pytest.fixture(scope="session")
+def partial_run(build_root, tmp_path_factory):
+    """Design name (partial_runs.DESIGNS) -> (mismatches, statuses, calls) of its float
+    lockstep closed loop, run once a session."""
+    from partial_runs import DESIGNS, counted_lockstep
+
+    runs = {}
+
+    def run(name: str):
+        if name not in runs:
+            write, steps = DESIGNS[name]
+            built = Built(write(tmp_path_factory.mktemp(name)), "float", build_root)
+            runs[name] = counted_lockstep(built, steps)
+        return runs[name]
+    return run
+
+
 def edited_config(tmp_path: Path, base: Path, name: str, edit) -> Path:
     """The config ``base`` with ``edit(data)`` applied, written to tmp_path/<name>.yaml."""
     import yaml
