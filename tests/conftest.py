@@ -1,6 +1,7 @@
 """Shared fixtures: the paper's controller in both precisions, built once per session."""
 from __future__ import annotations
 
+import hashlib
 import os
 import shutil
 from pathlib import Path
@@ -54,9 +55,15 @@ def require_tool(name: str, install: str) -> str:
     return path
 
 
-@pytest.fixture(scope="session")
+@pytest.fixture(scope="session", autouse=True)
 def build_root(tmp_path_factory) -> Path:
-    return tmp_path_factory.mktemp("cbuild")
+    """The session's build cache, also the default root of every build the tests make in
+    process or through the CLI (its $XDG_CACHE_HOME): the user's own cache is never
+    written, and a tree built twice is compiled once (the cache is keyed by content)."""
+    from rollmpc_codegen.host.build_cache import private_root
+
+    os.environ["XDG_CACHE_HOME"] = str(tmp_path_factory.mktemp("cache"))
+    return private_root(None)
 
 
 class Built:
@@ -68,13 +75,25 @@ class Built:
 
         self.model, self.ctx = load_model(config, precision)
         self.build_root, self.extra = build_root, extra
+        self._library = (None, None)  # (the ctx it was built from, the library)
         self.c = self.fresh_c()
 
     def fresh_c(self):
-        """A second, independent controller instance from the same library."""
-        from rollmpc_codegen.host.build import build_host_controller
+        """A second, independent controller instance (its own P_ctrl) from the same library,
+        rendered and compiled once for the current ctx, as build_host_controller would."""
+        from rollmpc_codegen.codegen.render import render_sources
+        from rollmpc_codegen.host.build import HostController, compile_shared
+        from rollmpc_codegen.host.build_cache import private_root, source_dir
 
-        return build_host_controller(self.ctx, self.build_root, extra=self.extra)
+        built_for, lib = self._library
+        if built_for is not self.ctx:
+            root = private_root(self.build_root)
+            files = render_sources(self.ctx)
+            digest = hashlib.sha256("".join(files[k] for k in sorted(files)).encode())
+            src = source_dir(root, f"src-{self.ctx['prefix']}-{digest.hexdigest()[:16]}", files)
+            lib = compile_shared(self.ctx, src, root, extra=self.extra)
+            self._library = (self.ctx, lib)
+        return HostController.load(self.ctx, lib)
 
     def reference(self):
         from rollmpc_codegen.reference.controller import ControllerRef
@@ -266,14 +285,13 @@ def simulate_and_bench(config: Path, tmp_path: Path, *simulate_args: str):
     import json
 
     rc, out, err = cli(["simulate", str(config), "--quiet", *simulate_args, "--json",
-                        str(tmp_path / "s.json"), "--build-dir", str(tmp_path / "b")])
+                        str(tmp_path / "s.json")])
     assert rc == 0, err
     summary = json.loads((tmp_path / "s.json").read_text())
     pytest.importorskip("quadprog", reason="install with: pip install 'rollmpc-codegen[peers]'")
     pytest.importorskip("daqp", reason="install with: pip install 'rollmpc-codegen[peers]'")
     rc, _, err = cli(["bench", str(config), "--quiet", "--max-qps", "40", "--variants",
-                      "default,daqp", "--json", str(tmp_path / "b.json"),
-                      "--build-dir", str(tmp_path / "b")])
+                      "default,daqp", "--json", str(tmp_path / "b.json")])
     assert rc == 0, err
     rows = {r["key"]: r for r in json.loads((tmp_path / "b.json").read_text())["rows"]}
     return summary, out, rows

@@ -5,6 +5,7 @@ rendered files on disk.
 """
 from __future__ import annotations
 
+import functools
 import math
 from pathlib import Path
 
@@ -69,6 +70,9 @@ def _c_int_array(values, per_line: int = 16) -> str:
     return ",\n    ".join(lines)
 
 
+# one per precision: jinja compiles each template once per environment (about half of a
+# render's time); the loader still reloads a template whose file changed
+@functools.lru_cache(maxsize=None)
 def environment(precision: str) -> jinja2.Environment:
     env = jinja2.Environment(
         loader=jinja2.FileSystemLoader(str(templates_dir())),

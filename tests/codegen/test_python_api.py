@@ -217,7 +217,7 @@ def test_compile_and_step_closed_loop(tmp_path):
     """The host C through cffi: optimal, finite, within bounds, and tracking the reference
     on the generator's own discrete model."""
     design = one_mode(G_INNER, integrator=True, P=1e6)
-    ctrl = design.compile(build_dir=tmp_path / "build")
+    ctrl = design.compile()
     mode = ctrl.context["modes"][0]
     A, B, C = (np.array(mode[k]) for k in "ABC")
     x, y, saturated = np.zeros(A.shape[0]), np.zeros(1), 0

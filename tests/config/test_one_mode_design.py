@@ -55,8 +55,7 @@ def test_modes_still_need_declared_actuators(tmp_path):
 
 
 def test_simulate_lists_each_actuator_once(tmp_path):
-    code, out, err = cli(["simulate", str(_design(tmp_path, "", "once")), "--quiet",
-                          "--build-dir", str(tmp_path / "b")])
+    code, out, err = cli(["simulate", str(_design(tmp_path, "", "once")), "--quiet"])
     assert code == 0, err
     line = next(ln for ln in out.splitlines() if "max |u|" in ln)
     listed = line.split(": ", 1)[1].split(";")[0]

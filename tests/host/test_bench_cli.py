@@ -35,8 +35,7 @@ def bench_run(tmp_path_factory):
         rc = main(["bench", str(UAV), "--steps", "1200", "--max-qps", str(MAX_QPS),
                    "--variants", ",".join(VARIANTS), "--repeat", "2",
                    "--json", str(paths["json"]),
-                   "--plot", str(paths["png"]), "--build-dir",
-                   str(tmp_path_factory.mktemp("bench_build"))])
+                   "--plot", str(paths["png"])])
     return rc, stdout.getvalue(), stderr.getvalue(), paths
 
 
@@ -91,7 +90,7 @@ def test_infeasible_qps_do_not_stop_the_bench(tmp_path):
     floor = edited_config(tmp_path, UAV, "uav_floor", edit_bounds(y_min=5))
     code, text, err = cli(["bench", str(floor), "--variants", "default", "--repeat", "1",
                            "--quiet", "--json", str(out), "--steps", "60",
-                           "--include-transient", "--build-dir", str(tmp_path / "b")])
+                           "--include-transient"])
     assert code == 0, err
     rs = json.loads(out.read_text())["reduced_set_check"]
     assert rs["infeasible_qps"] > 0
@@ -141,7 +140,7 @@ def test_default_rows_and_paper_flag(extra, rows, tmp_path):
         pytest.importorskip(module, reason="install with: pip install 'rollmpc-codegen[peers]'")
     out = tmp_path / "bench.json"
     rc, stdout, err = cli(["bench", str(UAV), "--quiet", "--steps", "40", "--max-qps", "3",
-                           "--json", str(out), "--build-dir", str(tmp_path / "build"), *extra])
+                           "--json", str(out), *extra])
     assert rc == 0, err
     assert [r["key"] for r in json.loads(out.read_text())["rows"]] == rows
     assert "Hildreth (cold)" in stdout if "--paper" in extra else "Hildreth" not in stdout

@@ -65,8 +65,7 @@ def _generate(tmp_path, capsys, text: str, *extra: str):
     cfg = tmp_path / "design.yaml"
     cfg.write_text(text)
     out = tmp_path / "out"
-    code = main(["generate", str(cfg), "--precision", "float", "-o", str(out),
-                 "--build-dir", str(tmp_path / "build"), *extra])
+    code = main(["generate", str(cfg), "--precision", "float", "-o", str(out), *extra])
     return code, out, capsys.readouterr()
 
 
@@ -122,8 +121,8 @@ def test_floor_build_is_the_stored_data_floor(tmp_path):
                    + f"solver: {{work_budget: {UNBOUNDED_WORK}}}\n")
     model, _ = load_model(cfg, "float")
     double_model, double_ctx = load_model_from_config(double_twin(model.config))
-    floor_c = build_host_controller(floor_context(double_model, model), tmp_path / "b")
-    double_c = build_host_controller(double_ctx, tmp_path / "b")
+    floor_c = build_host_controller(floor_context(double_model, model))
+    double_c = build_host_controller(double_ctx)
     x = np.array([30.0, -5.0, 2.0, 1.0, 0.5, -0.5])  # far beyond the 35 deg roll bound
     r = np.tile([45.0, 0.0], 40)
     status, U_floor, _ = floor_c.solve_qp(0, x, r)
@@ -141,8 +140,8 @@ def test_check_float_library_call(tmp_path):
     cfg = tmp_path / "roll.yaml"
     cfg.write_text(ROLL)
     model, ctx = load_model(cfg, "float")
-    a = check_float(model, ctx, build_dir=tmp_path / "b", scenario_qps=10, perturbed_qps=2)
-    b = check_float(model, ctx, build_dir=tmp_path / "b", scenario_qps=10, perturbed_qps=2)
+    a = check_float(model, ctx, scenario_qps=10, perturbed_qps=2)
+    b = check_float(model, ctx, scenario_qps=10, perturbed_qps=2)
     assert (a.qps, a.perturbed) == (10, 2)
     assert sum(a.float_statuses.values()) == 12 and not a.unsafe and a.warning() is None
     assert (a.error, a.first_move_error, a.floor) == (b.error, b.first_move_error, b.floor)

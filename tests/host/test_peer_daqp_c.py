@@ -109,7 +109,7 @@ def test_a_missing_sdist_is_one_line_naming_the_download(tmp_path, capsys, monke
                         lambda version, cache_dir=None: real(version, tmp_path / "sdist"))
     monkeypatch.delenv("ROLLMPC_DEBUG", raising=False)
     code = main(["bench", str(CHAIN), "--variants", "default,daqp_c", "--steps", "40",
-                 "--quiet", "--build-dir", str(tmp_path / "b")])
+                 "--quiet"])
     err = capsys.readouterr().err
     assert code == 1 and err.count("\n") == 1, err
     assert "DAQP's C comes from its sdist" in err and "Could not find a version" in err

@@ -157,7 +157,7 @@ def _cli(args: list[str]) -> tuple[int, str, str]:
 
 def test_simulate_cli_on_chain(tmp_path):
     rc, out, err = _cli(["simulate", str(CHAIN), "--quiet", "--json", str(tmp_path / "s.json"),
-                         "--csv", str(tmp_path / "s.csv"), "--build-dir", str(tmp_path / "b")])
+                         "--csv", str(tmp_path / "s.csv")])
     assert rc == 0, err
     summary = json.loads((tmp_path / "s.json").read_text())
     assert summary["samples"] == 200 and summary["switches"] == 0
@@ -171,8 +171,7 @@ def test_bench_cli_on_chain(tmp_path):
     pytest.importorskip("quadprog", reason="install with: pip install 'rollmpc-codegen[peers]'")
     pytest.importorskip("daqp", reason="install with: pip install 'rollmpc-codegen[peers]'")
     rc, out, err = _cli(["bench", str(CHAIN), "--quiet", "--max-qps", "40",
-                         "--variants", "default,daqp", "--json", str(tmp_path / "b.json"),
-                         "--build-dir", str(tmp_path / "b")])
+                         "--variants", "default,daqp", "--json", str(tmp_path / "b.json")])
     assert rc == 0, err
     result = json.loads((tmp_path / "b.json").read_text())
     assert result["qps"] == 40 and result["qps_by_mode"] == {"chain": 40}

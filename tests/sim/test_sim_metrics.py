@@ -79,7 +79,7 @@ def test_simulate_reports_soft_excursions_apart(tmp_path):
     the bound by a few thousandths of a degree, reported as soft-bound excursions; the
     old count (any y beyond a bound, no tolerance) called 291 samples violations."""
     code, out, err = cli(["simulate", str(_config(tmp_path, soft=True)), "--quiet", "--json",
-                          str(tmp_path / "s.json"), "--build-dir", str(tmp_path / "b")])
+                          str(tmp_path / "s.json")])
     assert code == 0, err
     s = json.loads((tmp_path / "s.json").read_text())
     assert s["constraint_violations"]["total"] == 0 and s["violation_tolerance"] == 1e-9
@@ -102,7 +102,7 @@ def test_simulate_warns_of_time_limited_samples(tmp_path):
     work = {}
     for config, expect in ((limited, True), (path, False)):
         code, out, err = cli(["simulate", str(config), "--quiet", "--json",
-                              str(tmp_path / "s.json"), "--build-dir", str(tmp_path / "b")])
+                              str(tmp_path / "s.json")])
         assert code == 0, err
         n = json.loads((tmp_path / "s.json").read_text())["status_counts"].get("time_limit", 0)
         assert (n > 0) == expect
@@ -148,7 +148,7 @@ def test_simulate_warns_about_short_segments(tmp_path):
     data = yaml.safe_load(path.read_text())
     del data["modes"][0]["bounds"]["y_min"], data["modes"][0]["bounds"]["y_max"]
     path.write_text(yaml.safe_dump(data))
-    code, out, err = cli(["simulate", str(path), "--quiet", "--build-dir", str(tmp_path / "b")])
+    code, out, err = cli(["simulate", str(path), "--quiet"])
     assert code == 0, err
     settled = next(ln for ln in out.splitlines() if "settled |y - r|" in ln)
     values = settled.split(": ")[1].split(" (max ")[0].split(", ")

@@ -40,7 +40,6 @@ def run_cli(argv: list[str], capsys) -> tuple[int, str, str]:
 def sim_run(tmp_path_factory):
     pytest.importorskip("matplotlib", reason="install with: pip install 'rollmpc-codegen[plot]'")
     out = tmp_path_factory.mktemp("simulate")
-    build = tmp_path_factory.mktemp("simulate_build")
     paths = {k: out / f"uav.{k}" for k in ("csv", "json", "png")}
     import contextlib
     import io
@@ -49,7 +48,7 @@ def sim_run(tmp_path_factory):
     with contextlib.redirect_stdout(stdout), contextlib.redirect_stderr(stderr):
         rc = main(["simulate", str(UAV), "--steps", str(STEPS), "--csv", str(paths["csv"]),
                    "--json", str(paths["json"]), "--plot", str(paths["png"]),
-                   "--baseline", "lqr", "--build-dir", str(build)])
+                   "--baseline", "lqr"])
     return rc, stdout.getvalue(), stderr.getvalue(), paths
 
 
@@ -109,8 +108,7 @@ def test_plot_is_a_png(sim_run):
 def test_float_precision_runs(tmp_path, capsys):
     out = tmp_path / "f.json"
     rc, stdout, err = run_cli(["simulate", str(UAV), "--precision", "float", "--steps", "150",
-                               "--json", str(out), "--quiet", "--build-dir",
-                               str(tmp_path / "build")], capsys)
+                               "--json", str(out), "--quiet"], capsys)
     assert rc == 0, err
     assert err == ""  # --quiet: no progress bar
     s = json.loads(out.read_text())

@@ -23,19 +23,17 @@ def _flights(tmp_path, capsys, count, seed, name):
     path = tmp_path / f"{name}.json"
     rc, out, err = run_cli(["simulate", str(QUAD), "--precision", "float", "--flights",
                             str(count), "--seed", str(seed), "--steps", str(STEPS), "--quiet",
-                            "--json", str(path), "--build-dir", str(tmp_path / "build")],
+                            "--json", str(path)],
                            capsys)
     assert rc == 0, err
     return json.loads(path.read_text()), out
 
 
 @pytest.fixture(scope="module")
-def three_flights(tmp_path_factory):
+def three_flights():
     from rollmpc_codegen.sim.flights_run import run_flights
 
-    tmp = tmp_path_factory.mktemp("flights")
-    return run_flights(QUAD, flights=3, seed=7, precision="float", steps=STEPS,
-                       build_dir=tmp / "build").summary
+    return run_flights(QUAD, flights=3, seed=7, precision="float", steps=STEPS).summary
 
 
 def test_totals_add_up_the_flights(three_flights):

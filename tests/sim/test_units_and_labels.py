@@ -81,8 +81,7 @@ def test_plot_labels_use_names_and_units(tmp_path, monkeypatch, config, texts, a
 
 
 def test_summary_without_units_has_no_deg(tmp_path):
-    rc, out, err = cli(["simulate", str(CHAIN), "--quiet", "--steps", "5",
-                         "--build-dir", str(tmp_path / "b")])
+    rc, out, err = cli(["simulate", str(CHAIN), "--quiet", "--steps", "5"])
     assert rc == 0, err
     assert "settled |y - r| per segment: " in out and "max |u|: " in out
     assert "deg" not in out
