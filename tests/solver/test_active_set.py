@@ -102,29 +102,3 @@ def test_infeasible_sample_leaves_no_warm_start(warm_reader):
         assert [warm_info[k] for k in keys] == [cold.info()[k] for k in keys]
         pairs += 1
     assert pairs >= 6, pairs
-
-
-def test_a_reversed_guess_is_judged_at_its_first_point():
-    """uav_roll's step 3071 (float, reference): after a reference step the shifted guess
-    (92 bound inputs) has every multiplier negative. It is judged at its first point (1
-    correction), trimmed to the rows that carried the larger multipliers (trim_guess()),
-    and that polish takes 3: 4 in all. Given up there for the violated rows' polish it took
-    7, and growing the guess to 100 rows before testing it took 10."""
-    from pathlib import Path
-
-    from rollmpc_codegen.pipeline import load_model
-    from rollmpc_codegen.reference.controller import ControllerRef
-    from rollmpc_codegen.sim.simulate import run_closed_loop
-
-    model, ctx = load_model(Path(__file__).parents[2] / "examples" / "uav_roll.yaml", "float")
-    ref = ControllerRef(ctx, [m.data for m in model.modes])
-    seen = []
-
-    class Record:
-        def step(self, *args):
-            out = ref.step(*args)
-            seen.append(dict(ref.last))
-            return out
-
-    run_closed_loop(model.config, Record(), steps=3072)
-    assert seen[3071]["status"] == OPTIMAL and seen[3071]["polish_iterations"] == 4

@@ -42,16 +42,30 @@ def test_every_scenario_qp_is_optimal_without_sweeps(double_replay):
     assert np.count_nonzero(polish) >= 700  # the constrained QPs really went through it
 
 
-def test_double_matches_extended_precision_kkt_to_1e_8(double_replay):
-    built, out = double_replay
+def _worst_kkt_error(built, qps) -> float:
     worst = 0.0
-    checked = 0
-    for mode, x, r, status, U, *_ in out:
+    for mode, x, r, status, U, *_ in qps:
         exact = solve_exact(qp_data(built.model.modes[mode].qp, x, r))
         assert exact.status == "optimal"
         worst = max(worst, float(np.abs(U - exact.U).max()))
-        checked += 1
-    assert checked == 6000
+    return worst
+
+
+def test_double_matches_extended_precision_kkt_to_1e_8(double_replay):
+    """Every QP the polish corrected (bounds active) and every eighth of the others; all
+    6000 in the slow test below."""
+    built, out = double_replay
+    picked = [o for k, o in enumerate(out) if o[6] > 0 or k % 8 == 0]
+    assert len(picked) >= 1400
+    worst = _worst_kkt_error(built, picked)
+    assert worst <= 1e-8, worst
+
+
+@pytest.mark.slow
+def test_every_scenario_qp_matches_extended_precision_kkt_to_1e_8(double_replay):
+    built, out = double_replay
+    assert len(out) == 6000
+    worst = _worst_kkt_error(built, out)
     assert worst <= 1e-8, worst
 
 

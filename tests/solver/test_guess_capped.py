@@ -24,36 +24,29 @@ def test_capped_guess_is_not_repeated(tmp_path, build_root):
     path = tmp_path / "roll45_soft.yaml"
     path.write_text(yaml.safe_dump(data, sort_keys=False))
     built = Built(path, "float", build_root)
-    bad, seen = lockstep_closed_loop(built, STEPS)
-    assert bad == [] and len(seen) == STEPS
+    ref = built.reference()
+    calls = {"seed": 0, "capped": 0, "seeds_in_capped": []}
+    solver = ref.solvers[0]
+    seed, polish, step = solver.seed_shifted, solver.polish, ref.step
 
-    calls = {"seed": 0, "capped": 0, "capped_steps": [], "seeds_in_capped": []}
-    seed, polish = solver_mod.SolverRef.seed_shifted, solver_mod.SolverRef.polish
-
-    def counting_seed(self, lam, *truncate):
+    def counting_seed(lam, *truncate):
         calls["seed"] += 1
-        return seed(self, lam, *truncate)
+        return seed(lam, *truncate)
 
-    def counting_polish(self, *args, **kwargs):
-        out = polish(self, *args, **kwargs)
+    def counting_polish(*args, **kwargs):
+        out = polish(*args, **kwargs)
         calls["capped"] += out[0] == solver_mod.GUESS_CAPPED
         return out
 
-    ref = built.reference()
-    solver = ref.solvers[0]
-    solver.seed_shifted = counting_seed.__get__(solver)
-    solver.polish = counting_polish.__get__(solver)
+    def counting_step(y, s, r):
+        before = (calls["seed"], calls["capped"])
+        out = step(y, s, r)
+        if calls["capped"] > before[1]:
+            calls["seeds_in_capped"].append(calls["seed"] - before[0])
+        return out
 
-    class Counting:
-        def step(self, y, s, r):
-            before = (calls["seed"], calls["capped"])
-            out = ref.step(y, s, r)
-            if calls["capped"] > before[1]:
-                calls["seeds_in_capped"].append(calls["seed"] - before[0])
-            return out
-
-    from rollmpc_codegen.sim.simulate import run_closed_loop
-
-    run_closed_loop(built.model.config, Counting(), steps=STEPS)
+    solver.seed_shifted, solver.polish, ref.step = counting_seed, counting_polish, counting_step
+    bad, seen = lockstep_closed_loop(built, STEPS, ref)
+    assert bad == [] and len(seen) == STEPS
     assert calls["capped"] > 20  # measured 148 in the first 1000 samples
     assert set(calls["seeds_in_capped"]) == {1}  # the guess is seeded once, never again

@@ -19,7 +19,8 @@ from rollmpc_codegen.sim.simulate import run_closed_loop
 
 @pytest.fixture(scope="module")
 def reversals(uav_double):
-    """Every guess_reversed() call of the paper's nominal scenario (reference, double):
+    """Every guess_reversed() call of the paper's nominal scenario up to its reversals at
+    steps 941 and 3070 (reference, double):
     (rows, sampled verdict, given_up() on all multipliers, work the sample charged, the
     mode's data)."""
     calls = []
@@ -36,7 +37,7 @@ def reversals(uav_double):
     GuessMixin.guess_reversed = recording
     try:
         ref = uav_double.reference()
-        run_closed_loop(uav_double.model.config, ref)
+        run_closed_loop(uav_double.model.config, ref, steps=3072)
     finally:
         GuessMixin.guess_reversed = sample
     return uav_double, calls

@@ -13,6 +13,7 @@ bit for bit, work included.
 from __future__ import annotations
 
 import numpy as np
+import pytest
 
 from conftest import UAV, Built, lockstep_closed_loop
 
@@ -21,28 +22,37 @@ STEPS = 3072  # steps 941 and 3070 are trimmed
 UNTRIMMED = {941: 39_217, 3070: 40_808}
 
 
-def test_overrun_guess_is_trimmed_bit_for_bit(build_root):
-    from rollmpc_codegen.status import OPTIMAL
-
+@pytest.fixture(scope="module")
+def trimmed_run(build_root):
+    """The scenario's first STEPS samples (float) in lockstep, every trim_guess() call
+    recorded as (step, guess, trimmed rows or None), and the reference's info of each
+    step."""
     built = Built(UAV, "float", build_root)
     ref = built.reference()
-    step, trims = [0], []  # (step, guess, trimmed rows or None)
+    trims, infos = [], []  # infos[k]: the reference's P_last_info of step k
     stepping = ref.step
 
     def counting(y, s, r):
         out = stepping(y, s, r)
-        step[0] += 1
+        infos.append(dict(ref.last))
         return out
 
     ref.step = counting
     for solver in ref.solvers:
         def recording(W, lam, K, trim=solver.trim_guess):
             out = trim(W, lam, K)
-            trims.append((step[0], W.copy(), None if out is None else out.copy()))
+            trims.append((len(infos), W.copy(), None if out is None else out.copy()))
             return out
         solver.trim_guess = recording
 
     bad, seen = lockstep_closed_loop(built, STEPS, ref)
+    return bad, seen, trims, infos
+
+
+def test_overrun_guess_is_trimmed_bit_for_bit(trimmed_run):
+    from rollmpc_codegen.status import OPTIMAL
+
+    bad, seen, trims, _ = trimmed_run
     assert bad == [] and len(seen) == STEPS
 
     trimmed = {k: (W, T) for k, W, T in trims if T is not None}
@@ -52,3 +62,15 @@ def test_overrun_guess_is_trimmed_bit_for_bit(build_root):
     for k, before in UNTRIMMED.items():
         status, work = seen[k]
         assert status == OPTIMAL and work < 0.65 * before, (k, status, work)
+
+
+def test_a_reversed_guess_is_judged_at_its_first_point(trimmed_run):
+    """uav_roll's step 3071 (float, reference): after a reference step the shifted guess
+    (92 bound inputs) has every multiplier negative. It is judged at its first point (1
+    correction), trimmed to the rows that carried the larger multipliers (trim_guess()),
+    and that polish takes 3: 4 in all. Given up there for the violated rows' polish it took
+    7, and growing the guess to 100 rows before testing it took 10."""
+    from rollmpc_codegen.status import OPTIMAL
+
+    *_, infos = trimmed_run
+    assert infos[3071]["status"] == OPTIMAL and infos[3071]["polish_iterations"] == 4
