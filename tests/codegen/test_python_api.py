@@ -107,8 +107,8 @@ def test_api_generates_the_committed_files(tmp_path, design, committed, precisio
 
 
 def test_readme_command_reproduces_the_committed_tree(tmp_path):
-    """Without --precision (the precision from the file) the README's
-    command gives the committed tree, hash lines included."""
+    """Change detector (a snapshot of generated/): without --precision (the precision from
+    the file) the README's command gives the committed tree, hash lines included."""
     from rollmpc_codegen.cli.main import main
 
     assert main(["generate", str(UAV), "-o", str(tmp_path / "uav")]) == 0

@@ -197,8 +197,8 @@ def test_cli_error_is_one_line(tmp_path):
 
 
 def test_uav_matrices_unchanged_by_the_new_defaults():
-    """No new key in examples/uav_roll.yaml: the plant, observer and Kx the committed
-    generated/uav_roll was rendered from, bit for bit."""
+    """Change detector (against the committed generated/uav_roll): with no new key in
+    examples/uav_roll.yaml, the plant, observer and Kx it was rendered from, bit for bit."""
     committed = json.loads((ROOT / "generated" / "uav_roll" / "rollmpc_context.json").read_text())
     model, ctx = load_model(UAV)
     for mm, new, old in zip(model.modes, ctx["modes"], committed["modes"]):
