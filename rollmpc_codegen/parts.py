@@ -86,7 +86,7 @@ class Part:
 # PRIMAL_CALL_UNITS brings them to <= 19.8 (3313d1b). The code: 29,804 to 33,552 B over the
 # examples with the four-row back substitution and correct()'s column pairs (29,016 to
 # 32,704 at 57967e4; docs/target.md "Before generation"); measure again when the templates
-# grow (tests/test_code_allowance.py).
+# grow (tests/target/test_code_flash_allowance.py).
 CORTEX_M4F = Core(
     name="cortex-m4f", label="Cortex-M4F (FPv4-SP)", short="m4f",
     cflags=("-mcpu=cortex-m4", "-mthumb", "-mfpu=fpv4-sp-d16", "-mfloat-abi=hard"),
@@ -99,7 +99,7 @@ CORTEX_M4F = Core(
 # 9.58, thermal_zones 8.99, quad_attitude 8.34) and 16.23 in double (fw_lateral step 380;
 # c172_roll 15.99, quad_attitude 13.41, thermal_zones 12.64) on every counted step, with
 # 4 % of margin (docs/target.md "Parts"). Code: 30,216 to 33,748 B in float, 28,856 to
-# 32,060 in double (tests/test_code_allowance.py).
+# 32,060 in double (tests/target/test_code_flash_allowance.py).
 CORTEX_M7 = Core(
     name="cortex-m7", label="Cortex-M7 (FPv5-D16)", short="m7",
     cflags=("-mcpu=cortex-m7", "-mthumb", "-mfpu=fpv5-d16", "-mfloat-abi=hard"),

@@ -5,7 +5,7 @@ what the command holds after it and whether that command is the optimal plan's. 
 these, :mod:`.codegen.context` passes the list on to the templates, which render the C enum
 and the ``P_STATUS_PLAN_USABLE()`` test (``api.h.j2``) and the message table
 (``controller.c.j2``).  The NumPy reference returns the same codes.  The README's status
-table repeats the texts, and tests/test_status.py keeps it in step.
+table repeats the texts, and tests/controller/test_status_codes.py keeps it in step.
 """
 from __future__ import annotations
 

@@ -1,6 +1,7 @@
 """Shared fixtures: the paper's controller in both precisions, built once per session."""
 from __future__ import annotations
 
+import hashlib
 import os
 import shutil
 from pathlib import Path
@@ -15,6 +16,22 @@ import rollmpc_codegen  # noqa: E402,F401  pins OpenBLAS's kernels before NumPy 
 
 ROOT = Path(__file__).resolve().parents[1]
 UAV = ROOT / "examples" / "uav_roll.yaml"
+
+# a design of our own (not among examples/): the UAV's inner loop alone, roll kept within
+# 45 deg; its soft form (ROLL45_SOFT on both bounds) meets the polish's capped guesses
+ROLL45 = {
+    "prefix": "roll45", "sample_time": 0.01, "horizon": 60, "outputs": ["roll"],
+    "actuators": ["ail"],
+    "modes": [{"name": "only",
+               "plant": {"transfer_function": {"num": [-74.15, 8892],
+                                               "den": [1, 59.11, 1599, 7936]},
+                         "integrator": True},
+               "weights": {"Q": 10, "R": 1, "P": 1000},
+               "bounds": {"u_min": -15, "u_max": 15, "y_min": -45, "y_max": 45}}],
+    "units": {"outputs": "deg", "actuators": "deg"},
+    "simulation": {"reference": {"segment": 6.0, "levels": [0, 60, 0]}},
+}
+ROLL45_SOFT = {"y_max": {"l1": 1000, "l2": 100}, "y_min": {"l1": 1000, "l2": 100}}
 
 
 def pytest_addoption(parser):
@@ -38,9 +55,15 @@ def require_tool(name: str, install: str) -> str:
     return path
 
 
-@pytest.fixture(scope="session")
+@pytest.fixture(scope="session", autouse=True)
 def build_root(tmp_path_factory) -> Path:
-    return tmp_path_factory.mktemp("cbuild")
+    """The session's build cache, also the default root of every build the tests make in
+    process or through the CLI (its $XDG_CACHE_HOME): the user's own cache is never
+    written, and a tree built twice is compiled once (the cache is keyed by content)."""
+    from rollmpc_codegen.host.build_cache import private_root
+
+    os.environ["XDG_CACHE_HOME"] = str(tmp_path_factory.mktemp("cache"))
+    return private_root(None)
 
 
 class Built:
@@ -52,13 +75,25 @@ class Built:
 
         self.model, self.ctx = load_model(config, precision)
         self.build_root, self.extra = build_root, extra
+        self._library = (None, None)  # (the ctx it was built from, the library)
         self.c = self.fresh_c()
 
     def fresh_c(self):
-        """A second, independent controller instance from the same library."""
-        from rollmpc_codegen.host.build import build_host_controller
+        """A second, independent controller instance (its own P_ctrl) from the same library,
+        rendered and compiled once for the current ctx, as build_host_controller would."""
+        from rollmpc_codegen.codegen.render import render_sources
+        from rollmpc_codegen.host.build import HostController, compile_shared
+        from rollmpc_codegen.host.build_cache import private_root, source_dir
 
-        return build_host_controller(self.ctx, self.build_root, extra=self.extra)
+        built_for, lib = self._library
+        if built_for is not self.ctx:
+            root = private_root(self.build_root)
+            files = render_sources(self.ctx)
+            digest = hashlib.sha256("".join(files[k] for k in sorted(files)).encode())
+            src = source_dir(root, f"src-{self.ctx['prefix']}-{digest.hexdigest()[:16]}", files)
+            lib = compile_shared(self.ctx, src, root, extra=self.extra)
+            self._library = (self.ctx, lib)
+        return HostController.load(self.ctx, lib)
 
     def reference(self):
         from rollmpc_codegen.reference.controller import ControllerRef
@@ -74,6 +109,23 @@ def uav(request, build_root) -> Built:
 @pytest.fixture(scope="session")
 def uav_double(build_root) -> Built:
     return Built(UAV, "double", build_root)
+
+
+@pytest.fixture(scope="session")
+def partial_run(build_root, tmp_path_factory):
+    """Design name (partial_runs.DESIGNS) -> (mismatches, statuses, calls) of its float
+    lockstep closed loop, run once a session."""
+    from partial_runs import DESIGNS, counted_lockstep
+
+    runs = {}
+
+    def run(name: str):
+        if name not in runs:
+            write, steps = DESIGNS[name]
+            built = Built(write(tmp_path_factory.mktemp(name)), "float", build_root)
+            runs[name] = counted_lockstep(built, steps)
+        return runs[name]
+    return run
 
 
 def edited_config(tmp_path: Path, base: Path, name: str, edit) -> Path:
@@ -233,14 +285,13 @@ def simulate_and_bench(config: Path, tmp_path: Path, *simulate_args: str):
     import json
 
     rc, out, err = cli(["simulate", str(config), "--quiet", *simulate_args, "--json",
-                        str(tmp_path / "s.json"), "--build-dir", str(tmp_path / "b")])
+                        str(tmp_path / "s.json")])
     assert rc == 0, err
     summary = json.loads((tmp_path / "s.json").read_text())
     pytest.importorskip("quadprog", reason="install with: pip install 'rollmpc-codegen[peers]'")
     pytest.importorskip("daqp", reason="install with: pip install 'rollmpc-codegen[peers]'")
     rc, _, err = cli(["bench", str(config), "--quiet", "--max-qps", "40", "--variants",
-                      "default,daqp", "--json", str(tmp_path / "b.json"),
-                      "--build-dir", str(tmp_path / "b")])
+                      "default,daqp", "--json", str(tmp_path / "b.json")])
     assert rc == 0, err
     rows = {r["key"]: r for r in json.loads((tmp_path / "b.json").read_text())["rows"]}
     return summary, out, rows

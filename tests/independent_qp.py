@@ -1,5 +1,5 @@
 """An independent formulation of each example's MPC problem, for
-``tests/test_independent_formulation.py``.
+``tests/qp/test_independent_formulation.py``.
 
 Nothing here comes from the generator's QP stage (``qp/condense.py``: Phi, Gamma, E, F, the
 rows L, W, c), from ``sim.scenario.preview`` or from the NumPy mirror of the C.  The QP

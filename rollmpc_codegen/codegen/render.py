@@ -121,6 +121,9 @@ def package_facts() -> dict:
                 "GUESS_SAMPLE_MIN": GUESS_SAMPLE_MIN, "ADD_BATCH": ADD_BATCH}}
 
 
+# one per precision: jinja compiles each template once per environment (about half of a
+# render's time); the loader still reloads a template whose file changed
+@functools.lru_cache(maxsize=None)
 def environment(precision: str) -> jinja2.Environment:
     env = jinja2.Environment(
         loader=jinja2.FileSystemLoader(str(templates_dir())),

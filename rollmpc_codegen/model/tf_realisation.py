@@ -18,7 +18,7 @@ so the matrix form of ``modes[].plant.transfer_function`` is realised here:
    a model without hidden modes; a pole that every element of its row and column cancels
    is removed too (it is not part of the input-output map).
 
-The realisation's frequency response equals the matrix (tests/test_features_plant_observer.py).
+The realisation's frequency response equals the matrix (tests/model/test_tf_matrix_kalman_disturbance.py).
 """
 from __future__ import annotations
 

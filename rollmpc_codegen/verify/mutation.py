@@ -8,7 +8,7 @@ temporary directory (without .git, build/ and caches).  First the union of every
 mutant's test selection runs on the unchanged copy, which must pass.  Then, for each
 mutant, its text is replaced, its selection runs with the copy first on PYTHONPATH, and
 the original file is restored.  A mutant is *caught behaviourally* when a test other
-than ``tests/test_generated.py`` (the byte comparison with generated/) fails; the run
+than ``tests/codegen/test_generated_snapshot.py`` (the byte comparison with generated/) fails; the run
 fails (exit 1) unless every mutant is.  Prints a markdown table; ``--json`` keeps the
 failing test ids of every mutant.
 """
@@ -30,7 +30,7 @@ from .mutants import MUTANTS, Mutant
 ROOT = Path(__file__).resolve().parents[2]
 SKIP = shutil.ignore_patterns(".git", "build", ".venv", "__pycache__", ".pytest_cache",
                               "*.egg-info", ".hypothesis")
-GENERATED_TEST = "tests/test_generated.py"
+GENERATED_TEST = "tests/codegen/test_generated_snapshot.py"
 
 
 def copy_repository(dest: Path) -> Path:

@@ -80,7 +80,7 @@ def test_the_uav_without_roll_bounds_and_a_zero_reference_takes_the_reach():
 @pytest.mark.parametrize("path", EXAMPLES, ids=[p.stem for p in EXAMPLES])
 def test_no_example_takes_the_new_path(path):
     """Their limits come from the config as before, so their generated trees are
-    unchanged (tests/test_generated.py)."""
+    unchanged (tests/codegen/test_generated_snapshot.py)."""
     for mode in load(path).modes:
         assert not np.isnan(mode.innovation_limit).any()
 
