@@ -102,7 +102,7 @@ def template_vars(ctx: dict) -> dict:
     """What a template renders: the context (rendering_context()) and the work formulas
     of the sizes its P_mode_data has."""
     full = rendering_context(ctx)
-    absent = frozenset(s.name for s in MODE_SIZES if s.feature and not full[s.feature])
+    absent = frozenset(s.name for s in MODE_SIZES if s.feature and not full.get(s.feature))
     return full | {"work_formulas": work_formulas(absent)}
 
 

@@ -119,7 +119,7 @@ def test_a_prefix_that_shadows_a_system_header_is_refused(prefix):
 def test_the_reserved_list_is_the_standard_and_the_common_headers():
     assert set(C_STANDARD + COMMON_SYSTEM) <= set(RESERVED_PREFIXES)
     assert len(set(RESERVED_PREFIXES)) == len(RESERVED_PREFIXES)
-    for fine in ("rollmpc", "math_ctrl", "mathx", "timer", "uav_roll"):  # still allowed
+    for fine in ("rollmpc", "math_ctrl", "mathx", "timing", "uav_roll"):  # still allowed
         assert parse(dict(BASE, prefix=fine)).prefix == fine
 
 
@@ -320,7 +320,7 @@ SIZES = [
                  "dense N x N matrices; at most 536,870,912 supported", id="condensing"),
     pytest.param(both(set_("horizon", 32_767), set_("control_horizon", 1), _no_output_bounds),
                  "horizon: too long: modes[0] would have 32768 row quantities (n + N ny, plus "
-                 "n with Δu bounds); at most 32767 supported", id="row-quantities"),
+                 "n with Δu bounds, plus the signals'); at most 32767 supported", id="row-quantities"),
     pytest.param(both(set_("horizon", 10**9), set_("control_horizon", 10**9 - 1)),
                  "horizon: too long: 1000000000 stages need more than the 32767 QP rows and "
                  "row quantities the C can index", id="horizon-1e9"),

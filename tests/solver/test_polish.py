@@ -13,7 +13,7 @@ def test_the_polish_matches_the_reference(partial_run):
     bad, _, calls = partial_run("zones_rate")
     assert bad == [], bad[0]
     assert unreached(calls, "polish given_up drop_negative working_set_holds "
-                            "keep_working_set accept stopped") == []
+                            "keep_working_set converged stopped") == []
 
 
 def test_a_polish_the_budget_stops_keeps_its_progress(partial_run):
