@@ -28,7 +28,8 @@ def add_parser(sub) -> None:
     c.add_argument("--loops", type=int, default=None,
                    help="closed loops (random flights, loop i seeded --seed + i; default 20)")
     c.add_argument("--steps", type=int, default=None,
-                   help="samples per loop (default: the scenario's length, at most 600)")
+                   help="samples per loop (default 600, or 3 of the scenario's segments when "
+                   "longer; at most the scenario's length)")
     c.add_argument("--flight-kinds", choices=("both", "inside", "envelope"), default="both",
                    help="the loops' references: both kinds by the seed's parity (default), "
                    "or every loop inside the scenario's range, or every loop pressing the "

@@ -14,7 +14,9 @@ in closed loop (docs/solver.md, "Work certificate").
    independent: optimistic, see there), at ``confidence``.
 4. **Conclude**: the design fits when no sampled QP stopped; when it does not, what
    would fit the most any of them needed (qp/budget.py ``what_fits_need``: the share, the
-   clock, the horizon or the move blocking).
+   clock, the horizon or the move blocking), leaving out the QPs that the solver does not
+   finish even without a budget (it ends at its sweep cap, MAX_ITER): they are named
+   apart, since no budget fits them.
 
 No exact worst case is computed: the region partition of complexity certification
 enumerates the critical regions of a multiparametric QP, which for the examples' QPs
@@ -33,14 +35,16 @@ from ..qp.budget import what_fits_need
 from ..qp.work import CYCLES_PER_WORK_UNIT
 from ..sim.flight_plan import FlightPlan
 from ..sim.metrics import longest_run
-from ..status import STATUS_NAMES, TIME_LIMIT
+from ..status import MAX_ITER, STATUS_NAMES, TIME_LIMIT
 from .certify_bound import upper_bound
 from .certify_sampling import sample
 
 DEFAULT_LOOPS = 20
-DEFAULT_STEPS = 600  # per loop, at most (the scenario's length when shorter)
+DEFAULT_STEPS = 600  # per loop, at least 3 of the scenario's segments, at most its length
+SEGMENTS_PER_LOOP = 3
 DEFAULT_CONFIDENCE = 0.95
 WORST_LISTED = 5
+UNFINISHED = (MAX_ITER, TIME_LIMIT)  # the statuses of a solve that did not finish
 
 
 def _quantiles(work: np.ndarray, budget: int) -> dict:
@@ -120,6 +124,15 @@ class Certificate:
         return self.data
 
 
+def _what_fits(cfg, needed: int, budget: int, unfinished: int) -> str:
+    text = (what_fits_need(cfg, needed) if needed > budget else
+            "what fits: the budget, for every stop that more work finishes")
+    if unfinished:
+        text += (f"; {unfinished} stopped QPs end at {STATUS_NAMES[MAX_ITER]} even without a "
+                 "budget: no budget fits them")
+    return text
+
+
 def _short(values) -> str:
     return "[" + ", ".join(f"{v:.4g}" for v in values[:8]) + (", ...]" if len(values) > 8 else "]")
 
@@ -131,8 +144,9 @@ def certify(config, *, loops: int = DEFAULT_LOOPS, steps: int | None = None, see
             build_dir: str | Path | None = None, progress=None,
             loaded: tuple | None = None) -> Certificate:
     """The work certificate of ``config`` (a file, a ControllerConfig or a Design; see the
-    module docstring). ``steps``: samples per loop (default: the scenario's length, at
-    most :data:`DEFAULT_STEPS`); ``loaded``: its (model, ctx) when built already
+    module docstring). ``steps``: samples per loop (default: :data:`DEFAULT_STEPS`, or
+    :data:`SEGMENTS_PER_LOOP` of the scenario's segments when longer, and at most the
+    scenario's length); ``loaded``: its (model, ctx) when built already
     (``rollmpc generate --certify``)."""
     from ..sim.scenario import scenario_reference
 
@@ -140,7 +154,9 @@ def certify(config, *, loops: int = DEFAULT_LOOPS, steps: int | None = None, see
         raise ValueError(f"loops must be >= 1, got {loops}")
     model, ctx = loaded or load_model(config, precision)
     cfg = model.config
-    steps = steps or min(DEFAULT_STEPS, len(scenario_reference(cfg)))
+    segment = int(round(cfg.simulation.segment_s / cfg.sample_time))
+    steps = steps or min(max(DEFAULT_STEPS, SEGMENTS_PER_LOOP * segment),
+                         len(scenario_reference(cfg)))
     plan = FlightPlan(flights=loops, seed=seed, noise_std=noise_std, disturbance=disturbance,
                       mismatch=mismatch, kinds=kinds)
     got = sample(model, ctx, plan, steps, engine=engine, build_dir=build_dir, progress=progress)
@@ -155,7 +171,11 @@ def certify(config, *, loops: int = DEFAULT_LOOPS, steps: int | None = None, see
     work, status, mode = (np.concatenate(x) for x in (got.work, got.status, got.mode))
     stops = [int(np.count_nonzero(s == TIME_LIMIT)) for s in got.status]
     names = [m.name for m in cfg.modes]
-    needed = max([e.needed for e in got.kept] + [int(work.max())])
+    # a QP the solver does not finish even without a budget (it ends at the sweep cap) is
+    # not one more budget fits: what fits is sized on the others
+    finished = [e.needed for e in got.kept if e.needed_status not in UNFINISHED]
+    unfinished = sum(e.needed_status in UNFINISHED for e in got.kept)
+    needed = max(finished, default=0)
     fits = sum(stops) == 0
     data = {
         "design": {"config": config_label(config), "precision": ctx["precision"],
@@ -179,7 +199,8 @@ def certify(config, *, loops: int = DEFAULT_LOOPS, steps: int | None = None, see
                                  "samples are not"},
         "worst": _worst(got.kept, plan, names, budget),
         "needed_max": int(needed),
+        "unfinished_without_budget": int(unfinished),
         "fits": fits,
-        "what_fits": None if fits else what_fits_need(cfg, needed),
+        "what_fits": None if fits else _what_fits(cfg, needed, budget, unfinished),
     }
     return Certificate(data)

@@ -127,3 +127,15 @@ def test_generate_prints_the_certificate_line(design, tmp_path, build_root, caps
     line = [x for x in capsys.readouterr().out.splitlines() if "work certificate" in x]
     assert len(line) == 1 and line[0].endswith(": fits")
     assert "(2,000 QPs of 20 closed loops, seed 0)" in line[0]  # 20 x the 100-sample scenario
+
+
+def test_what_fits_leaves_out_the_qps_no_budget_finishes(design):
+    from rollmpc_codegen.pipeline import load_config
+    from rollmpc_codegen.verify.certify import _what_fits
+
+    cfg = load_config(design)  # work_budget given: what fits names the budget itself
+    text = _what_fits(cfg, 9000, BUDGET, 2)
+    assert "solver.work_budget >= 9,000" in text and "horizon <= " in text
+    assert text.endswith("2 stopped QPs end at max_iter even without a budget: no budget "
+                         "fits them")
+    assert _what_fits(cfg, 4000, BUDGET, 0).startswith("what fits: the budget, for every stop")
