@@ -28,7 +28,7 @@
  * stops the build unless it is of the same one: a regeneration interrupted between two
  * of its file moves leaves no mixed tree that compiles.
  */
-#define C172P_ROLL_GENERATION 0x12b6058b71d4446
+#define C172P_ROLL_GENERATION 0x9c4607718d2bf2a
 
 /* The one place where the precision is chosen. */
 #define C172P_ROLL_PRECISION_DOUBLE 0

@@ -7,7 +7,7 @@
 
 #include <math.h>
 #include "chain_rb.h"
-#if CHAIN_RB_GENERATION != 0x565dfdbfb3cc667
+#if CHAIN_RB_GENERATION != 0x6d47d5009fbc7dc
 #error "chain_rb_internal.h and chain_rb_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
 #endif
 
@@ -97,10 +97,15 @@ static inline int chain_rb_all_finite(const chain_rb_real *v, int n)
  * terms per trip. On a host (16 SSE registers) the same loops would spill to the stack or
  * widen the frames on the worst path past its 1,024-B budget, and a double tree on a
  * single-precision FPU computes in software, where they only spill (+472 B of stack on
- * the M4F): both take the plain ones. Every sum is the same sequential sum either way:
- * host and target results stay bit for bit equal.
+ * the M4F): both take the plain ones. Every sum is the same sequential sum either way, so
+ * the commands agree bit for bit; a factor that breaks down is left with other partial
+ * rows, so the instance's bytes agree only between builds of the same kernels. A build
+ * may choose with -DCHAIN_RB_WIDE_KERNELS=0 or 1: the host tests run the target's
+ * kernels that way.
  */
+#ifndef CHAIN_RB_WIDE_KERNELS
 #define CHAIN_RB_WIDE_KERNELS 0
+#endif
 
 /* Linear algebra on packed symmetric matrices (chain_rb_linalg.c). */
 int chain_rb_cholesky(chain_rb_real *a, int n);

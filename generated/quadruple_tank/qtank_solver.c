@@ -25,7 +25,7 @@
  */
 #include <math.h>
 #include "qtank_internal.h"
-#if QTANK_GENERATION != 0xe3e368c892947cb
+#if QTANK_GENERATION != 0x1601a36f821fc83
 #error "qtank_solver.c and qtank_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
 #endif
 

@@ -7,7 +7,7 @@
 
 #include <math.h>
 #include "zones.h"
-#if ZONES_GENERATION != 0xcc99f7d26c867f7
+#if ZONES_GENERATION != 0x23c6b29f90e5daf
 #error "zones_internal.h and zones_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
 #endif
 
@@ -97,10 +97,15 @@ static inline int zones_all_finite(const zones_real *v, int n)
  * terms per trip. On a host (16 SSE registers) the same loops would spill to the stack or
  * widen the frames on the worst path past its 1,024-B budget, and a double tree on a
  * single-precision FPU computes in software, where they only spill (+472 B of stack on
- * the M4F): both take the plain ones. Every sum is the same sequential sum either way:
- * host and target results stay bit for bit equal.
+ * the M4F): both take the plain ones. Every sum is the same sequential sum either way, so
+ * the commands agree bit for bit; a factor that breaks down is left with other partial
+ * rows, so the instance's bytes agree only between builds of the same kernels. A build
+ * may choose with -DZONES_WIDE_KERNELS=0 or 1: the host tests run the target's
+ * kernels that way.
  */
+#ifndef ZONES_WIDE_KERNELS
 #define ZONES_WIDE_KERNELS 0
+#endif
 
 /* Linear algebra on packed symmetric matrices (zones_linalg.c). */
 int zones_cholesky(zones_real *a, int n);

@@ -7,7 +7,7 @@
 
 #include <math.h>
 #include "zrate.h"
-#if ZRATE_GENERATION != 0x0c24e9bade91444
+#if ZRATE_GENERATION != 0xe70fec8c4e17f10
 #error "zrate_internal.h and zrate_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
 #endif
 
@@ -97,10 +97,15 @@ static inline int zrate_all_finite(const zrate_real *v, int n)
  * terms per trip. On a host (16 SSE registers) the same loops would spill to the stack or
  * widen the frames on the worst path past its 1,024-B budget, and a double tree on a
  * single-precision FPU computes in software, where they only spill (+472 B of stack on
- * the M4F): both take the plain ones. Every sum is the same sequential sum either way:
- * host and target results stay bit for bit equal.
+ * the M4F): both take the plain ones. Every sum is the same sequential sum either way, so
+ * the commands agree bit for bit; a factor that breaks down is left with other partial
+ * rows, so the instance's bytes agree only between builds of the same kernels. A build
+ * may choose with -DZRATE_WIDE_KERNELS=0 or 1: the host tests run the target's
+ * kernels that way.
  */
+#ifndef ZRATE_WIDE_KERNELS
 #define ZRATE_WIDE_KERNELS 0
+#endif
 
 /* Linear algebra on packed symmetric matrices (zrate_linalg.c). */
 int zrate_cholesky(zrate_real *a, int n);

@@ -11,6 +11,10 @@ the same word (nor waive the size check by forcing a directory).  The prediction
 printed on stdout, before the maths when the maths is slow; the design warnings
 (qp/sanity.py, docs/checks.md: the list :func:`~rollmpc_codegen.host.generate_run.run_generate`
 returns and the Python API warns with) go to stderr and leave exit 0.
+
+``--certify`` adds the work certificate's line (verify/certify.py, on the host C): opt-in,
+because it flies 20 closed loops and builds the host C, seconds that a generate of every
+example (``make generate``, the tests) should not pay; it informs, as the float check does.
 """
 from __future__ import annotations
 
@@ -40,6 +44,10 @@ def add_parser(sub) -> None:
     add_part(g)
     g.add_argument("--no-float-check", action="store_true",
                    help="float: skip the check of the design's scenario QPs against double")
+    g.add_argument("--certify", action="store_true",
+                   help="after writing, print the work certificate's line: `rollmpc certify`'s "
+                   "sampling at its defaults, solved by the host C build (a few seconds; "
+                   "informs only, exit 0 still: gate CI on `rollmpc certify`)")
     add_build_dir(g)
     g.set_defaults(func=run)
 
@@ -86,4 +94,11 @@ def run(args) -> int:
             print(f"rollmpc: {result.float_check.line()}")
             sys.stdout.flush()
         print_warnings(result.warnings[known:])
+    if args.certify:
+        from ..verify.certify import certify
+
+        sys.stdout.flush()
+        cert = certify(args.config, precision=args.precision, engine="host",
+                       build_dir=args.build_dir, loaded=(result.model, ctx))
+        print(f"rollmpc: {cert.line()}")
     return 0

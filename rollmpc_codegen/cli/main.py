@@ -1,4 +1,5 @@
-"""``rollmpc`` command line: generate, simulate, bench, report, testvectors, identify, fly.
+"""``rollmpc`` command line: generate, simulate, bench, report, certify, testvectors,
+identify, fly.
 
 Expected failures print one line ``rollmpc: error: ...`` and exit with 2 (bad input:
 config or arguments) or 1 (a tool failed, e.g. the C compiler); never a traceback.
@@ -13,11 +14,11 @@ import argparse
 import sys
 
 from ..config import ConfigError
-from . import bench, fly, generate, identify, report, simulate, testvectors
+from . import bench, certify, fly, generate, identify, report, simulate, testvectors
 
 EXIT_BAD_INPUT = 2
 EXIT_TOOL_FAILED = 1
-SUBCOMMANDS = (generate, simulate, bench, report, testvectors, identify, fly)  # --help order
+SUBCOMMANDS = (generate, simulate, bench, report, certify, testvectors, identify, fly)  # --help order
 
 
 class OneLineArgumentParser(argparse.ArgumentParser):
@@ -38,7 +39,8 @@ def parser() -> argparse.ArgumentParser:
     from .options import EXIT_CODES
 
     ap = OneLineArgumentParser(prog="rollmpc", description=DESCRIPTION,
-                               epilog=f"{EXIT_CODES}; 3 `rollmpc report`: a verdict failed")
+                               epilog=f"{EXIT_CODES}; 3 `rollmpc report`: a verdict failed, "
+                               "`rollmpc certify`: the design does not fit its work budget")
     ap.add_argument("--version", action="version", version=f"rollmpc {__version__}")
     sub = ap.add_subparsers(dest="command", required=True, metavar="COMMAND",
                             title="commands")

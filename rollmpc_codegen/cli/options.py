@@ -99,6 +99,22 @@ def check_perturbations(args) -> None:
         raise ConfigError("--mismatch", f"must be in [0, 1), got {args.mismatch}")
 
 
+FLIGHTS_HELP = ("fly K random flights instead of the scenario, flight i seeded with --seed "
+                "+ i: an even seed draws its levels within the range the scenario spans "
+                "inside the output bounds, an odd seed presses the envelope (half its levels "
+                "beyond that range, up to the hard output bounds and past the soft ones; "
+                "docs/solver.md, \"Random flights\"); the figures are given by kind too")
+
+
+def add_flights(p: argparse.ArgumentParser, what: str) -> None:
+    """``--flights K`` and ``--flight-kinds`` (sim/flight_plan.py); ``what``: the
+    subcommand's own figures per flight."""
+    p.add_argument("--flights", type=int, default=0, help=f"{FLIGHTS_HELP}; {what}")
+    p.add_argument("--flight-kinds", choices=("both", "inside", "envelope"), default="both",
+                   help="with --flights: both kinds by the seed's parity (default), or every "
+                   "flight inside, or every flight pressing the envelope")
+
+
 def check_flights(args) -> None:
     if args.flights < 0:
         raise ConfigError("--flights", f"must be >= 0, got {args.flights}")

@@ -5,7 +5,8 @@ as a short summary on stdout (with ``--flights``, a line per flight), or with
 from __future__ import annotations
 
 from ..config.errors import ConfigError
-from .options import (add_build_dir, add_command, add_config, add_outputs, add_part,
+from .options import (add_build_dir, add_command, add_config, add_flights, add_outputs,
+                      add_part,
                       add_perturbations,
                       add_precision, add_quiet, check_flights, check_perturbations, check_steps,
                       progress_of, write_json)
@@ -32,10 +33,7 @@ def add_parser(sub) -> None:
     rp.add_argument("--steps", type=int, default=None,
                     help="samples to replay, of the scenario or of each flight (default: the "
                     "scenario's length)")
-    rp.add_argument("--flights", type=int, default=0,
-                    help="replay K random flights instead of the scenario: levels drawn "
-                    "within the range the scenario spans, inside the output bounds; flight i seeded "
-                    "with --seed + i (default 0)")
+    add_flights(rp, "each replayed on the target, its worst and median step")
     add_perturbations(rp)
     rp.add_argument("--sample-every", type=int, default=20,
                     help="count cycles on every n-th step besides the hardest (default 20)")
@@ -72,6 +70,25 @@ def parse_horizons(text: str) -> list[int]:
     return sorted(set(values))
 
 
+def bit_exact_text(rep: dict) -> str:
+    """``yes`` or ``NO`` with what differed: the commands, statuses and diagnostics, and
+    the instance after every step (the host built with the target's kernels)."""
+    kernels = rep.get("kernels")
+    what = "commands and instance, every step" + (f"; {kernels} kernels on both"
+                                                  if kernels else "")
+    if rep["bit_exact_vs_host"]:
+        return f"yes ({what})"
+    found = [f"{rep['mismatches']} output mismatches"]
+    state = rep.get("state_mismatch")
+    if state:
+        where = ("" if state.get("flight") is None else f" of flight {state['flight']}")
+        members = ", ".join(state["members"]) or "a member"
+        steps = f"{state['steps']} step{'s' if state['steps'] != 1 else ''}"
+        found.append(f"the instance differs on {steps} from step "
+                     f"{state['step']}{where}: {members}")
+    return f"NO ({'; '.join(found)}; {what})"
+
+
 def summary_text(rep: dict) -> str:
     """Short human summary with the verdict at the config's clock and sample time."""
     b = rep["budget"]
@@ -88,13 +105,17 @@ def summary_text(rep: dict) -> str:
         f"{rep['stack_entry_bytes']} B predicted with the harness)",
         f"  steps emulated {rep['steps_emulated']}, counted {rep['steps_counted']} "
         f"({len(rep['hardest_steps'])} hardest + every {rep['sample_every']}th); "
-        f"bit-exact vs host: {'yes' if rep['bit_exact_vs_host'] else 'NO'}"
-        + ("" if rep["bit_exact_vs_host"] else f" ({rep['mismatches']} mismatches)"),
+        f"bit-exact vs host: {bit_exact_text(rep)}",
     ]
     for f in rep.get("flights", []):
-        lines.append(f"  flight {f['flight']} (seed {f['seed']}): worst step {f['worst_step']} "
-                     f"{f['worst_step_cycles']:,} cycles, median {f['median_step_cycles']:,}"
+        lines.append(f"  flight {f['flight']} (seed {f['seed']}, {f['kind']}): worst step "
+                     f"{f['worst_step']} {f['worst_step_cycles']:,} cycles, median "
+                     f"{f['median_step_cycles']:,}"
                      + ("" if f["bit_exact_vs_host"] else ", NOT bit-exact"))
+    for kind, k in rep.get("by_kind", {}).items():
+        lines.append(f"  {kind} flights ({k['flights']}): worst step {k['worst_step_cycles']:,} "
+                     f"cycles (flight {k['worst_flight']}), optimal {k['optimal_percent']:g} %, "
+                     f"longest TIME_LIMIT run {k['longest_time_limit_run']}")
     lines += [
         f"  worst step ({where}, mode {rep['worst_step_mode']}): "
         f"{rep['worst_step_cycles']:,} cycles, {rep['worst_step_instructions']:,} "
@@ -186,7 +207,8 @@ def run(args) -> int:
                         horizons=horizons,
                         steps=args.steps, flights=args.flights, seed=args.seed,
                         noise_std=args.noise, disturbance=args.disturbance,
-                        mismatch=args.mismatch, sample_every=args.sample_every,
+                        mismatch=args.mismatch, kinds=args.flight_kinds,
+                        sample_every=args.sample_every,
                         hardest=args.hardest, host_repeats=args.host_repeats,
                         extra_cflags=tuple(args.extra_cflags.split()) if args.extra_cflags
                         else (), build_dir=args.build_dir, flight=args.flight,

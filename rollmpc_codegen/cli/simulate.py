@@ -25,7 +25,8 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 from ..config import ConfigError
-from .options import (add_build_dir, add_command, add_config, add_outputs, add_perturbations,
+from .options import (add_build_dir, add_command, add_config, add_flights, add_outputs,
+                      add_perturbations,
                       add_precision, add_quiet, check_flights, check_outputs,
                       check_perturbations, check_steps, progress_of, require_plot, write_json)
 
@@ -52,11 +53,8 @@ def add_parser(sub) -> None:
     s.add_argument("--baseline", choices=["none", "lqr"], default="none",
                    help="also simulate an LQR-with-saturation baseline (plotted alongside)")
     add_perturbations(s)
-    s.add_argument("--flights", type=int, default=0,
-                   help="fly K random flights instead of the scenario (levels uniform within "
-                   "the output bounds, flight i seeded with --seed + i, as `rollmpc report "
-                   "--flights`): statuses, TIME_LIMIT runs and hard-bound violations per "
-                   "flight; of the output files only --json")
+    add_flights(s, "statuses, TIME_LIMIT runs and hard-bound violations per flight, as "
+                "`rollmpc report --flights` flies them; of the output files only --json")
     s.add_argument("--steps", type=int, default=None,
                    help="samples (default: whole scenario; with --flights, per flight)")
     add_quiet(s, "no progress bar")
@@ -208,18 +206,20 @@ def print_flights(cfg, ctx: dict, s: dict, found=()) -> None:
     for f in s["flights"]:
         cv = f["constraint_violations"]
         far = beyond_text(cfg, cv["y_max_beyond"])
-        print(f"  flight {f['flight']} (seed {f['seed']}): optimal "
+        print(f"  flight {f['flight']} (seed {f['seed']}, {f['kind']}): optimal "
               f"{f['status_counts'].get('optimal', 0)} of {f['samples']}"
               f"{non_optimal_text(f['status_counts'], ' (', ')')}, longest TIME_LIMIT "
               f"run {f['longest_time_limit_run']}; constraint violations {cv['total']}"
               f"{f' (y by up to {far})' if far else ''}")
-    far = beyond_text(cfg, t["y_max_beyond"])
-    print(f"  all flights: optimal {t['status_counts'].get('optimal', 0)} of {t['samples']} "
-          f"({t['optimal_percent']:g} %), longest TIME_LIMIT run "
-          f"{t['longest_time_limit_run']}; {t['flights_with_violations']} of {t['flights']} "
-          f"flights break a hard bound{f' (y by up to {far})' if far else ''}")
-    if t["work"]:
-        print(f"  solver work per sample (units): {work_text(t['work'])}")
+    for label, t in [("all flights", s["totals"])] + [
+            (f"{kind} flights", k) for kind, k in s.get("by_kind", {}).items()]:
+        far = beyond_text(cfg, t["y_max_beyond"])
+        print(f"  {label}: optimal {t['status_counts'].get('optimal', 0)} of {t['samples']} "
+              f"({t['optimal_percent']:g} %), longest TIME_LIMIT run "
+              f"{t['longest_time_limit_run']}; {t['flights_with_violations']} of "
+              f"{t['flights']} flights break a hard bound{f' (y by up to {far})' if far else ''}")
+        if t["work"]:
+            print(f"    solver work per sample (units): {work_text(t['work'])}")
     print_warnings(found)
 
 
@@ -229,7 +229,8 @@ def run_flights_cli(args) -> int:
     result = run_flights(args.config, flights=args.flights, seed=args.seed,
                          precision=args.precision, steps=args.steps, noise_std=args.noise,
                          disturbance=args.disturbance, mismatch=args.mismatch,
-                         build_dir=args.build_dir, progress=progress_of(args))
+                         kinds=args.flight_kinds, build_dir=args.build_dir,
+                         progress=progress_of(args))
     if args.json:
         write_json(args.json, result.summary)
     print_flights(result.config, result.ctx, result.summary, result.warnings)

@@ -38,3 +38,15 @@ def context_build_flags() -> dict:
     return {"strict": list(STRICT_WARNINGS), "autopilot": list(AUTOPILOT_WARNINGS),
             "exact": list(EXACT_MATH),
             "refused": [f._asdict() for f in REFUSED_FLAGS]}
+
+
+# The kernel variants of a tree (templates/internal.h.j2, P_WIDE_KERNELS): the target's
+# compiler picks one (wide for float on an ARM single-precision FPU, plain elsewhere); a
+# host build may be given either, so that the host tests run what the target runs.
+KERNEL_VARIANTS = ("plain", "wide")
+
+
+def kernel_flags(prefix: str, wide: bool | None) -> tuple[str, ...]:
+    """The compiler flags that select the wide (True) or plain (False) kernels of the
+    tree of ``prefix``; None leaves the choice to the compiler."""
+    return () if wide is None else (f"-D{prefix.upper()}_WIDE_KERNELS={int(wide)}",)

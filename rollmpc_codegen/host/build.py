@@ -115,6 +115,10 @@ class HostController:
     def init(self) -> None:
         self._fn["init"](self.ctrl)
 
+    def instance(self) -> bytes:
+        """The controller instance's bytes (``P_ctrl``: its whole state)."""
+        return bytes(self.ffi.buffer(self.ctrl))
+
     def step(self, y, sched, r) -> tuple[int, np.ndarray]:
         y = c_values(y, self.dtype)
         r = c_values(r, self.dtype)

@@ -67,3 +67,13 @@ def check_work_budget(cfg: ControllerConfig, modes, factor: int) -> int:
     raise ConfigError("solver.work_budget", f"{budget:,} units ({how}) are below the {need:,} "
                       f"a step without active bounds may charge ({held:,} with a held "
                       f"reference, about {rounded(predict(cfg).step_cycles):,} cycles); {fits}")
+
+
+def what_fits_need(cfg: ControllerConfig, need: int) -> str:
+    """What fits a step measured to need ``need`` units (``rollmpc certify``): the share,
+    clock or budget that pays for it, and the largest horizon or control horizon whose
+    need, scaled as the unconstrained step's charge (base_work) scales, fits the budget:
+    an estimate, to be certified again."""
+    base = _need(_sizes(cfg))
+    return what_fits(cfg, lambda c: work_budget_of(c) * base >= need * _need(_sizes(c)),
+                     _scalings(cfg, need))

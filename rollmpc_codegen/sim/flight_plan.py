@@ -3,13 +3,20 @@ flights, each perturbed as ``rollmpc simulate`` can be (``rollmpc simulate --fli
 the host C, ``rollmpc report --flights`` on the emulated Cortex-M4F: target/flights.py).
 
 A :class:`FlightPlan` holds the perturbations (measurement noise, input disturbance, plant
-mismatch: sim/simulate.py, sim/mismatch.py) and the flight count.  Without flights it is
-the config's scenario once, seeded ``seed`` (its noise is that of ``rollmpc simulate
---seed``).  Flight i (0-based) is seeded ``seed + i``: its reference
-(sim/scenario.py ``random_reference``: the scenario's segments, each level uniform within
-the output bounds), its plant mismatch and its noise are drawn from that seed's streams
-(``random_stream``), so ``--flights 1 --seed S+i`` flies flight i of ``--seed S`` again.
-The scenario itself is not among the flights.
+mismatch: sim/simulate.py, sim/mismatch.py), the flight count and the kinds of flights.
+Without flights it is the config's scenario once, seeded ``seed`` (its noise is that of
+``rollmpc simulate --seed``).  Flight i (0-based) is seeded ``seed + i``: its reference,
+its plant mismatch and its noise are drawn from that seed's streams (``random_stream``),
+so ``--flights 1 --seed S+i`` flies flight i of ``--seed S`` again.  The scenario itself
+is not among the flights.
+
+Two kinds of flights (:data:`FLIGHT_KINDS`), by the parity of the seed with the default
+``kinds="both"``: an even seed flies an *inside* flight (sim/scenario.py
+``random_reference``: the scenario's segments, each level uniform within the range the
+scenario spans, inside the output bounds), an odd seed an *envelope* flight, which
+presses the envelope as users command (sim/envelope.py: half its levels beyond that range,
+up to the hard output bounds and past the soft ones).  ``kinds="inside"`` or
+``"envelope"`` flies every flight of that kind.  The reports give their figures by kind.
 """
 from __future__ import annotations
 
@@ -18,7 +25,13 @@ from dataclasses import dataclass
 import numpy as np
 
 from .mismatch import PlantMismatch
-from .scenario import plant_mismatch, random_reference, random_stream, scenario_reference
+from .envelope import envelope_levels
+from .scenario import (inside_levels, plant_mismatch, random_reference, random_stream,
+                       scenario_reference)
+
+FLIGHT_KINDS = ("inside", "envelope")  # an even seed's, an odd seed's (kinds="both")
+KINDS_CHOICES = ("both", *FLIGHT_KINDS)
+LEVEL_DRAWS = {"inside": inside_levels, "envelope": envelope_levels}
 
 
 @dataclass(frozen=True)
@@ -30,6 +43,7 @@ class Flight:
     reference: np.ndarray | None
     levels: np.ndarray | None
     mismatch: PlantMismatch | None
+    kind: str | None = None  # one of FLIGHT_KINDS; None: the scenario
 
 
 @dataclass(frozen=True)
@@ -43,11 +57,18 @@ class FlightPlan:
     noise_std: float = 0.0
     disturbance: float = 0.0
     mismatch: float = 0.0
+    kinds: str = "both"  # "both" (by the seed's parity) or one of FLIGHT_KINDS
 
     def __post_init__(self):
         if self.flights < 0 or not self.noise_std >= 0:
             raise ValueError(f"flights and noise_std must be >= 0, got {self.flights} and "
                              f"{self.noise_std}")
+        if self.kinds not in KINDS_CHOICES:
+            raise ValueError(f"kinds must be one of {', '.join(KINDS_CHOICES)}, got {self.kinds!r}")
+
+    def kind_of(self, seed: int) -> str:
+        """The kind of the flight seeded ``seed``."""
+        return FLIGHT_KINDS[seed % 2] if self.kinds == "both" else self.kinds
 
     def plan(self, cfg, steps: int | None) -> list[Flight]:
         """The flights of a config, each long enough for ``steps`` samples."""
@@ -58,8 +79,11 @@ class FlightPlan:
         out = []
         for i in range(self.flights):
             seed = self.seed + i
-            levels, ref = random_reference(cfg, random_stream(seed, "reference"), samples)
-            out.append(Flight(i, seed, ref, levels, plant_mismatch(cfg, self.mismatch, seed)))
+            kind = self.kind_of(seed)
+            levels, ref = random_reference(cfg, random_stream(seed, "reference"), samples,
+                                           LEVEL_DRAWS[kind])
+            out.append(Flight(i, seed, ref, levels, plant_mismatch(cfg, self.mismatch, seed),
+                              kind))
         return out
 
     def loop_options(self, flight: Flight) -> dict:
@@ -70,4 +94,11 @@ class FlightPlan:
 
     def as_dict(self) -> dict:
         return {"flights": self.flights, "seed": self.seed, "noise_std": self.noise_std,
-                "disturbance": self.disturbance, "mismatch": self.mismatch}
+                "disturbance": self.disturbance, "mismatch": self.mismatch,
+                "kinds": self.kinds}
+
+
+def by_kind(items, kind_of) -> dict:
+    """``items`` grouped by flight kind, in FLIGHT_KINDS' order (the kinds present only)."""
+    groups = {k: [x for x in items if kind_of(x) == k] for k in FLIGHT_KINDS}
+    return {k: v for k, v in groups.items() if v}

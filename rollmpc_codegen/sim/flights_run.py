@@ -4,9 +4,10 @@ on the host, each summarized, and what they add up to.
 One scenario says little about a design whose solver can stop at its work budget: where a
 run of TIME_LIMIT samples starts depends on the reference, and a long one can let an output
 past a hard bound (docs/solver.md, "Limits"). Flights with
-random levels within the output bounds show how often. Per flight: the statuses, the
-longest run of TIME_LIMIT samples, the hard-constraint violations (sim/metrics.py); over
-all of them the same, and how many flights broke a hard bound. The host C's statuses are
+random levels show how often, within the scenario's range and pressing the envelope
+(flight_plan.py). Per flight: the statuses, the longest run of TIME_LIMIT samples, the
+hard-constraint violations (sim/metrics.py); over all of them, and over each kind, the
+same and how many flights broke a hard bound. The host C's statuses are
 the reference's and the emulated M4F's bit for bit, so ``rollmpc report --flights`` with
 the same options flies the same flights with their cycles.
 """
@@ -22,7 +23,7 @@ from ..config.diagnostics import DesignWarning, messages
 from ..host.build import build_host_controller
 from ..pipeline import config_label, load_model
 from ..qp.sanity import design_warnings
-from .flight_plan import FlightPlan
+from .flight_plan import FlightPlan, by_kind
 from .metrics import constraint_violations, longest_run, status_counts, work_stats
 from .run_checks import infeasible_check, time_limit_check
 from .scenario import scenario_reference
@@ -61,15 +62,17 @@ def _totals(entries: list[dict], outputs: list[str], work: dict | None) -> dict:
 def run_flights(config, *, flights: int, seed: int = 0,
                 precision: str | None = None, steps: int | None = None,
                 noise_std: float = 0.0, disturbance: float = 0.0, mismatch: float = 0.0,
-                build_dir: str | Path | None = None, progress=None) -> FlightsRun:
+                kinds: str = "both", build_dir: str | Path | None = None,
+                progress=None) -> FlightsRun:
     """Fly ``flights`` random flights of ``steps`` samples each (default: the scenario's
-    length) through one host build, from P_init() each, flight i seeded ``seed + i``;
-    ``config`` a file, a ControllerConfig or a Design (pipeline.load_config)."""
+    length) through one host build, from P_init() each, flight i seeded ``seed + i``, of
+    the ``kinds`` of flight_plan.py; ``config`` a file, a ControllerConfig or a Design
+    (pipeline.load_config). ``totals`` adds every flight up, ``by_kind`` each kind's."""
     model, ctx = load_model(config, precision)
     cfg = model.config
     steps = steps if steps is not None else len(scenario_reference(cfg))
     plan = FlightPlan(flights=flights, seed=seed, noise_std=noise_std,
-                      disturbance=disturbance, mismatch=mismatch)
+                      disturbance=disturbance, mismatch=mismatch, kinds=kinds)
     controller = build_host_controller(ctx, Path(build_dir) if build_dir else None)
     entries, works, statuses, modes = [], [], [], []
     budget = ctx["solver"]["work_budget"]
@@ -80,7 +83,7 @@ def run_flights(config, *, flights: int, seed: int = 0,
                                                    f"{fl.index} ({fl.index + 1} of {flights})"),
                               **plan.loop_options(fl))
         entries.append({
-            "flight": fl.index, "seed": fl.seed, "levels": fl.levels.tolist(),
+            "flight": fl.index, "seed": fl.seed, "kind": fl.kind, "levels": fl.levels.tolist(),
             "plant_mismatch": None if fl.mismatch is None else fl.mismatch.as_dict(),
             "samples": int(len(log.t)), "status_counts": status_counts(log.status),
             "longest_time_limit_run": longest_run(log.status),
@@ -96,7 +99,12 @@ def run_flights(config, *, flights: int, seed: int = 0,
                "design_warnings": messages(design),
                "flights": entries,
                "totals": _totals(entries, list(cfg.outputs),
-                                 work_stats(np.concatenate(works), budget))}
+                                 work_stats(np.concatenate(works), budget)),
+               "by_kind": {kind: _totals([entries[i] for i in group], list(cfg.outputs),
+                                         work_stats(np.concatenate([works[i] for i in group]),
+                                                    budget))
+                           for kind, group in by_kind(range(len(entries)),
+                                                      lambda i: entries[i]["kind"]).items()}}
     t = summary["totals"]
     found = [*time_limit_check(t["status_counts"], t["samples"], t["longest_time_limit_run"],
                                cfg.horizon),

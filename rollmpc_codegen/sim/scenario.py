@@ -86,16 +86,22 @@ def reference_range(cfg: ControllerConfig) -> tuple[np.ndarray, np.ndarray]:
     return low, high
 
 
-def random_reference(cfg: ControllerConfig, rng: np.random.Generator,
-                     samples: int) -> tuple[np.ndarray, np.ndarray]:
+def inside_levels(cfg: ControllerConfig, rng: np.random.Generator, count: int) -> np.ndarray:
+    """``count`` levels (count, n_outputs) of an inside flight: uniform in
+    :func:`reference_range`."""
+    low, high = reference_range(cfg)
+    return rng.uniform(low, high, size=(count, cfg.n_outputs))
+
+
+def random_reference(cfg: ControllerConfig, rng: np.random.Generator, samples: int,
+                     draw=inside_levels) -> tuple[np.ndarray, np.ndarray]:
     """(levels, reference) of a random flight of at least ``samples`` samples: the
-    scenario's segment length and at least its number of levels, each level drawn
-    uniformly in :func:`reference_range` (one value per output)."""
+    scenario's segment length and at least its number of levels, drawn by
+    ``draw(cfg, rng, count)`` (:func:`inside_levels`, or envelope.envelope_levels)."""
     segment = cfg.simulation.segment_s
     per = int(round(segment / cfg.sample_time))
     count = -(-max(samples, len(scenario_reference(cfg))) // per)
-    low, high = reference_range(cfg)
-    levels = rng.uniform(low, high, size=(count, cfg.n_outputs))
+    levels = draw(cfg, rng, count)
     return levels, paper_reference(cfg.sample_time, levels, segment)
 
 

@@ -22,10 +22,13 @@ import subprocess
 from dataclasses import dataclass, field
 from pathlib import Path
 
+import numpy as np
+
 from ..host.build import STRICT_WARNINGS, BuildError
 from ..parts import CORES, CORTEX_M4F, FLASH_BASE, Core
 from ..host.build_cache import private_root, publish, staging, verified
 from ..codegen.render import render_sources, render_template
+from .state_layout import LAYOUT_WORDS, StateLayout, ctrl_members
 
 CROSS_CC = "arm-none-eabi-gcc"
 CROSS_INSTALL_HINT = ("apt-get install -y --no-install-recommends gcc-arm-none-eabi "
@@ -71,6 +74,7 @@ class TargetBuild:
     prefix: str
     core: Core = CORTEX_M4F  # what it was compiled for: the emulator's CPU and cycle model
     su_files: list[Path] = field(default_factory=list)
+    members: tuple[str, ...] = ()  # the instance's members, as the harness lists them
 
 
 def _run(cmd: list[str]) -> None:
@@ -101,7 +105,9 @@ def build_target(ctx: dict, build_root: Path, flash_kib: int = EMU_FLASH_KIB,
     cc = require_cross_compiler()
     prefix = ctx["prefix"]
     files = render_sources(ctx)
-    files[f"{prefix}_target_harness.c"] = render_template(ctx, "target/harness.c.j2")
+    members = tuple(ctrl_members(files[f"{prefix}.h"], prefix))
+    files[f"{prefix}_target_harness.c"] = render_template(ctx, "target/harness.c.j2",
+                                                          members=members)
     files[f"{prefix}_target.ld"] = render_template(
         ctx, "target/link.ld.j2", flash_kib=flash_kib, ram_kib=ram_kib,
         stack_bytes=stack_bytes)
@@ -117,7 +123,7 @@ def build_target(ctx: dict, build_root: Path, flash_kib: int = EMU_FLASH_KIB,
     elf = verified(out, elf_name, key)
     if elf is not None:
         return TargetBuild(elf=elf, build_dir=out, prefix=prefix, core=core,
-                           su_files=sorted(out.glob("*.su")))
+                           su_files=sorted(out.glob("*.su")), members=members)
     with staging(root, out.name) as tmp:
         for name, text in files.items():
             (tmp / name).write_text(text)
@@ -131,7 +137,7 @@ def build_target(ctx: dict, build_root: Path, flash_kib: int = EMU_FLASH_KIB,
               *map(str, objs), "-lm", "-lgcc"])
         elf = publish(tmp, out, elf_name, key)
     return TargetBuild(elf=elf, build_dir=out, prefix=prefix, core=core,
-                       su_files=sorted(out.glob("*.su")))
+                       su_files=sorted(out.glob("*.su")), members=members)
 
 
 # ----------------------------------------------------------------------------- sizes
@@ -187,6 +193,30 @@ def object_symbols(elf: Path) -> dict[str, tuple[int, int]]:
             if sym["st_info"]["type"] == "STT_OBJECT":
                 out[sym.name] = (sym["st_value"], sym["st_size"])
     return out
+
+
+def read_object(elf: Path, name: str) -> bytes:
+    """The initial bytes of the data object ``name`` (a constant of the image)."""
+    from elftools.elf.elffile import ELFFile
+
+    address, size = object_symbols(elf)[name]
+    with open(elf, "rb") as fh:
+        for sec in ELFFile(fh).iter_sections():
+            start = sec["sh_addr"]
+            if sec["sh_type"] != "SHT_NOBITS" and start <= address < start + sec["sh_size"]:
+                return sec.data()[address - start:address - start + size]
+    raise KeyError(f"{name}: no initial bytes in {elf}")
+
+
+def target_layout(build, ctx: dict) -> StateLayout:
+    """The :class:`StateLayout` a target image (target.build.TargetBuild) declares."""
+    p, names = ctx["prefix"], list(build.members)
+    words = np.frombuffer(read_object(build.elf, f"{p}_target_layout"), np.uint32)
+    offsets = np.frombuffer(read_object(build.elf, f"{p}_target_members"), np.uint32)
+    if len(words) != LAYOUT_WORDS or len(offsets) != len(names):
+        raise RuntimeError(f"{build.elf}: a harness of another layout")
+    real = np.dtype(np.float32 if ctx["real"] == "float" else np.float64)
+    return StateLayout.from_words(words, names, offsets, real)
 
 
 def largest_symbols(elf: Path, count: int = 10) -> list[dict]:

@@ -74,8 +74,9 @@ def read_flight_inputs(path: str | Path, ctx: dict, steps: int | None = None) ->
 
 
 def record_flight(ctx: dict, inputs: FlightInputs, build_root: Path, progress=None,
-                  repeats: int = 1) -> HostRecord:
-    """The host build stepped through the flight's inputs, every output recorded."""
+                  repeats: int = 1, layout=None) -> HostRecord:
+    """The host build stepped through the flight's inputs, every output recorded (with
+    the kernels and instance ``layout`` of the target: replay.record_host_runs)."""
     N, ny, ns = ctx["horizon"], ctx["n_outputs"], ctx["n_schedule"]
 
     def drive(controller, progress_cb):
@@ -86,7 +87,7 @@ def record_flight(ctx: dict, inputs: FlightInputs, build_root: Path, progress=No
                 progress_cb(k)
 
     return record_host_runs(ctx, build_root, len(inputs.y), drive, progress, repeats,
-                            "report: host replay of the flight")
+                            "report: host replay of the flight", layout)
 
 
 def commands_match(inputs: FlightInputs, record: HostRecord) -> dict:

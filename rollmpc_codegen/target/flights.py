@@ -13,6 +13,7 @@ from ..sim.flight_plan import Flight, FlightPlan
 from ..sim.metrics import status_counts
 from ..sim.simulate import start_phase
 from .replay import HostRecord, TargetRun, record_host_run, replay_on_target, select_steps
+from .state_layout import StateLayout
 
 
 @dataclass
@@ -50,7 +51,7 @@ class FlightRun:
     def summary(self) -> dict:
         """The flight's entry of the report's ``flights`` list."""
         k = self.worst_step
-        return {"flight": self.flight.index, "seed": self.flight.seed,
+        return {"flight": self.flight.index, "seed": self.flight.seed, "kind": self.flight.kind,
                 "levels": None if self.flight.levels is None else self.flight.levels.tolist(),
                 "plant_mismatch": (None if self.flight.mismatch is None
                                    else self.flight.mismatch.as_dict()),
@@ -60,23 +61,28 @@ class FlightRun:
                 "median_step_cycles": int(np.median(self.sweep_counts("cycles"))),
                 "statuses": self.statuses,
                 "bit_exact_vs_host": self.bit_exact, "mismatches": len(self.run.mismatches),
-                "first_mismatches": [list(m) for m in self.run.mismatches[:5]]}
+                "first_mismatches": [list(m) for m in self.run.mismatches[:5]],
+                "state_bit_exact": self.run.state_equal,
+                "state_mismatch": self.run.state_mismatch()}
 
 
 def fly(model, ctx: dict, build, build_root, flight: Flight, plan: FlightPlan, *,
         steps: int | None, hardest: int, sample_every: int, host_repeats: int,
-        progress=None, label: str = "report", record: HostRecord | None = None) -> FlightRun:
+        progress=None, label: str = "report", record: HostRecord | None = None,
+        layout: StateLayout | None = None) -> FlightRun:
     """Record ``flight`` on the host (unless ``record`` holds a recorded run already:
-    ``rollmpc report --flight``), choose the steps to count, replay it on the target;
-    a line on ``progress`` gives the flight's worst and median step."""
+    ``rollmpc report --flight``), with the kernels and instance ``layout`` of the
+    target, choose the steps to count, replay it on the target; a line on ``progress``
+    gives the flight's worst and median step."""
     if record is None:
         record = record_host_run(model, ctx, build_root, steps, progress, host_repeats,
-                                 plan.loop_options(flight), label)
+                                 plan.loop_options(flight), label, layout)
     hard, sweep = select_steps(record, hardest, sample_every)
     run = replay_on_target(build, ctx, record, set(hard) | set(sweep), progress, label)
     result = FlightRun(flight, record, hard, sweep, run)
     start_phase(progress, 0, f"{label}: worst step {result.worst_step} "
                 f"({result.worst_cycles:,} cycles), median "
                 f"{int(np.median(result.sweep_counts('cycles'))):,} cycles, bit-exact vs "
-                f"host: {'yes' if result.bit_exact else 'NO'}")
+                f"host (commands and instance, every step): "
+                f"{'yes' if result.bit_exact else 'NO'}")
     return result

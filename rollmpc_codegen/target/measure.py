@@ -13,12 +13,13 @@ from pathlib import Path
 import numpy as np
 
 from .. import __version__
-from ..sim.flight_plan import FlightPlan
+from ..sim.flight_plan import FlightPlan, by_kind
 from ..sim.metrics import longest_run, status_counts
 from .build import (CROSS_CC, build_target, core_of, image_sizes, target_cflags,
                     largest_symbols, worst_stack)
 from .flights import FlightRun, fly
 from .replay import INFO_FIELDS, HostRecord
+from .build import target_layout
 
 
 def _toolchain_version() -> str:
@@ -104,6 +105,16 @@ def cycles_per_work(runs) -> dict:
             "flight_of_max": worst[0], "step_of_max": int(worst[1]), "steps": len(ratios)}
 
 
+def state_mismatch(runs) -> dict | None:
+    """The first flight whose instance differs from the host's: the step, the members
+    and how many of its steps differ (None: every instance equal, every step)."""
+    for f in runs:
+        found = f.run.state_mismatch()
+        if found is not None:
+            return {"flight": f.flight.index, **found}
+    return None
+
+
 def measure(model, ctx: dict, build_root: Path, *, plan: FlightPlan = FlightPlan(),
             steps: int | None = None, sample_every: int = 20, hardest: int = 10,
             progress=None, extra_cflags: tuple[str, ...] = (), host_repeats: int = 5,
@@ -114,6 +125,7 @@ def measure(model, ctx: dict, build_root: Path, *, plan: FlightPlan = FlightPlan
     run of the scenario (``rollmpc report --flight``: a flown flight's inputs)."""
     cfg = model.config
     build = build_target(ctx, build_root, extra_cflags=extra_cflags)
+    layout = target_layout(build, ctx)
     sizes = image_sizes(build.elf)
     stack = worst_stack(build, f"{ctx['prefix']}_step")
     stack_entry = worst_stack(build, f"{ctx['prefix']}_target_step")  # + the harness frame
@@ -125,7 +137,7 @@ def measure(model, ctx: dict, build_root: Path, *, plan: FlightPlan = FlightPlan
         runs.append(fly(model, ctx, build, build_root, flight, plan, steps=steps,
                         hardest=hardest, sample_every=sample_every,
                         host_repeats=host_repeats, progress=progress, label=label,
-                        record=record))
+                        record=record, layout=layout))
     worst_run = max(runs, key=lambda f: f.worst_cycles)  # the first flight on a tie
     worst_k, record = worst_run.worst_step, worst_run.record
     worst = worst_run.run.counts[worst_k]
@@ -164,6 +176,8 @@ def measure(model, ctx: dict, build_root: Path, *, plan: FlightPlan = FlightPlan
         "host_repeats": host_repeats,
         "bit_exact_vs_host": bool(bit_exact),
         "state_bit_exact": all(f.run.state_equal for f in runs),
+        "state_mismatch": state_mismatch(runs),
+        "kernels": layout.kernels,
         "mismatches": sum(len(f.run.mismatches) for f in runs),
         "first_mismatches": ([list(m) for m in mismatched[0].run.mismatches[:5]]
                              if mismatched else []),
@@ -197,4 +211,19 @@ def measure(model, ctx: dict, build_root: Path, *, plan: FlightPlan = FlightPlan
     }
     if plan.flights:
         report["flights"] = [f.summary() for f in runs]
+        report["by_kind"] = {kind: kind_figures(group)
+                             for kind, group in by_kind(runs, lambda f: f.flight.kind).items()}
     return report
+
+
+def kind_figures(runs) -> dict:
+    """One kind's flights: their worst counted step, statuses and longest TIME_LIMIT run."""
+    worst = max(runs, key=lambda f: f.worst_cycles)
+    statuses = [info["status"] for f in runs for info in f.record.info]
+    counts = status_counts(statuses)
+    return {"flights": len(runs), "worst_step_cycles": worst.worst_cycles,
+            "worst_flight": worst.flight.index, "statuses": counts,
+            "optimal_percent": round(100.0 * counts.get("optimal", 0) / len(statuses), 2),
+            "longest_time_limit_run": max(longest_run([i["status"] for i in f.record.info])
+                                          for f in runs),
+            "bit_exact_vs_host": all(f.bit_exact for f in runs)}

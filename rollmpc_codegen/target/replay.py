@@ -28,6 +28,8 @@ from ..info_struct import COMPARED_FIELDS
 from ..sim.scenario import scenario_reference
 from ..sim.simulate import run_closed_loop, start_phase
 from .emulate import CortexM
+from .build import target_layout
+from .state_layout import StateLayout
 
 # the diagnostics compared per step, in the order of the harness' {prefix}_target_info
 INFO_FIELDS = COMPARED_FIELDS
@@ -43,6 +45,10 @@ class HostRecord:
     u: list = field(default_factory=list)
     info: list = field(default_factory=list)
     final_state: bytes = b""
+    # with a target's layout (state_layout.py): the instance after each step, one digest
+    # per member, from a host build with the target's kernels
+    layout: StateLayout | None = None
+    states: list = field(default_factory=list)
 
 
 class _RecordingController:
@@ -62,14 +68,18 @@ class _RecordingController:
         self.record.r.append(r)
         self.record.u.append(np.asarray(u, dt).copy())
         self.record.info.append(info)
+        if self.record.layout is not None:
+            self.record.states.append(self.record.layout.digests(self.host.instance()))
         return status, u
 
 
 def record_host_run(model, ctx: dict, build_root: Path, steps: int | None,
                     progress=None, repeats: int = 1, loop_options: dict | None = None,
-                    label: str = "report") -> HostRecord:
+                    label: str = "report", layout: StateLayout | None = None) -> HostRecord:
     """Close the loop with the host build and record every step; ``loop_options`` are
-    keywords of ``run_closed_loop`` (reference, noise_std, disturbance, seed, mismatch)."""
+    keywords of ``run_closed_loop`` (reference, noise_std, disturbance, seed, mismatch);
+    ``layout``: the target's (:func:`.state_layout.target_layout`), whose kernels the host
+    build runs and whose members each step's instance is recorded by."""
     loop_options = loop_options or {}
     reference = loop_options.get("reference")
     total = steps or len(scenario_reference(model.config) if reference is None else reference)
@@ -78,11 +88,13 @@ def record_host_run(model, ctx: dict, build_root: Path, steps: int | None,
         run_closed_loop(model.config, controller, steps=steps, progress=progress_cb,
                         **loop_options)
 
-    return record_host_runs(ctx, build_root, total, drive, progress, repeats, f"{label}: host run")
+    return record_host_runs(ctx, build_root, total, drive, progress, repeats,
+                            f"{label}: host run", layout)
 
 
 def record_host_runs(ctx: dict, build_root: Path, total: int, drive, progress=None,
-                     repeats: int = 1, label: str = "report: host run") -> HostRecord:
+                     repeats: int = 1, label: str = "report: host run",
+                     layout: StateLayout | None = None) -> HostRecord:
     """Record every step of ``drive(controller, progress_cb)``, which calls
     ``controller.step`` ``total`` times, on a fresh host build (a closed loop, or the
     recorded inputs of a flight: :mod:`.flight_replay`).
@@ -91,15 +103,16 @@ def record_host_runs(ctx: dict, build_root: Path, total: int, drive, progress=No
     smallest solve time: the host clock on a shared machine is noisy, and the minimum is
     what ranks the hardest steps.
     """
-    record = HostRecord()
+    record = HostRecord(layout=layout)
+    flags = () if layout is None else layout.host_flags(ctx)
     for run in range(max(1, repeats)):
-        host = build_host_controller(ctx, build_root)
+        host = build_host_controller(ctx, build_root, extra=flags)
         cb = start_phase(progress, total, f"{label} {run + 1}/{max(1, repeats)}")
         if run == 0:
             drive(_RecordingController(host, record), cb)
-            record.final_state = bytes(host.ffi.buffer(host.ctrl))
+            record.final_state = host.instance()
             continue
-        timings = HostRecord()
+        timings = HostRecord()  # no layout: the instances are recorded once
         drive(_RecordingController(host, timings), cb)
         for info, again in zip(record.info, timings.info):
             info["solve_ticks"] = min(info["solve_ticks"], again["solve_ticks"])
@@ -151,23 +164,46 @@ class TargetRun:
     steps: int
     state_equal: bool
     stack_measured: int
+    state_steps: list = field(default_factory=list)  # the steps whose instances differ
+    state_members: list = field(default_factory=list)  # the members that differ first
+    kernels: str = ""  # the target's kernel variant, which the host build ran
+
+    def state_mismatch(self) -> dict | None:
+        """The first step whose instance differs, its members and how many steps differ."""
+        if not self.state_steps:
+            return None if self.state_equal else {"step": self.steps - 1, "members": [],
+                                                  "steps": 1}
+        return {"step": int(self.state_steps[0]), "members": list(self.state_members),
+                "steps": len(self.state_steps)}
+
+
+def _compare_outputs(k: int, record: HostRecord, u: np.ndarray, status: int,
+                     info: np.ndarray, mismatches: list) -> None:
+    host_info = record.info[k]
+    if u.tobytes() != record.u[k].tobytes():
+        mismatches.append((k, "u", record.u[k].tolist(), u.tolist()))
+    if int(np.int32(status)) != host_info["status"]:
+        mismatches.append((k, "status", host_info["status"], int(np.int32(status))))
+    for i, name in enumerate(INFO_FIELDS):
+        if int(info[i]) != host_info[name]:
+            mismatches.append((k, name, host_info[name], int(info[i])))
 
 
 def replay_on_target(build, ctx: dict, record: HostRecord, count_steps: set[int],
                      progress=None, label: str = "report") -> TargetRun:
-    """Replay the recorded inputs from step 0 on the emulated core; compare every output."""
+    """Replay the recorded inputs from step 0 on the emulated core; compare every output
+    and, when the record has them, every step's instance (member digests)."""
     p = ctx["prefix"]
     dt = np.float32 if ctx["real"] == "float" else np.float64
+    layout = record.layout or target_layout(build, ctx)
     em = CortexM(build.elf, build.core)
-    ctrl_size, real_size, info_at, info_size = map(
-        int, np.frombuffer(em.read(f"{p}_target_layout"), np.uint32))
-    if ctrl_size != len(record.final_state) or real_size != np.dtype(dt).itemsize:
+    if layout.ctrl_size != len(record.final_state):
         raise RuntimeError(f"{p}_ctrl differs between host ({len(record.final_state)} B) and "
-                           f"target ({ctrl_size} B)")
+                           f"target ({layout.ctrl_size} B)")
     em.call(f"{p}_target_init")
     n = len(record.u)
     cb = start_phase(progress, n, f"{label}: target run ")
-    counts, mismatches = {}, []
+    counts, mismatches, state_steps, first_members = {}, [], [], []
     for k in range(n):
         em.write(f"{p}_target_y", record.y[k])
         if ctx["n_schedule"]:
@@ -176,24 +212,23 @@ def replay_on_target(build, ctx: dict, record: HostRecord, count_steps: set[int]
         status, c = em.call(f"{p}_target_step", count=k in count_steps)
         if c is not None:
             counts[k] = c
-        u = np.frombuffer(em.read(f"{p}_target_u"), dt)
-        info = np.frombuffer(em.read(f"{p}_target_info"), np.int32)
-        host_info = record.info[k]
-        if u.tobytes() != record.u[k].tobytes():
-            mismatches.append((k, "u", record.u[k].tolist(), u.tolist()))
-        if int(np.int32(status)) != host_info["status"]:
-            mismatches.append((k, "status", host_info["status"], int(np.int32(status))))
-        for i, name in enumerate(INFO_FIELDS):
-            if int(info[i]) != host_info[name]:
-                mismatches.append((k, name, host_info[name], int(info[i])))
+        _compare_outputs(k, record, np.frombuffer(em.read(f"{p}_target_u"), dt), status,
+                         np.frombuffer(em.read(f"{p}_target_info"), np.int32), mismatches)
+        if record.states:
+            differ = layout.differing(record.states[k], layout.digests(em.read(f"{p}_target_ctrl")))
+            if differ:
+                first_members = first_members or differ
+                state_steps.append(k)
         if cb:
             cb(k)
     # the whole instance after the last step, but for the diagnostics (compared above;
     # their solve time is the host's clock)
     target_state = bytearray(em.read(f"{p}_target_ctrl"))
     host_state = bytearray(record.final_state)
-    target_state[info_at:info_at + info_size] = host_state[info_at:info_at + info_size] = \
-        bytes(info_size)
+    at, size = layout.info_at, layout.info_size
+    target_state[at:at + size] = host_state[at:at + size] = bytes(size)
     return TargetRun(counts=counts, mismatches=mismatches, steps=n,
-                     state_equal=same_state(host_state, target_state, np.dtype(dt)),
-                     stack_measured=em.stack_high_water())
+                     state_equal=not state_steps and same_state(host_state, target_state,
+                                                                np.dtype(dt)),
+                     stack_measured=em.stack_high_water(), state_steps=state_steps,
+                     state_members=first_members, kernels=layout.kernels)

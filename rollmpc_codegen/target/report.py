@@ -30,6 +30,7 @@ from ..pipeline import load_config, load_model
 from . import flight_replay
 from ..sim.flight_plan import FlightPlan
 from .horizons import horizon_table
+from .build import build_target, target_layout
 from .measure import measure
 from .verdicts import conclude
 
@@ -39,7 +40,7 @@ TARGET_MODULES = (("unicorn", "unicorn"), ("capstone", "capstone"), ("elftools",
 def run_report(config, *, precision: str | None = None, part: str | None = None,
                horizons: Iterable[int] | None = None, steps: int | None = None,
                flights: int = 0, seed: int = 0, noise_std: float = 0.0,
-               disturbance: float = 0.0, mismatch: float = 0.0,
+               disturbance: float = 0.0, mismatch: float = 0.0, kinds: str = "both",
                sample_every: int = 20, hardest: int = 10, host_repeats: int = 5,
                extra_cflags: tuple[str, ...] = (), build_dir: str | Path | None = None,
                flight: str | Path | None = None, peer: str | None = None,
@@ -50,9 +51,10 @@ def run_report(config, *, precision: str | None = None, part: str | None = None,
     ``{"horizons": horizon_table(...)}`` (a file or a Design).
 
     ``part`` replaces the config's target: section by that part's (parts.py; config.load).
-    ``steps`` samples of the scenario, or of each of ``flights`` random flights, are
-    replayed (default: the scenario's length); ``seed``, ``noise_std``, ``disturbance``
-    and ``mismatch`` perturb them (:class:`~rollmpc_codegen.sim.flight_plan.FlightPlan`).
+    ``steps`` samples of the scenario, or of each of ``flights`` random flights of the
+    ``kinds`` of flight_plan.py, are replayed (default: the scenario's length); ``seed``,
+    ``noise_std``, ``disturbance`` and ``mismatch`` perturb them
+    (:class:`~rollmpc_codegen.sim.flight_plan.FlightPlan`).
     Cycles are counted on every ``sample_every``-th step and on the ``hardest`` steps,
     ranked by the smallest host solve time of ``host_repeats`` runs; ``extra_cflags`` are
     appended to the target's flags. ``flight``: replay the first ``steps`` samples of that
@@ -67,7 +69,7 @@ def run_report(config, *, precision: str | None = None, part: str | None = None,
                                "'rollmpc-codegen[target]'")
     root = private_root(build_dir or None)  # it receives configs too, not only builds
     plan = FlightPlan(flights=flights, seed=seed, noise_std=noise_std,
-                      disturbance=disturbance, mismatch=mismatch)
+                      disturbance=disturbance, mismatch=mismatch, kinds=kinds)
     options = {"steps": steps, "sample_every": sample_every, "hardest": hardest,
                "extra_cflags": tuple(extra_cflags), "host_repeats": host_repeats,
                "plan": plan}
@@ -89,7 +91,8 @@ def run_report(config, *, precision: str | None = None, part: str | None = None,
             report["peer"] = peer_cycles(model, ctx, root, steps, progress)
         return conclude(report, model.config, precision)
     inputs = flight_replay.read_flight_inputs(flight, ctx, steps)
-    record = flight_replay.record_flight(ctx, inputs, root, progress, host_repeats)
+    layout = target_layout(build_target(ctx, root, extra_cflags=tuple(extra_cflags)), ctx)
+    record = flight_replay.record_flight(ctx, inputs, root, progress, host_repeats, layout)
     report = measure(model, ctx, root, progress=progress, record=record, **options)
     report["flight"] = {"path": str(flight), "samples": len(inputs.y),
                         **flight_replay.commands_match(inputs, record)}

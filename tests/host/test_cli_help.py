@@ -1,5 +1,5 @@
 """The command line explains itself (docs/checks.md): ``--version``, a top-level help
-that lists all seven commands in plain words (it listed five, and named them after the
+that lists all eight commands in plain words (it listed five, and named them after the
 paper: "bench: Table 2", "simulate ... on the paper scenario"), and a full ``--help`` per
 subcommand: a description, every argument helped, the exit codes."""
 from __future__ import annotations
@@ -9,7 +9,8 @@ import pytest
 from rollmpc_codegen import __version__
 from rollmpc_codegen.cli.main import SUBCOMMANDS, main, parser
 
-COMMANDS = ("generate", "simulate", "bench", "report", "testvectors", "identify", "fly")
+COMMANDS = ("generate", "simulate", "bench", "report", "certify", "testvectors", "identify",
+            "fly")
 
 
 def subparsers() -> dict:
@@ -44,4 +45,5 @@ def test_every_subcommand_has_a_full_help(name):
 
 def test_report_documents_its_verdict_exit_code():
     assert "3 a verdict failed" in subparsers()["report"].epilog
+    assert "3 a sampled QP stopped" in subparsers()["certify"].epilog
     assert "--check" in subparsers()["report"].format_help()

@@ -9,6 +9,8 @@
   variant in the default suite (which also runs the test-vector program on 1,200 steps
   of that variant; the long run replays the paper's whole scenario in both precisions).
 * valgrind (memcheck) on the test-vector program: 0 errors.
+* Each with the kernels the target runs (P_WIDE_KERNELS, forced on the host): the wide
+  ones of a float tree under the sanitizers, valgrind and the soak, beside the plain ones.
 * Stack: per-function frames from -fstack-usage and the call graph from
   -fcallgraph-info (GCC): no recursion, no unbounded dynamic frame, and the worst path
   from each entry point within 1 KiB on the host and on Cortex-M4F.
@@ -20,6 +22,7 @@ import pytest
 
 from conftest import UAV, require_tool, short_uav_config
 from rollmpc_codegen.parts import CORES
+from rollmpc_codegen.codegen.build_flags import KERNEL_VARIANTS, kernel_flags
 from rollmpc_codegen.pipeline import generate
 from rollmpc_codegen.host.programs import (SANITIZE, SOAK_SUMMARY, VALGRIND_BUILD,
                                            VECTORS_SUMMARY, compile_program, run_program,
@@ -60,8 +63,18 @@ def _assert_soak_clean(run, steps):
     return counts
 
 
-def test_vectors_under_sanitizers(tmp_path):
-    exe = _vectors(_short(tmp_path), tmp_path, "double", 1200, SANITIZE)
+# What the target runs per precision (P_WIDE_KERNELS: the M4F takes the wide kernels in
+# float, the plain ones in double), forced on the host (tests/host/test_kernel_variants.py)
+TARGET_KERNELS = [("double", "plain"), ("float", "wide")]
+
+
+def _kernels(kernels: str) -> tuple[str, ...]:
+    return kernel_flags("rollmpc", kernels == "wide")
+
+
+@pytest.mark.parametrize("precision,kernels", TARGET_KERNELS)
+def test_vectors_under_sanitizers(tmp_path, precision, kernels):
+    exe = _vectors(_short(tmp_path), tmp_path, precision, 1200, (*SANITIZE, *_kernels(kernels)))
     run = run_program(exe)
     assert run.sanitizer_reports == 0, run.stderr[-3000:]
     _assert_vectors_pass(run, 1200)
@@ -76,11 +89,13 @@ def test_vectors_under_sanitizers_paper_controller(tmp_path, precision):
     _assert_vectors_pass(run, 6000)
 
 
-def test_soak_under_sanitizers(tmp_path):
+@pytest.mark.parametrize("kernels", KERNEL_VARIANTS)
+def test_soak_under_sanitizers(tmp_path, kernels, steps=20000):
     src = write_soak_program(_short(tmp_path), tmp_path / "soak", "float")
-    run = run_program(compile_program(src, tmp_path / "soak.exe", SANITIZE), ("20000", "3"))
+    exe = compile_program(src, tmp_path / "soak.exe", (*SANITIZE, *_kernels(kernels)))
+    run = run_program(exe, (str(steps), "3"))
     assert run.sanitizer_reports == 0, run.stderr[-3000:]
-    _assert_soak_clean(run, 20000)
+    _assert_soak_clean(run, steps)
 
 
 @pytest.mark.slow
@@ -92,9 +107,11 @@ def test_soak_100k_steps_under_sanitizers(tmp_path, precision):
     _assert_soak_clean(run, 100000)
 
 
-def test_valgrind_on_the_test_program(tmp_path):
+@pytest.mark.parametrize("kernels", KERNEL_VARIANTS)
+def test_valgrind_on_the_test_program(tmp_path, kernels):
     valgrind = require_tool("valgrind", VALGRIND_HINT)
-    exe = _vectors(_short(tmp_path), tmp_path, "float", 1200, VALGRIND_BUILD)
+    exe = _vectors(_short(tmp_path), tmp_path, "float", 1200,
+                   (*VALGRIND_BUILD, *_kernels(kernels)))
     run = run_program(exe, valgrind=valgrind)
     assert run.valgrind_errors == 0, run.stderr[-3000:]
     _assert_vectors_pass(run, 1200)

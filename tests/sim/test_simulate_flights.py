@@ -56,6 +56,14 @@ def test_totals_add_up_the_flights(three_flights):
     assert min(w["median"] for w in works) <= t["work"]["median"] <= max(w["median"]
                                                                          for w in works)
     assert t["work"]["budget"] == s["solver"]["work_budget"]
+    # seeds 7 and 9 press the envelope, 8 stays inside: each kind adds up its own flights
+    assert [f["kind"] for f in flights] == ["envelope", "inside", "envelope"]
+    kinds = s["by_kind"]
+    assert list(kinds) == ["inside", "envelope"]
+    assert [kinds[k]["flights"] for k in kinds] == [1, 2]
+    assert kinds["inside"]["status_counts"] == flights[1]["status_counts"]
+    assert sum(k["samples"] for k in kinds.values()) == t["samples"]
+    assert max(k["longest_time_limit_run"] for k in kinds.values()) == t["longest_time_limit_run"]
 
 
 def test_a_flight_flies_again_alone_and_as_the_reference(three_flights, tmp_path, capsys):

@@ -176,9 +176,10 @@ def test_instance_layout_matches_the_host(target_tools, float_model, build_root)
     model, ctx = float_model
     build = build_target(ctx, build_root)
     em = CortexM(build.elf, build.core)
-    size, real, _, _ = np.frombuffer(em.read("rollmpc_target_layout"), np.uint32)
+    size, real, _, _, wide = np.frombuffer(em.read("rollmpc_target_layout"), np.uint32)
     host = build_host_controller(ctx, build_root)
     assert size == host.lib.rollmpc_ctrl_size() and real == 4
+    assert wide == 1  # a float tree on the M4F's FPU: the wide kernels (internal.h.j2)
 
 
 def test_kernel_charges_cover_their_cycles(target_tools):

@@ -42,11 +42,18 @@ def test_flights_are_seeded_distinct_and_name_the_overall_worst(target_tools, sl
     flights = rep["flights"]
     assert [f["flight"] for f in flights] == [0, 1] and [f["seed"] for f in flights] == [5, 6]
     assert rep["perturbations"] == {"flights": 2, "seed": 5, "noise_std": 0.05,
-                                    "disturbance": 0.2, "mismatch": 0.2}
+                                    "disturbance": 0.2, "mismatch": 0.2, "kinds": "both"}
     levels = [np.array(f["levels"]) for f in flights]
     assert all(lv.shape == (4, 1) for lv in levels)
     assert not np.array_equal(levels[0], levels[1])  # distinct reference sequences
-    assert all(np.all(np.abs(lv) <= 40) for lv in levels)  # within the scenario's range
+    # an odd seed presses the envelope (up to the hard ±270 deg), an even one stays within
+    # the scenario's range
+    assert [f["kind"] for f in flights] == ["envelope", "inside"]
+    assert np.all(np.abs(levels[0]) <= 270) and np.all(np.abs(levels[1]) <= 40)
+    assert list(rep["by_kind"]) == ["inside", "envelope"]
+    assert rep["by_kind"]["envelope"]["worst_flight"] == 0
+    assert sum(k["worst_step_cycles"] == rep["worst_step_cycles"]
+               for k in rep["by_kind"].values()) >= 1
     for f in flights:
         assert f["bit_exact_vs_host"] is True and f["mismatches"] == 0
         assert f["steps"] == f["steps_counted"] == 100
