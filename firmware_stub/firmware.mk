@@ -2,6 +2,8 @@
 # alone: make -f firmware_stub/firmware.mk [firmware|size|host] [FW_GEN=...] [FW_BUILD=...]).
 #
 #   firmware  Cortex-M4F image: stub + HAL + startup + the generated controller in FW_GEN
+#             (any tree: the roll module for a roll tree of prefix rollmpc, else the
+#             generic main of generic/, at the tree's own sample period)
 #   size      flash and static RAM of that image
 #   host      host executable (stdin/stdout HAL) for closing the loop in a test
 #
@@ -29,7 +31,29 @@ FW_TARGET := -O2 -ffreestanding -fbuiltin -fno-math-errno -ffp-contract=off \
 FW_WARN := -std=c99 -Wall -Wextra -Wpedantic -Wconversion -Wshadow -Wdouble-promotion -Werror \
     -Wfloat-equal -Wcast-align -Wstrict-prototypes -Wbad-function-cast -Wnested-externs \
     -fno-common -Wframe-larger-than=1300
-FW_INC := -I$(FW_GEN) -I$(FW_DIR)
+# The app: the roll module (rollctl.c) for a roll tree of prefix rollmpc scheduled on the
+# roll rate (or on nothing), else the generic main (generic/fw_main.c) that serves any
+# design at its own sample period; FW_APP=generic forces the latter.
+ROLLMPC_GEN := $(FW_GEN)
+include $(FW_DIR)/generic/rollmpc_fw.mk
+FW_ROLL_TREE := $(and $(filter rollmpc,$(ROLLMPC_FW_PREFIX)),$(shell grep -l -E \
+    '^#define ROLLMPC_N_OUTPUTS 1$$' $(ROLLMPC_FW_CONFIG)),$(if $(shell grep -l \
+    -E '^#define ROLLMPC_N_SCHEDULE 0$$|^#define ROLLMPC_SCHEDULE_SIGNAL_ROLL_RATE 1$$' \
+    $(ROLLMPC_FW_CONFIG)),yes))
+FW_APP ?= $(if $(FW_ROLL_TREE),roll,generic)
+ifeq ($(FW_APP),roll)
+FW_INC := -I$(FW_GEN) -I$(FW_DIR) -include $(FW_DIR)/m4f/rollmpc_timestamp_m4f.h
+FW_NAME := rollctl
+FW_STUB_SRC := $(FW_DIR)/rollctl.c $(FW_DIR)/app_main.c
+FW_M4F_SRC := $(FW_DIR)/m4f/rollctl_hal_m4f.c $(FW_DIR)/m4f/startup_m4f.c
+FW_HOST_HAL := $(FW_DIR)/host/rollctl_hal_host.c
+else
+FW_INC := $(ROLLMPC_FW_CFLAGS)
+FW_NAME := $(ROLLMPC_FW_PREFIX)_fw
+FW_STUB_SRC := $(FW_DIR)/generic/fw_main.c
+FW_M4F_SRC := $(ROLLMPC_FW_HAL_M4F)
+FW_HOST_HAL := $(ROLLMPC_FW_HAL_HOST)
+endif
 
 FW_CONTEXT := $(firstword $(wildcard $(FW_GEN)/*_context.json))
 # the number after "<key>": in the context (null, or no context: empty, no check)
@@ -38,33 +62,30 @@ FW_FLASH_KIB ?= $(call fw_target,flash_kib)
 FW_RAM_KIB ?= $(call fw_target,ram_kib)
 FW_FORCE_SIZE ?=
 
-FW_ELF := $(FW_BUILD)/rollctl_m4f.elf
-FW_HOST := $(FW_BUILD)/rollctl_host
+FW_ELF := $(FW_BUILD)/$(FW_NAME)_m4f.elf
+FW_HOST := $(FW_BUILD)/$(FW_NAME)_host
 FW_GEN_SRC := $(wildcard $(FW_GEN)/*.c)
-FW_STUB_SRC := $(FW_DIR)/rollctl.c $(FW_DIR)/app_main.c
-FW_M4F_SRC := $(FW_DIR)/m4f/rollctl_hal_m4f.c $(FW_DIR)/m4f/startup_m4f.c
 FW_HDR := $(wildcard $(FW_GEN)/*.h) $(FW_DIR)/rollctl.h $(FW_DIR)/rollctl_hal.h \
     $(FW_DIR)/integration/common/rollglue_cycles.h \
-    $(FW_DIR)/m4f/rollmpc_timestamp_m4f.h
+    $(FW_DIR)/m4f/rollmpc_timestamp_m4f.h $(wildcard $(FW_DIR)/generic/*.h)
 FW_OBJ := $(addprefix $(FW_BUILD)/obj/,$(notdir $(FW_GEN_SRC:.c=.o) $(FW_STUB_SRC:.c=.o) \
     $(FW_M4F_SRC:.c=.o)))
 
-vpath %.c $(FW_GEN) $(FW_DIR) $(FW_DIR)/m4f
+vpath %.c $(FW_GEN) $(FW_DIR) $(FW_DIR)/m4f $(FW_DIR)/generic $(FW_DIR)/generic/m4f
 
 .PHONY: firmware size host
 
 firmware: $(FW_ELF)
 
 $(FW_BUILD)/obj/%.o: %.c $(FW_HDR) | $(FW_BUILD)/obj
-	$(ARM_CC) $(FW_MCU) $(FW_TARGET) $(FW_WARN) -include $(FW_DIR)/m4f/rollmpc_timestamp_m4f.h \
-	    $(FW_INC) -c $< -o $@
+	$(ARM_CC) $(FW_MCU) $(FW_TARGET) $(FW_WARN) $(FW_INC) -c $< -o $@
 
 $(FW_BUILD)/obj:
 	mkdir -p $@
 
 $(FW_ELF): $(FW_OBJ) $(FW_DIR)/m4f/stm32f4_generic.ld
 	$(ARM_CC) $(FW_MCU) -nostartfiles --specs=nano.specs -Wl,--gc-sections \
-	    -T $(FW_DIR)/m4f/stm32f4_generic.ld -Wl,-Map=$(FW_BUILD)/rollctl_m4f.map \
+	    -T $(FW_DIR)/m4f/stm32f4_generic.ld -Wl,-Map=$(FW_BUILD)/$(FW_NAME)_m4f.map \
 	    -o $@ $(FW_OBJ) -lm
 	@$(ARM_SIZE) $@ | awk -v flash_kib="$(FW_FLASH_KIB)" -v ram_kib="$(FW_RAM_KIB)" \
 	    -v force="$(FW_FORCE_SIZE)" -v gen="$(FW_GEN)" 'NR == 2 { \
@@ -87,7 +108,7 @@ size: $(FW_ELF)
 
 host: $(FW_HOST)
 
-$(FW_HOST): $(FW_GEN_SRC) $(FW_STUB_SRC) $(FW_DIR)/host/rollctl_hal_host.c $(FW_HDR)
+$(FW_HOST): $(FW_GEN_SRC) $(FW_STUB_SRC) $(FW_HOST_HAL) $(FW_HDR)
 	@mkdir -p $(FW_BUILD)
 	$(HOST_CC) -O2 -ffp-contract=off $(FW_WARN) $(FW_INC) -o $@ $(FW_GEN_SRC) $(FW_STUB_SRC) \
-	    $(FW_DIR)/host/rollctl_hal_host.c -lm
+	    $(FW_HOST_HAL) -lm

@@ -32,7 +32,8 @@ typedef struct {{
 }} rollglue_params;
 typedef struct {{
     float roll_deg; uint64_t roll_us; float roll_rate_dps; uint64_t rate_us;
-    float roll_cmd_deg; uint64_t cmd_us; float applied[{c}]; int engage;
+    float roll_cmd_deg; uint64_t cmd_us; float airspeed_mps; uint64_t airspeed_us;
+    float applied[{c}]; int engage;
 }} rollglue_input;
 typedef struct {{
     int valid; uint32_t channel_mask; float value[{c}]; float u_deg[{n}];
@@ -50,7 +51,7 @@ void rollglue_sizes(uint32_t sizes[5]);
 """
 # reason bits and states of rollglue.h
 NOT_REQUESTED, STALE_ROLL, STALE_RATE, STALE_CMD, FROZEN, NONFINITE, WARMING, SOLVER, \
-    LOCKED_OUT, NO_PARAMS = (1 << i for i in range(10))
+    LOCKED_OUT, NO_PARAMS, STALE_SCHED = (1 << i for i in range(11))
 TRACKING, ENGAGED, LOCKOUT = 0, 1, 2
 
 

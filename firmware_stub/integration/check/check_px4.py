@@ -58,6 +58,7 @@ def module_flags(px4: Path, module: Path) -> list[str]:
     module_h = px4 / "platforms/common/include/px4_platform_common/module.h"
     descriptor = int("struct Descriptor" in module_h.read_text())
     return [f"-DRMPC_MODULE_DESCRIPTOR={descriptor}", "-Wframe-larger-than=1024", "-ffp-contract=off",
+            "-fno-reciprocal-math",
             "-include", str(module / "common/rollglue_cycles.h"),
             "-DROLLMPC_TIMESTAMP()=ROLLGLUE_CYCLES()", f"-I{module / 'common'}",
             f"-I{module / 'generated'}", "-DMODULE_NAME=\"rollmpc\"", "-DPX4_MAIN=rollmpc_app_main"]

@@ -70,6 +70,8 @@ void rollglue_ap_input(const rollglue_ap_sample *s, rollglue_input *in)
     in->rate_us = s->roll_us; /* one AHRS update gives both */
     in->roll_cmd_deg = (float)s->roll_cmd_cd * CENTI;
     in->cmd_us = s->cmd_us;
+    in->airspeed_mps = s->airspeed_mps;
+    in->airspeed_us = s->airspeed_us;
     for (c = 0; c < ROLLGLUE_MAX_CHANNELS; ++c) {
         in->applied[c] = normalised(s->applied_scaled[c]);
     }
