@@ -55,11 +55,14 @@ NOT_REQUESTED, STALE_ROLL, STALE_RATE, STALE_CMD, FROZEN, NONFINITE, WARMING, SO
 TRACKING, ENGAGED, LOCKOUT = 0, 1, 2
 
 
-def build_glue(generated: Path, out: Path, extra: tuple[Path, ...] = ()) -> Path:
+def build_glue(generated: Path, out: Path, extra: tuple[Path, ...] = (),
+               defines: tuple[str, ...] = ()) -> Path:
     """lib of the glue core + the generated controller in ``generated`` (strict flags),
-    plus ``extra`` sources (an autopilot's C glue; their directories are on the path)."""
+    plus ``extra`` sources (an autopilot's C glue; their directories are on the path) and
+    ``defines`` (-D flags: the prefix of a tree that is not rollmpc)."""
     lib = out / "librollglue.so"
-    cmd = ["gcc", "-O2", "-fPIC", "-shared", "-ffp-contract=off", *WARNINGS, f"-I{generated}",
+    cmd = ["gcc", "-O2", "-fPIC", "-shared", "-ffp-contract=off", *WARNINGS, *defines,
+           f"-I{generated}",
            f"-I{GLUE}", *dict.fromkeys(f"-I{src.parent}" for src in extra), "-o", str(lib),
            str(GLUE / "rollglue.c"), *map(str, extra),
            *map(str, sorted(generated.glob("*.c"))), "-lm"]

@@ -19,7 +19,7 @@ from glue_harness import CDEF, MAX_CHANNELS, build_glue
 from test_glue_core import F32, header_ranges
 
 AP = ROOT / "firmware_stub" / "integration" / "ardupilot"
-CHECK = ROOT / "firmware_stub" / "integration" / "check" / "check_ardupilot.py"
+CHECK = ROOT / "firmware_stub" / "integration" / "check" / "precheck_ardupilot.py"
 PATCHES = {"plane/arduplane.patch": "ArduPlane", "copter/custom_control.patch": "libraries"}
 AILERON, ELEVATOR = 4, 19
 PARAMS_OK, PARAMS_TIMEOUT, PARAMS_CHANNEL = 0, 1, 6

@@ -28,6 +28,14 @@
 
 #include <stdint.h>
 
+/* A tree of another prefix: the build passes the three macros (PX4's CMakeLists.txt reads
+ * them from the tree), or glue_fit.py writes them into rollglue_design.h beside the glue
+ * (ArduPilot's flat library, where a library cannot add compiler flags). */
+#if !defined(ROLLGLUE_PREFIX) && defined(__has_include)
+#if __has_include("rollglue_design.h")
+#include "rollglue_design.h"
+#endif
+#endif
 #ifndef ROLLGLUE_PREFIX
 #define ROLLGLUE_PREFIX rollmpc
 #define ROLLGLUE_PREFIX_UPPER ROLLMPC

@@ -228,7 +228,7 @@ int RollMpc::print_status()
 {
 	const rollglue_telemetry *tm = rollglue_get_telemetry(&_glue);
 	PX4_INFO("state %d, reasons 0x%03x, mode %d, status %s", tm->state, static_cast<unsigned>(tm->reasons),
-		 tm->mode, rollmpc_status_message(tm->status));
+		 tm->mode, ROLLGLUE_FN(_status_message)(tm->status));
 	PX4_INFO("engagements %u, failures %u, solve %u cycles (max %u)", static_cast<unsigned>(tm->engagements),
 		 static_cast<unsigned>(tm->failures), static_cast<unsigned>(tm->solve_cycles),
 		 static_cast<unsigned>(tm->max_solve_cycles));
