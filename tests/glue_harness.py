@@ -32,7 +32,8 @@ typedef struct {{
 }} rollglue_params;
 typedef struct {{
     float roll_deg; uint64_t roll_us; float roll_rate_dps; uint64_t rate_us;
-    float roll_cmd_deg; uint64_t cmd_us; float applied[{c}]; int engage;
+    float roll_cmd_deg; uint64_t cmd_us; float airspeed_mps; uint64_t airspeed_us;
+    float applied[{c}]; int engage;
 }} rollglue_input;
 typedef struct {{
     int valid; uint32_t channel_mask; float value[{c}]; float u_deg[{n}];
@@ -50,15 +51,18 @@ void rollglue_sizes(uint32_t sizes[5]);
 """
 # reason bits and states of rollglue.h
 NOT_REQUESTED, STALE_ROLL, STALE_RATE, STALE_CMD, FROZEN, NONFINITE, WARMING, SOLVER, \
-    LOCKED_OUT, NO_PARAMS = (1 << i for i in range(10))
+    LOCKED_OUT, NO_PARAMS, STALE_SCHED = (1 << i for i in range(11))
 TRACKING, ENGAGED, LOCKOUT = 0, 1, 2
 
 
-def build_glue(generated: Path, out: Path, extra: tuple[Path, ...] = ()) -> Path:
+def build_glue(generated: Path, out: Path, extra: tuple[Path, ...] = (),
+               defines: tuple[str, ...] = ()) -> Path:
     """lib of the glue core + the generated controller in ``generated`` (strict flags),
-    plus ``extra`` sources (an autopilot's C glue; their directories are on the path)."""
+    plus ``extra`` sources (an autopilot's C glue; their directories are on the path) and
+    ``defines`` (-D flags: the prefix of a tree that is not rollmpc)."""
     lib = out / "librollglue.so"
-    cmd = ["gcc", "-O2", "-fPIC", "-shared", "-ffp-contract=off", *WARNINGS, f"-I{generated}",
+    cmd = ["gcc", "-O2", "-fPIC", "-shared", "-ffp-contract=off", *WARNINGS, *defines,
+           f"-I{generated}",
            f"-I{GLUE}", *dict.fromkeys(f"-I{src.parent}" for src in extra), "-o", str(lib),
            str(GLUE / "rollglue.c"), *map(str, extra),
            *map(str, sorted(generated.glob("*.c"))), "-lm"]

@@ -19,7 +19,7 @@ from glue_harness import CDEF, MAX_CHANNELS, build_glue
 from test_glue_core import F32, header_ranges
 
 AP = ROOT / "firmware_stub" / "integration" / "ardupilot"
-CHECK = ROOT / "firmware_stub" / "integration" / "check" / "check_ardupilot.py"
+CHECK = ROOT / "firmware_stub" / "integration" / "check" / "precheck_ardupilot.py"
 PATCHES = {"plane/arduplane.patch": "ArduPlane", "copter/custom_control.patch": "libraries"}
 AILERON, ELEVATOR = 4, 19
 PARAMS_OK, PARAMS_TIMEOUT, PARAMS_CHANNEL = 0, 1, 6
@@ -30,7 +30,8 @@ typedef struct {{
     float slew_dps; float throw_deg[2]; int32_t servo[2][2]; int32_t reversed;
 }} rollglue_ap_settings;
 typedef struct {{
-    int32_t roll_cd; uint64_t roll_us; float gyro_x_rads; int32_t roll_cmd_cd; uint64_t cmd_us;
+    int32_t roll_cd; uint64_t roll_us; float gyro_x_rads; float airspeed_mps; uint64_t airspeed_us;
+    int32_t roll_cmd_cd; uint64_t cmd_us;
     float applied_scaled[{c}]; int engage;
 }} rollglue_ap_sample;
 void rollglue_ap_params(const rollglue_ap_settings *s, rollglue_params *p);
@@ -81,6 +82,7 @@ def test_input_units_centidegrees_rad_s_and_servo_units(ap):
     s = ffi.new("rollglue_ap_sample *")
     s.roll_cd, s.roll_us, s.gyro_x_rads = -2050, 123_456, 0.5
     s.roll_cmd_cd, s.cmd_us, s.engage = 3000, 123_000, 1
+    s.airspeed_mps, s.airspeed_us = 41.5, 123_400
     scaled = {0: 4500.0, 1: -2250.0, 2: 9000.0, 3: -1e9}
     for c in range(MAX_CHANNELS):
         s.applied_scaled[c] = scaled.get(c, math.nan)
@@ -89,6 +91,7 @@ def test_input_units_centidegrees_rad_s_and_servo_units(ap):
     assert inp.roll_deg == pytest.approx(-20.5, abs=1e-5) and inp.roll_cmd_deg == pytest.approx(30.0)
     assert inp.roll_rate_dps == pytest.approx(0.5 * 180 / math.pi, rel=1e-6)
     assert (inp.roll_us, inp.rate_us, inp.cmd_us, inp.engage) == (123_456, 123_456, 123_000, 1)
+    assert (inp.airspeed_mps, inp.airspeed_us) == (41.5, 123_400)  # m/s: the core scales it
     assert list(inp.applied)[:4] == [1.0, -0.5, 1.0, -1.0]  # clamped to the servo's throw
     assert all(math.isnan(v) for v in list(inp.applied)[4:])
 

@@ -293,7 +293,7 @@ def test_autopilot_parameter_ranges_match_the_core():
         assert (defs[name]["min"], defs[name]["max"]) == (lo, hi), name
 
 
-@pytest.mark.parametrize("script", ["check_px4.py"])
+@pytest.mark.parametrize("script", ["precheck_px4.py"])
 def test_check_script_skips_without_a_tree(script, monkeypatch):
     """The real-tree checks run only when a tree is given (CI has none): a hint, exit 0."""
     monkeypatch.delenv("PX4_TREE", raising=False)
@@ -323,15 +323,15 @@ def test_glue_builds_for_each_core_with_the_dwt_timestamp(tmp_path, core):
 
 
 @pytest.mark.parametrize("tree, defines, error", [
-    # c172_roll is scheduled on the airspeed; the glue feeds the roll rate
-    ("c172_roll_f32", ["-DROLLGLUE_PREFIX=c172p_roll", "-DROLLGLUE_PREFIX_UPPER=C172P_ROLL",
-                       '-DROLLGLUE_HEADER="c172p_roll.h"'], "scheduled on another signal"),
+    # three_drives is scheduled on a speed; the glue feeds the roll rate or the airspeed
+    ("three_drives_f32", ["-DROLLGLUE_PREFIX=drives", "-DROLLGLUE_PREFIX_UPPER=DRIVES",
+                          '-DROLLGLUE_HEADER="drives.h"'], "scheduled on another signal"),
     # the UAV runs at 10 ms: a 50 Hz task would run its model at the wrong sample time
     ("uav_roll_f32", ["-DROLLGLUE_SAMPLE_HZ=50u"], "not 1 / the controller's sample time"),
-], ids=["airspeed schedule", "50 Hz for a 10 ms controller"])
+], ids=["speed schedule", "50 Hz for a 10 ms controller"])
 def test_the_glue_refuses_a_controller_it_would_feed_wrongly(tree, defines, error, tmp_path):
-    """A firmware engineer's airspeed-scheduled design compiled silently against the glue,
-    which feeds the roll rate as its schedule, and a 20 ms design against its fixed
+    """A design scheduled on a signal the glue does not feed (once c172_roll's airspeed,
+    now fed) compiled silently against the glue, and a 20 ms design against its fixed
     100 Hz: both now stop at compile time, naming why."""
     from glue_harness import GLUE, WARNINGS
 

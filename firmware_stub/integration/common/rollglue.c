@@ -21,10 +21,27 @@
 #if ROLLGLUE_N_ACT > ROLLGLUE_MAX_CHANNELS
 #error "more actuators than addressable output channels"
 #endif
-#if ROLLGLUE_K(_N_SCHEDULE) == 1
-#if ROLLGLUE_K(_SCHEDULE_SIGNAL_ROLL_RATE) != 1
-#error "rollglue feeds the roll rate as the scheduling signal: this controller is scheduled on another signal (docs/integration.md)"
+/* The scheduling signal the glue feeds, from the generated config header's
+ * <PREFIX>_SCHEDULE_SIGNAL_<NAME> (only the design's own signal is defined there, hence
+ * -Wundef off while it is read: ArduPilot builds with -Werror=undef): the measured roll
+ * rate, the autopilot's airspeed estimate, or nothing (no schedule). */
+#pragma GCC diagnostic push
+#pragma GCC diagnostic ignored "-Wundef"
+#if ROLLGLUE_K(_N_SCHEDULE) == 1 && ROLLGLUE_K(_SCHEDULE_SIGNAL_ROLL_RATE) == 1
+#define ROLLGLUE_SCHEDULE_ROLL_RATE 1
+#else
+#define ROLLGLUE_SCHEDULE_ROLL_RATE 0
 #endif
+#if ROLLGLUE_K(_N_SCHEDULE) == 1 && ROLLGLUE_K(_SCHEDULE_SIGNAL_AIRSPEED) == 1
+#define ROLLGLUE_SCHEDULE_AIRSPEED 1
+#else
+#define ROLLGLUE_SCHEDULE_AIRSPEED 0
+#endif
+#pragma GCC diagnostic pop
+/* the last guard: the build tools (PX4's CMake, build_ardupilot.py, firmware.mk) say it in
+   one line before compiling (glue_fit.py) */
+#if ROLLGLUE_K(_N_SCHEDULE) == 1 && ROLLGLUE_SCHEDULE_ROLL_RATE + ROLLGLUE_SCHEDULE_AIRSPEED != 1
+#error "rollglue feeds the roll rate or the airspeed as the schedule: this controller is scheduled on another signal (docs/integration.md)"
 #endif
 /* the glue's rate is the controller's: 1 / its sample time, to the nearest Hz (a tree
    generated before _SAMPLE_PERIOD_US existed fails here too: regenerate it) */
@@ -143,6 +160,20 @@ static int is_frozen(rollglue *g, const rollglue_input *in)
     return g->params.frozen_samples != 0u && g->frozen_count >= g->params.frozen_samples;
 }
 
+/* The controller's scheduling signal in its own units: the roll rate, or the airspeed
+ * scaled from m/s (unused, 0, for a controller without a schedule). */
+static float schedule_value(const rollglue_input *in)
+{
+#if ROLLGLUE_SCHEDULE_AIRSPEED
+    return in->airspeed_mps * ROLLGLUE_AIRSPEED_SCALE;
+#elif ROLLGLUE_SCHEDULE_ROLL_RATE
+    return in->roll_rate_dps;
+#else
+    (void)in;
+    return 0.0f;
+#endif
+}
+
 static uint32_t input_faults(rollglue *g, const rollglue_input *in, uint64_t now_us)
 {
     const uint32_t t = g->params.timeout_us;
@@ -150,8 +181,12 @@ static uint32_t input_faults(rollglue *g, const rollglue_input *in, uint64_t now
     r |= is_stale(in->roll_us, now_us, t) ? (uint32_t)ROLLGLUE_STALE_ROLL : 0u;
     r |= is_stale(in->rate_us, now_us, t) ? (uint32_t)ROLLGLUE_STALE_RATE : 0u;
     r |= is_stale(in->cmd_us, now_us, t) ? (uint32_t)ROLLGLUE_STALE_CMD : 0u;
+#if ROLLGLUE_SCHEDULE_AIRSPEED
+    r |= is_stale(in->airspeed_us, now_us, t) ? (uint32_t)ROLLGLUE_STALE_SCHED : 0u;
+#endif
     r |= is_frozen(g, in) ? (uint32_t)ROLLGLUE_FROZEN : 0u;
-    if (!isfinite(in->roll_deg) || !isfinite(in->roll_rate_dps) || !isfinite(in->roll_cmd_deg)) {
+    if (!isfinite(in->roll_deg) || !isfinite(in->roll_rate_dps) || !isfinite(in->roll_cmd_deg)
+        || !isfinite(schedule_value(in))) {
         r |= ROLLGLUE_NONFINITE;
     }
     return r;
@@ -178,7 +213,7 @@ static void track(rollglue *g, const rollglue_input *in, uint32_t faults)
     glue_real y[1], sched[1], u[ROLLGLUE_N_ACT];
     int status = ROLLGLUE_K(_NONFINITE_INPUT);
     y[0] = (glue_real)in->roll_deg;
-    sched[0] = (glue_real)in->roll_rate_dps;
+    sched[0] = (glue_real)schedule_value(in);
     if ((faults & ~(uint32_t)ROLLGLUE_STALE_CMD) != 0u) {
         y[0] = (glue_real)NAN; /* bad attitude: propagate open loop */
         sched[0] = (glue_real)NAN;
@@ -221,7 +256,7 @@ static int solve(rollglue *g, const rollglue_input *in, rollglue_output *out)
     int a, s, finite = 1;
     const ROLLGLUE_FN(_info) *info;
     y[0] = (glue_real)in->roll_deg;
-    sched[0] = (glue_real)in->roll_rate_dps;
+    sched[0] = (glue_real)schedule_value(in);
     build_reference(g, in->roll_cmd_deg);
     g->tm.status = ROLLGLUE_FN(_step)(&g->mpc, y, sched, g->ref, u);
     info = ROLLGLUE_FN(_last_info)(&g->mpc);

@@ -14,7 +14,8 @@
  *
  * The generated controller is chosen at compile time: ROLLGLUE_PREFIX (default rollmpc),
  * ROLLGLUE_PREFIX_UPPER (ROLLMPC) and ROLLGLUE_HEADER ("rollmpc.h"). It must have one
- * output (the roll angle) and at most one scheduling signal (the roll rate); the number
+ * output (the roll angle) and at most one scheduling signal, the roll rate or the
+ * airspeed (the config header's <PREFIX>_SCHEDULE_SIGNAL_<NAME> says which); the number
  * of actuators comes from its config header.
  *
  * Call contract: one rollglue per controller, statically allocated (it holds the
@@ -27,6 +28,14 @@
 
 #include <stdint.h>
 
+/* A tree of another prefix: the build passes the three macros (PX4's CMakeLists.txt reads
+ * them from the tree), or glue_fit.py writes them into rollglue_design.h beside the glue
+ * (ArduPilot's flat library, where a library cannot add compiler flags). */
+#if !defined(ROLLGLUE_PREFIX) && defined(__has_include)
+#if __has_include("rollglue_design.h")
+#include "rollglue_design.h"
+#endif
+#endif
 #ifndef ROLLGLUE_PREFIX
 #define ROLLGLUE_PREFIX rollmpc
 #define ROLLGLUE_PREFIX_UPPER ROLLMPC
@@ -54,6 +63,11 @@ extern "C" {
  *  refuses an override that is not. */
 #ifndef ROLLGLUE_SAMPLE_HZ
 #define ROLLGLUE_SAMPLE_HZ (1000000u / ROLLGLUE_K(_SAMPLE_PERIOD_US))
+#endif
+/** The controller's airspeed unit per m/s: knots by default (c172_roll, `rollmpc fly`:
+ *  `units.schedule: kts`); -DROLLGLUE_AIRSPEED_SCALE=1.0f for a design scheduled in m/s. */
+#ifndef ROLLGLUE_AIRSPEED_SCALE
+#define ROLLGLUE_AIRSPEED_SCALE (3600.0f / 1852.0f)
 #endif
 /** Servo output channels the glue can address (PX4 uses 8, ArduPilot up to 32). */
 #define ROLLGLUE_MAX_CHANNELS 32
@@ -110,6 +124,10 @@ typedef struct {
     uint64_t rate_us;          /**< When roll_rate_dps was sampled; 0 = never. */
     float roll_cmd_deg;        /**< Commanded roll angle. */
     uint64_t cmd_us;           /**< When the command was last published; 0 = never. */
+    /** Airspeed estimate, m/s: the schedule of an airspeed-scheduled controller (checked
+     *  for age and NaN only then; any value for the others). */
+    float airspeed_mps;
+    uint64_t airspeed_us;      /**< When airspeed_mps was estimated; 0 = never. */
     /** Normalised value each channel is driven with this sample by whoever drives it,
      *  NaN where unknown. The first servo of each actuator feeds the observers while
      *  the autopilot flies. */
@@ -128,7 +146,8 @@ enum {
     ROLLGLUE_WARMING = 1u << 6,       /**< Observers not yet fed warmup_samples. */
     ROLLGLUE_SOLVER = 1u << 7,        /**< Non-optimal status or non-finite command. */
     ROLLGLUE_LOCKED_OUT = 1u << 8,    /**< max_failures reached: re-request to retry. */
-    ROLLGLUE_NO_PARAMS = 1u << 9      /**< rollglue_set_params() never succeeded. */
+    ROLLGLUE_NO_PARAMS = 1u << 9,     /**< rollglue_set_params() never succeeded. */
+    ROLLGLUE_STALE_SCHED = 1u << 10   /**< Airspeed (the schedule) older than the timeout. */
 };
 
 /** Engagement state. */

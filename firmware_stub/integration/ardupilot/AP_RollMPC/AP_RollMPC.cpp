@@ -10,13 +10,15 @@
 #include <string.h>
 #include <AP_AHRS/AP_AHRS.h>
 #include <AP_InertialSensor/AP_InertialSensor.h>
+#include <AP_Logger/AP_Logger.h>
 #include <AP_Scheduler/AP_Scheduler.h>
 #include <GCS_MAVLink/GCS.h>
 #include <SRV_Channel/SRV_Channel.h>
 
 extern const AP_HAL::HAL& hal;
 
-static_assert(ROLLGLUE_N_ACT == 2, "two aileron pairs: inner, outer");
+static_assert(ROLLGLUE_N_ACT == 1 || ROLLGLUE_N_ACT == 2,
+              "one or two aileron pairs: inner (RMPC_IN_*), outer (RMPC_OUT_*)");
 static_assert(NUM_SERVO_CHANNELS <= ROLLGLUE_MAX_CHANNELS, "the glue must address every servo output");
 
 namespace {
@@ -191,12 +193,14 @@ void AP_RollMPC::post_params()
     s.warmup_samples = _warmup;
     s.max_failures = _max_fail;
     s.slew_dps = _slew_dps;
-    s.throw_deg[0] = _throw_in_deg;
-    s.throw_deg[1] = _throw_out_deg;
-    s.servo[0][0] = _in_l;
-    s.servo[0][1] = _in_r;
-    s.servo[1][0] = _out_l;
-    s.servo[1][1] = _out_r;
+    // a one-actuator controller (e.g. c172_roll) uses the inner pair's parameters only
+    const float throw_deg[2] {_throw_in_deg, _throw_out_deg};
+    const int32_t servo[2][2] {{_in_l, _in_r}, {_out_l, _out_r}};
+    for (uint8_t a = 0; a < ROLLGLUE_N_ACT; a++) {
+        s.throw_deg[a] = throw_deg[a];
+        s.servo[a][0] = servo[a][0];
+        s.servo[a][1] = servo[a][1];
+    }
     s.reversed = _reversed;
     rollglue_params p {};
     rollglue_ap_params(&s, &p);
@@ -223,6 +227,12 @@ void AP_RollMPC::sample_inputs(rollglue_ap_sample &s) const
     s.roll_cd = ahrs.roll_sensor;
     s.roll_us = ahrs.healthy() ? AP_HAL::micros64() - imu_age_us : 0;
     s.gyro_x_rads = ahrs.get_gyro().x;
+    // the schedule of an airspeed-scheduled controller (c172_roll): the AHRS's equivalent
+    // airspeed (sensor or synthetic), none while it has no estimate
+    float airspeed_mps;
+    const bool have_airspeed = ahrs.airspeed_EAS(airspeed_mps);
+    s.airspeed_mps = have_airspeed ? airspeed_mps : NAN;
+    s.airspeed_us = have_airspeed ? s.roll_us : 0;
     s.roll_cmd_cd = _cmd_cd;
     s.cmd_us = _cmd_us;
     memcpy(s.applied_scaled, _applied_scaled, sizeof(s.applied_scaled));
@@ -327,6 +337,35 @@ void AP_RollMPC::output()
         SRV_Channels::set_output_scaled(SRV_Channel::k_aileron, own);
     }
     _owned_mask = driven;
+    if (out_sample_us != _logged_sample_us) {  // one record per worker sample
+        _logged_sample_us = out_sample_us;
+        log_sample(out, own, driven);
+    }
+}
+
+// RMPC: who drove the first aileron servo in the loop that used this sample (Use = 1: the
+// MPC's value Mpc, else ArduPlane's own Own, both in +/-4500 units), with the glue's state,
+// reasons, controller status and mode, the MPC's first deflection and the solve time
+void AP_RollMPC::log_sample(const rollglue_output &out, float own, uint32_t driven)
+{
+#if HAL_LOGGING_ENABLED
+    rollglue_telemetry tm;
+    uint32_t solve_us;
+    {
+        WITH_SEMAPHORE(_sem);
+        tm = _shared.tm;
+        solve_us = _shared.solve_us;
+    }
+    const int ch = _last_params.channel[0][0];
+    const float mpc = (ch >= 0 && out.valid) ? rollglue_ap_scaled(out.value[ch]) : NAN;
+    AP::logger().WriteStreaming("RMPC", "TimeUS,Use,Valid,St,Rsn,Stat,Mode,U0,Mpc,Own,Sus",
+                                "s---------s", "F---------F", "QBBBHBBfffI",
+                                AP_HAL::micros64(), uint8_t(driven != 0), uint8_t(out.valid != 0),
+                                uint8_t(tm.state), uint16_t(tm.reasons), uint8_t(tm.status),
+                                uint8_t(tm.mode), out.u_deg[0], mpc, own, solve_us);
+#else
+    (void)out; (void)own; (void)driven;
+#endif
 }
 
 // at most one text per kMessageIntervalMs, the most important change first; a change not

@@ -72,6 +72,7 @@ private:
     void post_params();
     void sample_inputs(rollglue_ap_sample &s) const;
     void report();
+    void log_sample(const rollglue_output &out, float own, uint32_t driven);
 
     // the worker's alone once it runs: the controller instance (tens of KB), allocated
     // with this object, never on a stack
@@ -100,6 +101,7 @@ private:
     bool _may_fly_this_loop = false;  // set_command() ran in this loop and allowed it
     float _applied_scaled[ROLLGLUE_MAX_CHANNELS];
     uint32_t _owned_mask = 0;         // channels the MPC drove in the latest loop
+    uint64_t _logged_sample_us = 0;   // the worker output last written to the log
     uint32_t _samples = 0;
     rollglue_params _last_params;
     int _foreign_channel = -1;

@@ -55,10 +55,15 @@ int rollglue_ap_foreign_channel(const rollglue_params *p, const uint16_t *functi
     return -1;
 }
 
+/* NaN is tested with isnan() before any ordered comparison: a comparison with NaN raises
+ * FE_INVALID, which ArduPilot's SITL traps (SIGFPE, "Floating point exception - aborting") */
 static float normalised(float scaled)
 {
     const float v = scaled / ROLLGLUE_AP_SCALED_MAX;
-    return v > 1.0f ? 1.0f : (v < -1.0f ? -1.0f : v); /* NaN stays NaN */
+    if (isnan(v)) {
+        return v; /* not an aileron channel: unknown */
+    }
+    return v > 1.0f ? 1.0f : (v < -1.0f ? -1.0f : v);
 }
 
 void rollglue_ap_input(const rollglue_ap_sample *s, rollglue_input *in)
@@ -70,6 +75,8 @@ void rollglue_ap_input(const rollglue_ap_sample *s, rollglue_input *in)
     in->rate_us = s->roll_us; /* one AHRS update gives both */
     in->roll_cmd_deg = (float)s->roll_cmd_cd * CENTI;
     in->cmd_us = s->cmd_us;
+    in->airspeed_mps = s->airspeed_mps;
+    in->airspeed_us = s->airspeed_us;
     for (c = 0; c < ROLLGLUE_MAX_CHANNELS; ++c) {
         in->applied[c] = normalised(s->applied_scaled[c]);
     }
@@ -79,8 +86,11 @@ void rollglue_ap_input(const rollglue_ap_sample *s, rollglue_input *in)
 float rollglue_ap_scaled(float norm)
 {
     const float v = norm * ROLLGLUE_AP_SCALED_MAX;
-    if (!(v > -ROLLGLUE_AP_SCALED_MAX)) {
-        return isnan(v) ? 0.0f : -ROLLGLUE_AP_SCALED_MAX;
+    if (isnan(v)) {
+        return 0.0f;
+    }
+    if (v < -ROLLGLUE_AP_SCALED_MAX) {
+        return -ROLLGLUE_AP_SCALED_MAX;
     }
     return v < ROLLGLUE_AP_SCALED_MAX ? v : ROLLGLUE_AP_SCALED_MAX;
 }

@@ -47,6 +47,8 @@ typedef struct {
     int32_t roll_cd;           /**< AP_AHRS::roll_sensor. */
     uint64_t roll_us;          /**< IMU sample behind the attitude; 0 when the AHRS is unhealthy. */
     float gyro_x_rads;         /**< AP_AHRS::get_gyro().x (bias-corrected). */
+    float airspeed_mps;        /**< AP_AHRS::airspeed_EAS(), NaN without an estimate. */
+    uint64_t airspeed_us;      /**< When it was estimated; 0 = none. */
     int32_t roll_cmd_cd;       /**< nav_roll_cd (Plane), the attitude target (Copter). */
     uint64_t cmd_us;           /**< When the vehicle last computed the command. */
     /** Scaled output each servo channel got in the latest loop; NaN where not an aileron. */

@@ -24,7 +24,8 @@ ModuleBase::Descriptor RollMpc::desc{task_spawn, custom_command, print_usage};
 #define RMPC_MAIN(argc, argv) RollMpc::main(argc, argv)
 #endif
 
-static_assert(ROLLGLUE_N_ACT == 2, "two aileron pairs: inner, outer");
+static_assert(ROLLGLUE_N_ACT == 1 || ROLLGLUE_N_ACT == 2,
+	      "one or two aileron pairs: inner (RMPC_IN_*), outer (RMPC_OUT_*)");
 static_assert(actuator_servos_s::NUM_CONTROLS <= sizeof(rollmpc_servos_s::control) / sizeof(float),
 	      "rollmpc_servos must cover every servo");
 
@@ -61,13 +62,15 @@ void RollMpc::apply_params()
 	p.warmup_samples = narrow_u16(_param_rmpc_warmup.get());
 	p.max_failures = narrow_u16(_param_rmpc_max_fail.get());
 	p.ref_slew_dps = _param_rmpc_slew.get();
-	p.throw_deg[0] = _param_rmpc_throw_in.get();
-	p.throw_deg[1] = _param_rmpc_throw_out.get();
+	/* a one-actuator controller (e.g. c172_roll) uses the inner pair's parameters only */
+	const float throw_deg[2] {_param_rmpc_throw_in.get(), _param_rmpc_throw_out.get()};
 	const int32_t servo[2][2] {{_param_rmpc_in_l.get(), _param_rmpc_in_r.get()},
 		{_param_rmpc_out_l.get(), _param_rmpc_out_r.get()}};
 	const int32_t rev = _param_rmpc_rev.get();
 
-	for (int a = 0; a < 2; a++) {
+	for (int a = 0; a < ROLLGLUE_N_ACT; a++) {
+		p.throw_deg[a] = throw_deg[a];
+
 		for (int s = 0; s < 2; s++) {
 			p.channel[a][s] = narrow_i8(servo[a][s]);
 			p.sign[a][s] = (rev & (1 << (2 * a + s))) ? -1 : 1;
@@ -120,6 +123,14 @@ void RollMpc::read_inputs()
 	if (_att_sp_sub.update(&att_sp)) {
 		_in.roll_cmd_deg = matrix::Eulerf(matrix::Quatf(att_sp.q_d)).phi() * kRadToDeg;
 		_in.cmd_us = att_sp.timestamp;
+	}
+
+	/* the schedule of an airspeed-scheduled controller (c172_roll): calibrated airspeed */
+	airspeed_validated_s airspeed;
+
+	if (_airspeed_sub.update(&airspeed)) {
+		_in.airspeed_mps = airspeed.calibrated_airspeed_m_s;
+		_in.airspeed_us = airspeed.timestamp;
 	}
 
 	/* what the servos get now (the allocator's values, ours when engaged): the observers
@@ -217,7 +228,7 @@ int RollMpc::print_status()
 {
 	const rollglue_telemetry *tm = rollglue_get_telemetry(&_glue);
 	PX4_INFO("state %d, reasons 0x%03x, mode %d, status %s", tm->state, static_cast<unsigned>(tm->reasons),
-		 tm->mode, rollmpc_status_message(tm->status));
+		 tm->mode, ROLLGLUE_FN(_status_message)(tm->status));
 	PX4_INFO("engagements %u, failures %u, solve %u cycles (max %u)", static_cast<unsigned>(tm->engagements),
 		 static_cast<unsigned>(tm->failures), static_cast<unsigned>(tm->solve_cycles),
 		 static_cast<unsigned>(tm->max_solve_cycles));

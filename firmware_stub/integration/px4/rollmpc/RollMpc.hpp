@@ -19,6 +19,7 @@
 #include <uORB/Subscription.hpp>
 #include <uORB/SubscriptionInterval.hpp>
 #include <uORB/topics/actuator_servos.h>
+#include <uORB/topics/airspeed_validated.h>
 #include <uORB/topics/parameter_update.h>
 #include <uORB/topics/rollmpc_servos.h>
 #include <uORB/topics/vehicle_angular_velocity.h>
@@ -75,6 +76,7 @@ private:
 	uORB::Subscription _rates_sub{ORB_ID(vehicle_angular_velocity)};
 	uORB::Subscription _att_sp_sub{ORB_ID(vehicle_attitude_setpoint)};
 	uORB::Subscription _servos_sub{ORB_ID(actuator_servos)};
+	uORB::Subscription _airspeed_sub{ORB_ID(airspeed_validated)};
 	uORB::Subscription _control_mode_sub{ORB_ID(vehicle_control_mode)};
 	uORB::Subscription _status_sub{ORB_ID(vehicle_status)};
 	uORB::SubscriptionInterval _parameter_update_sub{ORB_ID(parameter_update), 1_s};

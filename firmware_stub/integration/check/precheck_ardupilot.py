@@ -1,7 +1,7 @@
 #!/usr/bin/env python3
 """Compile the rollmpc ArduPilot glue against a real ArduPilot tree, with waf's own flags.
 
-    python3 firmware_stub/integration/check/check_ardupilot.py --ardupilot /path/to/ardupilot \
+    python3 firmware_stub/integration/check/precheck_ardupilot.py --ardupilot /path/to/ardupilot \
         [--modules DIR] [--gen generated/uav_roll_f32] [--build build/check/ardupilot] \
         [--python PY] [--boards sitl,MatekF405]
 
@@ -74,7 +74,7 @@ def submodule_sources(tree: Path, modules: Path | None, boards: list[str]) -> di
         else:
             missing.append(name)
     if missing:
-        sys.exit(f"check_ardupilot: submodules missing: {', '.join(missing)} (run "
+        sys.exit(f"precheck_ardupilot: submodules missing: {', '.join(missing)} (run "
                  "`git submodule update --init --recursive` in the tree, or give --modules DIR)")
     return found
 
@@ -216,14 +216,14 @@ def main() -> int:
     ap.add_argument("--boards", default="sitl,MatekF405")
     args = ap.parse_args()
     if args.ardupilot is None:
-        print("check_ardupilot: skipped (give --ardupilot PATH or set ARDUPILOT_TREE to an "
+        print("precheck_ardupilot: skipped (give --ardupilot PATH or set ARDUPILOT_TREE to an "
               "ArduPilot tree with its submodules, or --modules DIR for them)")
         return 0
     tree, build = args.ardupilot.resolve(), args.build.resolve()
     boards = args.boards.split(",")
     unknown = [b for b in boards if b not in BOARD_SUBMODULES]
     if unknown:
-        sys.exit(f"check_ardupilot: unknown board(s) {unknown}; known: {list(BOARD_SUBMODULES)}")
+        sys.exit(f"precheck_ardupilot: unknown board(s) {unknown}; known: {list(BOARD_SUBMODULES)}")
     submodules = submodule_sources(tree, args.modules and args.modules.resolve(), boards)
     shutil.rmtree(build, ignore_errors=True)
     root = shadow(tree, build, submodules, args.gen.resolve())

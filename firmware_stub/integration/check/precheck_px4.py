@@ -1,7 +1,7 @@
 #!/usr/bin/env python3
 """Compile the rollmpc PX4 module against a real PX4-Autopilot tree (SITL/posix flags).
 
-    python3 firmware_stub/integration/check/check_px4.py --px4 /path/to/PX4-Autopilot \
+    python3 firmware_stub/integration/check/precheck_px4.py --px4 /path/to/PX4-Autopilot \
         [--gen generated/uav_roll_f32] [--build build/check/px4]
 
 Without --px4 (or $PX4_TREE) it prints a hint and exits 0 (skipped). The tree is only
@@ -58,6 +58,7 @@ def module_flags(px4: Path, module: Path) -> list[str]:
     module_h = px4 / "platforms/common/include/px4_platform_common/module.h"
     descriptor = int("struct Descriptor" in module_h.read_text())
     return [f"-DRMPC_MODULE_DESCRIPTOR={descriptor}", "-Wframe-larger-than=1024", "-ffp-contract=off",
+            "-fno-reciprocal-math",
             "-include", str(module / "common/rollglue_cycles.h"),
             "-DROLLMPC_TIMESTAMP()=ROLLGLUE_CYCLES()", f"-I{module / 'common'}",
             f"-I{module / 'generated'}", "-DMODULE_NAME=\"rollmpc\"", "-DPX4_MAIN=rollmpc_app_main"]
@@ -148,7 +149,7 @@ def main() -> int:
     ap.add_argument("--python", default=sys.executable, help="python with empy 3, jinja2, pyyaml")
     args = ap.parse_args()
     if args.px4 is None:
-        print("check_px4: skipped (give --px4 PATH or set PX4_TREE to a PX4-Autopilot tree)")
+        print("precheck_px4: skipped (give --px4 PATH or set PX4_TREE to a PX4-Autopilot tree)")
         return 0
     px4, build = args.px4.resolve(), args.build.resolve()
     shutil.rmtree(build, ignore_errors=True)
