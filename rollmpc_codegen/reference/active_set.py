@@ -138,7 +138,9 @@ class ActiveSetMixin:
         down; returns (its size, 0 to start cold, or OUT_OF_WORK with ``stop``; th)."""
         W = self.stop[0] if from_ >= 0 else self.seed_shifted(lam, True)
         st["in_set"][W] = True
-        for _ in range(self.polish_max if W.size else 0):
+        for _ in range(self.polish_max):
+            if not W.size:  # no seed, or independent_rows() emptied it: start cold
+                break
             st["steps"] += 1
             code, z = self.dual_solve(W, K)
             if code == -1:  # dependent rows: keep the independent ones, in order
