@@ -32,7 +32,7 @@ import numpy as np
 
 from ..pipeline import config_label, load_model
 from ..qp.budget import what_fits_need
-from ..qp.work import CYCLES_PER_WORK_UNIT
+from ..qp.work import cycles_per_work_unit
 from ..sim.flight_plan import FlightPlan
 from ..sim.metrics import longest_run
 from ..status import MAX_ITER, STATUS_NAMES, TIME_LIMIT
@@ -91,7 +91,7 @@ class Certificate:
         d, w, b, t = (self.data[k] for k in ("design", "work", "bounds", "time_limit"))
         c = self.data
         lines = [f"rollmpc certify: {d['config']} ({d['precision']}), work budget "
-                 f"{w['budget']:,} units (~{w['budget'] * CYCLES_PER_WORK_UNIT:,.0f} cycles, "
+                 f"{w['budget']:,} units (~{w['budget'] * d['cycles_per_work_unit']:,.0f} cycles on the {d['core']}, "
                  f"{d['budget_share']:g} of Ts = {d['sample_time']:g} s at {d['cpu_mhz']:g} MHz)",
                  f"  sampled: {c['samples']:,} QPs, {c['loops']} closed loops of {c['steps']} "
                  f"samples (seed {c['seed']}, flights {', '.join(c['kinds'])}; noise "
@@ -180,6 +180,8 @@ def certify(config, *, loops: int = DEFAULT_LOOPS, steps: int | None = None, see
     data = {
         "design": {"config": config_label(config), "precision": ctx["precision"],
                    "sample_time": cfg.sample_time, "cpu_mhz": cfg.target.cpu_mhz,
+                   "core": cfg.target.core_decl.label,
+                   "cycles_per_work_unit": cycles_per_work_unit(cfg),
                    "budget_share": cfg.solver.budget_share, "horizon": cfg.horizon},
         "loops": loops, "steps": steps, "samples": int(work.size), "seed": seed,
         "kinds": sorted({plan.kind_of(seed + i) for i in range(loops)},
