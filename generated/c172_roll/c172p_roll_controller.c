@@ -10,7 +10,7 @@
  */
 #include <math.h>
 #include "c172p_roll_internal.h"
-#if C172P_ROLL_GENERATION != 0x4e1ae6a2745edee
+#if C172P_ROLL_GENERATION != 0x18e6a063ba198f3
 #error "c172p_roll_controller.c and c172p_roll_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
 #endif
 
@@ -154,6 +154,18 @@ size_t c172p_roll_ctrl_size(void)
     return sizeof(c172p_roll_ctrl);
 }
 
+/*
+ * No factor of an earlier QP to start from: the work arrays hold no mode's, or another
+ * mode's (one set of work arrays serves every mode). A QP starts from the factor the last
+ * QP left when that QP was of its mode (solve_mode()): the Hessian is the mode's, only its
+ * working set moves.
+ */
+static void forget_factor(c172p_roll_work *ws)
+{
+    ws->chol_holds = C172P_ROLL_CHOL_NONE;
+    ws->primal_form = 0;
+}
+
 void c172p_roll_init(c172p_roll_ctrl *c)
 {
     int j, i;
@@ -177,6 +189,7 @@ void c172p_roll_init(c172p_roll_ctrl *c)
     }
     c->plan_mode = (int16_t)c->mode;
     c->plan_age = C172P_ROLL_HORIZON; /* no plan yet */
+    forget_factor(&c->work);
     c->info.status = C172P_ROLL_OPTIMAL;
     c->info.mode = c->mode;
     c->info.iterations = 0;
@@ -210,8 +223,13 @@ static void keep_plan(c172p_roll_ctrl *c, int mode, int status, const c172p_roll
 static int solve_mode(c172p_roll_ctrl *c, int mode, const c172p_roll_real *x,
     const c172p_roll_real *r, c172p_roll_real *U)
 {
-    const uint32_t t0 = C172P_ROLL_TIMESTAMP();
-    const int status = c172p_roll_qp_solve(&c->work, c->lam[mode], c->U,
+    uint32_t t0;
+    int status;
+    if (c->plan_mode != mode) { /* the last QP was another mode's (keep_plan()) */
+        forget_factor(&c->work);
+    }
+    t0 = C172P_ROLL_TIMESTAMP();
+    status = c172p_roll_qp_solve(&c->work, c->lam[mode], c->U,
         (c->plan_mode == mode) ? c->plan_age : C172P_ROLL_HORIZON, &c172p_roll_modes[mode], x, r,
         U, &c->info.iterations, &c->info.polish_iterations, &c->info.active);
     c->info.solve_ticks = (uint32_t)(C172P_ROLL_TIMESTAMP() - t0);

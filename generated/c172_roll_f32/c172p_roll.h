@@ -18,7 +18,7 @@
 #include <stddef.h>
 #include <stdint.h>
 #include "c172p_roll_config.h"
-#if C172P_ROLL_GENERATION != 0x9c4607718d2bf2a
+#if C172P_ROLL_GENERATION != 0xac826c4c85e84a7
 #error "c172p_roll.h and c172p_roll_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
 #endif
 
@@ -118,6 +118,8 @@ typedef struct {
     int chol_holds;                               /**< What chol holds: C172P_ROLL_CHOL_NONE, _DUAL or _PRIMAL. */
     int chol_rows;                                /**< After a dual factor from scratch broke down: its
                                                        leading rows that are still valid. */
+    int chol_n;                                   /**< Rows of wset a dual factor in chol holds (kept
+                                                       from one QP of a mode to its next). */
     uint32_t work;                                /**< Work units of the solve so far. */
     uint32_t work_limit;                          /**< What the running part may spend up to (afford()). */
     int stop_rows;                                /**< Rows of wset where polish() ran out of work, */

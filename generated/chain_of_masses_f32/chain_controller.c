@@ -10,7 +10,7 @@
  */
 #include <math.h>
 #include "chain_internal.h"
-#if CHAIN_GENERATION != 0xbbd4bea80b31100
+#if CHAIN_GENERATION != 0xd63678e15f749a6
 #error "chain_controller.c and chain_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
 #endif
 
@@ -114,6 +114,18 @@ size_t chain_ctrl_size(void)
     return sizeof(chain_ctrl);
 }
 
+/*
+ * No factor of an earlier QP to start from: the work arrays hold no mode's, or another
+ * mode's (one set of work arrays serves every mode). A QP starts from the factor the last
+ * QP left when that QP was of its mode (solve_mode()): the Hessian is the mode's, only its
+ * working set moves.
+ */
+static void forget_factor(chain_work *ws)
+{
+    ws->chol_holds = CHAIN_CHOL_NONE;
+    ws->primal_form = 0;
+}
+
 void chain_init(chain_ctrl *c)
 {
     int j, i;
@@ -137,6 +149,7 @@ void chain_init(chain_ctrl *c)
     }
     c->plan_mode = (int16_t)c->mode;
     c->plan_age = CHAIN_HORIZON; /* no plan yet */
+    forget_factor(&c->work);
     c->info.status = CHAIN_OPTIMAL;
     c->info.mode = c->mode;
     c->info.iterations = 0;
@@ -170,8 +183,13 @@ static void keep_plan(chain_ctrl *c, int mode, int status, const chain_real *U)
 static int solve_mode(chain_ctrl *c, int mode, const chain_real *x,
     const chain_real *r, chain_real *U)
 {
-    const uint32_t t0 = CHAIN_TIMESTAMP();
-    const int status = chain_qp_solve(&c->work, c->lam[mode], c->U,
+    uint32_t t0;
+    int status;
+    if (c->plan_mode != mode) { /* the last QP was another mode's (keep_plan()) */
+        forget_factor(&c->work);
+    }
+    t0 = CHAIN_TIMESTAMP();
+    status = chain_qp_solve(&c->work, c->lam[mode], c->U,
         (c->plan_mode == mode) ? c->plan_age : CHAIN_HORIZON, &chain_modes[mode], x, r,
         U, &c->info.iterations, &c->info.polish_iterations, &c->info.active);
     c->info.solve_ticks = (uint32_t)(CHAIN_TIMESTAMP() - t0);

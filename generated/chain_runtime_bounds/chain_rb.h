@@ -18,7 +18,7 @@
 #include <stddef.h>
 #include <stdint.h>
 #include "chain_rb_config.h"
-#if CHAIN_RB_GENERATION != 0x6d47d5009fbc7dc
+#if CHAIN_RB_GENERATION != 0x59cab75b0b2ac09
 #error "chain_rb.h and chain_rb_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
 #endif
 
@@ -132,6 +132,8 @@ typedef struct {
     int chol_holds;                               /**< What chol holds: CHAIN_RB_CHOL_NONE, _DUAL or _PRIMAL. */
     int chol_rows;                                /**< After a dual factor from scratch broke down: its
                                                        leading rows that are still valid. */
+    int chol_n;                                   /**< Rows of wset a dual factor in chol holds (kept
+                                                       from one QP of a mode to its next). */
     uint32_t work;                                /**< Work units of the solve so far. */
     uint32_t work_limit;                          /**< What the running part may spend up to (afford()). */
     int stop_rows;                                /**< Rows of wset where polish() ran out of work, */

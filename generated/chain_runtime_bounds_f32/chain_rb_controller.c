@@ -10,7 +10,7 @@
  */
 #include <math.h>
 #include "chain_rb_internal.h"
-#if CHAIN_RB_GENERATION != 0x2e9fbadaee56f42
+#if CHAIN_RB_GENERATION != 0x04a595128610b6b
 #error "chain_rb_controller.c and chain_rb_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
 #endif
 
@@ -128,6 +128,18 @@ size_t chain_rb_ctrl_size(void)
     return sizeof(chain_rb_ctrl);
 }
 
+/*
+ * No factor of an earlier QP to start from: the work arrays hold no mode's, or another
+ * mode's (one set of work arrays serves every mode). A QP starts from the factor the last
+ * QP left when that QP was of its mode (solve_mode()): the Hessian is the mode's, only its
+ * working set moves.
+ */
+static void forget_factor(chain_rb_work *ws)
+{
+    ws->chol_holds = CHAIN_RB_CHOL_NONE;
+    ws->primal_form = 0;
+}
+
 void chain_rb_init(chain_rb_ctrl *c)
 {
     int j, i;
@@ -151,6 +163,7 @@ void chain_rb_init(chain_rb_ctrl *c)
     }
     c->plan_mode = (int16_t)c->mode;
     c->plan_age = CHAIN_RB_HORIZON; /* no plan yet */
+    forget_factor(&c->work);
     for (j = 0; j < CHAIN_RB_N_MODES; ++j) {
         c->bounds[j] = config_bounds[j];
     }
@@ -188,8 +201,13 @@ static void keep_plan(chain_rb_ctrl *c, int mode, int status, const chain_rb_rea
 static int solve_mode(chain_rb_ctrl *c, int mode, const chain_rb_real *x,
     const chain_rb_real *r, chain_rb_real *U)
 {
-    const uint32_t t0 = CHAIN_RB_TIMESTAMP();
-    const int status = chain_rb_qp_solve(&c->work, c->lam[mode], c->U,
+    uint32_t t0;
+    int status;
+    if (c->plan_mode != mode) { /* the last QP was another mode's (keep_plan()) */
+        forget_factor(&c->work);
+    }
+    t0 = CHAIN_RB_TIMESTAMP();
+    status = chain_rb_qp_solve(&c->work, c->lam[mode], c->U,
         (c->plan_mode == mode) ? c->plan_age : CHAIN_RB_HORIZON, &chain_rb_modes[mode], x, r,
         U, &c->info.iterations, &c->info.polish_iterations, &c->info.active);
     c->info.solve_ticks = (uint32_t)(CHAIN_RB_TIMESTAMP() - t0);

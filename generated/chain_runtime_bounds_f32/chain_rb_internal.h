@@ -7,7 +7,7 @@
 
 #include <math.h>
 #include "chain_rb.h"
-#if CHAIN_RB_GENERATION != 0x2e9fbadaee56f42
+#if CHAIN_RB_GENERATION != 0x04a595128610b6b
 #error "chain_rb_internal.h and chain_rb_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
 #endif
 

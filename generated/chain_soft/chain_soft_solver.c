@@ -25,7 +25,7 @@
  */
 #include <math.h>
 #include "chain_soft_internal.h"
-#if CHAIN_SOFT_GENERATION != 0xc8e8a6778e3d44c
+#if CHAIN_SOFT_GENERATION != 0x15dddf53bd64c87
 #error "chain_soft_solver.c and chain_soft_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
 #endif
 
@@ -918,14 +918,12 @@ static void other_runs(chain_soft_work *ws, const chain_soft_mode_data *md, int 
  * Each th0_i takes its terms in the reference's order: Kx x, then per output a the other
  * runs, the longest and the last stage, with the loop over i innermost. ws->th, which the
  * caller then sets to th0, holds the longest run's sums when there are other runs.
- * A new QP starts: the primal polish has no factor of this QP to update yet.
  */
 static void unconstrained(chain_soft_work *ws, const chain_soft_mode_data *md,
     const chain_soft_real *x, const chain_soft_real *r)
 {
     const int n = md->n, ny = md->ny, nyq = md->nyq, last = md->nyq / md->ny - 1;
     int i, k, l, a, b, nruns, longest, summed;
-    ws->primal_form = 0;
     for (k = 0, b = 0; k < nyq; ++k) { /* b = k % ny: row b of stage k / ny's block 2 Omega */
         const chain_soft_real *om = &md->Omega2[k * ny], *rs = &r[k - b];
         chain_soft_real acc = R_(0.0);
@@ -1277,13 +1275,27 @@ static chain_soft_real slack_in_set(const chain_soft_work *ws, const chain_soft_
     return ws->slack_on[r] ? (z - l1) * w : R_(0.0);
 }
 
-/* State of row r joining the working set with multiplier lam: slack when lam > l1. */
-static void set_state(chain_soft_work *ws, const chain_soft_mode_data *md, int r,
-    chain_soft_real lam)
+/* The state of row r joining the working set with multiplier lam: 1 (slack) when soft
+ * and lam > l1. */
+static int slack_state(const chain_soft_mode_data *md, int r, chain_soft_real lam)
 {
     chain_soft_real l1;
     const chain_soft_real w = soft_of(md, r, &l1);
-    ws->slack_on[r] = (uint8_t)((w > R_(0.0) && lam > l1) ? 1 : 0);
+    return (w > R_(0.0) && lam > l1) ? 1 : 0;
+}
+
+/* State of row r joining the working set with multiplier lam (slack_state()). */
+static void set_state(chain_soft_work *ws, const chain_soft_mode_data *md, int r,
+    chain_soft_real lam)
+{
+    ws->slack_on[r] = (uint8_t)slack_state(md, r, lam);
+}
+
+/* Is row r in the state it would join with at multiplier lam (a kept factor row's)? */
+static inline int state_kept(const chain_soft_work *ws, const chain_soft_mode_data *md, int r,
+    chain_soft_real lam)
+{
+    return ws->slack_on[r] == slack_state(md, r, lam);
 }
 
 /*
@@ -1594,7 +1606,7 @@ static int violated_outside(chain_soft_work *ws, const chain_soft_mode_data *md,
  * The primal solve works on one of two forms (E = S + V'(2P)V split, d = U - th0):
  *  - free form (FORM_FREE): Cholesky L of S_FF over the free inputs F;
  *  - bound form (FORM_BOUND): Cholesky L of (S^-1)_BB over the bound inputs B.
- * Consecutive solves of one QP differ by a few inputs, so the factor is kept and updated:
+ * Consecutive solves differ by a few inputs, so the factor is kept and updated:
  * its rows follow an order that keeps the rows of the last full factorisation first (the
  * head) and the inputs that joined since at the end, in joining order (the tail; see
  * primal_order()). An input that joins factors only its own row (the row-oriented
@@ -1608,9 +1620,10 @@ static int violated_outside(chain_soft_work *ws, const chain_soft_mode_data *md,
  * ws->input_role[i] flags input i (ROLE_*) and, for a tail row, holds its generation:
  * 1 for the inputs that joined at the first update, one more at each update that appends
  * inputs. ws->primal_form and ws->primal_head (the head's rows) describe the factor of the
- * previous primal solve of this QP (primal_form = FORM_NONE at the start of each QP, see
- * unconstrained()). The factor is intact while ws->chol_holds is CHOL_PRIMAL: every other
- * writer of ws->chol changes it.
+ * previous primal solve, of this QP or of the mode's last one (the matrices are the mode's:
+ * a shifted working set keeps most of its inputs; primal_form = FORM_NONE when the last QP
+ * was another mode's, see forget_factor()). The factor is intact while ws->chol_holds is
+ * CHOL_PRIMAL: every other writer of ws->chol changes it.
  */
 enum { ROLE_BOUND = 1, ROLE_HEAD = 2, ROLE_TAIL = 4 }; /* bound now; in the head, tail */
 enum { ROLE_GEN_ONE = 8, ROLE_GEN_MAX = 31 }; /* a tail row's generation: role / 8 */
@@ -2226,6 +2239,7 @@ static int factor_working_set(chain_soft_work *ws, const chain_soft_mode_data *m
         }
     }
     ws->chol_holds = CHAIN_SOFT_CHOL_DUAL;
+    ws->chol_n = nw;
     return 0;
 }
 
@@ -2248,7 +2262,8 @@ static chain_soft_real factor_pivot(chain_soft_work *ws, int from, int nw,
     return zeta;
 }
 
-/* Row nw of the factor: y = L^-1 H_Wp from ws->rhs and the pivot sqrt(zeta). */
+/* Row nw of the factor (of wset[0..nw], the caller's row nw): y = L^-1 H_Wp from
+ * ws->rhs and the pivot sqrt(zeta). */
 static void factor_append(chain_soft_work *ws, int nw, chain_soft_real zeta)
 {
     int i;
@@ -2256,21 +2271,26 @@ static void factor_append(chain_soft_work *ws, int nw, chain_soft_real zeta)
         ws->chol[CHAIN_SOFT_TRI(nw, i)] = ws->rhs[i];
     }
     ws->chol[CHAIN_SOFT_TRI(nw, nw)] = CHAIN_SOFT_SQRT(zeta);
+    ws->chol_n = nw + 1;
 }
 
 /*
- * Row p joins the working set at position nw, tight. A kept dual factor gains its row
- * (one forward solve with H_Wp) unless its pivot is below the dependence tolerance; then
- * the next dual solve refactors from scratch.
+ * Row p joins the working set at position nw, tight (or slack: `slack`, soft rows only). A
+ * kept dual factor gains its row (one forward solve with H_Wp) unless its pivot is below
+ * the dependence tolerance; then the next dual solve refactors from scratch.
  */
-static void append_row(chain_soft_work *ws, const chain_soft_mode_data *md, int p, int nw)
+static void append_row(chain_soft_work *ws, const chain_soft_mode_data *md, int p, int nw,
+    int slack)
 {
     ws->wset[nw] = (int16_t)p;
     ws->in_set[p] = 1;
-    ws->slack_on[p] = 0;
+    ws->slack_on[p] = (uint8_t)slack;
     if (ws->chol_holds == CHAIN_SOFT_CHOL_DUAL) {
-        const chain_soft_real hpp = hq(md, md->row_q[p], md->row_q[p]);
-        chain_soft_real zeta;
+        chain_soft_real hpp = hq(md, md->row_q[p], md->row_q[p]), zeta;
+        if (slack) {
+            chain_soft_real l1;
+            hpp += soft_of(md, p, &l1);
+        }
         ws->work += ((uint32_t)nw + 1u) * hq_work(md);
         /* scratch ycol: the primal factor's Y is not held */
         h_column(md, ws->wset, nw, p, -1, ws->ycol, ws->rhs);
@@ -2302,6 +2322,7 @@ static int independent_rows(chain_soft_work *ws, const chain_soft_mode_data *md,
 {
     int i, kept = ws->chol_rows;
     ws->chol_holds = CHAIN_SOFT_CHOL_DUAL;
+    ws->chol_n = kept;
     for (i = kept; i < nw; ++i) {
         const int p = ws->wset[i];
         chain_soft_real hpp = hq(md, md->row_q[p], md->row_q[p]), zeta;
@@ -2333,12 +2354,21 @@ static void remove_row(chain_soft_work *ws, int k, int *nw)
     if (ws->chol_holds == CHAIN_SOFT_CHOL_DUAL) {
         ws->work += delete_work(k, *nw);
         chol_delete(ws->chol, k, *nw, ws->rhs, NULL, 0);
+        ws->chol_n = *nw - 1;
     }
     for (i = k; i + 1 < *nw; ++i) {
         ws->wset[i] = ws->wset[i + 1];
         ws->z[i] = ws->z[i + 1];
     }
     --*nw;
+}
+
+/* What dual_solve() on nw rows may spend, their factor kept (`factored`) or not. */
+static uint32_t dual_solve_work(const chain_soft_work *ws, const chain_soft_mode_data *md,
+    int nw, int factored)
+{
+    return (ws->out_slacks_ok ? 0u : (uint32_t)md->m + predict_work(md))
+        + (factored ? 0u : factor_work(md, nw)) + 2u * tri_work(nw);
 }
 
 /*
@@ -2349,9 +2379,7 @@ static void remove_row(chain_soft_work *ws, int k, int *nw)
 static int dual_solve(chain_soft_work *ws, const chain_soft_mode_data *md, int nw)
 {
     int i;
-    const uint32_t need = (ws->out_slacks_ok ? 0u : (uint32_t)md->m + predict_work(md))
-        + ((ws->chol_holds == CHAIN_SOFT_CHOL_DUAL) ? 0u : factor_work(md, nw)) + 2u * tri_work(nw);
-    if (!afford(ws, md, need)) {
+    if (!afford(ws, md, dual_solve_work(ws, md, nw, ws->chol_holds == CHAIN_SOFT_CHOL_DUAL))) {
         return OUT_OF_WORK;
     }
     output_slacks(ws, md);
@@ -2408,17 +2436,108 @@ static int seed_from_multipliers(chain_soft_work *ws, const chain_soft_mode_data
     return nw;
 }
 
+
+/*
+ * The guess of seed_shifted() (row r where lam[row_next[r]] > 0) in the order of the dual
+ * factor the last QP of the mode left (wset[0..chol_n)), which reaches it by updates: its
+ * rows that leave the guess or change state are deleted from the last down (remove_row()),
+ * the guess's other rows appended in row order (append_row()), when that costs less than
+ * a new factor and the budget pays it. A shifted working set keeps most of its rows (a run
+ * of bounds loses a row at one end and gains one at the other), so this costs a few
+ * updates where a new factor costs its cube. When neither that nor a new factor's dual
+ * solve fits, it does what the budget pays and leaves the rest to the next QP, which goes
+ * on from there: lam becomes the guess (shifted one stage) and the result OUT_OF_WORK (a
+ * TIME_LIMIT) -- so a sample that cannot afford its factor still builds it, and no run of
+ * samples stops at the same point each. Returns the guess's size (wset and chol its own),
+ * -1 (nothing done: the guess is empty, beyond the working set, input bounds only -- the
+ * primal form's -- or a new factor fits) or OUT_OF_WORK. Flags in in_set, cleared after.
+ */
+static int carry_factor(chain_soft_work *ws, const chain_soft_mode_data *md,
+    chain_soft_real *lam)
+{
+    int i, r, nw = 0, box = 1, size, whole, kept = (ws->chol_holds == CHAIN_SOFT_CHOL_DUAL) ? ws->chol_n : 0;
+    uint32_t cost = 0u;
+    for (r = 0; r < md->m; ++r) { /* 1: a row of the guess */
+        ws->in_set[r] = (uint8_t)(lam[md->row_next[r]] > R_(0.0));
+        nw += ws->in_set[r];
+        box = box && (!ws->in_set[r] || md->row_q[r] < md->n);
+    }
+    size = kept;
+    for (i = kept - 1; i >= 0; --i) { /* 2: a factor row the guess keeps in its state */
+        r = ws->wset[i];
+        if (ws->in_set[r] && state_kept(ws, md, r, lam[md->row_next[r]])) {
+            ws->in_set[r] = 2;
+        } else {
+            cost += delete_work(i, size--);
+        }
+    }
+    for (i = size; i < nw; ++i) {
+        cost += append_work(md, i);
+    }
+    whole = nw > 0 && nw <= md->w_cap && !box && cost < factor_work(md, nw) && afford(ws, md, cost);
+    if (nw == 0 || nw > md->w_cap || box
+        || (!whole && afford(ws, md, dual_solve_work(ws, md, nw, 0)))) {
+        for (r = 0; r < md->m; ++r) {
+            ws->in_set[r] = 0;
+        }
+        return -1;
+    }
+    if (ws->chol_holds != CHAIN_SOFT_CHOL_DUAL) { /* the factor of the empty set, to append to */
+        ws->chol_holds = CHAIN_SOFT_CHOL_DUAL;
+        ws->chol_n = 0;
+        kept = 0;
+    }
+    size = kept;
+    for (i = kept - 1; i >= 0; --i) {
+        if (ws->in_set[ws->wset[i]] != 2) {
+            if (!whole && !afford(ws, md, delete_work(i, size))) {
+                break;
+            }
+            remove_row(ws, i, &size);
+        }
+    }
+    for (i = 0; i < size; ++i) {
+        ws->in_set[ws->wset[i]] = 2; /* in the factor */
+    }
+    for (r = 0; r < md->m && (whole || size < nw); ++r) {
+        if (lam[md->row_next[r]] > R_(0.0) && ws->in_set[r] != 2) {
+            if (!whole && !afford(ws, md, append_work(md, size))) {
+                break;
+            }
+            append_row(ws, md, r, size++, slack_state(md, r, lam[md->row_next[r]]));
+            ws->in_set[r] = 2;
+        }
+    }
+    for (r = 0; r < md->m; ++r) {
+        ws->in_set[r] = 0;
+        if (!whole) { /* the guess, which the next QP goes on from (row_next[r] >= r) */
+            const chain_soft_real l = lam[md->row_next[r]];
+            lam[r] = (l > R_(0.0)) ? l : R_(0.0);
+        }
+    }
+    return whole ? size : OUT_OF_WORK;
+}
+
 /*
  * Working set from the previous active set (optimal, or where a TIME_LIMIT stopped)
  * shifted one stage along the horizon (row r joins when its next-stage row was active):
  * the receding-horizon guess; -1 if more than the working set holds (keep_first: its first).
+ * Without keep_first, in the order of the dual factor the last QP left, if carry_factor()
+ * brings that factor to it, or OUT_OF_WORK when only part of it fits (lam: the guess).
  */
 static int seed_shifted(chain_soft_work *ws, const chain_soft_mode_data *md,
-    const chain_soft_real *lam, int keep_first)
+    chain_soft_real *lam, int keep_first)
 {
     int r, nw = 0;
-    new_working_set(ws);
     ws->work += (uint32_t)md->m;
+    if (!keep_first) {
+        nw = carry_factor(ws, md, lam);
+        if (nw != -1) {
+            return nw;
+        }
+        nw = 0;
+    }
+    new_working_set(ws);
     for (r = 0; r < md->m; ++r) {
         if (lam[md->row_next[r]] > R_(0.0)) {
             if (nw == md->w_cap) {
@@ -2863,10 +2982,11 @@ static int polish(chain_soft_work *ws, const chain_soft_mode_data *md, chain_sof
         }
         for (i = 0; i < nadd; ++i) {
             box = box && md->row_q[ws->tmp[i]] < md->n;
-            append_row(ws, md, ws->tmp[i], nw++);
+            append_row(ws, md, ws->tmp[i], nw++, 0);
         }
         if (dual >= 0 && ws->chol_holds != CHAIN_SOFT_CHOL_DUAL) {
             ws->chol_holds = CHAIN_SOFT_CHOL_DUAL; /* rows 0..dual-1 of it stand */
+            ws->chol_n = dual;
             return stopped(ws, dual, dual, GUESS_HANDED_OVER);
         }
     }
@@ -3071,7 +3191,7 @@ static int add_to_set(chain_soft_work *ws, const chain_soft_mode_data *md, int p
  * start cold) or OUT_OF_WORK (where: stopped()).
  */
 static int resume_working_set(chain_soft_work *ws, const chain_soft_mode_data *md,
-    const chain_soft_real *lam, int from, int *steps)
+    chain_soft_real *lam, int from, int *steps)
 {
     int i, pass, code, nw = (from >= 0) ? from : seed_shifted(ws, md, lam, 1);
     for (i = 0; i < nw; ++i) {
@@ -3110,6 +3230,7 @@ static int resume_working_set(chain_soft_work *ws, const chain_soft_mode_data *m
         ws->slack_on[ws->wset[i]] = 0;
     }
     ws->chol_holds = CHAIN_SOFT_CHOL_DUAL; /* the factor of the empty working set */
+    ws->chol_n = 0;
     return 0;
 }
 
@@ -3153,6 +3274,7 @@ static int dual_active_set(chain_soft_work *ws, const chain_soft_mode_data *md,
     }
     if (from < 0) {
         ws->chol_holds = CHAIN_SOFT_CHOL_DUAL; /* the factor of the empty working set */
+        ws->chol_n = 0;
     }
     if (from >= 0 || (from != COLD_START && CHAIN_SOFT_SOLVER_WARM_START)) {
         nw = resume_working_set(ws, md, lam, from, &steps);
@@ -3342,6 +3464,9 @@ int chain_soft_qp_solve(chain_soft_work *ws, chain_soft_real *lam, const chain_s
             return time_limit_at_th0(ws, md, lam, plan, plan_age, 0, U);
         }
         count = seed_shifted(ws, md, lam, 0);
+        if (count == OUT_OF_WORK) { /* part of its factor built (carry_factor()); lam: the guess */
+            return time_limit_at_th0(ws, md, lam, plan, plan_age, 0, U);
+        }
         if (CHAIN_SOFT_SOLVER_ACTIVE_SET && !box_only(ws, md, count)) {
             ws->work_limit = ws->work + (CHAIN_SOFT_SOLVER_WORK_BUDGET - ws->work) / 3u;
         }

@@ -10,7 +10,7 @@
  */
 #include <math.h>
 #include "chain_soft_internal.h"
-#if CHAIN_SOFT_GENERATION != 0xb31da5562334da2
+#if CHAIN_SOFT_GENERATION != 0xf20cdfb3523e652
 #error "chain_soft_controller.c and chain_soft_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
 #endif
 
@@ -114,6 +114,18 @@ size_t chain_soft_ctrl_size(void)
     return sizeof(chain_soft_ctrl);
 }
 
+/*
+ * No factor of an earlier QP to start from: the work arrays hold no mode's, or another
+ * mode's (one set of work arrays serves every mode). A QP starts from the factor the last
+ * QP left when that QP was of its mode (solve_mode()): the Hessian is the mode's, only its
+ * working set moves.
+ */
+static void forget_factor(chain_soft_work *ws)
+{
+    ws->chol_holds = CHAIN_SOFT_CHOL_NONE;
+    ws->primal_form = 0;
+}
+
 void chain_soft_init(chain_soft_ctrl *c)
 {
     int j, i;
@@ -137,6 +149,7 @@ void chain_soft_init(chain_soft_ctrl *c)
     }
     c->plan_mode = (int16_t)c->mode;
     c->plan_age = CHAIN_SOFT_HORIZON; /* no plan yet */
+    forget_factor(&c->work);
     c->info.status = CHAIN_SOFT_OPTIMAL;
     c->info.mode = c->mode;
     c->info.iterations = 0;
@@ -172,8 +185,13 @@ static void keep_plan(chain_soft_ctrl *c, int mode, int status, const chain_soft
 static int solve_mode(chain_soft_ctrl *c, int mode, const chain_soft_real *x,
     const chain_soft_real *r, chain_soft_real *U)
 {
-    const uint32_t t0 = CHAIN_SOFT_TIMESTAMP();
-    const int status = chain_soft_qp_solve(&c->work, c->lam[mode], c->U,
+    uint32_t t0;
+    int status;
+    if (c->plan_mode != mode) { /* the last QP was another mode's (keep_plan()) */
+        forget_factor(&c->work);
+    }
+    t0 = CHAIN_SOFT_TIMESTAMP();
+    status = chain_soft_qp_solve(&c->work, c->lam[mode], c->U,
         (c->plan_mode == mode) ? c->plan_age : CHAIN_SOFT_HORIZON, &chain_soft_modes[mode], x, r,
         U, &c->info.iterations, &c->info.polish_iterations, &c->info.active);
     c->info.solve_ticks = (uint32_t)(CHAIN_SOFT_TIMESTAMP() - t0);

@@ -10,7 +10,7 @@
  */
 #include <math.h>
 #include "fwlat_internal.h"
-#if FWLAT_GENERATION != 0xb63d7f1471f101b
+#if FWLAT_GENERATION != 0xbf9cf6594e502e8
 #error "fwlat_controller.c and fwlat_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
 #endif
 
@@ -114,6 +114,18 @@ size_t fwlat_ctrl_size(void)
     return sizeof(fwlat_ctrl);
 }
 
+/*
+ * No factor of an earlier QP to start from: the work arrays hold no mode's, or another
+ * mode's (one set of work arrays serves every mode). A QP starts from the factor the last
+ * QP left when that QP was of its mode (solve_mode()): the Hessian is the mode's, only its
+ * working set moves.
+ */
+static void forget_factor(fwlat_work *ws)
+{
+    ws->chol_holds = FWLAT_CHOL_NONE;
+    ws->primal_form = 0;
+}
+
 void fwlat_init(fwlat_ctrl *c)
 {
     int j, i;
@@ -137,6 +149,7 @@ void fwlat_init(fwlat_ctrl *c)
     }
     c->plan_mode = (int16_t)c->mode;
     c->plan_age = FWLAT_HORIZON; /* no plan yet */
+    forget_factor(&c->work);
     c->info.status = FWLAT_OPTIMAL;
     c->info.mode = c->mode;
     c->info.iterations = 0;
@@ -172,8 +185,13 @@ static void keep_plan(fwlat_ctrl *c, int mode, int status, const fwlat_real *U)
 static int solve_mode(fwlat_ctrl *c, int mode, const fwlat_real *x,
     const fwlat_real *r, fwlat_real *U)
 {
-    const uint32_t t0 = FWLAT_TIMESTAMP();
-    const int status = fwlat_qp_solve(&c->work, c->lam[mode], c->U,
+    uint32_t t0;
+    int status;
+    if (c->plan_mode != mode) { /* the last QP was another mode's (keep_plan()) */
+        forget_factor(&c->work);
+    }
+    t0 = FWLAT_TIMESTAMP();
+    status = fwlat_qp_solve(&c->work, c->lam[mode], c->U,
         (c->plan_mode == mode) ? c->plan_age : FWLAT_HORIZON, &fwlat_modes[mode], x, r,
         U, &c->info.iterations, &c->info.polish_iterations, &c->info.active);
     c->info.solve_ticks = (uint32_t)(FWLAT_TIMESTAMP() - t0);

@@ -10,7 +10,7 @@
  */
 #include <math.h>
 #include "quadatt_internal.h"
-#if QUADATT_GENERATION != 0xfa0b03aa4d3a4d7
+#if QUADATT_GENERATION != 0x683c9cb162398c7
 #error "quadatt_controller.c and quadatt_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
 #endif
 
@@ -114,6 +114,18 @@ size_t quadatt_ctrl_size(void)
     return sizeof(quadatt_ctrl);
 }
 
+/*
+ * No factor of an earlier QP to start from: the work arrays hold no mode's, or another
+ * mode's (one set of work arrays serves every mode). A QP starts from the factor the last
+ * QP left when that QP was of its mode (solve_mode()): the Hessian is the mode's, only its
+ * working set moves.
+ */
+static void forget_factor(quadatt_work *ws)
+{
+    ws->chol_holds = QUADATT_CHOL_NONE;
+    ws->primal_form = 0;
+}
+
 void quadatt_init(quadatt_ctrl *c)
 {
     int j, i;
@@ -137,6 +149,7 @@ void quadatt_init(quadatt_ctrl *c)
     }
     c->plan_mode = (int16_t)c->mode;
     c->plan_age = QUADATT_HORIZON; /* no plan yet */
+    forget_factor(&c->work);
     c->info.status = QUADATT_OPTIMAL;
     c->info.mode = c->mode;
     c->info.iterations = 0;
@@ -170,8 +183,13 @@ static void keep_plan(quadatt_ctrl *c, int mode, int status, const quadatt_real 
 static int solve_mode(quadatt_ctrl *c, int mode, const quadatt_real *x,
     const quadatt_real *r, quadatt_real *U)
 {
-    const uint32_t t0 = QUADATT_TIMESTAMP();
-    const int status = quadatt_qp_solve(&c->work, c->lam[mode], c->U,
+    uint32_t t0;
+    int status;
+    if (c->plan_mode != mode) { /* the last QP was another mode's (keep_plan()) */
+        forget_factor(&c->work);
+    }
+    t0 = QUADATT_TIMESTAMP();
+    status = quadatt_qp_solve(&c->work, c->lam[mode], c->U,
         (c->plan_mode == mode) ? c->plan_age : QUADATT_HORIZON, &quadatt_modes[mode], x, r,
         U, &c->info.iterations, &c->info.polish_iterations, &c->info.active);
     c->info.solve_ticks = (uint32_t)(QUADATT_TIMESTAMP() - t0);

@@ -28,7 +28,7 @@
  * stops the build unless it is of the same one: a regeneration interrupted between two
  * of its file moves leaves no mixed tree that compiles.
  */
-#define QTANK_GENERATION 0x1601a36f821fc83
+#define QTANK_GENERATION 0x465c8f530c10a9e
 
 /* The one place where the precision is chosen. */
 #define QTANK_PRECISION_DOUBLE 1

@@ -10,7 +10,7 @@
  */
 #include <math.h>
 #include "qtank_internal.h"
-#if QTANK_GENERATION != 0x3dec331d844ac3e
+#if QTANK_GENERATION != 0xc7428b5c284dcba
 #error "qtank_controller.c and qtank_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
 #endif
 
@@ -114,6 +114,18 @@ size_t qtank_ctrl_size(void)
     return sizeof(qtank_ctrl);
 }
 
+/*
+ * No factor of an earlier QP to start from: the work arrays hold no mode's, or another
+ * mode's (one set of work arrays serves every mode). A QP starts from the factor the last
+ * QP left when that QP was of its mode (solve_mode()): the Hessian is the mode's, only its
+ * working set moves.
+ */
+static void forget_factor(qtank_work *ws)
+{
+    ws->chol_holds = QTANK_CHOL_NONE;
+    ws->primal_form = 0;
+}
+
 void qtank_init(qtank_ctrl *c)
 {
     int j, i;
@@ -137,6 +149,7 @@ void qtank_init(qtank_ctrl *c)
     }
     c->plan_mode = (int16_t)c->mode;
     c->plan_age = QTANK_HORIZON; /* no plan yet */
+    forget_factor(&c->work);
     c->info.status = QTANK_OPTIMAL;
     c->info.mode = c->mode;
     c->info.iterations = 0;
@@ -170,8 +183,13 @@ static void keep_plan(qtank_ctrl *c, int mode, int status, const qtank_real *U)
 static int solve_mode(qtank_ctrl *c, int mode, const qtank_real *x,
     const qtank_real *r, qtank_real *U)
 {
-    const uint32_t t0 = QTANK_TIMESTAMP();
-    const int status = qtank_qp_solve(&c->work, c->lam[mode], c->U,
+    uint32_t t0;
+    int status;
+    if (c->plan_mode != mode) { /* the last QP was another mode's (keep_plan()) */
+        forget_factor(&c->work);
+    }
+    t0 = QTANK_TIMESTAMP();
+    status = qtank_qp_solve(&c->work, c->lam[mode], c->U,
         (c->plan_mode == mode) ? c->plan_age : QTANK_HORIZON, &qtank_modes[mode], x, r,
         U, &c->info.iterations, &c->info.polish_iterations, &c->info.active);
     c->info.solve_ticks = (uint32_t)(QTANK_TIMESTAMP() - t0);

@@ -28,7 +28,7 @@
  * stops the build unless it is of the same one: a regeneration interrupted between two
  * of its file moves leaves no mixed tree that compiles.
  */
-#define ZONES_GENERATION 0x23c6b29f90e5daf
+#define ZONES_GENERATION 0x3b180809d331225
 
 /* The one place where the precision is chosen. */
 #define ZONES_PRECISION_DOUBLE 1

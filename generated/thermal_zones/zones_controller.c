@@ -10,7 +10,7 @@
  */
 #include <math.h>
 #include "zones_internal.h"
-#if ZONES_GENERATION != 0x23c6b29f90e5daf
+#if ZONES_GENERATION != 0x3b180809d331225
 #error "zones_controller.c and zones_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
 #endif
 
@@ -114,6 +114,18 @@ size_t zones_ctrl_size(void)
     return sizeof(zones_ctrl);
 }
 
+/*
+ * No factor of an earlier QP to start from: the work arrays hold no mode's, or another
+ * mode's (one set of work arrays serves every mode). A QP starts from the factor the last
+ * QP left when that QP was of its mode (solve_mode()): the Hessian is the mode's, only its
+ * working set moves.
+ */
+static void forget_factor(zones_work *ws)
+{
+    ws->chol_holds = ZONES_CHOL_NONE;
+    ws->primal_form = 0;
+}
+
 void zones_init(zones_ctrl *c)
 {
     int j, i;
@@ -137,6 +149,7 @@ void zones_init(zones_ctrl *c)
     }
     c->plan_mode = (int16_t)c->mode;
     c->plan_age = ZONES_HORIZON; /* no plan yet */
+    forget_factor(&c->work);
     c->info.status = ZONES_OPTIMAL;
     c->info.mode = c->mode;
     c->info.iterations = 0;
@@ -170,8 +183,13 @@ static void keep_plan(zones_ctrl *c, int mode, int status, const zones_real *U)
 static int solve_mode(zones_ctrl *c, int mode, const zones_real *x,
     const zones_real *r, zones_real *U)
 {
-    const uint32_t t0 = ZONES_TIMESTAMP();
-    const int status = zones_qp_solve(&c->work, c->lam[mode], c->U,
+    uint32_t t0;
+    int status;
+    if (c->plan_mode != mode) { /* the last QP was another mode's (keep_plan()) */
+        forget_factor(&c->work);
+    }
+    t0 = ZONES_TIMESTAMP();
+    status = zones_qp_solve(&c->work, c->lam[mode], c->U,
         (c->plan_mode == mode) ? c->plan_age : ZONES_HORIZON, &zones_modes[mode], x, r,
         U, &c->info.iterations, &c->info.polish_iterations, &c->info.active);
     c->info.solve_ticks = (uint32_t)(ZONES_TIMESTAMP() - t0);

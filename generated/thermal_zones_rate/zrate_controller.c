@@ -10,7 +10,7 @@
  */
 #include <math.h>
 #include "zrate_internal.h"
-#if ZRATE_GENERATION != 0xe70fec8c4e17f10
+#if ZRATE_GENERATION != 0xdd0a25c7ae0a6b5
 #error "zrate_controller.c and zrate_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
 #endif
 
@@ -114,6 +114,18 @@ size_t zrate_ctrl_size(void)
     return sizeof(zrate_ctrl);
 }
 
+/*
+ * No factor of an earlier QP to start from: the work arrays hold no mode's, or another
+ * mode's (one set of work arrays serves every mode). A QP starts from the factor the last
+ * QP left when that QP was of its mode (solve_mode()): the Hessian is the mode's, only its
+ * working set moves.
+ */
+static void forget_factor(zrate_work *ws)
+{
+    ws->chol_holds = ZRATE_CHOL_NONE;
+    ws->primal_form = 0;
+}
+
 void zrate_init(zrate_ctrl *c)
 {
     int j, i;
@@ -137,6 +149,7 @@ void zrate_init(zrate_ctrl *c)
     }
     c->plan_mode = (int16_t)c->mode;
     c->plan_age = ZRATE_HORIZON; /* no plan yet */
+    forget_factor(&c->work);
     c->info.status = ZRATE_OPTIMAL;
     c->info.mode = c->mode;
     c->info.iterations = 0;
@@ -170,8 +183,13 @@ static void keep_plan(zrate_ctrl *c, int mode, int status, const zrate_real *U)
 static int solve_mode(zrate_ctrl *c, int mode, const zrate_real *x,
     const zrate_real *r, zrate_real *U)
 {
-    const uint32_t t0 = ZRATE_TIMESTAMP();
-    const int status = zrate_qp_solve(&c->work, c->lam[mode], c->U,
+    uint32_t t0;
+    int status;
+    if (c->plan_mode != mode) { /* the last QP was another mode's (keep_plan()) */
+        forget_factor(&c->work);
+    }
+    t0 = ZRATE_TIMESTAMP();
+    status = zrate_qp_solve(&c->work, c->lam[mode], c->U,
         (c->plan_mode == mode) ? c->plan_age : ZRATE_HORIZON, &zrate_modes[mode], x, r,
         U, &c->info.iterations, &c->info.polish_iterations, &c->info.active);
     c->info.solve_ticks = (uint32_t)(ZRATE_TIMESTAMP() - t0);

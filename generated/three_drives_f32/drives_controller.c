@@ -10,7 +10,7 @@
  */
 #include <math.h>
 #include "drives_internal.h"
-#if DRIVES_GENERATION != 0xe97d2819c9d41a2
+#if DRIVES_GENERATION != 0xa4699512c40b115
 #error "drives_controller.c and drives_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
 #endif
 
@@ -154,6 +154,18 @@ size_t drives_ctrl_size(void)
     return sizeof(drives_ctrl);
 }
 
+/*
+ * No factor of an earlier QP to start from: the work arrays hold no mode's, or another
+ * mode's (one set of work arrays serves every mode). A QP starts from the factor the last
+ * QP left when that QP was of its mode (solve_mode()): the Hessian is the mode's, only its
+ * working set moves.
+ */
+static void forget_factor(drives_work *ws)
+{
+    ws->chol_holds = DRIVES_CHOL_NONE;
+    ws->primal_form = 0;
+}
+
 void drives_init(drives_ctrl *c)
 {
     int j, i;
@@ -177,6 +189,7 @@ void drives_init(drives_ctrl *c)
     }
     c->plan_mode = (int16_t)c->mode;
     c->plan_age = DRIVES_HORIZON; /* no plan yet */
+    forget_factor(&c->work);
     c->info.status = DRIVES_OPTIMAL;
     c->info.mode = c->mode;
     c->info.iterations = 0;
@@ -210,8 +223,13 @@ static void keep_plan(drives_ctrl *c, int mode, int status, const drives_real *U
 static int solve_mode(drives_ctrl *c, int mode, const drives_real *x,
     const drives_real *r, drives_real *U)
 {
-    const uint32_t t0 = DRIVES_TIMESTAMP();
-    const int status = drives_qp_solve(&c->work, c->lam[mode], c->U,
+    uint32_t t0;
+    int status;
+    if (c->plan_mode != mode) { /* the last QP was another mode's (keep_plan()) */
+        forget_factor(&c->work);
+    }
+    t0 = DRIVES_TIMESTAMP();
+    status = drives_qp_solve(&c->work, c->lam[mode], c->U,
         (c->plan_mode == mode) ? c->plan_age : DRIVES_HORIZON, &drives_modes[mode], x, r,
         U, &c->info.iterations, &c->info.polish_iterations, &c->info.active);
     c->info.solve_ticks = (uint32_t)(DRIVES_TIMESTAMP() - t0);

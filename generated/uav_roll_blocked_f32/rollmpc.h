@@ -18,7 +18,7 @@
 #include <stddef.h>
 #include <stdint.h>
 #include "rollmpc_config.h"
-#if ROLLMPC_GENERATION != 0x35bced7b473b03b
+#if ROLLMPC_GENERATION != 0x8b14378dd3b1aa2
 #error "rollmpc.h and rollmpc_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
 #endif
 
@@ -118,6 +118,8 @@ typedef struct {
     int chol_holds;                               /**< What chol holds: ROLLMPC_CHOL_NONE, _DUAL or _PRIMAL. */
     int chol_rows;                                /**< After a dual factor from scratch broke down: its
                                                        leading rows that are still valid. */
+    int chol_n;                                   /**< Rows of wset a dual factor in chol holds (kept
+                                                       from one QP of a mode to its next). */
     uint32_t work;                                /**< Work units of the solve so far. */
     uint32_t work_limit;                          /**< What the running part may spend up to (afford()). */
     int stop_rows;                                /**< Rows of wset where polish() ran out of work, */

@@ -10,7 +10,7 @@
  */
 #include <math.h>
 #include "rollmpc_internal.h"
-#if ROLLMPC_GENERATION != 0x35bced7b473b03b
+#if ROLLMPC_GENERATION != 0x8b14378dd3b1aa2
 #error "rollmpc_controller.c and rollmpc_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
 #endif
 
@@ -154,6 +154,18 @@ size_t rollmpc_ctrl_size(void)
     return sizeof(rollmpc_ctrl);
 }
 
+/*
+ * No factor of an earlier QP to start from: the work arrays hold no mode's, or another
+ * mode's (one set of work arrays serves every mode). A QP starts from the factor the last
+ * QP left when that QP was of its mode (solve_mode()): the Hessian is the mode's, only its
+ * working set moves.
+ */
+static void forget_factor(rollmpc_work *ws)
+{
+    ws->chol_holds = ROLLMPC_CHOL_NONE;
+    ws->primal_form = 0;
+}
+
 void rollmpc_init(rollmpc_ctrl *c)
 {
     int j, i;
@@ -177,6 +189,7 @@ void rollmpc_init(rollmpc_ctrl *c)
     }
     c->plan_mode = (int16_t)c->mode;
     c->plan_age = ROLLMPC_HORIZON; /* no plan yet */
+    forget_factor(&c->work);
     c->info.status = ROLLMPC_OPTIMAL;
     c->info.mode = c->mode;
     c->info.iterations = 0;
@@ -210,8 +223,13 @@ static void keep_plan(rollmpc_ctrl *c, int mode, int status, const rollmpc_real 
 static int solve_mode(rollmpc_ctrl *c, int mode, const rollmpc_real *x,
     const rollmpc_real *r, rollmpc_real *U)
 {
-    const uint32_t t0 = ROLLMPC_TIMESTAMP();
-    const int status = rollmpc_qp_solve(&c->work, c->lam[mode], c->U,
+    uint32_t t0;
+    int status;
+    if (c->plan_mode != mode) { /* the last QP was another mode's (keep_plan()) */
+        forget_factor(&c->work);
+    }
+    t0 = ROLLMPC_TIMESTAMP();
+    status = rollmpc_qp_solve(&c->work, c->lam[mode], c->U,
         (c->plan_mode == mode) ? c->plan_age : ROLLMPC_HORIZON, &rollmpc_modes[mode], x, r,
         U, &c->info.iterations, &c->info.polish_iterations, &c->info.active);
     c->info.solve_ticks = (uint32_t)(ROLLMPC_TIMESTAMP() - t0);

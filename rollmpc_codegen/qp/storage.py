@@ -287,6 +287,8 @@ def mode_data(name: str, actuator_index, plant: DiscretePlant, obs_gain: np.ndar
         signal = signal_storage(qp, EinvGt if has_out else None, cast, dt)
         first = int(np.flatnonzero(qp.row_kind == SIGNAL.code)[0])
         next_rows[first:] = signal_rows.next_signal_rows(qp.signals, first)
+    # a row's next-stage row never comes before it: carry_factor() shifts lam in place
+    assert np.all(next_rows >= np.arange(next_rows.size)), "row_next maps a row backwards"
     return ModeData(**soft, **signal,
         name=name, nx=qp.nx, nu=nu, ny=ny, N=N, n=qp.n, m=qp.m, n_yq=N * ny,
         actuator_index=np.asarray(actuator_index, dtype=np.int32),

@@ -89,7 +89,7 @@ class ActiveSetMixin:
             lp = lp + t
             st["z"] = z
             if k < 0:
-                self.factor_append(y, zeta)
+                self.factor_append(y, zeta, p)
                 st["W"] = np.append(W, p)
                 st["z"] = np.concatenate((z, np.array([lp], dt)))
                 st["in_set"][p] = True
@@ -168,7 +168,7 @@ class ActiveSetMixin:
                 break
         st["in_set"][:] = False  # start cold
         self.slack_on[W] = False
-        self.chol_holds = CHOL_DUAL
+        self.chol_holds, self.chol_set = CHOL_DUAL, W[:0]
         return 0, th0
 
     def dual_active_set(self, lam, th0, K, gam, from_=-1):
@@ -186,7 +186,7 @@ class ActiveSetMixin:
         self.output_slacks()
         self.work += md.m
         if from_ < 0:
-            self.chol_holds = CHOL_DUAL  # the factor of the empty working set
+            self.chol_holds, self.chol_set = CHOL_DUAL, st["W"]  # of the empty working set
             self.slack_on[:] = False
         if from_ >= 0 or (from_ != COLD_START and self.warm):
             nw, th = self.resume_working_set(lam, th0, K, st, from_)

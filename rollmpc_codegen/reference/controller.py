@@ -65,6 +65,7 @@ class ControllerRef:
         self.xhat = [np.zeros(md.nx, md.Kx.dtype) for md in self.md]
         for s in self.solvers:
             s.lam[:] = 0
+            s.forget_factor()
         self.last_plan.forget()
         self.last_plan.mode = self.mode
         self.u_last = np.zeros(self.ctx["n_actuators"], self.md[0].Kx.dtype)

@@ -198,6 +198,7 @@ class PolishMixin:
             for p in add:
                 W = self.append_row(W, p)
             if dual >= 0 and self.chol_holds != CHOL_DUAL:
-                self.chol_holds = CHOL_DUAL  # of W[:dual], which the appends kept
+                # of W[:dual], which the appends kept
+                self.chol_holds, self.chol_set = CHOL_DUAL, W[:dual].copy()
                 return self.stopped(W[:dual], z, dual, GUESS_HANDED_OVER), th, 0, its
         return (GUESS_CAPPED if repeatable else -1), th, 0, its

@@ -38,6 +38,8 @@ class DualPolishMixin:
             weak = np.flatnonzero(~pivot_independent(pivots * pivots, diag, self.dep_tol))
             ok = weak.size == 0
             self.chol_rows = 0 if ok else int(weak[0])
+        if ok:
+            self.chol_set = np.asarray(W).copy()
         self.chol_holds = CHOL_DUAL if ok else CHOL_NONE
         return ok
 
@@ -48,24 +50,26 @@ class DualPolishMixin:
         chol_lsolve_from(self.chol, y.size, y, start)
         return seqsum(-(y * y), start=hpp)
 
-    def factor_append(self, y, zeta):
-        """Mirror of factor_append(): row len(y) of the factor is (y, sqrt(zeta))."""
+    def factor_append(self, y, zeta, p):
+        """Mirror of factor_append(): row len(y) of the factor is (y, sqrt(zeta)), row p's
+        (``chol_set``: the rows the factor holds, the C's wset[0..chol_n))."""
         nw = y.size
+        self.chol_set = np.append(self.chol_set[:nw], p)
         tri = nw * (nw + 1) // 2
         self.chol[tri:tri + nw] = y
         self.chol[tri + nw] = np.sqrt(zeta)
 
-    def append_row(self, W, p):
-        """Mirror of append_row(): W + [p], p tight; the kept factor gains p's row unless
-        its pivot is below the dependence tolerance (then no factor is kept)."""
-        self.slack_on[p] = False
+    def append_row(self, W, p, slack=False):
+        """Mirror of append_row(): W + [p], p tight (or slack); the kept factor gains p's
+        row unless its pivot is below the dependence tolerance (then no factor is kept)."""
+        self.slack_on[p] = slack
         if self.chol_holds == CHOL_DUAL:
             self.work += (len(W) + 1) * hq_work(self.md, self.hq_factor)
-            hpp = self.Hdiag[p]
+            hpp = self.Hdiag[p] + self.soft_w[p] if slack else self.Hdiag[p]
             y = self.H[W, p].astype(self.chol.dtype)
             zeta = self.factor_pivot(y, hpp)
             if pivot_independent(zeta, hpp, self.dep_tol):
-                self.factor_append(y, zeta)
+                self.factor_append(y, zeta, p)
             else:
                 self.chol_holds = CHOL_NONE
         return np.append(W, p)
@@ -76,14 +80,14 @@ class DualPolishMixin:
         a slack row), the others leaving; their factor into ``chol``. The first
         ``chol_rows``, factored before a breakdown, are kept as they are."""
         kept = list(W[:self.chol_rows])
-        self.chol_holds = CHOL_DUAL
+        self.chol_holds, self.chol_set = CHOL_DUAL, W[:self.chol_rows].copy()
         for p in W[self.chol_rows:]:
             hpp = self.Hdiag[p] + (self.soft_w[p] if self.slack_on[p] else 0)
             self.work += (len(kept) + 1) * hq_work(self.md, self.hq_factor)
             y = self.H[kept, p].astype(self.chol.dtype)
             zeta = self.factor_pivot(y, hpp)
             if pivot_independent(zeta, hpp, self.dep_tol):
-                self.factor_append(y, zeta)
+                self.factor_append(y, zeta, p)
                 kept.append(p)
             else:
                 self.slack_on[p] = False
@@ -95,15 +99,20 @@ class DualPolishMixin:
         if self.chol_holds == CHOL_DUAL:
             self.work += delete_work(k, len(W))
             chol_delete(self.chol, k, len(W), np.zeros(len(W), self.chol.dtype))
+            self.chol_set = np.delete(W, k)
         return np.delete(W, k), np.delete(z, k)
+
+    def dual_solve_work(self, nw, factored):
+        """Mirror of dual_solve_work(): what dual_solve() on nw rows may spend, its factor
+        ``factored`` or not."""
+        md = self.md
+        return ((0 if self.out_slacks_ok else md.m + predict_work(md))
+                + (0 if factored else factor_work(md, nw, self.hq_factor)) + 2 * tri_work(nw))
 
     def dual_solve(self, W, K):
         """Mirror of dual_solve(): (0, z), or (-1 on a breakdown / OUT_OF_WORK, None)."""
         md, nw = self.md, W.size
-        need = ((0 if self.out_slacks_ok else md.m + predict_work(md))
-                + (0 if self.chol_holds == CHOL_DUAL else factor_work(md, nw, self.hq_factor))
-                + 2 * tri_work(nw))
-        if not self.afford(need):
+        if not self.afford(self.dual_solve_work(nw, self.chol_holds == CHOL_DUAL)):
             return OUT_OF_WORK, None
         self.output_slacks()
         z = -K[W]

@@ -4,7 +4,7 @@ working set of input bounds only, in free-variable form (Cholesky of S_FF) or bo
 
 :class:`PrimalPolishMixin` is part of :class:`~.solver.SolverRef`; it reads ``md``,
 ``row_c``, ``S`` and ``Sinv``.  Like the C it keeps the factor and Y between the solves of
-one QP (``_chol``, ``_Y``, valid while ``chol_holds`` is CHOL_PRIMAL) and factors again
+a mode's QPs (``_chol``, ``_Y``, valid while ``chol_holds`` is CHOL_PRIMAL) and factors again
 only the rows that change, after deleting by updates the rows that left
 (:mod:`.primal_rows` chooses which).  A free-form solve leaves (d, nu) in ``_free_state``
 for :meth:`free_multipliers`, as the C leaves them in ``ws->dv`` and ``ws->nu``.

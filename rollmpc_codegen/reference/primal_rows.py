@@ -4,7 +4,7 @@ previous factor and a new one, and the previous rows deleted by updates.
 
 :class:`PrimalRowsMixin` is part of :class:`~.solver.SolverRef` (through
 :class:`~.polish_primal.PrimalPolishMixin`); it reads ``md`` and keeps
-:attr:`factor_rows` (reset by ``unconstrained()``), the C's ws->primal_form and roles.
+:attr:`factor_rows` (reset by ``forget_factor()``), the C's ws->primal_form and roles.
 """
 from __future__ import annotations
 

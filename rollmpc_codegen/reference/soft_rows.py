@@ -28,9 +28,17 @@ class SoftRowsMixin:
         excess and tolerance scale at th (:meth:`row_excess`)."""
         return excess[W] - self.slack_in_set(W, z) > self.tol * scale[W]
 
+    def slack_state(self, W, lam_of_W):
+        """Mirror of slack_state() for rows W joining with these multipliers."""
+        return (self.soft_w[W] > 0) & (lam_of_W > self.soft_l1[W])
+
     def set_state(self, W, lam_of_W):
         """Mirror of set_state() for rows joining with these multipliers."""
-        self.slack_on[W] = (self.soft_w[W] > 0) & (lam_of_W > self.soft_l1[W])
+        self.slack_on[W] = self.slack_state(W, lam_of_W)
+
+    def state_kept(self, W, lam_of_W):
+        """Mirror of state_kept(): are rows W in the states they would join with?"""
+        return self.slack_on[W] == self.slack_state(W, lam_of_W)
 
     def switch_row(self, W, k):
         """Mirror of switch_row(): flip position k's state; the kept factor takes the

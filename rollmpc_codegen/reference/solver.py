@@ -105,9 +105,12 @@ class SolverRef(SignalsMixin, UnconstrainedMixin, RowsMixin, SoftRowsMixin, Swee
         self.soft = bool(np.any(self.soft_w > 0))
         self.slack_on = np.zeros(md.m, bool)
         self.wcap = md.w_cap if self.soft else md.n
-        # ws->chol and what it holds (polish_dual.CHOL_*), kept across the polish's steps;
-        # chol_rows: the rows still valid after a factor from scratch broke down
+        # ws->chol and what it holds (polish_dual.CHOL_*), kept across the polish's steps
+        # and from one QP of the mode to the next (forget_factor()); chol_set: the rows of a
+        # dual factor (the C's wset[0..chol_n)); chol_rows: the rows still valid after a
+        # factor from scratch broke down
         self.chol = np.zeros(self.wcap * (self.wcap + 1) // 2, md.Kx.dtype)
+        self.chol_set = np.zeros(0, np.int64)
         self.chol_holds, self.chol_rows = CHOL_NONE, 0
         self.slack_max, self.slack_rows = self.zero, 0
         # the work count of the last solve (ws->work; qp/work.py) and its budget
@@ -150,8 +153,15 @@ class SolverRef(SignalsMixin, UnconstrainedMixin, RowsMixin, SoftRowsMixin, Swee
             plan.age = plan.none
         plan.mode = self.mode_index
 
+    def forget_factor(self):
+        """Mirror of forget_factor(): no factor of an earlier QP to start from."""
+        self.chol_holds, self.factor_rows = CHOL_NONE, None
+
     def solve_mode(self, x, r):
-        """Mirror of solve_mode(): qp_solve(), then keep_plan()."""
+        """Mirror of solve_mode(): qp_solve() (from the factor the last QP left, if that QP
+        was this mode's: the last plan's mode), then keep_plan()."""
+        if self.last_plan.mode != self.mode_index:
+            self.forget_factor()
         out = self.qp_solve(x, r)
         self.keep_plan(out[0], out[1])
         return out
@@ -180,6 +190,8 @@ class SolverRef(SignalsMixin, UnconstrainedMixin, RowsMixin, SoftRowsMixin, Swee
                 if not self.afford(md.m):
                     return self.time_limit_at_th0(th0, False) + (0, polish_its, 0)
                 W = self.seed_shifted(lam)
+                if isinstance(W, int):  # OUT_OF_WORK: part of its factor, lam the guess
+                    return self.time_limit_at_th0(th0, False) + (0, polish_its, 0)
                 count = W.size if W.size <= self.wcap else -1
                 if self.active_set and not self.box_only(W):
                     self.work_limit = self.work + (self.budget - self.work) // 3

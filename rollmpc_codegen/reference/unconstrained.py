@@ -30,11 +30,10 @@ def output_prediction(md: ModeData) -> tuple[np.ndarray, np.ndarray | None]:
 class UnconstrainedMixin:
     def unconstrained(self, x, r):
         """Mirror of unconstrained(): (th0, the predicted rows' free response or None),
-        th0 summed per run of equal w (reference_runs(), other_runs()); a new QP, so no
-        primal factor to update yet. The free response is [Phi x; Zx x + Zr r]
-        (signal_free_response(); zeros for the outputs of a mode with signal rows only)."""
+        th0 summed per run of equal w (reference_runs(), other_runs()). The free response
+        is [Phi x; Zx x + Zr r] (signal_free_response(); zeros for the outputs of a mode
+        with signal rows only)."""
         md, ny = self.md, self.md.ny
-        self.factor_rows = None
         rr = r.reshape(md.N, ny)
         w = np.empty(md.n_yq, md.Kx.dtype)
         for k in range(md.n_yq):

@@ -124,7 +124,9 @@ def test_reference_rows_keep_the_head_and_append_the_tail(uav_double):
     rows = solve(range(48))
     assert rows.form == FREE and rows.head == list(range(99, 60, -1))
     assert rows.tail == list(range(60, 47, -1))
-    ref.unconstrained(np.zeros(md.nx), np.zeros(md.N * md.ny))  # a new QP: no factor
+    ref.unconstrained(np.zeros(md.nx), np.zeros(md.N * md.ny))  # the mode's next QP keeps it
+    assert ref.factor_rows is rows
+    ref.forget_factor()  # another mode's QP came between: no factor
     assert ref.factor_rows is None
     rows = solve(range(48))  # a new factor takes the smaller order: 48 bound rows
     assert rows.form == BOUND and rows.head == list(range(48)) and rows.tail == []
