@@ -206,7 +206,7 @@ class Aircraft:
         if failed or stopped:
             axes = TRIM_SORRY.findall(printed())
             why = TRIM_AXES.get(axes[0], f"{axes[0]} is not trimmable") if axes else \
-                "its trim did not converge"
+                "its trim did not converge (a speed or altitude it cannot fly level at)"
             if stopped:  # FGPiston stops below 80 % of idle RPM: a governor at its minimum
                 why = (f"{stopped} of its {self.engines} engines stopped in the trim (a "
                        "piston engine stops below 80 % of its idle RPM, where a constant-"

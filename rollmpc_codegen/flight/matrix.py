@@ -67,7 +67,7 @@ def fly_condition(config: str, turbulence: str, seed: int, precision: str, targe
                        "median_cycles": rep["median_step_cycles"],
                        "bit_exact_vs_host": rep["bit_exact_vs_host"],
                        "commands_match_flight": rep["flight"]["commands_match"],
-                       "flash_bytes": rep["flash_bytes"], "part": rep["target"],
+                       "flash_bytes": rep["flash_bytes"], "part": rep["budget"]["target"],
                        "flash_fits": rep["verdicts"].get("flash")}
     return cell
 
