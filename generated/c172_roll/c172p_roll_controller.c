@@ -10,7 +10,7 @@
  */
 #include <math.h>
 #include "c172p_roll_internal.h"
-#if C172P_ROLL_GENERATION != 0x18e6a063ba198f3
+#if C172P_ROLL_GENERATION != 0xb0a3d0acc106163
 #error "c172p_roll_controller.c and c172p_roll_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
 #endif
 

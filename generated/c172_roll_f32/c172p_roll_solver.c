@@ -25,7 +25,7 @@
  */
 #include <math.h>
 #include "c172p_roll_internal.h"
-#if C172P_ROLL_GENERATION != 0xac826c4c85e84a7
+#if C172P_ROLL_GENERATION != 0xa1256cf69bf0e9c
 #error "c172p_roll_solver.c and c172p_roll_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
 #endif
 

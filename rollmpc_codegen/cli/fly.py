@@ -7,8 +7,9 @@ Outputs (each optional):
   controller (``y`` is the roll it was given, ``rho`` the airspeed, ``r`` the reference;
   ``rollmpc report --flight`` replays them), then ``roll_rate_fed`` and the aircraft's
   true signals ``true_<signal>`` (flight.loop.AIRCRAFT_SIGNALS).
-* ``--json``: the metrics of :mod:`rollmpc_codegen.flight.metrics` (``baseline`` holds
-  the PID's with ``--baseline pid``).
+* ``--json``: the metrics of :mod:`rollmpc_codegen.flight.metrics` (with ``--baseline
+  pid``, ``no_preview`` holds the MPC's without the preview and ``baseline`` the PID's,
+  with its gains).
 * ``--plot``: the flight in the style of Fig. 2 (:mod:`rollmpc_codegen.flight.plot`).
 """
 from __future__ import annotations
@@ -18,8 +19,7 @@ import sys
 from pathlib import Path
 
 from ..config.errors import ConfigError
-from ..flight.aircraft import (DEFAULT_AIRCRAFT, DEFAULT_AIRSPEED_KTS, DEFAULT_ALTITUDE_FT,
-                               TURBULENCE)
+from ..flight.aircraft import DEFAULT_AIRCRAFT, TURBULENCE
 from .options import (add_build_dir, add_command, add_config, add_outputs, add_precision,
                       add_quiet, check_outputs, progress_of, require_plot, write_json)
 from ..sim.simulate import csv_header, work_cell
@@ -34,12 +34,13 @@ def add_parser(sub) -> None:
                     "6-DOF JSBSim aircraft in turbulence, with IMU noise and latency, "
                     "optionally beside a PX4-style PID (docs/flight.md).")
     add_config(f)
-    f.add_argument("--aircraft", default=DEFAULT_AIRCRAFT,
-                   help=f"a JSBSim aircraft of the jsbsim wheel (default {DEFAULT_AIRCRAFT})")
-    f.add_argument("--airspeed", type=float, default=DEFAULT_AIRSPEED_KTS,
-                   help=f"trim airspeed at the start, kts (default {DEFAULT_AIRSPEED_KTS:g})")
-    f.add_argument("--altitude", type=float, default=DEFAULT_ALTITUDE_FT,
-                   help=f"trim altitude, held, ft (default {DEFAULT_ALTITUDE_FT:g})")
+    f.add_argument("--aircraft", default=None,
+                   help="a JSBSim aircraft of the jsbsim wheel (default: the config's "
+                   f"aircraft section, else {DEFAULT_AIRCRAFT})")
+    f.add_argument("--airspeed", type=float, default=None,
+                   help="trim airspeed at the start, kts (default: the config's design point)")
+    f.add_argument("--altitude", type=float, default=None,
+                   help="trim altitude, held, ft (default: the config's)")
     f.add_argument("--turbulence", choices=list(TURBULENCE), default="none",
                    help="MIL-F-8785C Dryden turbulence (JSBSim's reference intensities)")
     f.add_argument("--noise", type=float, default=0.0,
@@ -56,7 +57,8 @@ def add_parser(sub) -> None:
                 json="write the flight metrics as JSON",
                 plot="write the flight as a PNG: bank, reference, aileron")
     f.add_argument("--baseline", choices=["none", "pid"], default="none",
-                   help="also fly the PX4-style PID on the same flight (plotted dashed)")
+                   help="also fly the MPC without its preview and the PX4-style PID, tuned "
+                   "for the aircraft, on the same flight (the PID plotted dashed)")
     add_quiet(f, "no progress bar")
     add_build_dir(f)
     f.set_defaults(func=run)
@@ -89,7 +91,7 @@ def write_flight_csv(path: str | Path, ctx: dict, log) -> Path:
 def _check_args(args) -> None:
     for name in ("noise", "airspeed", "altitude"):
         value = getattr(args, name)
-        if not (0 <= value < float("inf")):
+        if value is not None and not (0 <= value < float("inf")):
             raise ConfigError(f"--{name}", f"must be finite and >= 0, got {value}")
     if args.delay < 0:
         raise ConfigError("--delay", f"must be >= 0, got {args.delay}")
@@ -109,19 +111,34 @@ def print_summary(run) -> None:
           f"JSBSim at {s['fdm_rate_hz']:g} Hz; turbulence {s['turbulence']}, noise "
           f"{s['noise_std']:g}, delay {s['delay_samples']}, seed {s['seed']}; "
           f"{ctx['precision']}, solver {solver_text(ctx)}")
-    runs = [("MPC", s)] + ([("PID", s["baseline"])] if "baseline" in s else [])
+    margins = ", ".join(f"{k} {'>30' if v is None else v}" for k, v in s["delay_margins"].items())
+    print(f"  delay margin of the MPC on its model (samples of unmodelled delay): {margins}")
+    runs = [("MPC" if s["preview"] else "MPC without preview", s)]
+    runs += [("MPC without preview", s["no_preview"])] if "no_preview" in s else []
+    runs += [("PID", s["baseline"])] if "baseline" in s else []
     for name, m in runs:
-        a = m["aileron"]
+        a, e = m["aileron"], m["engines"]
         print(f"  {name}: RMS roll error {m['rms_roll_error_deg']:.3g} deg; settled |roll - r| "
               f"per segment: {_segments(m, 'settled_error')} deg")
-        print(f"       overshoot: {_segments(m, 'overshoot')} deg; settling (10 %): "
-              f"{_segments(m, 'settling_time_10pct_s', '{:.2f}')} s")
+        print(f"       overshoot: {_segments(m, 'overshoot')} deg; transition (10 % to 10 %): "
+              f"{_segments(m, 'transition_time_s', '{:.2f}')} s")
         print(f"       aileron: max |u| {a['max_abs_deg']:.3g} deg, travel {a['travel_deg']:.0f} "
               f"deg, rate max {a['max_rate_dps']:.0f} RMS {a['rms_rate_dps']:.1f} deg/s; "
               f"altitude excursion {m['altitude_excursion_ft']:.0f} ft, airspeed "
               f"{m['airspeed_kts']['min']:.0f}-{m['airspeed_kts']['max']:.0f} kts, "
-              f"|sideslip| <= {m['max_abs_sideslip_deg']:.1f} deg, stalled samples "
-              f"{m['stalled_samples']}")
+              f"|sideslip| <= {m['max_abs_sideslip_deg']:.1f} deg")
+        stall = "-" if m["stall_alpha_deg"] is None else f"{m['stall_alpha_deg']:g}"
+        engines = "" if e["first_loss_s"] is None else \
+            (f"; ENGINE LOSS: {e['count'] - e['min_running']} of {e['count']} stopped, the "
+             f"first at t = {e['first_loss_s']:g} s")
+        print(f"       alpha max {m['max_alpha_deg']:.1f} deg (stall {stall}): stalled samples "
+              f"{m['stalled_samples']}{engines}")
+    if "baseline" in s:
+        g = s["baseline"]["gains"]
+        print(f"  PID gains ({g['rule']}): tau {g['time_constant_s']:.3f} s, max rate "
+              f"{g['max_rate_dps']:.0f} deg/s, FF {g['feed_forward']:.3f}, P {g['rate_p']:.3f}, "
+              f"I {g['rate_i']:.3f}, scaling {g['trim_airspeed_kts']:g} kts / floor "
+              f"{g['min_airspeed_kts']:g} kts")
     st = s["solve_us"]
     statuses = ", ".join(f"{k} {v}" for k, v in s["status_counts"].items())
     print(f"  MPC: switches {s['switches']}, statuses: {statuses}; max iterations "
@@ -136,13 +153,17 @@ def run(args) -> int:
     _check_args(args)
     require_jsbsim()
     require_plot(args)
+    def warn(w) -> None:
+        print(f"rollmpc: warning: {w.message}", file=sys.stderr)
+        sys.stderr.flush()
+
     result = run_flight(args.config, aircraft=args.aircraft, airspeed_kts=args.airspeed,
                         altitude_ft=args.altitude, turbulence=args.turbulence,
                         noise_std=args.noise, delay=args.delay, seed=args.seed,
                         duration_s=args.duration, reference=args.reference,
                         precision=args.precision,
                         baseline=None if args.baseline == "none" else args.baseline,
-                        build_dir=args.build_dir, progress=progress_of(args))
+                        build_dir=args.build_dir, progress=progress_of(args), warn=warn)
     if args.csv:
         write_flight_csv(args.csv, result.ctx, result.log)
     if args.json:
@@ -151,8 +172,9 @@ def run(args) -> int:
         from ..flight.plot import plot_flight
 
         plot_flight(args.plot, result.config, result.log, result.baseline_log,
-                    title=f"{Path(args.config).name} flies the JSBSim {args.aircraft}: "
-                          f"turbulence {args.turbulence}, seed {args.seed} "
+                    title=f"{Path(args.config).name} flies the JSBSim "
+                          f"{result.summary['aircraft']}: turbulence {args.turbulence}, "
+                          f"seed {args.seed} "
                           f"({result.ctx['precision']})")
     print_summary(result)
     for opt in OUTPUTS:

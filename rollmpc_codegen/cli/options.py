@@ -54,7 +54,7 @@ def add_force(p: argparse.ArgumentParser) -> None:
 
 
 def add_quiet(p: argparse.ArgumentParser, help: str = "no progress on stderr") -> None:
-    p.add_argument("--quiet", action="store_true", help=help)
+    p.add_argument("-q", "--quiet", action="store_true", help=help)
 
 
 def progress_of(args):

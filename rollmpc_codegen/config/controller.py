@@ -9,14 +9,15 @@ from ..codegen.c_names import prefix_collisions
 from ..features.move_blocking import blocks_of
 from .checks import (check_horizon, check_literal, check_rate_bounds, check_representable,
                      check_schedule_source, check_unique_names)
+from .aircraft import parse_aircraft
 from .errors import ConfigError
 from .mode import parse_mode
 from .reader import Reader
 from .scheduler import parse_scheduler
-from .schema import (DEFAULT_PRECISION, DEFAULT_PREFIX, MAX_ROWS, MODE_KEYS, PRECISIONS,
-                     PREFIX_PATTERN, RESERVED_PREFIXES, SCHEDULER_KEYS, SIMULATION_KEYS,
-                     SOLVER_KEYS, TARGET_KEYS, TOP_KEYS, UNITS_KEYS, ControllerConfig,
-                     UnitsConfig)
+from .schema import (AIRCRAFT_KEYS, DEFAULT_PRECISION, DEFAULT_PREFIX, MAX_ROWS, MODE_KEYS,
+                     PRECISIONS, PREFIX_PATTERN, RESERVED_PREFIXES, SCHEDULER_KEYS,
+                     SIMULATION_KEYS, SOLVER_KEYS, TARGET_KEYS, TOP_KEYS, UNITS_KEYS,
+                     ControllerConfig, UnitsConfig)
 from .sample_time import check_sample_time
 from .simulation import check_segment, parse_simulation, parse_units
 from .solver import parse_solver
@@ -75,9 +76,12 @@ def parse(data: Any) -> ControllerConfig:
     units = (parse_units(r.sub("units", UNITS_KEYS), outputs, actuators)
              if r.has("units") else UnitsConfig())
     target = parse_target(r.sub("target", TARGET_KEYS, {}))
+    aircraft = (parse_aircraft(r.sub("aircraft", AIRCRAFT_KEYS), len(modes))
+                if r.has("aircraft") else None)
     check_representable(precision, modes, scheduler, solver)
     check_schedule_source(simulation, scheduler, modes)
     return ControllerConfig(prefix=prefix, precision=precision, sample_time=sample_time,
                             horizon=horizon, outputs=outputs, actuators=actuators, modes=modes,
                             scheduler=scheduler, solver=solver, simulation=simulation,
-                            runtime_bounds=runtime_bounds, units=units, target=target)
+                            runtime_bounds=runtime_bounds, units=units, target=target,
+                            aircraft=aircraft)

@@ -67,6 +67,8 @@ SECTIONS = (
         Key("units", "none", "labels only (`units` below)"),
         Key("target", "the defaults below", "the part `rollmpc report` judges on and "
             "`rollmpc generate` sizes against (`target` below)"),
+        Key("aircraft", "none", "the JSBSim aircraft and envelope `rollmpc identify` "
+            "measured the modes on; `rollmpc fly` flies it (`aircraft` below)"),
     )),
     Section("modes[]", "One operating point: its plant, weights, bounds and observer.", (
         Key("name", REQUIRED, "identifier of the mode"),
@@ -285,6 +287,26 @@ SECTIONS = (
             "replaces this section with it"),
         Key("core", None, "without a part: the core (`cortex-m4f`, `cortex-m7`, "
             "`cortex-m33`), its flags, FPU width, cycle model and cycles per work unit"),
+    )),
+    Section("aircraft", "What `rollmpc identify` wrote about the aircraft (flight.md, \"The "
+            "config\"): `rollmpc fly` takes its defaults from here and warns where a flight "
+            "leaves the envelope; the generated C never sees it.", (
+        Key("name", REQUIRED, "the JSBSim aircraft (a model of the jsbsim wheel)"),
+        Key("altitude_ft", REQUIRED, "the trim altitude of every mode, ft: `fly` holds it"),
+        Key("airspeeds_kts", REQUIRED, "the calibrated trim airspeed of each mode, in the "
+            "modes' order: `fly` starts at the initial mode's and warns outside their range"),
+        Key("aileron_travel_deg", REQUIRED, "`[min, max]`: the left aileron's deflection "
+            "at full command, measured at steady state through the aircraft's FCS"),
+        Key("aileron_rate_dps", "none (no rate limit)", "the aileron actuator's largest "
+            "rate, deg/s, measured on the same full-command steps"),
+        Key("stall_alpha_deg", "none", "the angle of attack of maximum lift, deg: a "
+            "flight counts the samples above it as stalled"),
+        Key("latency_samples", "`0`", "samples of sensor latency the modes model "
+            "(`identify --latency`): `fly` compares its `--delay` against it and the "
+            "delay margin"),
+        Key("settings", "none", "`{{property: value}}`: JSBSim properties set after the "
+            "engines start, before the trim, and held through every flight (gear, flaps, "
+            "mixture: `identify --gear/--flaps/--set`)"),
     )),
 )
 

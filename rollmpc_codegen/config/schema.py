@@ -14,6 +14,7 @@ from functools import cached_property
 
 import numpy as np
 
+from .aircraft_types import AIRCRAFT_KEYS, AircraftConfig  # noqa: F401  (the keys: re-exported)
 from .canonical import OMIT_AT_DEFAULT, canonical_json, config_digest
 from .constraint_types import SignalConstraint, TerminalConfig
 from .keys import section_keys
@@ -333,6 +334,7 @@ class ControllerConfig:
     runtime_bounds: bool = False
     units: UnitsConfig = UnitsConfig()  # labels only (the top-level `units` key)
     target: TargetConfig = TargetConfig()  # what `rollmpc report` judges on
+    aircraft: AircraftConfig | None = field(default=None, metadata=OMIT_AT_DEFAULT)  # identify
 
     @cached_property
     def config_hash(self) -> str:
@@ -367,7 +369,6 @@ class ControllerConfig:
     def cycles_per_sample(self) -> int:
         """The cycle budget of one step: one sample time at ``target.cpu_mhz``."""
         return int(round(self.target.cpu_mhz * 1e6 * self.sample_time))
-
 
 
 # --------------------------------------------------------------------------- keys

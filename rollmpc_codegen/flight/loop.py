@@ -28,9 +28,10 @@ from .outer_loops import OuterLoops
 from .scenario import FlightReference
 
 # the true signals logged per sample besides the controller's view (deg, deg/s, kts, ft,
-# normalised commands)
+# normalised commands, the stall flag, engines running, total thrust in lbf)
 AIRCRAFT_SIGNALS = ("roll", "roll_rate", "airspeed", "airspeed_cmd", "altitude", "pitch",
-                    "sideslip", "alpha", "elevator", "throttle", "rudder", "stalled")
+                    "sideslip", "alpha", "elevator", "throttle", "rudder", "stall_hysteresis",
+                    "engines_running", "thrust")
 
 
 class CommandError(RuntimeError):
@@ -111,7 +112,9 @@ def fly(aircraft: Aircraft, trim: Trim, controller, reference: FlightReference,
                             ("altitude", s.altitude_ft), ("pitch", s.pitch_deg),
                             ("sideslip", s.sideslip_deg), ("alpha", s.alpha_deg),
                             ("elevator", elevator), ("throttle", throttle), ("rudder", rudder),
-                            ("stalled", float(aircraft.stalled()))):
+                            ("stall_hysteresis", float(aircraft.stall_hysteresis())),
+                            ("engines_running", float(aircraft.engines_running())),
+                            ("thrust", aircraft.thrust_lbs())):
             truth[name][k] = value
         aircraft.advance(FDM_STEPS_PER_SAMPLE)
         if progress is not None:

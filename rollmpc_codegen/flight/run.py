@@ -1,23 +1,27 @@
 """``rollmpc fly`` as one library call: :func:`run_flight` flies the generated C (through
-cffi, :class:`.loop.MpcRoll`) on the JSBSim aircraft and, if asked, the PID baseline on
-the same flight (same trim, reference, turbulence seed, noise seed and delay); returns
-the logs and the JSON summary, prints nothing (progress through the optional factory of
-``sim.simulate.start_phase``).
+cffi, :class:`.loop.MpcRoll`) on the JSBSim aircraft and, with ``baseline="pid"``, the
+same MPC without its reference preview and the PID baseline (tuned per aircraft,
+:mod:`.pid_tuning`) on the same flight (same trim, reference, turbulence seed, noise seed
+and delay); returns the logs and the JSON summary, prints nothing (warnings through
+``warn`` before the flights, progress through the optional factory of
+``sim.simulate.start_phase``). The aircraft, airspeed and altitude default to the
+config's ``aircraft`` section (:mod:`.envelope`).
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import asdict, dataclass
 from pathlib import Path
 
 from ..config import ConfigError, ControllerConfig
 from ..host.build import build_host_controller
 from ..pipeline import load_model
 from ..sim.simulate import start_phase
-from .aircraft import (DEFAULT_AIRCRAFT, DEFAULT_AIRSPEED_KTS, DEFAULT_ALTITUDE_FT,
-                       FDM_STEPS_PER_SAMPLE, TURBULENCE, Aircraft, Trim, check_aircraft)
+from .aircraft import FDM_STEPS_PER_SAMPLE, TURBULENCE, Aircraft, Trim, check_aircraft
+from .envelope import delay_warning, envelope_warnings, flight_point
 from .loop import FlightLog, MpcRoll, fly
 from .metrics import flight_summary
 from .pid_roll import PidRoll
+from .pid_tuning import tune_pid
 from .scenario import FlightReference, flight_reference
 
 BASELINES = ("pid",)
@@ -32,7 +36,8 @@ class FlightRun:
     reference: FlightReference
     log: FlightLog
     summary: dict
-    baseline_log: FlightLog | None = None
+    baseline_log: FlightLog | None = None  # the PID's
+    no_preview_log: FlightLog | None = None  # the MPC's without the preview
 
 
 def check_flyable(cfg: ControllerConfig) -> None:
@@ -66,61 +71,86 @@ def check_travel(cfg: ControllerConfig, aircraft: str, travel_deg) -> None:
                                   "the aircraft does not have")
 
 
-def run_flight(config: str | Path, *, aircraft: str = DEFAULT_AIRCRAFT,
-               airspeed_kts: float = DEFAULT_AIRSPEED_KTS,
-               altitude_ft: float = DEFAULT_ALTITUDE_FT, turbulence: str = "none",
-               noise_std: float = 0.0, delay: int = 0, seed: int = 0,
-               duration_s: float | None = None, reference: str | None = None,
+def run_flight(config: str | Path, *, aircraft: str | None = None,
+               airspeed_kts: float | None = None, altitude_ft: float | None = None,
+               turbulence: str = "none", noise_std: float = 0.0, delay: int = 0,
+               seed: int = 0, duration_s: float | None = None, reference: str | None = None,
                precision: str | None = None, baseline: str | None = None,
                preview_reference: bool = True, build_dir: str | Path | None = None,
-               progress=None) -> FlightRun:
-    """Fly ``config`` on ``aircraft`` from a trim at ``airspeed_kts``/``altitude_ft``.
+               progress=None, warn=None) -> FlightRun:
+    """Fly ``config`` on ``aircraft`` from a trim at ``airspeed_kts``/``altitude_ft`` (None:
+    the config's aircraft section, envelope.flight_point).
 
     ``reference``: None (the paper's levels scaled to +-30 deg), a peak bank angle or a
     CSV file (:mod:`.scenario`); ``turbulence`` a key of aircraft.TURBULENCE, seeded with
-    ``seed`` (so is the sensor noise); ``baseline="pid"`` also flies the PX4-style PID;
-    ``preview_reference=False`` gives the MPC r_k over its whole horizon (docs/flight.md:
-    what the preview is worth; ``rollmpc report --flight`` replays only previewed flights).
+    ``seed`` (so is the sensor noise); ``baseline="pid"`` also flies the MPC without its
+    preview and the PX4-style PID; ``preview_reference=False`` flies only the MPC without
+    it (docs/flight.md: what the preview is worth; ``rollmpc report --flight`` replays
+    only previewed flights). ``warn(DesignWarning)`` hears the envelope's warnings before
+    any flight; they are in the summary too.
     """
+    from ..model.delay_margin import delay_margins
+
     if turbulence not in TURBULENCE:
         raise ConfigError("--turbulence", f"choose from {', '.join(TURBULENCE)}")
     if baseline is not None and baseline not in BASELINES:
         raise ConfigError("--baseline", f"choose from {', '.join(BASELINES)}")
-    check_aircraft(aircraft)
     model, ctx = load_model(config, precision)
     cfg = model.config
     check_flyable(cfg)
+    point = flight_point(cfg, aircraft, airspeed_kts, altitude_ft)
+    check_aircraft(point.aircraft)
     ts = cfg.sample_time
-    ref = flight_reference(reference, ts, airspeed_kts, duration_s)
+    ref = flight_reference(reference, ts, point.airspeed_kts, duration_s,
+                           point.airspeed_range_kts)
+    probe = Aircraft(point.aircraft, ts / FDM_STEPS_PER_SAMPLE, point.settings)
+    travel = probe.travel
+    check_travel(cfg, point.aircraft, travel.travel_deg)
+    probe.trim(point.airspeed_kts, point.altitude_ft)  # an untrimmable start: an error first
+    margins = delay_margins(model)
+    warnings = envelope_warnings(cfg, point, ref.airspeed_kts, travel)
+    late = delay_warning(cfg, margins, delay)
+    warnings += [late] if late else []
+    for w in warnings if warn else ():
+        warn(w)
+    bounds = aileron_bounds(cfg)
+    stall = point.stall_alpha_deg
+    if stall is None:  # a config without an aircraft section: measured at the start
+        from .airframe import stall_alpha_deg
 
-    def one_flight(controller, label: str) -> tuple[FlightLog, Trim, Aircraft]:
-        ac = Aircraft(aircraft, ts / FDM_STEPS_PER_SAMPLE)
-        check_travel(cfg, aircraft, ac.travel_deg)
-        trim = ac.trim(airspeed_kts, altitude_ft)
+        stall = stall_alpha_deg(probe, point.airspeed_kts, point.altitude_ft)
+
+    def one_flight(controller, label: str, preview: bool = True):
+        ac = Aircraft(point.aircraft, ts / FDM_STEPS_PER_SAMPLE, point.settings, travel)
+        trim = ac.trim(point.airspeed_kts, point.altitude_ft)
         ac.set_turbulence(turbulence, seed)
         log = fly(ac, trim, controller, ref, ts, cfg.horizon, noise_std=noise_std,
-                  delay=delay, seed=seed, preview_reference=preview_reference,
+                  delay=delay, seed=seed, preview_reference=preview,
                   progress=start_phase(progress, len(ref), label))
-        return log, trim, ac
+        return log, trim, flight_summary(cfg, log, bounds, point.altitude_ft, stall,
+                                         ac.engines)
 
     host = build_host_controller(ctx, Path(build_dir) if build_dir else None)
-    log, trim, ac = one_flight(MpcRoll(host), f"fly {aircraft} ({ctx['precision']})")
-    bounds = aileron_bounds(cfg)
-    summary = {"config": str(config), "aircraft": aircraft, "precision": ctx["precision"],
+    log, trim, flown = one_flight(MpcRoll(host), f"fly {point.aircraft} ({ctx['precision']})",
+                                  preview_reference)
+    summary = {"config": str(config), "aircraft": point.aircraft, "precision": ctx["precision"],
                "solver": dict(ctx["solver"]), "modes": [m.name for m in cfg.modes],
                "sample_time": ts, "horizon": cfg.horizon,
                "fdm_rate_hz": round(FDM_STEPS_PER_SAMPLE / ts, 6),
                "trim": {"airspeed_kts": trim.airspeed_kts, "altitude_ft": trim.altitude_ft,
                         "aileron_deg": trim.aileron_deg, "pitch_deg": trim.pitch_deg,
                         "throttle": trim.throttle},
-               "aileron_travel_deg": list(ac.travel_deg), "turbulence": turbulence,
-               "noise_std": noise_std, "delay_samples": delay, "seed": seed,
-               "preview": preview_reference,
-               "reference": ref.source, **flight_summary(cfg, log, bounds, altitude_ft)}
-    base_log = None
+               "settings": dict(point.settings), "aileron_travel_deg": list(travel.travel_deg),
+               "turbulence": turbulence, "noise_std": noise_std, "delay_samples": delay,
+               "delay_margins": dict(zip((m.name for m in cfg.modes), margins)),
+               "seed": seed, "preview": preview_reference, "reference": ref.source,
+               "warnings": [w.as_dict() for w in warnings], **flown}
+    run = FlightRun(config=cfg, ctx=ctx, trim=trim, reference=ref, log=log, summary=summary)
     if baseline == "pid":
-        base_log, _, _ = one_flight(PidRoll(trim.airspeed_kts, bounds, ts), "PID baseline")
-        summary["baseline"] = {"kind": "pid_px4_style",
-                               **flight_summary(cfg, base_log, bounds, altitude_ft)}
-    return FlightRun(config=cfg, ctx=ctx, trim=trim, reference=ref, log=log, summary=summary,
-                     baseline_log=base_log)
+        host.init()
+        run.no_preview_log, _, summary["no_preview"] = one_flight(
+            MpcRoll(host), "MPC without preview", preview=False)
+        gains = tune_pid(cfg)
+        run.baseline_log, _, pid = one_flight(PidRoll(gains, bounds, ts), "PID baseline")
+        summary["baseline"] = {"kind": "pid_px4_style", "gains": asdict(gains), **pid}
+    return run

@@ -5,7 +5,8 @@ Default: the paper's level sequence (section 4.1: 0, -20, 20, -40, 40, 0 deg, 10
 scaled so that its largest level is ``peak_deg`` (30 deg: 0, -15, 15, -30, 30, 0), with
 the airspeed commanded at the trim speed, 15 kts below it and 15 kts above it for two
 segments each (from a 90 kts trim: 90, 75, 105 kts, through all three airspeed bands of
-the c172p example). Or a CSV file with a header ``t,roll`` or
+the c172p example), kept within the identified airspeeds when the config has them (an
+aircraft identified at 90 kts alone holds 90 kts). Or a CSV file with a header ``t,roll`` or
 ``t,roll,airspeed`` (s, deg, kts): each row's values hold from its time until the next
 row's; without an airspeed column the trim airspeed is held.
 """
@@ -46,9 +47,12 @@ def paper_levels(peak_deg: float) -> list[float]:
 
 
 def paper_flight(sample_time: float, trim_airspeed_kts: float,
-                 peak_deg: float = DEFAULT_PEAK_DEG) -> FlightReference:
+                 peak_deg: float = DEFAULT_PEAK_DEG, airspeed_range=None) -> FlightReference:
+    """The default scenario; ``airspeed_range`` (lo, hi) clips the commanded airspeeds."""
+    lo, hi = airspeed_range or (-math.inf, math.inf)
     roll = paper_reference(sample_time, paper_levels(peak_deg))
-    speed = paper_reference(sample_time, [trim_airspeed_kts + v for v in AIRSPEED_STEPS_KTS])
+    speed = paper_reference(sample_time, [min(hi, max(lo, trim_airspeed_kts + v))
+                                          for v in AIRSPEED_STEPS_KTS])
     return FlightReference(roll, speed, f"paper levels scaled to +-{peak_deg:g} deg")
 
 
@@ -79,9 +83,9 @@ def reference_file(path: str | Path, sample_time: float, trim_airspeed_kts: floa
 
 
 def flight_reference(spec: str | None, sample_time: float, trim_airspeed_kts: float,
-                     duration_s: float | None) -> FlightReference:
+                     duration_s: float | None, airspeed_range=None) -> FlightReference:
     """``--reference``: None (the default), a peak bank angle in degrees, or a CSV file;
-    truncated to ``duration_s`` when given."""
+    truncated to ``duration_s`` when given; ``airspeed_range``: paper_flight's."""
     if spec is not None and not Path(spec).exists():
         try:
             peak = float(spec)
@@ -90,9 +94,9 @@ def flight_reference(spec: str | None, sample_time: float, trim_airspeed_kts: fl
         if not 0 < peak < 90 or not math.isfinite(peak):
             raise ConfigError("--reference", f"the peak bank angle must be in (0, 90) deg, "
                               f"got {spec}")
-        ref = paper_flight(sample_time, trim_airspeed_kts, peak)
+        ref = paper_flight(sample_time, trim_airspeed_kts, peak, airspeed_range)
     elif spec is None:
-        ref = paper_flight(sample_time, trim_airspeed_kts)
+        ref = paper_flight(sample_time, trim_airspeed_kts, airspeed_range=airspeed_range)
     else:
         return reference_file(spec, sample_time, trim_airspeed_kts, duration_s)
     if duration_s is None:

@@ -43,7 +43,8 @@ def test_every_key_the_reader_accepts_has_a_row():
         "modes[].observer": schema.OBSERVER_KEYS, "scheduler": schema.SCHEDULER_KEYS,
         "scheduler.bands[]": schema.BAND_KEYS, "solver": schema.SOLVER_KEYS,
         "simulation": schema.SIMULATION_KEYS, "simulation.reference": schema.REFERENCE_KEYS,
-        "units": schema.UNITS_KEYS, "target": schema.TARGET_KEYS}
+        "units": schema.UNITS_KEYS, "target": schema.TARGET_KEYS,
+        "aircraft": schema.AIRCRAFT_KEYS}
     expected = {f"{path}.{name}" if path else name
                 for path, names in accepted.items() for name in names}
     assert set(documented) == expected
