@@ -66,7 +66,9 @@ def daqp_sources(version: str, cache_dir: Path | None = None) -> Path:
     tarball = cache / f"{top}.tar.gz"
     if not tarball.is_file():
         cache.mkdir(parents=True, exist_ok=True)
-        cmd = [sys.executable, "-m", "pip", "download", "--no-binary", ":all:", "--no-deps",
+        # --no-binary daqp, not :all:: pip prepares the sdist's metadata, and with :all: it
+        # would build every build dependency from source too (minutes, not seconds)
+        cmd = [sys.executable, "-m", "pip", "download", "--no-binary", "daqp", "--no-deps",
                "--disable-pip-version-check", f"daqp=={version}", "-d", str(cache)]
         proc = subprocess.run(cmd, capture_output=True, text=True)
         if proc.returncode != 0 or not tarball.is_file():

@@ -1,7 +1,7 @@
 """``rollmpc report --peer daqp``: DAQP's own C, in single precision, on the same emulated
 Cortex-M4F, replaying the same QP sequence as the generated controller.
 
-* **Source**: the C of DAQP's PyPI sdist (``pip download --no-binary :all: daqp==V``, V =
+* **Source**: the C of DAQP's PyPI sdist (``pip download --no-binary daqp daqp==V``, V =
   the installed Python daqp, which is also the host reference below), downloaded once and
   unpacked into the build cache; nothing of DAQP is vendored.
 * **Build**: DAQP's sources with ``-DDAQP_SINGLE_PRECISION`` and the controller's target
