@@ -10,7 +10,7 @@
  */
 #include <math.h>
 #include "chain_internal.h"
-#if CHAIN_GENERATION != 0x8492c03d7118cb9
+#if CHAIN_GENERATION != 0x097290e5b6947ca
 #error "chain_controller.c and chain_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
 #endif
 
@@ -193,6 +193,9 @@ static int solve_mode(chain_ctrl *c, int mode, const chain_real *x,
         (c->plan_mode == mode) ? c->plan_age : CHAIN_HORIZON, &chain_modes[mode], x, r,
         U, &c->info.iterations, &c->info.polish_iterations, &c->info.active);
     c->info.solve_ticks = (uint32_t)(CHAIN_TIMESTAMP() - t0);
+    if (status != CHAIN_OPTIMAL && status != CHAIN_TIME_LIMIT) {
+        forget_factor(&c->work); /* a failed sample leaves no warm start: the next is P_init's */
+    }
     keep_plan(c, mode, status, U);
     c->info.status = status;
     c->info.mode = mode;

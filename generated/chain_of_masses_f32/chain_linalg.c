@@ -12,7 +12,7 @@
  */
 #include <math.h>
 #include "chain_internal.h"
-#if CHAIN_GENERATION != 0xd63678e15f749a6
+#if CHAIN_GENERATION != 0x9e94c17a1468456
 #error "chain_linalg.c and chain_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
 #endif
 

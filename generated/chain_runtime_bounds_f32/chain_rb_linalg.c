@@ -12,7 +12,7 @@
  */
 #include <math.h>
 #include "chain_rb_internal.h"
-#if CHAIN_RB_GENERATION != 0x04a595128610b6b
+#if CHAIN_RB_GENERATION != 0x66cd47a94a989ed
 #error "chain_rb_linalg.c and chain_rb_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
 #endif
 

@@ -25,7 +25,7 @@
  */
 #include <math.h>
 #include "fwlat_internal.h"
-#if FWLAT_GENERATION != 0xbf9cf6594e502e8
+#if FWLAT_GENERATION != 0xa98c51b372282f7
 #error "fwlat_solver.c and fwlat_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
 #endif
 
@@ -2523,7 +2523,7 @@ static int carry_factor(fwlat_work *ws, const fwlat_mode_data *md,
     int i, r, nw = 0, box = 1, size, whole, kept = (ws->chol_holds == FWLAT_CHOL_DUAL) ? ws->chol_n : 0;
     uint32_t cost = 0u;
     for (r = 0; r < md->m; ++r) { /* 1: a row of the guess */
-        ws->in_set[r] = (uint8_t)(lam[md->row_next[r]] > R_(0.0));
+        ws->in_set[r] = (uint8_t)((lam[md->row_next[r]] > R_(0.0)) ? 1u : 0u);
         nw += ws->in_set[r];
         box = box && (!ws->in_set[r] || md->row_q[r] < md->n);
     }
@@ -2533,7 +2533,8 @@ static int carry_factor(fwlat_work *ws, const fwlat_mode_data *md,
         if (ws->in_set[r] && state_kept(ws, md, r, lam[md->row_next[r]])) {
             ws->in_set[r] = 2;
         } else {
-            cost += delete_work(i, size--);
+            cost += delete_work(i, size);
+            --size;
         }
     }
     for (i = size; i < nw; ++i) {
@@ -2569,7 +2570,8 @@ static int carry_factor(fwlat_work *ws, const fwlat_mode_data *md,
             if (!whole && !afford(ws, md, append_work(md, size))) {
                 break;
             }
-            append_row(ws, md, r, size++, slack_state(md, r, lam[md->row_next[r]]));
+            append_row(ws, md, r, size, slack_state(md, r, lam[md->row_next[r]]));
+            ++size;
             ws->in_set[r] = 2;
         }
     }

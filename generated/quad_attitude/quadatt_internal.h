@@ -7,7 +7,7 @@
 
 #include <math.h>
 #include "quadatt.h"
-#if QUADATT_GENERATION != 0x6b9f8f1be882ab4
+#if QUADATT_GENERATION != 0xfe759c8a9110202
 #error "quadatt_internal.h and quadatt_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
 #endif
 

@@ -28,7 +28,7 @@
  * stops the build unless it is of the same one: a regeneration interrupted between two
  * of its file moves leaves no mixed tree that compiles.
  */
-#define QTANK_GENERATION 0x465c8f530c10a9e
+#define QTANK_GENERATION 0xda366b926ca60c7
 
 /* The one place where the precision is chosen. */
 #define QTANK_PRECISION_DOUBLE 1

@@ -12,7 +12,7 @@
  */
 #include <math.h>
 #include "qtank_internal.h"
-#if QTANK_GENERATION != 0x465c8f530c10a9e
+#if QTANK_GENERATION != 0xda366b926ca60c7
 #error "qtank_linalg.c and qtank_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
 #endif
 

@@ -18,7 +18,7 @@
 #include <stddef.h>
 #include <stdint.h>
 #include "qtank_config.h"
-#if QTANK_GENERATION != 0xc7428b5c284dcba
+#if QTANK_GENERATION != 0xbdf4f1f6efa6e97
 #error "qtank.h and qtank_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
 #endif
 

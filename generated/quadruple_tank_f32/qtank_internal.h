@@ -7,7 +7,7 @@
 
 #include <math.h>
 #include "qtank.h"
-#if QTANK_GENERATION != 0xc7428b5c284dcba
+#if QTANK_GENERATION != 0xbdf4f1f6efa6e97
 #error "qtank_internal.h and qtank_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
 #endif
 

@@ -12,7 +12,7 @@
  */
 #include <math.h>
 #include "zones_internal.h"
-#if ZONES_GENERATION != 0x3b180809d331225
+#if ZONES_GENERATION != 0x9511ea7f5802c3c
 #error "zones_linalg.c and zones_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
 #endif
 

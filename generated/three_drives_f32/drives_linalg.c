@@ -12,7 +12,7 @@
  */
 #include <math.h>
 #include "drives_internal.h"
-#if DRIVES_GENERATION != 0xa4699512c40b115
+#if DRIVES_GENERATION != 0x6cc5984277daa72
 #error "drives_linalg.c and drives_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
 #endif
 

@@ -28,7 +28,7 @@
  * stops the build unless it is of the same one: a regeneration interrupted between two
  * of its file moves leaves no mixed tree that compiles.
  */
-#define ROLLMPC_GENERATION 0x8b14378dd3b1aa2
+#define ROLLMPC_GENERATION 0xf2362aea0b989bc
 
 /* The one place where the precision is chosen. */
 #define ROLLMPC_PRECISION_DOUBLE 0
