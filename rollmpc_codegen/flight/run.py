@@ -12,7 +12,7 @@ from __future__ import annotations
 from dataclasses import asdict, dataclass
 from pathlib import Path
 
-from ..config import ConfigError, ControllerConfig
+from ..config import ConfigError, ControllerConfig, DesignWarning
 from ..host.build import build_host_controller
 from ..pipeline import load_model
 from ..sim.simulate import start_phase
@@ -144,7 +144,10 @@ def run_flight(config: str | Path, *, aircraft: str | None = None,
                "turbulence": turbulence, "noise_std": noise_std, "delay_samples": delay,
                "delay_margins": dict(zip((m.name for m in cfg.modes), margins)),
                "seed": seed, "preview": preview_reference, "reference": ref.source,
-               "warnings": [w.as_dict() for w in warnings], **flown}
+               **flown,  # its "warnings" (short segments) join the envelope's, not replace them
+               "warnings": [w.as_dict() for w in warnings] + [
+                   DesignWarning("short_segment", "--reference", text).as_dict()
+                   for text in flown["warnings"]]}
     run = FlightRun(config=cfg, ctx=ctx, trim=trim, reference=ref, log=log, summary=summary)
     if baseline == "pid":
         host.init()
