@@ -10,7 +10,7 @@
  */
 #include <math.h>
 #include "c172p_roll_internal.h"
-#if C172P_ROLL_GENERATION != 0x3daff2cc5b08a77
+#if C172P_ROLL_GENERATION != 0x324fc711c553a94
 #error "c172p_roll_controller.c and c172p_roll_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
 #endif
 
@@ -217,6 +217,9 @@ static void keep_plan(c172p_roll_ctrl *c, int mode, int status, const c172p_roll
     } else {
         c->plan_age = C172P_ROLL_HORIZON;
     }
+    if (status != C172P_ROLL_OPTIMAL && status != C172P_ROLL_TIME_LIMIT) {
+        forget_factor(&c->work); /* a failed sample leaves no warm start: the next is P_init's */
+    }
     c->plan_mode = (int16_t)mode;
 }
 
@@ -233,9 +236,6 @@ static int solve_mode(c172p_roll_ctrl *c, int mode, const c172p_roll_real *x,
         (c->plan_mode == mode) ? c->plan_age : C172P_ROLL_HORIZON, &c172p_roll_modes[mode], x, r,
         U, &c->info.iterations, &c->info.polish_iterations, &c->info.active);
     c->info.solve_ticks = (uint32_t)(C172P_ROLL_TIMESTAMP() - t0);
-    if (status != C172P_ROLL_OPTIMAL && status != C172P_ROLL_TIME_LIMIT) {
-        forget_factor(&c->work); /* a failed sample leaves no warm start: the next is P_init's */
-    }
     keep_plan(c, mode, status, U);
     c->info.status = status;
     c->info.mode = mode;

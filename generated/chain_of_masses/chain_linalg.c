@@ -12,7 +12,7 @@
  */
 #include <math.h>
 #include "chain_internal.h"
-#if CHAIN_GENERATION != 0x097290e5b6947ca
+#if CHAIN_GENERATION != 0x6338e3cd7dae960
 #error "chain_linalg.c and chain_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
 #endif
 

@@ -10,7 +10,7 @@
  */
 #include <math.h>
 #include "chain_internal.h"
-#if CHAIN_GENERATION != 0x9e94c17a1468456
+#if CHAIN_GENERATION != 0xbb7f74347d35ff6
 #error "chain_controller.c and chain_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
 #endif
 
@@ -177,6 +177,9 @@ static void keep_plan(chain_ctrl *c, int mode, int status, const chain_real *U)
     } else {
         c->plan_age = CHAIN_HORIZON;
     }
+    if (status != CHAIN_OPTIMAL && status != CHAIN_TIME_LIMIT) {
+        forget_factor(&c->work); /* a failed sample leaves no warm start: the next is P_init's */
+    }
     c->plan_mode = (int16_t)mode;
 }
 
@@ -193,9 +196,6 @@ static int solve_mode(chain_ctrl *c, int mode, const chain_real *x,
         (c->plan_mode == mode) ? c->plan_age : CHAIN_HORIZON, &chain_modes[mode], x, r,
         U, &c->info.iterations, &c->info.polish_iterations, &c->info.active);
     c->info.solve_ticks = (uint32_t)(CHAIN_TIMESTAMP() - t0);
-    if (status != CHAIN_OPTIMAL && status != CHAIN_TIME_LIMIT) {
-        forget_factor(&c->work); /* a failed sample leaves no warm start: the next is P_init's */
-    }
     keep_plan(c, mode, status, U);
     c->info.status = status;
     c->info.mode = mode;

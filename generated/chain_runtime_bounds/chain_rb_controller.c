@@ -10,7 +10,7 @@
  */
 #include <math.h>
 #include "chain_rb_internal.h"
-#if CHAIN_RB_GENERATION != 0xf1bfb93d451397e
+#if CHAIN_RB_GENERATION != 0xcd0c98c5f56d758
 #error "chain_rb_controller.c and chain_rb_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
 #endif
 
@@ -195,6 +195,9 @@ static void keep_plan(chain_rb_ctrl *c, int mode, int status, const chain_rb_rea
     } else {
         c->plan_age = CHAIN_RB_HORIZON;
     }
+    if (status != CHAIN_RB_OPTIMAL && status != CHAIN_RB_TIME_LIMIT) {
+        forget_factor(&c->work); /* a failed sample leaves no warm start: the next is P_init's */
+    }
     c->plan_mode = (int16_t)mode;
 }
 
@@ -211,9 +214,6 @@ static int solve_mode(chain_rb_ctrl *c, int mode, const chain_rb_real *x,
         (c->plan_mode == mode) ? c->plan_age : CHAIN_RB_HORIZON, &chain_rb_modes[mode], x, r,
         U, &c->info.iterations, &c->info.polish_iterations, &c->info.active);
     c->info.solve_ticks = (uint32_t)(CHAIN_RB_TIMESTAMP() - t0);
-    if (status != CHAIN_RB_OPTIMAL && status != CHAIN_RB_TIME_LIMIT) {
-        forget_factor(&c->work); /* a failed sample leaves no warm start: the next is P_init's */
-    }
     keep_plan(c, mode, status, U);
     c->info.status = status;
     c->info.mode = mode;

@@ -18,7 +18,7 @@
 #include <stddef.h>
 #include <stdint.h>
 #include "chain_soft_config.h"
-#if CHAIN_SOFT_GENERATION != 0xc4b6deba0db9967
+#if CHAIN_SOFT_GENERATION != 0x780d5244ed2d585
 #error "chain_soft.h and chain_soft_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
 #endif
 

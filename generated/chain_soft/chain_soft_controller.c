@@ -10,7 +10,7 @@
  */
 #include <math.h>
 #include "chain_soft_internal.h"
-#if CHAIN_SOFT_GENERATION != 0xc4b6deba0db9967
+#if CHAIN_SOFT_GENERATION != 0x780d5244ed2d585
 #error "chain_soft_controller.c and chain_soft_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
 #endif
 
@@ -179,6 +179,9 @@ static void keep_plan(chain_soft_ctrl *c, int mode, int status, const chain_soft
     } else {
         c->plan_age = CHAIN_SOFT_HORIZON;
     }
+    if (status != CHAIN_SOFT_OPTIMAL && status != CHAIN_SOFT_TIME_LIMIT) {
+        forget_factor(&c->work); /* a failed sample leaves no warm start: the next is P_init's */
+    }
     c->plan_mode = (int16_t)mode;
 }
 
@@ -195,9 +198,6 @@ static int solve_mode(chain_soft_ctrl *c, int mode, const chain_soft_real *x,
         (c->plan_mode == mode) ? c->plan_age : CHAIN_SOFT_HORIZON, &chain_soft_modes[mode], x, r,
         U, &c->info.iterations, &c->info.polish_iterations, &c->info.active);
     c->info.solve_ticks = (uint32_t)(CHAIN_SOFT_TIMESTAMP() - t0);
-    if (status != CHAIN_SOFT_OPTIMAL && status != CHAIN_SOFT_TIME_LIMIT) {
-        forget_factor(&c->work); /* a failed sample leaves no warm start: the next is P_init's */
-    }
     keep_plan(c, mode, status, U);
     c->info.status = status;
     c->info.mode = mode;

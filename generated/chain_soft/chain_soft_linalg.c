@@ -12,7 +12,7 @@
  */
 #include <math.h>
 #include "chain_soft_internal.h"
-#if CHAIN_SOFT_GENERATION != 0xc4b6deba0db9967
+#if CHAIN_SOFT_GENERATION != 0x780d5244ed2d585
 #error "chain_soft_linalg.c and chain_soft_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
 #endif
 

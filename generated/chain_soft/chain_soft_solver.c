@@ -25,7 +25,7 @@
  */
 #include <math.h>
 #include "chain_soft_internal.h"
-#if CHAIN_SOFT_GENERATION != 0xc4b6deba0db9967
+#if CHAIN_SOFT_GENERATION != 0x780d5244ed2d585
 #error "chain_soft_solver.c and chain_soft_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
 #endif
 
@@ -2458,7 +2458,10 @@ static int carry_factor(chain_soft_work *ws, const chain_soft_mode_data *md,
     int i, r, nw = 0, box = 1, size, whole, kept = (ws->chol_holds == CHAIN_SOFT_CHOL_DUAL) ? ws->chol_n : 0;
     uint32_t cost = 0u;
     for (r = 0; r < md->m; ++r) { /* 1: a row of the guess */
-        ws->in_set[r] = (uint8_t)((lam[md->row_next[r]] > R_(0.0)) ? 1u : 0u);
+        ws->in_set[r] = 0u;
+        if (lam[md->row_next[r]] > R_(0.0)) {
+            ws->in_set[r] = 1u;
+        }
         nw += ws->in_set[r];
         box = box && (!ws->in_set[r] || md->row_q[r] < md->n);
     }

@@ -18,7 +18,7 @@
 #include <stddef.h>
 #include <stdint.h>
 #include "fwlat_config.h"
-#if FWLAT_GENERATION != 0xa98c51b372282f7
+#if FWLAT_GENERATION != 0xaf8716fa2c04711
 #error "fwlat.h and fwlat_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
 #endif
 

@@ -10,7 +10,7 @@
  */
 #include <math.h>
 #include "fwlat_internal.h"
-#if FWLAT_GENERATION != 0xa98c51b372282f7
+#if FWLAT_GENERATION != 0xaf8716fa2c04711
 #error "fwlat_controller.c and fwlat_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
 #endif
 
@@ -179,6 +179,9 @@ static void keep_plan(fwlat_ctrl *c, int mode, int status, const fwlat_real *U)
     } else {
         c->plan_age = FWLAT_HORIZON;
     }
+    if (status != FWLAT_OPTIMAL && status != FWLAT_TIME_LIMIT) {
+        forget_factor(&c->work); /* a failed sample leaves no warm start: the next is P_init's */
+    }
     c->plan_mode = (int16_t)mode;
 }
 
@@ -195,9 +198,6 @@ static int solve_mode(fwlat_ctrl *c, int mode, const fwlat_real *x,
         (c->plan_mode == mode) ? c->plan_age : FWLAT_HORIZON, &fwlat_modes[mode], x, r,
         U, &c->info.iterations, &c->info.polish_iterations, &c->info.active);
     c->info.solve_ticks = (uint32_t)(FWLAT_TIMESTAMP() - t0);
-    if (status != FWLAT_OPTIMAL && status != FWLAT_TIME_LIMIT) {
-        forget_factor(&c->work); /* a failed sample leaves no warm start: the next is P_init's */
-    }
     keep_plan(c, mode, status, U);
     c->info.status = status;
     c->info.mode = mode;

@@ -7,7 +7,7 @@
 
 #include <math.h>
 #include "fwlat.h"
-#if FWLAT_GENERATION != 0xa98c51b372282f7
+#if FWLAT_GENERATION != 0xaf8716fa2c04711
 #error "fwlat_internal.h and fwlat_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
 #endif
 

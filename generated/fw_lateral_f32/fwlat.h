@@ -18,7 +18,7 @@
 #include <stddef.h>
 #include <stdint.h>
 #include "fwlat_config.h"
-#if FWLAT_GENERATION != 0x5e7b0325a80cc3c
+#if FWLAT_GENERATION != 0x5638289fdc1c773
 #error "fwlat.h and fwlat_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
 #endif
 

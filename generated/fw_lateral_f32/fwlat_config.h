@@ -28,7 +28,7 @@
  * stops the build unless it is of the same one: a regeneration interrupted between two
  * of its file moves leaves no mixed tree that compiles.
  */
-#define FWLAT_GENERATION 0x5e7b0325a80cc3c
+#define FWLAT_GENERATION 0x5638289fdc1c773
 
 /* The one place where the precision is chosen. */
 #define FWLAT_PRECISION_DOUBLE 0

@@ -7,7 +7,7 @@
 
 #include <math.h>
 #include "fwlat.h"
-#if FWLAT_GENERATION != 0x5e7b0325a80cc3c
+#if FWLAT_GENERATION != 0x5638289fdc1c773
 #error "fwlat_internal.h and fwlat_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
 #endif
 

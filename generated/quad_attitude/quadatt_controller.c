@@ -10,7 +10,7 @@
  */
 #include <math.h>
 #include "quadatt_internal.h"
-#if QUADATT_GENERATION != 0xfe759c8a9110202
+#if QUADATT_GENERATION != 0x9da1def7930cfa7
 #error "quadatt_controller.c and quadatt_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
 #endif
 
@@ -177,6 +177,9 @@ static void keep_plan(quadatt_ctrl *c, int mode, int status, const quadatt_real 
     } else {
         c->plan_age = QUADATT_HORIZON;
     }
+    if (status != QUADATT_OPTIMAL && status != QUADATT_TIME_LIMIT) {
+        forget_factor(&c->work); /* a failed sample leaves no warm start: the next is P_init's */
+    }
     c->plan_mode = (int16_t)mode;
 }
 
@@ -193,9 +196,6 @@ static int solve_mode(quadatt_ctrl *c, int mode, const quadatt_real *x,
         (c->plan_mode == mode) ? c->plan_age : QUADATT_HORIZON, &quadatt_modes[mode], x, r,
         U, &c->info.iterations, &c->info.polish_iterations, &c->info.active);
     c->info.solve_ticks = (uint32_t)(QUADATT_TIMESTAMP() - t0);
-    if (status != QUADATT_OPTIMAL && status != QUADATT_TIME_LIMIT) {
-        forget_factor(&c->work); /* a failed sample leaves no warm start: the next is P_init's */
-    }
     keep_plan(c, mode, status, U);
     c->info.status = status;
     c->info.mode = mode;

@@ -25,7 +25,7 @@
  */
 #include <math.h>
 #include "quadatt_internal.h"
-#if QUADATT_GENERATION != 0xfe759c8a9110202
+#if QUADATT_GENERATION != 0x9da1def7930cfa7
 #error "quadatt_solver.c and quadatt_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
 #endif
 
@@ -2295,7 +2295,10 @@ static int carry_factor(quadatt_work *ws, const quadatt_mode_data *md,
     int i, r, nw = 0, box = 1, size, whole, kept = (ws->chol_holds == QUADATT_CHOL_DUAL) ? ws->chol_n : 0;
     uint32_t cost = 0u;
     for (r = 0; r < md->m; ++r) { /* 1: a row of the guess */
-        ws->in_set[r] = (uint8_t)((lam[md->row_next[r]] > R_(0.0)) ? 1u : 0u);
+        ws->in_set[r] = 0u;
+        if (lam[md->row_next[r]] > R_(0.0)) {
+            ws->in_set[r] = 1u;
+        }
         nw += ws->in_set[r];
         box = box && (!ws->in_set[r] || md->row_q[r] < md->n);
     }

@@ -10,7 +10,7 @@
  */
 #include <math.h>
 #include "qtank_internal.h"
-#if QTANK_GENERATION != 0xda366b926ca60c7
+#if QTANK_GENERATION != 0x2c7b62491697332
 #error "qtank_controller.c and qtank_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
 #endif
 
@@ -177,6 +177,9 @@ static void keep_plan(qtank_ctrl *c, int mode, int status, const qtank_real *U)
     } else {
         c->plan_age = QTANK_HORIZON;
     }
+    if (status != QTANK_OPTIMAL && status != QTANK_TIME_LIMIT) {
+        forget_factor(&c->work); /* a failed sample leaves no warm start: the next is P_init's */
+    }
     c->plan_mode = (int16_t)mode;
 }
 
@@ -193,9 +196,6 @@ static int solve_mode(qtank_ctrl *c, int mode, const qtank_real *x,
         (c->plan_mode == mode) ? c->plan_age : QTANK_HORIZON, &qtank_modes[mode], x, r,
         U, &c->info.iterations, &c->info.polish_iterations, &c->info.active);
     c->info.solve_ticks = (uint32_t)(QTANK_TIMESTAMP() - t0);
-    if (status != QTANK_OPTIMAL && status != QTANK_TIME_LIMIT) {
-        forget_factor(&c->work); /* a failed sample leaves no warm start: the next is P_init's */
-    }
     keep_plan(c, mode, status, U);
     c->info.status = status;
     c->info.mode = mode;

@@ -7,7 +7,7 @@
 
 #include <math.h>
 #include "qtank.h"
-#if QTANK_GENERATION != 0xbdf4f1f6efa6e97
+#if QTANK_GENERATION != 0x50a20592f8156b0
 #error "qtank_internal.h and qtank_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
 #endif
 

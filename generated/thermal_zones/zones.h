@@ -18,7 +18,7 @@
 #include <stddef.h>
 #include <stdint.h>
 #include "zones_config.h"
-#if ZONES_GENERATION != 0x9511ea7f5802c3c
+#if ZONES_GENERATION != 0xc513dee4e94b3ed
 #error "zones.h and zones_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
 #endif
 

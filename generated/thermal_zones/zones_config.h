@@ -28,7 +28,7 @@
  * stops the build unless it is of the same one: a regeneration interrupted between two
  * of its file moves leaves no mixed tree that compiles.
  */
-#define ZONES_GENERATION 0x9511ea7f5802c3c
+#define ZONES_GENERATION 0xc513dee4e94b3ed
 
 /* The one place where the precision is chosen. */
 #define ZONES_PRECISION_DOUBLE 1

@@ -10,7 +10,7 @@
  */
 #include <math.h>
 #include "zones_internal.h"
-#if ZONES_GENERATION != 0x9511ea7f5802c3c
+#if ZONES_GENERATION != 0xc513dee4e94b3ed
 #error "zones_controller.c and zones_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
 #endif
 
@@ -177,6 +177,9 @@ static void keep_plan(zones_ctrl *c, int mode, int status, const zones_real *U)
     } else {
         c->plan_age = ZONES_HORIZON;
     }
+    if (status != ZONES_OPTIMAL && status != ZONES_TIME_LIMIT) {
+        forget_factor(&c->work); /* a failed sample leaves no warm start: the next is P_init's */
+    }
     c->plan_mode = (int16_t)mode;
 }
 
@@ -193,9 +196,6 @@ static int solve_mode(zones_ctrl *c, int mode, const zones_real *x,
         (c->plan_mode == mode) ? c->plan_age : ZONES_HORIZON, &zones_modes[mode], x, r,
         U, &c->info.iterations, &c->info.polish_iterations, &c->info.active);
     c->info.solve_ticks = (uint32_t)(ZONES_TIMESTAMP() - t0);
-    if (status != ZONES_OPTIMAL && status != ZONES_TIME_LIMIT) {
-        forget_factor(&c->work); /* a failed sample leaves no warm start: the next is P_init's */
-    }
     keep_plan(c, mode, status, U);
     c->info.status = status;
     c->info.mode = mode;

@@ -12,7 +12,7 @@
  */
 #include <math.h>
 #include "zones_internal.h"
-#if ZONES_GENERATION != 0x9511ea7f5802c3c
+#if ZONES_GENERATION != 0xc513dee4e94b3ed
 #error "zones_linalg.c and zones_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
 #endif
 

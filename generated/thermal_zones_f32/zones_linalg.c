@@ -12,7 +12,7 @@
  */
 #include <math.h>
 #include "zones_internal.h"
-#if ZONES_GENERATION != 0x84652183e184ace
+#if ZONES_GENERATION != 0x51880b22b8dfd84
 #error "zones_linalg.c and zones_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
 #endif
 

@@ -25,7 +25,7 @@
  */
 #include <math.h>
 #include "zones_internal.h"
-#if ZONES_GENERATION != 0x84652183e184ace
+#if ZONES_GENERATION != 0x51880b22b8dfd84
 #error "zones_solver.c and zones_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
 #endif
 
@@ -2295,7 +2295,10 @@ static int carry_factor(zones_work *ws, const zones_mode_data *md,
     int i, r, nw = 0, box = 1, size, whole, kept = (ws->chol_holds == ZONES_CHOL_DUAL) ? ws->chol_n : 0;
     uint32_t cost = 0u;
     for (r = 0; r < md->m; ++r) { /* 1: a row of the guess */
-        ws->in_set[r] = (uint8_t)((lam[md->row_next[r]] > R_(0.0)) ? 1u : 0u);
+        ws->in_set[r] = 0u;
+        if (lam[md->row_next[r]] > R_(0.0)) {
+            ws->in_set[r] = 1u;
+        }
         nw += ws->in_set[r];
         box = box && (!ws->in_set[r] || md->row_q[r] < md->n);
     }

@@ -10,7 +10,7 @@
  */
 #include <math.h>
 #include "zrate_internal.h"
-#if ZRATE_GENERATION != 0x65fe13bc146c4c5
+#if ZRATE_GENERATION != 0xb08a1f50db80363
 #error "zrate_controller.c and zrate_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
 #endif
 
@@ -177,6 +177,9 @@ static void keep_plan(zrate_ctrl *c, int mode, int status, const zrate_real *U)
     } else {
         c->plan_age = ZRATE_HORIZON;
     }
+    if (status != ZRATE_OPTIMAL && status != ZRATE_TIME_LIMIT) {
+        forget_factor(&c->work); /* a failed sample leaves no warm start: the next is P_init's */
+    }
     c->plan_mode = (int16_t)mode;
 }
 
@@ -193,9 +196,6 @@ static int solve_mode(zrate_ctrl *c, int mode, const zrate_real *x,
         (c->plan_mode == mode) ? c->plan_age : ZRATE_HORIZON, &zrate_modes[mode], x, r,
         U, &c->info.iterations, &c->info.polish_iterations, &c->info.active);
     c->info.solve_ticks = (uint32_t)(ZRATE_TIMESTAMP() - t0);
-    if (status != ZRATE_OPTIMAL && status != ZRATE_TIME_LIMIT) {
-        forget_factor(&c->work); /* a failed sample leaves no warm start: the next is P_init's */
-    }
     keep_plan(c, mode, status, U);
     c->info.status = status;
     c->info.mode = mode;

@@ -7,7 +7,7 @@
 
 #include <math.h>
 #include "zrate.h"
-#if ZRATE_GENERATION != 0x65fe13bc146c4c5
+#if ZRATE_GENERATION != 0xb08a1f50db80363
 #error "zrate_internal.h and zrate_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
 #endif
 

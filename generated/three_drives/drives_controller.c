@@ -10,7 +10,7 @@
  */
 #include <math.h>
 #include "drives_internal.h"
-#if DRIVES_GENERATION != 0x3e8e259c16e2eb8
+#if DRIVES_GENERATION != 0xfe20248dcc22d35
 #error "drives_controller.c and drives_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
 #endif
 
@@ -217,6 +217,9 @@ static void keep_plan(drives_ctrl *c, int mode, int status, const drives_real *U
     } else {
         c->plan_age = DRIVES_HORIZON;
     }
+    if (status != DRIVES_OPTIMAL && status != DRIVES_TIME_LIMIT) {
+        forget_factor(&c->work); /* a failed sample leaves no warm start: the next is P_init's */
+    }
     c->plan_mode = (int16_t)mode;
 }
 
@@ -233,9 +236,6 @@ static int solve_mode(drives_ctrl *c, int mode, const drives_real *x,
         (c->plan_mode == mode) ? c->plan_age : DRIVES_HORIZON, &drives_modes[mode], x, r,
         U, &c->info.iterations, &c->info.polish_iterations, &c->info.active);
     c->info.solve_ticks = (uint32_t)(DRIVES_TIMESTAMP() - t0);
-    if (status != DRIVES_OPTIMAL && status != DRIVES_TIME_LIMIT) {
-        forget_factor(&c->work); /* a failed sample leaves no warm start: the next is P_init's */
-    }
     keep_plan(c, mode, status, U);
     c->info.status = status;
     c->info.mode = mode;

@@ -28,7 +28,7 @@
  * stops the build unless it is of the same one: a regeneration interrupted between two
  * of its file moves leaves no mixed tree that compiles.
  */
-#define ROLLMPC_GENERATION 0x3b97110ee2d92a2
+#define ROLLMPC_GENERATION 0xd410c83a1313fe5
 
 /* The one place where the precision is chosen. */
 #define ROLLMPC_PRECISION_DOUBLE 1

@@ -7,7 +7,7 @@
 
 #include <math.h>
 #include "rollmpc.h"
-#if ROLLMPC_GENERATION != 0x3b97110ee2d92a2
+#if ROLLMPC_GENERATION != 0xd410c83a1313fe5
 #error "rollmpc_internal.h and rollmpc_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
 #endif
 

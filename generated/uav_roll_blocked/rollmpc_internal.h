@@ -7,7 +7,7 @@
 
 #include <math.h>
 #include "rollmpc.h"
-#if ROLLMPC_GENERATION != 0x9007a753be029a2
+#if ROLLMPC_GENERATION != 0xa914a9d733e622f
 #error "rollmpc_internal.h and rollmpc_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
 #endif
 

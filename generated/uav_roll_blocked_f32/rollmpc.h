@@ -18,7 +18,7 @@
 #include <stddef.h>
 #include <stdint.h>
 #include "rollmpc_config.h"
-#if ROLLMPC_GENERATION != 0xf2362aea0b989bc
+#if ROLLMPC_GENERATION != 0x86e753f3491d944
 #error "rollmpc.h and rollmpc_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
 #endif
 

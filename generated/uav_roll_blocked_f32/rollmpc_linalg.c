@@ -12,7 +12,7 @@
  */
 #include <math.h>
 #include "rollmpc_internal.h"
-#if ROLLMPC_GENERATION != 0xf2362aea0b989bc
+#if ROLLMPC_GENERATION != 0x86e753f3491d944
 #error "rollmpc_linalg.c and rollmpc_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
 #endif
 

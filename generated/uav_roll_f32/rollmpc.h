@@ -18,7 +18,7 @@
 #include <stddef.h>
 #include <stdint.h>
 #include "rollmpc_config.h"
-#if ROLLMPC_GENERATION != 0xcfa54413f24eb16
+#if ROLLMPC_GENERATION != 0x85b7f13b42fe2f9
 #error "rollmpc.h and rollmpc_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
 #endif
 

@@ -10,7 +10,7 @@
  */
 #include <math.h>
 #include "rollmpc_internal.h"
-#if ROLLMPC_GENERATION != 0xcfa54413f24eb16
+#if ROLLMPC_GENERATION != 0x85b7f13b42fe2f9
 #error "rollmpc_controller.c and rollmpc_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
 #endif
 
@@ -217,6 +217,9 @@ static void keep_plan(rollmpc_ctrl *c, int mode, int status, const rollmpc_real 
     } else {
         c->plan_age = ROLLMPC_HORIZON;
     }
+    if (status != ROLLMPC_OPTIMAL && status != ROLLMPC_TIME_LIMIT) {
+        forget_factor(&c->work); /* a failed sample leaves no warm start: the next is P_init's */
+    }
     c->plan_mode = (int16_t)mode;
 }
 
@@ -233,9 +236,6 @@ static int solve_mode(rollmpc_ctrl *c, int mode, const rollmpc_real *x,
         (c->plan_mode == mode) ? c->plan_age : ROLLMPC_HORIZON, &rollmpc_modes[mode], x, r,
         U, &c->info.iterations, &c->info.polish_iterations, &c->info.active);
     c->info.solve_ticks = (uint32_t)(ROLLMPC_TIMESTAMP() - t0);
-    if (status != ROLLMPC_OPTIMAL && status != ROLLMPC_TIME_LIMIT) {
-        forget_factor(&c->work); /* a failed sample leaves no warm start: the next is P_init's */
-    }
     keep_plan(c, mode, status, U);
     c->info.status = status;
     c->info.mode = mode;

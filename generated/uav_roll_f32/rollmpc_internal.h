@@ -7,7 +7,7 @@
 
 #include <math.h>
 #include "rollmpc.h"
-#if ROLLMPC_GENERATION != 0xcfa54413f24eb16
+#if ROLLMPC_GENERATION != 0x85b7f13b42fe2f9
 #error "rollmpc_internal.h and rollmpc_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
 #endif
 

@@ -151,6 +151,8 @@ class SolverRef(SignalsMixin, UnconstrainedMixin, RowsMixin, SoftRowsMixin, Swee
             plan.age = 0 if status == OPTIMAL else plan.age + 1
         else:
             plan.age = plan.none
+        if status not in (OPTIMAL, TIME_LIMIT):  # no warm start after a failed sample
+            self.forget_factor()
         plan.mode = self.mode_index
 
     def forget_factor(self):
@@ -163,8 +165,6 @@ class SolverRef(SignalsMixin, UnconstrainedMixin, RowsMixin, SoftRowsMixin, Swee
         if self.last_plan.mode != self.mode_index:
             self.forget_factor()
         out = self.qp_solve(x, r)
-        if out[0] not in (OPTIMAL, TIME_LIMIT):  # no warm start after a failed sample
-            self.forget_factor()
         self.keep_plan(out[0], out[1])
         return out
 

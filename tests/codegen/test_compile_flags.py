@@ -21,13 +21,13 @@ def sources(request, tmp_path_factory) -> Path:
     return out
 
 
-@pytest.mark.parametrize("opt", ["-O0", "-O2", "-Os"])
+@pytest.mark.parametrize("opt", ["-O0", "-O2", pytest.param("-Os", marks=pytest.mark.slow)])
 def test_gcc_strict_no_warnings(sources, tmp_path, opt):
     proc = compile_objects("gcc", sources, [opt, *STRICT, *AUTOPILOT], tmp_path)
     assert proc.returncode == 0 and proc.stderr == "", proc.stderr
 
 
-@pytest.mark.parametrize("opt", ["-O0", "-O2"])
+@pytest.mark.parametrize("opt", [pytest.param("-O0", marks=pytest.mark.slow), "-O2"])
 def test_clang_strict_no_warnings(sources, tmp_path, opt):
     cc = require_tool("clang", CLANG_HINT)
     proc = compile_objects(cc, sources, [opt, *STRICT, *AUTOPILOT], tmp_path)

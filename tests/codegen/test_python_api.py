@@ -96,7 +96,8 @@ def files_of(directory: Path) -> dict[str, bytes]:
 
 
 @pytest.mark.parametrize("design,committed,precision", [
-    (uav_design, "uav_roll", None), (uav_design, "uav_roll_f32", "float"),
+    (uav_design, "uav_roll", None),
+    pytest.param(uav_design, "uav_roll_f32", "float", marks=pytest.mark.slow),
     (chain_design, "chain_of_masses", None), (quadruple_tank_design, "quadruple_tank", None)])
 def test_api_generates_the_committed_files(tmp_path, design, committed, precision):
     """The API design renders byte for byte the files `make generate` committed from the

@@ -50,7 +50,9 @@ def short(request, tmp_path_factory):
 # horizon 1 by default (the analysis failed only there: a 1-element working set); about
 # a second per compile of a tree
 @pytest.mark.parametrize("short", _params(slow_from=2), indirect=True)
-@pytest.mark.parametrize("cc, opt", [("gcc", "-O2"), ("gcc", "-O3"), ("clang", "-O2"),
+@pytest.mark.parametrize("cc, opt", [pytest.param("gcc", "-O2", marks=pytest.mark.slow),
+                                     ("gcc", "-O3"),
+                                     pytest.param("clang", "-O2", marks=pytest.mark.slow),
                                      ("clang", "-O3")])
 def test_strict_compile_no_warnings(short, tmp_path, cc, opt):
     _, _, src = short

@@ -125,7 +125,7 @@ def test_step_bit_exact_through_spikes_uav(tmp_path, build_root, precision):
     assert np.all(np.isfinite(log.u)) and np.all(np.abs(log.u) <= 15.0)
 
 
-@pytest.mark.parametrize("precision", ["double", "float"])
+@pytest.mark.parametrize("precision", ["float", pytest.param("double", marks=pytest.mark.slow)])
 def test_step_bit_exact_through_spikes_mimo(build_root, precision):
     built = Built(CHAIN, precision, build_root)
     spikes = _spikes(float(built.model.modes[0].data.innovation_limit[0]), precision)
@@ -208,7 +208,7 @@ RECOVERY = {"uav_roll": (284, 16), "chain_of_masses": (82, 33), "quadruple_tank"
 MODES = {"uav_roll": 2, "chain_of_masses": 1, "quadruple_tank": 1}
 
 
-@pytest.mark.parametrize("precision", ["double", "float"])
+@pytest.mark.parametrize("precision", ["float", pytest.param("double", marks=pytest.mark.slow)])
 @pytest.mark.parametrize("name, at, steps", CASES, ids=[c[0] for c in CASES])
 def test_single_spike_is_reported_and_recovered(build_root, name, at, steps, precision):
     runs = spiked_runs(EXAMPLES / f"{name}.yaml", precision, SPIKES[precision], at, steps,

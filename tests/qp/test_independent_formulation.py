@@ -108,7 +108,14 @@ def load_example(name: str, build_root) -> Example:
     return ex
 
 
-@pytest.fixture(scope="module", params=EXAMPLES)
+# make test: the examples that between them carry every row kind, soft rows, Δu, MIMO, k
+# modes and run-time bounds; the rest in make check-long
+QUICK_EXAMPLES = {"uav_roll", "fw_lateral", "quad_attitude", "three_drives", "chain_soft",
+                  "thermal_zones_rate", "chain_runtime_bounds"}
+
+
+@pytest.fixture(scope="module", params=[
+    pytest.param(e, marks=() if e in QUICK_EXAMPLES else pytest.mark.slow) for e in EXAMPLES])
 def example(request, build_root) -> Example:
     return load_example(request.param, build_root)
 

@@ -66,6 +66,10 @@ def _assert_soak_clean(run, steps):
 # What the target runs per precision (P_WIDE_KERNELS: the M4F takes the wide kernels in
 # float, the plain ones in double), forced on the host (tests/host/test_kernel_variants.py)
 TARGET_KERNELS = [("double", "plain"), ("float", "wide")]
+# the soak and valgrind: the wide kernels in the long run (the vectors above run them
+# under the sanitizers in make test)
+LONG_WIDE = [pytest.param(k, marks=pytest.mark.slow) if k == "wide" else k
+             for k in KERNEL_VARIANTS]
 
 
 def _kernels(kernels: str) -> tuple[str, ...]:
@@ -89,7 +93,7 @@ def test_vectors_under_sanitizers_paper_controller(tmp_path, precision):
     _assert_vectors_pass(run, 6000)
 
 
-@pytest.mark.parametrize("kernels", KERNEL_VARIANTS)
+@pytest.mark.parametrize("kernels", LONG_WIDE)
 def test_soak_under_sanitizers(tmp_path, kernels, steps=20000):
     src = write_soak_program(_short(tmp_path), tmp_path / "soak", "float")
     exe = compile_program(src, tmp_path / "soak.exe", (*SANITIZE, *_kernels(kernels)))
@@ -107,7 +111,7 @@ def test_soak_100k_steps_under_sanitizers(tmp_path, precision):
     _assert_soak_clean(run, 100000)
 
 
-@pytest.mark.parametrize("kernels", KERNEL_VARIANTS)
+@pytest.mark.parametrize("kernels", LONG_WIDE)
 def test_valgrind_on_the_test_program(tmp_path, kernels):
     valgrind = require_tool("valgrind", VALGRIND_HINT)
     exe = _vectors(_short(tmp_path), tmp_path, "float", 1200,

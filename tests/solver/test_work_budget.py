@@ -62,7 +62,7 @@ def fw_small(request, build_root) -> Built:
     return _built(request.param, build_root, SMALL_BUDGET)
 
 
-@pytest.fixture(scope="module", params=["double", "float"])
+@pytest.fixture(scope="module", params=["float", pytest.param("double", marks=pytest.mark.slow)])
 def fw_default(request, build_root) -> Built:
     return Built(FW, request.param, build_root)
 

@@ -17,11 +17,15 @@ from conftest import require_tool
 
 GENERATED = Path(__file__).resolve().parents[2] / "generated"
 TREES = sorted(p for p in GENERATED.glob("*_f32") if p.is_dir())
-# the double trees too, on the cores that run them (the M7). The default core's every tree;
-# on the others the largest (fw_lateral's, on every core) and the rest in check-long.
+# the double trees too, on the cores that run them (the M7). In make test the largest
+# (fw_lateral's) on every core, and on the default core the trees of the other solver
+# features (k modes and soft rows, Δu rows, many inputs); every tree in check-long.
 LARGEST = "fw_lateral"
+DEFAULT_CORE_TREES = {"uav_roll_f32", "quad_attitude_f32", "thermal_zones_rate_f32",
+                      "chain_soft_f32"}
 CASES = [pytest.param(core, tree, id=f"{core}-{tree.name}",
-                      marks=() if core == "cortex-m4f" or tree.name.startswith(LARGEST)
+                      marks=() if tree.name.startswith(LARGEST) or (
+                          core == "cortex-m4f" and tree.name in DEFAULT_CORE_TREES)
                       else pytest.mark.slow)
          for core in sorted(CORES) for tree in
          TREES + ([t.with_name(t.name[:-4]) for t in TREES] if CORES[core].fpu_double else [])]

@@ -151,7 +151,9 @@ def test_the_footprint_is_judged_in_the_precision_the_fpu_runs(tmp_path):
 
 
 # ----------------------------------------------------------------------------- on the core
-@pytest.mark.parametrize("part, precision", [("stm32h743", "double"), ("stm32h743", "float"),
+@pytest.mark.parametrize("part, precision", [("stm32h743", "double"),
+                                             pytest.param("stm32h743", "float",
+                                                          marks=pytest.mark.slow),
                                              ("stm32l562", "float")])
 def test_report_on_the_part_is_bit_exact(tmp_path, build_root, part, precision):
     """Host C == the emulated part, in the precision it runs, through the first reference
