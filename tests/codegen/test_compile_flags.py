@@ -75,6 +75,7 @@ def test_static_memory_only(sources, tmp_path):
     assert external <= {"sqrt", "sqrtf", "memset", "memmove", "memcpy"}, external
 
 
+@pytest.mark.slow  # make test builds and runs the testvectors program under the sanitizers
 def test_host_c_test_program_passes(tmp_path):
     """`rollmpc testvectors` + the C compiler alone: the make ctest path."""
     from rollmpc_codegen.cli.main import main

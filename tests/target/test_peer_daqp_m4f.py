@@ -79,6 +79,7 @@ def daqp_on_target(float_model, build_root):
     return model, runs
 
 
+@pytest.mark.slow  # the peer on the emulated target: a long run (report --peer in make test)
 def test_daqp_on_target_agrees_with_host(daqp_on_target):
     model, (result, _) = daqp_on_target
     assert result["qps"] == len(SAMPLES) and result["k"] == list(SAMPLES)

@@ -125,6 +125,7 @@ def test_cycle_weights_follow_the_table(name, ops, cycles):
     assert instruction_cycles(name, ops) == cycles
 
 
+@pytest.mark.slow  # three horizons on the emulator (the refused horizon is listed in make test)
 def test_horizon_table_and_fits(target_tools, tmp_path, build_root, capsys):
     from rollmpc_codegen.cli.main import main
 
