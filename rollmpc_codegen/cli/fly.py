@@ -22,6 +22,7 @@ from ..config.errors import ConfigError
 from ..flight.aircraft import DEFAULT_AIRCRAFT, TURBULENCE
 from .options import (add_build_dir, add_command, add_config, add_outputs, add_precision,
                       add_quiet, check_outputs, progress_of, require_plot, write_json)
+from ..sim.metrics import work_text
 from ..sim.simulate import csv_header, work_cell
 from .simulate import solver_text
 
@@ -141,9 +142,11 @@ def print_summary(run) -> None:
               f"{g['min_airspeed_kts']:g} kts")
     st = s["solve_us"]
     statuses = ", ".join(f"{k} {v}" for k, v in s["status_counts"].items())
-    print(f"  MPC: switches {s['switches']}, statuses: {statuses}; max iterations "
-          f"{s['max_iterations']}; solve time median {st['median']:.1f} us, max "
+    print(f"  MPC: switches {s['switches']}, statuses: {statuses}; longest TIME_LIMIT run "
+          f"{s['longest_time_limit_run']}; host solve time median {st['median']:.1f} us, max "
           f"{st['max']:.1f} us")
+    if s.get("work"):
+        print(f"  solver work per sample (units): {work_text(s['work'])}")
 
 
 def run(args) -> int:

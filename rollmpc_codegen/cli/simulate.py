@@ -107,6 +107,14 @@ def beyond_text(cfg, y_max_beyond: dict) -> str:
                      for name, v in y_max_beyond.items())
 
 
+def signals_text(cfg, violations: dict) -> str:
+    """``, signals N`` (samples past a hard signal bound) for a design with constrained
+    signals, else empty."""
+    if not any(m.signals for m in cfg.modes):
+        return ""
+    return f", signals {violations.get('z', 0)}"
+
+
 def non_optimal_text(counts: dict, before: str = "", after: str = "") -> str:
     """The statuses other than optimal with their counts, e.g. ``time_limit 63``, between
     ``before`` and ``after``; empty when every sample was optimal."""
@@ -122,9 +130,9 @@ def print_warnings(found) -> None:
 
 
 def _unit(cfg, names) -> str:
-    """`` [u]`` when every output of ``names`` has the unit u, else ""."""
+    """`` [u]`` when every output of ``names`` has the unit u, else "" (a signal has none)."""
     units = dict(zip(cfg.outputs, cfg.units.outputs or ("",) * cfg.n_outputs))
-    found = {units[n] for n in names}
+    found = {units.get(n, "") for n in names}
     return f" [{found.pop()}]" if len(found) == 1 and "" not in found else ""
 
 
@@ -169,6 +177,7 @@ def print_summary(cfg, ctx: dict, s: dict, found=()) -> None:
     far = beyond_text(cfg, cv["y_max_beyond"])
     print(f"  max |u|{u_unit}: {umax}; constraint violations: {cv['total']} "
           f"(u {cv['u']}, inactive {cv['inactive_actuator_nonzero']}, y {cv['y']}"
+          f"{signals_text(cfg, cv)}"
           f"{f' by up to {far}' if far else ''}; hard "
           f"bounds, beyond {s['violation_tolerance']:g} max(1, |bound|))")
     if s.get("soft_bounds"):
@@ -182,7 +191,7 @@ def print_summary(cfg, ctx: dict, s: dict, found=()) -> None:
         print(f"  non-optimal: {s['non_optimal']}{non_optimal_text(s['status_counts'], ' (', ')')}"
               f"; longest "
               f"TIME_LIMIT run {s['longest_time_limit_run']}; "
-              f"max iterations: {s['max_iterations']}; "
+              f"max fallback sweeps: {s['max_iterations']}; "
               f"host solve time median {st['median']:.1f} us, max {st['max']:.1f} us (wall clock: "
               "preemption included; the work line and `rollmpc report` are deterministic)")
     if s.get("work"):
@@ -210,14 +219,14 @@ def print_flights(cfg, ctx: dict, s: dict, found=()) -> None:
               f"{f['status_counts'].get('optimal', 0)} of {f['samples']}"
               f"{non_optimal_text(f['status_counts'], ' (', ')')}, longest TIME_LIMIT "
               f"run {f['longest_time_limit_run']}; constraint violations {cv['total']}"
-              f"{f' (y by up to {far})' if far else ''}")
+              f"{f' (by up to {far})' if far else ''}")
     for label, t in [("all flights", s["totals"])] + [
             (f"{kind} flights", k) for kind, k in s.get("by_kind", {}).items()]:
         far = beyond_text(cfg, t["y_max_beyond"])
         print(f"  {label}: optimal {t['status_counts'].get('optimal', 0)} of {t['samples']} "
               f"({t['optimal_percent']:g} %), longest TIME_LIMIT run "
               f"{t['longest_time_limit_run']}; {t['flights_with_violations']} of "
-              f"{t['flights']} flights break a hard bound{f' (y by up to {far})' if far else ''}")
+              f"{t['flights']} flights break a hard bound{f' (by up to {far})' if far else ''}")
         if t["work"]:
             print(f"    solver work per sample (units): {work_text(t['work'])}")
     print_warnings(found)

@@ -10,7 +10,9 @@ the identified envelope, printed before the flight:
   (the outer loops then trade altitude for it: the pa28 lost 608 ft below its range);
 * ``delay_beyond_margin``: ``--delay`` beyond the latency the modes model by more than
   the controller's delay margin on its own model (model/delay_margin.py): the loop is
-  unstable wherever no bound is active, and oscillates (the c172p example at 5 samples).
+  unstable wherever no bound is active, and oscillates (the c172p example at 5 samples);
+* ``delay_at_margin``: that unmodelled delay equals the margin: stable on the model but
+  barely damped, the loop rings (the J3Cub config of docs/flight.md at 5 samples).
 """
 from __future__ import annotations
 
@@ -95,15 +97,23 @@ def envelope_warnings(cfg: ControllerConfig, point: FlightPoint, commanded_kts,
 
 def delay_warning(cfg: ControllerConfig, margins: list[int | None],
                   delay: int) -> DesignWarning | None:
-    """``delay_beyond_margin`` (module docstring), naming the weakest mode."""
+    """``delay_beyond_margin`` or ``delay_at_margin`` (module docstring), naming the
+    weakest mode."""
     modelled = cfg.aircraft.latency_samples if cfg.aircraft else 0
     unmodelled = delay - modelled
     known = [(d, m.name) for d, m in zip(margins, cfg.modes) if d is not None]
-    if unmodelled <= 0 or not known or unmodelled <= min(known)[0]:
+    if unmodelled <= 0 or not known or unmodelled < min(known)[0]:
         return None
     margin, name = min(known)
+    head = (f"--delay {delay}: {unmodelled} samples of delay the modes do not model (they "
+            f"model {modelled})")
+    where = f"the controller's delay margin on its model ({margin} samples, mode {name})"
+    if unmodelled == margin:
+        return DesignWarning(
+            "delay_at_margin", "--delay",
+            f"{head} reach {where}: stable on the model but barely damped, expect the roll "
+            f"to ring; identify with --latency {delay}")
     return DesignWarning(
         "delay_beyond_margin", "--delay",
-        f"--delay {delay}: {unmodelled} samples of delay the modes do not model (they model "
-        f"{modelled}) exceed the controller's delay margin on its model ({margin} samples, "
-        f"mode {name}): expect a sustained oscillation; identify with --latency {delay}")
+        f"{head} exceed {where}: expect a sustained oscillation; identify with "
+        f"--latency {delay}")

@@ -15,6 +15,7 @@ from pathlib import Path
 from ..config import ConfigError, ControllerConfig, DesignWarning
 from ..host.build import build_host_controller
 from ..pipeline import load_model
+from ..sim.metrics import work_stats
 from ..sim.simulate import start_phase
 from .aircraft import FDM_STEPS_PER_SAMPLE, TURBULENCE, Aircraft, Trim, check_aircraft
 from .envelope import delay_warning, envelope_warnings, flight_point
@@ -144,6 +145,7 @@ def run_flight(config: str | Path, *, aircraft: str | None = None,
                "turbulence": turbulence, "noise_std": noise_std, "delay_samples": delay,
                "delay_margins": dict(zip((m.name for m in cfg.modes), margins)),
                "seed": seed, "preview": preview_reference, "reference": ref.source,
+               "work": work_stats(log.controller.work, ctx["solver"]["work_budget"]),
                **flown,  # its "warnings" (short segments) join the envelope's, not replace them
                "warnings": [w.as_dict() for w in warnings] + [
                    DesignWarning("short_segment", "--reference", text).as_dict()

@@ -48,7 +48,7 @@ def _totals(entries: list[dict], outputs: list[str], work: dict | None) -> dict:
         for name, n in e["status_counts"].items():
             counts[name] = counts.get(name, 0) + n
         for name, v in e["constraint_violations"]["y_max_beyond"].items():
-            beyond[name] = max(beyond[name], v)
+            beyond[name] = max(beyond.get(name, 0.0), v)  # outputs, then signals
     samples = sum(e["samples"] for e in entries)
     return {"flights": len(entries), "samples": samples, "status_counts": counts,
             "optimal_percent": round(100.0 * counts.get("optimal", 0) / samples, 2),

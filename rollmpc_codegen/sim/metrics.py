@@ -29,7 +29,9 @@ Definitions (also in docs/paper-reproduction.md):
   *hard* bound of the active mode, by more than the solver's own acceptance,
   ``feasibility_tol * max(1, |bound|)`` (the config's ``solver.feasibility_tol``: 1e-9
   double, 1e-4 float; e.g. 4.5e-8 deg at a 45 deg bound in double).  Roundoff at a bound
-  is not a violation.
+  is not a violation.  A constrained signal's hard bound (``constraints.signals`` and
+  ``mixed``, read on the simulated plant: sim/signal_bounds.py) counts the same way
+  (``z``); ``y_max_beyond`` names how far each output or signal passed one.
 * **Soft-bound excursion**: a sample where an output is beyond a *soft* bound by more
   than that tolerance (``soft_bounds.samples_beyond``, largest ``max_beyond``), reported
   beside the plans' slack (``samples_with_slack``, ``max_slack``), never as a violation.
@@ -41,6 +43,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..config import ControllerConfig
+from .signal_bounds import signal_violations
 from .simulate import ClosedLoopLog
 from ..status import OPTIMAL, STATUS_NAMES, TIME_LIMIT
 
@@ -179,9 +182,13 @@ def constraint_violations(cfg: ControllerConfig, log: ClosedLoopLog) -> dict:
         out = beyond(log.y[rows], *_output_bounds(mode, False), tol)
         y_bad += int(np.any(out > 0, axis=1).sum())
         y_excess = np.maximum(y_excess, out.max(axis=0))
-    return {"u": u_bad, "inactive_actuator_nonzero": inactive, "y": y_bad,
-            "total": u_bad + inactive + y_bad,
-            "y_max_beyond": {name: float(v) for name, v in zip(cfg.outputs, y_excess) if v > 0}}
+    z_bad, z_far = (signal_violations(log.signals, log.z, log.mode, tol) if log.signals
+                    else (0, {}))
+    far = {name: float(v) for name, v in zip(cfg.outputs, y_excess) if v > 0}
+    for name, v in z_far.items():
+        far[name] = max(far.get(name, 0.0), v)
+    return {"u": u_bad, "inactive_actuator_nonzero": inactive, "y": y_bad, "z": z_bad,
+            "total": u_bad + inactive + y_bad + z_bad, "y_max_beyond": far}
 
 
 def soft_bound_excursions(cfg: ControllerConfig, log: ClosedLoopLog) -> dict:

@@ -43,8 +43,17 @@ def _soft_hint(cfg: ControllerConfig, j: int) -> str:
 
 def _beyond(cfg: ControllerConfig, y_beyond: dict) -> str:
     unit = dict(zip(cfg.outputs, cfg.units.outputs or ("",) * cfg.n_outputs))
-    return ", ".join(f"{name} {v:.3g}{' ' + unit[name] if unit[name] else ''}"
+    return ", ".join(f"{name} {v:.3g}{' ' + unit[name] if unit.get(name) else ''}"
                      for name, v in y_beyond.items())
+
+
+def _signal_hint(cfg: ControllerConfig, names) -> tuple[str, str] | None:
+    """(key, text) of the first constrained signal among ``names``: where to make it soft."""
+    for j, mode in enumerate(cfg.modes):
+        for s in mode.signals:
+            if s.name in names:
+                return s.key, f"{s.key}.soft: {{l1: 0, l2: 1000}}"
+    return None
 
 
 def infeasible_check(cfg: ControllerConfig, statuses: np.ndarray, modes: np.ndarray,
@@ -59,12 +68,18 @@ def infeasible_check(cfg: ControllerConfig, statuses: np.ndarray, modes: np.ndar
         if not far:
             return []
         j = int(np.bincount(np.asarray(modes), minlength=len(cfg.modes)).argmax())
+        outputs = [name for name in y_beyond if name in cfg.outputs]
+        signal = _signal_hint(cfg, [name for name in y_beyond if name not in outputs])
+        key, hint, doc = (f"modes[{j}].bounds.soft", _soft_hint(cfg, j), "Soft output bounds")
+        if signal and not outputs:
+            (key, hint), doc = signal, "General constraints"
         return [DesignWarning(
-            "hard_bound_passed", f"modes[{j}].bounds.soft",
-            f"the outputs passed a hard bound by up to {far}: a plan keeps the bounds on the "
+            "hard_bound_passed", key,
+            f"the {'outputs' if not signal else 'signals' if not outputs else 'outputs and signals'}"
+            f" passed a hard bound by up to {far}: a plan keeps the bounds on the "
             "model (a TIME_LIMIT one not even there), not on a plant that noise, disturbance "
             "or mismatch take elsewhere. Tighten the bound by that margin or make it soft, e.g. "
-            f"{_soft_hint(cfg, j)} (docs/features.md, \"Soft output bounds\")")]
+            f"{hint} (docs/features.md, \"{doc}\")")]
     counts = np.bincount(np.asarray(modes)[bad], minlength=len(cfg.modes))
     j = int(counts.argmax())
     passed = f", and the outputs passed them by up to {far}" if far else ""

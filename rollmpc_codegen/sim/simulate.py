@@ -15,6 +15,7 @@ import numpy as np
 from ..config import ControllerConfig
 from .mismatch import PlantMismatch
 from .scenario import SimulatedPlant, preview, random_stream, scenario_reference
+from .signal_bounds import plant_signals, read_signals
 
 
 @dataclass
@@ -33,6 +34,8 @@ class ClosedLoopLog:
     solve_us: np.ndarray = None
     work: np.ndarray | None = None  # the solver's work units (a controller that counts them)
     slack_max: np.ndarray | None = None  # soft output bounds: the plan's largest slack
+    signals: list = field(default_factory=list)  # the hard signals read (signal_bounds.py)
+    z: np.ndarray | None = None  # (K, len(signals)) their values on the simulated plant
 
     def record_work(self, k: int, info: dict) -> None:
         """Sample k's work count from the controller's ``info``, when it counts one."""
@@ -105,6 +108,8 @@ def run_closed_loop(cfg: ControllerConfig, controller, reference: np.ndarray | N
                         y=np.zeros((K, ny)), sched=np.zeros((K, ns)), u=np.zeros((K, na)),
                         status=np.zeros(K, int), mode=np.zeros(K, int),
                         iterations=np.zeros(K, int), solve_us=np.zeros(K))
+    log.signals = plant_signals(cfg, [ch.A.shape[0] for ch in plant.channels])
+    log.z = np.zeros((K, len(log.signals)))
     dist = np.full(na, float(disturbance))
     for k in range(K):
         y = plant.outputs()
@@ -118,6 +123,8 @@ def run_closed_loop(cfg: ControllerConfig, controller, reference: np.ndarray | N
         log.y[k], log.sched[k], log.u[k] = y, s, u
         log.u_raw.append(u)
         log.status[k] = status
+        if log.signals:
+            log.z[k] = read_signals(log.signals, plant.x, log.u[k])
         if info is not None:
             d = info()
             log.mode[k], log.iterations[k] = d["mode"], d["iterations"]

@@ -80,14 +80,17 @@ def test_the_pid_rule_gives_the_c172p_grid_optimum_back():
 
 def test_delay_margin_of_the_example_and_the_warning(c172_model):
     """The 110 kts mode is stable with 4 samples of unmodelled delay, not 5 (docs/flight.md:
-    the example limit-cycles at 5)."""
+    the example limit-cycles at 5): fly is silent at 3, warns of ringing at 4 and of an
+    oscillation at 5."""
     from rollmpc_codegen.flight.envelope import delay_warning
     from rollmpc_codegen.model.delay_margin import delay_margins, loop_radius
 
     assert delay_margins(c172_model) == [6, 5, 4]
     assert loop_radius(c172_model, 2, 4) < 1.0 < loop_radius(c172_model, 2, 5)
     cfg = c172_model.config
-    assert delay_warning(cfg, [6, 5, 4], 4) is None
+    assert delay_warning(cfg, [6, 5, 4], 3) is None
+    at = delay_warning(cfg, [6, 5, 4], 4)  # stable, barely damped: it rings
+    assert at.code == "delay_at_margin" and "kts110" in at.message and "ring" in at.message
     w = delay_warning(cfg, [6, 5, 4], 5)
     assert w.code == "delay_beyond_margin" and "kts110" in w.message and "--latency 5" in w.message
 
