@@ -25,7 +25,7 @@
  */
 #include <math.h>
 #include "chain_internal.h"
-#if CHAIN_GENERATION != 0x6338e3cd7dae960
+#if CHAIN_GENERATION != 0x4af25d811986062
 #error "chain_solver.c and chain_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
 #endif
 
@@ -2285,9 +2285,14 @@ static int seed_from_multipliers(chain_work *ws, const chain_mode_data *md,
  * solve fits, it does what the budget pays and leaves the rest to the next QP, which goes
  * on from there: lam becomes the guess (shifted one stage) and the result OUT_OF_WORK (a
  * TIME_LIMIT) -- so a sample that cannot afford its factor still builds it, and no run of
- * samples stops at the same point each. Returns the guess's size (wset and chol its own),
+ * samples stops at the same point each. In a part that the budget cuts, a row whose pivot
+ * depends on the rows before it leaves the guess (its multiplier 0), as a new factor drops
+ * it (independent_rows()): kept, its breakdown would drop the factor at every sample of
+ * the run, and each would stop where the one before stopped (a whole carry hands the
+ * breakdown to the polish's new factor). Returns the guess's size (wset and chol its own),
  * -1 (nothing done: the guess is empty, beyond the working set, input bounds only -- the
- * primal form's -- or a new factor fits) or OUT_OF_WORK. Flags in in_set, cleared after.
+ * primal form's -- or a new factor fits) or OUT_OF_WORK. Flags in in_set (3: left as
+ * dependent), cleared after.
  */
 static int carry_factor(chain_work *ws, const chain_mode_data *md,
     chain_real *lam)
@@ -2346,15 +2351,22 @@ static int carry_factor(chain_work *ws, const chain_mode_data *md,
                 break;
             }
             append_row(ws, md, r, size, 0);
-            ++size;
-            ws->in_set[r] = 2;
+            if (!whole && ws->chol_holds != CHAIN_CHOL_DUAL) { /* dependent: wset[0..size)'s factor stands */
+                ws->chol_holds = CHAIN_CHOL_DUAL;
+                forget_row(ws, r);
+                ws->in_set[r] = 3;
+            } else {
+                ++size;
+                ws->in_set[r] = 2;
+            }
         }
     }
     for (r = 0; r < md->m; ++r) {
+        const int dependent = (ws->in_set[r] == 3);
         ws->in_set[r] = 0;
         if (!whole) { /* the guess, which the next QP goes on from (row_next[r] >= r) */
             const chain_real l = lam[md->row_next[r]];
-            lam[r] = (l > R_(0.0)) ? l : R_(0.0);
+            lam[r] = (l > R_(0.0) && !dependent) ? l : R_(0.0);
         }
     }
     return whole ? size : OUT_OF_WORK;

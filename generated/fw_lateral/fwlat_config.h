@@ -28,7 +28,7 @@
  * stops the build unless it is of the same one: a regeneration interrupted between two
  * of its file moves leaves no mixed tree that compiles.
  */
-#define FWLAT_GENERATION 0xaf8716fa2c04711
+#define FWLAT_GENERATION 0xbeceb4adc2051eb
 
 /* The one place where the precision is chosen. */
 #define FWLAT_PRECISION_DOUBLE 1

@@ -25,7 +25,7 @@
  */
 #include <math.h>
 #include "fwlat_internal.h"
-#if FWLAT_GENERATION != 0x5638289fdc1c773
+#if FWLAT_GENERATION != 0x7d0cc946b227389
 #error "fwlat_solver.c and fwlat_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
 #endif
 
@@ -2513,9 +2513,14 @@ static int seed_from_multipliers(fwlat_work *ws, const fwlat_mode_data *md,
  * solve fits, it does what the budget pays and leaves the rest to the next QP, which goes
  * on from there: lam becomes the guess (shifted one stage) and the result OUT_OF_WORK (a
  * TIME_LIMIT) -- so a sample that cannot afford its factor still builds it, and no run of
- * samples stops at the same point each. Returns the guess's size (wset and chol its own),
+ * samples stops at the same point each. In a part that the budget cuts, a row whose pivot
+ * depends on the rows before it leaves the guess (its multiplier 0), as a new factor drops
+ * it (independent_rows()): kept, its breakdown would drop the factor at every sample of
+ * the run, and each would stop where the one before stopped (a whole carry hands the
+ * breakdown to the polish's new factor). Returns the guess's size (wset and chol its own),
  * -1 (nothing done: the guess is empty, beyond the working set, input bounds only -- the
- * primal form's -- or a new factor fits) or OUT_OF_WORK. Flags in in_set, cleared after.
+ * primal form's -- or a new factor fits) or OUT_OF_WORK. Flags in in_set (3: left as
+ * dependent), cleared after.
  */
 static int carry_factor(fwlat_work *ws, const fwlat_mode_data *md,
     fwlat_real *lam)
@@ -2574,15 +2579,22 @@ static int carry_factor(fwlat_work *ws, const fwlat_mode_data *md,
                 break;
             }
             append_row(ws, md, r, size, slack_state(md, r, lam[md->row_next[r]]));
-            ++size;
-            ws->in_set[r] = 2;
+            if (!whole && ws->chol_holds != FWLAT_CHOL_DUAL) { /* dependent: wset[0..size)'s factor stands */
+                ws->chol_holds = FWLAT_CHOL_DUAL;
+                forget_row(ws, r);
+                ws->in_set[r] = 3;
+            } else {
+                ++size;
+                ws->in_set[r] = 2;
+            }
         }
     }
     for (r = 0; r < md->m; ++r) {
+        const int dependent = (ws->in_set[r] == 3);
         ws->in_set[r] = 0;
         if (!whole) { /* the guess, which the next QP goes on from (row_next[r] >= r) */
             const fwlat_real l = lam[md->row_next[r]];
-            lam[r] = (l > R_(0.0)) ? l : R_(0.0);
+            lam[r] = (l > R_(0.0) && !dependent) ? l : R_(0.0);
         }
     }
     return whole ? size : OUT_OF_WORK;

@@ -55,6 +55,10 @@ def add_parser(sub) -> None:
     add_perturbations(s)
     add_flights(s, "statuses, TIME_LIMIT runs and hard-bound violations per flight, as "
                 "`rollmpc report --flights` flies them; of the output files only --json")
+    s.add_argument("--against-unbudgeted", action="store_true",
+                   help="with --flights: fly each flight again without a work budget and "
+                   "name the hard bounds the budget lost (passed further than the "
+                   "unbudgeted loop on the same flight; warning bound_lost_to_budget)")
     s.add_argument("--steps", type=int, default=None,
                    help="samples (default: whole scenario; with --flights, per flight)")
     add_quiet(s, "no progress bar")
@@ -93,6 +97,8 @@ def _check_args(args) -> None:
                                   "(rerun one flight with --flights 1 --seed <its seed>)")
         if args.baseline != "none":
             raise ConfigError("--baseline", "runs on the scenario only: drop --flights")
+    elif args.against_unbudgeted:
+        raise ConfigError("--against-unbudgeted", "compares random flights: add --flights K")
 
 
 def solver_text(ctx: dict) -> str:
@@ -131,7 +137,9 @@ def print_warnings(found) -> None:
 
 def _unit(cfg, names) -> str:
     """`` [u]`` when every output of ``names`` has the unit u, else "" (a signal has none)."""
-    units = dict(zip(cfg.outputs, cfg.units.outputs or ("",) * cfg.n_outputs))
+    from ..sim.run_checks import output_units
+
+    units = output_units(cfg)
     found = {units.get(n, "") for n in names}
     return f" [{found.pop()}]" if len(found) == 1 and "" not in found else ""
 
@@ -219,7 +227,7 @@ def print_flights(cfg, ctx: dict, s: dict, found=()) -> None:
               f"{f['status_counts'].get('optimal', 0)} of {f['samples']}"
               f"{non_optimal_text(f['status_counts'], ' (', ')')}, longest TIME_LIMIT "
               f"run {f['longest_time_limit_run']}; constraint violations {cv['total']}"
-              f"{f' (by up to {far})' if far else ''}")
+              f"{f' (by up to {far})' if far else ''}{_against_unbudgeted(cfg, f)}")
     for label, t in [("all flights", s["totals"])] + [
             (f"{kind} flights", k) for kind, k in s.get("by_kind", {}).items()]:
         far = beyond_text(cfg, t["y_max_beyond"])
@@ -229,7 +237,25 @@ def print_flights(cfg, ctx: dict, s: dict, found=()) -> None:
               f"{t['flights']} flights break a hard bound{f' (by up to {far})' if far else ''}")
         if t["work"]:
             print(f"    solver work per sample (units): {work_text(t['work'])}")
+    free = s["totals"].get("against_unbudgeted")
+    if free:
+        print(f"  without a budget: optimal {free['unbudgeted_optimal_percent']:g} %, "
+              f"{free['unbudgeted_flights_with_violations']} of {s['totals']['flights']} flights "
+              f"break a hard bound; the budget lost one on {free['flights_losing_bounds']}")
     print_warnings(found)
+
+
+def _against_unbudgeted(cfg, flight: dict) -> str:
+    """``; unbudgeted: violations N (...)``, and the bounds the budget lost, with
+    --against-unbudgeted; else empty."""
+    free = flight.get("unbudgeted")
+    if free is None:
+        return ""
+    far = beyond_text(cfg, free["constraint_violations"]["y_max_beyond"])
+    lost = ", ".join(f"{name} {v:.3g} against {u:.3g}"
+                     for name, (v, u) in flight["bounds_lost_to_budget"].items())
+    return (f"; unbudgeted: violations {free['constraint_violations']['total']}"
+            f"{f' (by up to {far})' if far else ''}{f'; LOST to the budget: {lost}' if lost else ''}")
 
 
 def run_flights_cli(args) -> int:
@@ -239,6 +265,7 @@ def run_flights_cli(args) -> int:
                          precision=args.precision, steps=args.steps, noise_std=args.noise,
                          disturbance=args.disturbance, mismatch=args.mismatch,
                          kinds=args.flight_kinds, build_dir=args.build_dir,
+                         against_unbudgeted=args.against_unbudgeted,
                          progress=progress_of(args))
     if args.json:
         write_json(args.json, result.summary)

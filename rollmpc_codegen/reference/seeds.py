@@ -56,8 +56,9 @@ class SeedsMixin:
         guess's other rows appended in order, when that costs less than a new factor and the
         budget pays it. When neither that nor a new factor's dual solve fits, as much of it
         as the budget pays, the next QP going on from there: lam becomes the guess (a
-        TIME_LIMIT) and the result OUT_OF_WORK. None (nothing changed) when W is empty,
-        beyond wcap or input bounds only (the primal form's), or a new factor fits."""
+        TIME_LIMIT) and the result OUT_OF_WORK; there a row whose pivot depends on the rows
+        before it leaves the guess (lam 0). None (nothing changed) when W is empty, beyond wcap or
+        input bounds only (the primal form's), or a new factor fits."""
         md = self.md
         if W.size == 0 or W.size > self.wcap or np.all(md.row_q[W] < md.n):
             return None
@@ -85,15 +86,20 @@ class SeedsMixin:
                 C, z = self.remove_row(C, z, i)
         kept = np.zeros(md.m, bool)
         kept[C] = True
+        dependent = np.zeros(md.m, bool)  # rows that leave a cut guess (their pivot)
         for p in W[~kept[W]]:
             if not (whole or self.afford(append_work(md, C.size, self.hq_factor))):
-                self.lam[:] = np.where(carried > 0, carried, self.zero)  # the next QP's
-                return OUT_OF_WORK
-            C = self.append_row(C, p, bool(self.slack_state(p, carried[p])))
-        if not whole:
-            self.lam[:] = np.where(carried > 0, carried, self.zero)
-            return OUT_OF_WORK
-        return C
+                break
+            joined = self.append_row(C, p, bool(self.slack_state(p, carried[p])))
+            if whole or self.chol_holds == CHOL_DUAL:
+                C = joined
+            else:  # dependent on C: the factor of C stands, p leaves
+                self.chol_holds, self.slack_on[p], dependent[p] = CHOL_DUAL, False, True
+        else:
+            if whole:
+                return C
+        self.lam[:] = np.where((carried > 0) & ~dependent, carried, self.zero)  # the next QP's
+        return OUT_OF_WORK
 
     def seed_from_violated(self, K):
         """Mirror of seed_from_violated(): the rows th0 violates (K < 0), all tight."""

@@ -23,9 +23,11 @@ from ..config.diagnostics import DesignWarning, messages
 from ..host.build import build_host_controller
 from ..pipeline import config_label, load_model
 from ..qp.sanity import design_warnings
+from .budget_cost import (budget_cost_check, flight_against_unbudgeted,
+                          totals_against_unbudgeted, unbudgeted)
 from .flight_plan import FlightPlan, by_kind
 from .metrics import constraint_violations, longest_run, status_counts, work_stats
-from .run_checks import infeasible_check, time_limit_check
+from .run_checks import infeasible_check, output_units, time_limit_check
 from .scenario import scenario_reference
 from .simulate import run_closed_loop, start_phase
 
@@ -63,32 +65,34 @@ def run_flights(config, *, flights: int, seed: int = 0,
                 precision: str | None = None, steps: int | None = None,
                 noise_std: float = 0.0, disturbance: float = 0.0, mismatch: float = 0.0,
                 kinds: str = "both", build_dir: str | Path | None = None,
-                progress=None) -> FlightsRun:
+                against_unbudgeted: bool = False, progress=None) -> FlightsRun:
     """Fly ``flights`` random flights of ``steps`` samples each (default: the scenario's
     length) through one host build, from P_init() each, flight i seeded ``seed + i``, of
     the ``kinds`` of flight_plan.py; ``config`` a file, a ControllerConfig or a Design
-    (pipeline.load_config). ``totals`` adds every flight up, ``by_kind`` each kind's."""
+    (pipeline.load_config). ``totals`` adds every flight up, ``by_kind`` each kind's.
+    ``against_unbudgeted`` flies each flight again without a work budget and names the
+    hard bounds the budget lost (sim/budget_cost.py)."""
     model, ctx = load_model(config, precision)
     cfg = model.config
     steps = steps if steps is not None else len(scenario_reference(cfg))
     plan = FlightPlan(flights=flights, seed=seed, noise_std=noise_std,
                       disturbance=disturbance, mismatch=mismatch, kinds=kinds)
-    controller = build_host_controller(ctx, Path(build_dir) if build_dir else None)
+    where = Path(build_dir) if build_dir else None
+    controller = build_host_controller(ctx, where)
+    free = (build_host_controller(load_model(unbudgeted(cfg))[1], where)
+            if against_unbudgeted else None)
     entries, works, statuses, modes = [], [], [], []
     budget = ctx["solver"]["work_budget"]
     for fl in plan.plan(cfg, steps):
-        controller.init()
-        log = run_closed_loop(cfg, controller, steps=steps, info=controller.info,
-                              progress=start_phase(progress, steps, f"simulate: flight "
-                                                   f"{fl.index} ({fl.index + 1} of {flights})"),
-                              **plan.loop_options(fl))
-        entries.append({
-            "flight": fl.index, "seed": fl.seed, "kind": fl.kind, "levels": fl.levels.tolist(),
-            "plant_mismatch": None if fl.mismatch is None else fl.mismatch.as_dict(),
-            "samples": int(len(log.t)), "status_counts": status_counts(log.status),
-            "longest_time_limit_run": longest_run(log.status),
-            "constraint_violations": constraint_violations(cfg, log),
-            "work": work_stats(log.work, budget)})
+        label = f"simulate: flight {fl.index} ({fl.index + 1} of {flights})"
+        log, entry = _fly(cfg, controller, plan, fl, steps, start_phase(progress, steps, label))
+        entries.append({"flight": fl.index, "seed": fl.seed, "kind": fl.kind,
+                        "levels": fl.levels.tolist(),
+                        "plant_mismatch": None if fl.mismatch is None else fl.mismatch.as_dict(),
+                        **entry, "work": work_stats(log.work, budget)})
+        if free is not None:
+            flight_against_unbudgeted(entries[-1], _fly(cfg, free, plan, fl, steps, start_phase(
+                progress, steps, f"{label}, unbudgeted"))[1], cfg.feasibility_tol)
         works.append(log.work)
         statuses.append(log.status)
         modes.append(log.mode)
@@ -105,10 +109,24 @@ def run_flights(config, *, flights: int, seed: int = 0,
                                                     budget))
                            for kind, group in by_kind(range(len(entries)),
                                                       lambda i: entries[i]["kind"]).items()}}
+    if free is not None:
+        summary["totals"]["against_unbudgeted"] = totals_against_unbudgeted(entries)
     t = summary["totals"]
     found = [*time_limit_check(t["status_counts"], t["samples"], t["longest_time_limit_run"],
                                cfg.horizon),
              *infeasible_check(cfg, np.concatenate(statuses), np.concatenate(modes),
-                               t["y_max_beyond"]), *design]
+                               t["y_max_beyond"]),
+             *(budget_cost_check(entries, output_units(cfg)) if free is not None else []),
+             *design]
     summary["checks"] = [w.as_dict() for w in found]
     return FlightsRun(config=cfg, ctx=ctx, summary=summary, warnings=found)
+
+
+def _fly(cfg: ControllerConfig, controller, plan: FlightPlan, fl, steps: int, progress):
+    """One flight of ``controller`` from P_init(): (log, its figures)."""
+    controller.init()
+    log = run_closed_loop(cfg, controller, steps=steps, info=controller.info,
+                          progress=progress, **plan.loop_options(fl))
+    return log, {"samples": int(len(log.t)), "status_counts": status_counts(log.status),
+                 "longest_time_limit_run": longest_run(log.status),
+                 "constraint_violations": constraint_violations(cfg, log)}

@@ -41,8 +41,13 @@ def _soft_hint(cfg: ControllerConfig, j: int) -> str:
     return f"modes[{j}].bounds.soft: {{{inner}}}"
 
 
+def output_units(cfg: ControllerConfig) -> dict:
+    """Each output's unit ("" without ``units``; a constrained signal has none)."""
+    return dict(zip(cfg.outputs, cfg.units.outputs or ("",) * cfg.n_outputs))
+
+
 def _beyond(cfg: ControllerConfig, y_beyond: dict) -> str:
-    unit = dict(zip(cfg.outputs, cfg.units.outputs or ("",) * cfg.n_outputs))
+    unit = output_units(cfg)
     return ", ".join(f"{name} {v:.3g}{' ' + unit[name] if unit.get(name) else ''}"
                      for name, v in y_beyond.items())
 
