@@ -25,7 +25,7 @@
  */
 #include <math.h>
 #include "c172p_roll_internal.h"
-#if C172P_ROLL_GENERATION != 0x9fad326afeddaf5
+#if C172P_ROLL_GENERATION != 0x3c3b83a57a4dee4
 #error "c172p_roll_solver.c and c172p_roll_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
 #endif
 
@@ -2362,12 +2362,11 @@ static int carry_factor(c172p_roll_work *ws, const c172p_roll_mode_data *md,
         }
     }
     for (r = 0; r < md->m; ++r) {
-        const int dependent = (ws->in_set[r] == 3);
-        ws->in_set[r] = 0;
         if (!whole) { /* the guess, which the next QP goes on from (row_next[r] >= r) */
             const c172p_roll_real l = lam[md->row_next[r]];
-            lam[r] = (l > R_(0.0) && !dependent) ? l : R_(0.0);
+            lam[r] = (l > R_(0.0) && ws->in_set[r] != 3u) ? l : R_(0.0);
         }
+        ws->in_set[r] = 0;
     }
     return whole ? size : OUT_OF_WORK;
 }

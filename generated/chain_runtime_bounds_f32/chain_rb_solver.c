@@ -25,7 +25,7 @@
  */
 #include <math.h>
 #include "chain_rb_internal.h"
-#if CHAIN_RB_GENERATION != 0xa436ce30a4bec45
+#if CHAIN_RB_GENERATION != 0x0ed408fe8024edb
 #error "chain_rb_solver.c and chain_rb_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
 #endif
 
@@ -2377,12 +2377,11 @@ static int carry_factor(chain_rb_work *ws, const chain_rb_mode_data *md,
         }
     }
     for (r = 0; r < md->m; ++r) {
-        const int dependent = (ws->in_set[r] == 3);
-        ws->in_set[r] = 0;
         if (!whole) { /* the guess, which the next QP goes on from (row_next[r] >= r) */
             const chain_rb_real l = lam[md->row_next[r]];
-            lam[r] = (l > R_(0.0) && !dependent) ? l : R_(0.0);
+            lam[r] = (l > R_(0.0) && ws->in_set[r] != 3u) ? l : R_(0.0);
         }
+        ws->in_set[r] = 0;
     }
     return whole ? size : OUT_OF_WORK;
 }

@@ -25,7 +25,7 @@
  */
 #include <math.h>
 #include "fwlat_internal.h"
-#if FWLAT_GENERATION != 0x7d0cc946b227389
+#if FWLAT_GENERATION != 0x151a45b895e5612
 #error "fwlat_solver.c and fwlat_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
 #endif
 
@@ -2590,12 +2590,11 @@ static int carry_factor(fwlat_work *ws, const fwlat_mode_data *md,
         }
     }
     for (r = 0; r < md->m; ++r) {
-        const int dependent = (ws->in_set[r] == 3);
-        ws->in_set[r] = 0;
         if (!whole) { /* the guess, which the next QP goes on from (row_next[r] >= r) */
             const fwlat_real l = lam[md->row_next[r]];
-            lam[r] = (l > R_(0.0) && !dependent) ? l : R_(0.0);
+            lam[r] = (l > R_(0.0) && ws->in_set[r] != 3u) ? l : R_(0.0);
         }
+        ws->in_set[r] = 0;
     }
     return whole ? size : OUT_OF_WORK;
 }

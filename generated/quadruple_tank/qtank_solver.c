@@ -25,7 +25,7 @@
  */
 #include <math.h>
 #include "qtank_internal.h"
-#if QTANK_GENERATION != 0xddc4784bd0943b9
+#if QTANK_GENERATION != 0x833735515d52a35
 #error "qtank_solver.c and qtank_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
 #endif
 
@@ -2362,12 +2362,11 @@ static int carry_factor(qtank_work *ws, const qtank_mode_data *md,
         }
     }
     for (r = 0; r < md->m; ++r) {
-        const int dependent = (ws->in_set[r] == 3);
-        ws->in_set[r] = 0;
         if (!whole) { /* the guess, which the next QP goes on from (row_next[r] >= r) */
             const qtank_real l = lam[md->row_next[r]];
-            lam[r] = (l > R_(0.0) && !dependent) ? l : R_(0.0);
+            lam[r] = (l > R_(0.0) && ws->in_set[r] != 3u) ? l : R_(0.0);
         }
+        ws->in_set[r] = 0;
     }
     return whole ? size : OUT_OF_WORK;
 }

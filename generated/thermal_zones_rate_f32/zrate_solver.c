@@ -25,7 +25,7 @@
  */
 #include <math.h>
 #include "zrate_internal.h"
-#if ZRATE_GENERATION != 0xa00e7efbaf8d5b5
+#if ZRATE_GENERATION != 0xaac4ae4a6ba056a
 #error "zrate_solver.c and zrate_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
 #endif
 
@@ -2427,12 +2427,11 @@ static int carry_factor(zrate_work *ws, const zrate_mode_data *md,
         }
     }
     for (r = 0; r < md->m; ++r) {
-        const int dependent = (ws->in_set[r] == 3);
-        ws->in_set[r] = 0;
         if (!whole) { /* the guess, which the next QP goes on from (row_next[r] >= r) */
             const zrate_real l = lam[md->row_next[r]];
-            lam[r] = (l > R_(0.0) && !dependent) ? l : R_(0.0);
+            lam[r] = (l > R_(0.0) && ws->in_set[r] != 3u) ? l : R_(0.0);
         }
+        ws->in_set[r] = 0;
     }
     return whole ? size : OUT_OF_WORK;
 }

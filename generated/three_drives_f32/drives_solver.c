@@ -25,7 +25,7 @@
  */
 #include <math.h>
 #include "drives_internal.h"
-#if DRIVES_GENERATION != 0x73f031999a92bd3
+#if DRIVES_GENERATION != 0xfc17080710d8783
 #error "drives_solver.c and drives_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
 #endif
 
@@ -2362,12 +2362,11 @@ static int carry_factor(drives_work *ws, const drives_mode_data *md,
         }
     }
     for (r = 0; r < md->m; ++r) {
-        const int dependent = (ws->in_set[r] == 3);
-        ws->in_set[r] = 0;
         if (!whole) { /* the guess, which the next QP goes on from (row_next[r] >= r) */
             const drives_real l = lam[md->row_next[r]];
-            lam[r] = (l > R_(0.0) && !dependent) ? l : R_(0.0);
+            lam[r] = (l > R_(0.0) && ws->in_set[r] != 3u) ? l : R_(0.0);
         }
+        ws->in_set[r] = 0;
     }
     return whole ? size : OUT_OF_WORK;
 }

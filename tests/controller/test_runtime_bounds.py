@@ -80,7 +80,7 @@ class BoundsLockstep(Lockstep):
         return super().step(y, s, r)
 
 
-@pytest.fixture(scope="module", params=["double", "float"])
+@pytest.fixture(scope="module", params=[pytest.param("double", marks=pytest.mark.slow), "float"])
 def example(request, build_root) -> Built:
     return Built(EXAMPLE, request.param, build_root)
 

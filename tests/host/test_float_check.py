@@ -8,6 +8,7 @@ import re
 from pathlib import Path
 
 import numpy as np
+import pytest
 
 from rollmpc_codegen.cli.main import main
 from rollmpc_codegen.host.build import build_host_controller
@@ -114,6 +115,7 @@ def test_a_failing_check_only_warns(tmp_path, capsys, monkeypatch):
     assert cap.err == "rollmpc: warning: float check not run (RuntimeError: gcc: not found)\n"
 
 
+@pytest.mark.slow
 def test_floor_build_is_the_stored_data_floor(tmp_path):
     """The floor build (double C on the float-stored numbers) solves as
     float_floor.stored_data_floor's reference does, bit for bit, on a constrained QP."""

@@ -70,7 +70,8 @@ def test_blocked_qp_is_the_full_qp_restricted(tmp_path):
 
 
 # --------------------------------------------------------------------------- closed loop
-@pytest.fixture(scope="module", params=["double", "float"])
+@pytest.fixture(scope="module", params=[pytest.param("double", marks=pytest.mark.slow),
+                                        "float"])
 def uav_run(request, build_root):
     built = Built(UAV_BLOCKED, request.param, build_root)
     lock = Lockstep(built)

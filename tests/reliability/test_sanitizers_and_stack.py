@@ -65,7 +65,7 @@ def _assert_soak_clean(run, steps):
 
 # What the target runs per precision (P_WIDE_KERNELS: the M4F takes the wide kernels in
 # float, the plain ones in double), forced on the host (tests/host/test_kernel_variants.py)
-TARGET_KERNELS = [("double", "plain"), ("float", "wide")]
+TARGET_KERNELS = [pytest.param("double", "plain", marks=pytest.mark.slow), ("float", "wide")]
 # the soak and valgrind: the wide kernels in the long run (the vectors above run them
 # under the sanitizers in make test)
 LONG_WIDE = [pytest.param(k, marks=pytest.mark.slow) if k == "wide" else k

@@ -41,7 +41,7 @@ def build_both(config, precision, tmp_path):
     return ctx, out
 
 
-@pytest.mark.parametrize("precision", ["double", "float"])
+@pytest.mark.parametrize("precision", [pytest.param("double", marks=pytest.mark.slow), "float"])
 @pytest.mark.parametrize("config", NEW_DESIGNS, ids=lambda p: p.stem)
 def test_a_design_not_in_examples_builds_and_runs(config, precision, tmp_path):
     ctx, out = build_both(config, precision, tmp_path)

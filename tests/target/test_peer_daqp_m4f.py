@@ -9,6 +9,9 @@ import pytest
 
 from conftest import UAV, require_tool
 
+# a peer on the target, not ours: make check-long (its host agreement: test_peer_daqp_c.py)
+pytestmark = pytest.mark.slow
+
 ARM_HINT = "apt-get install -y --no-install-recommends gcc-arm-none-eabi libnewlib-arm-none-eabi"
 # scenario QPs (one warm-start chain per mode): the quiet start and the first reference
 # step of the inner mode (~100 rows enter one by one); in the outer mode the first QPs

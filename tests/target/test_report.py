@@ -143,6 +143,7 @@ def test_horizon_table_and_fits(target_tools, tmp_path, build_root, capsys):
     assert "| 20 |" in capsys.readouterr().out
 
 
+@pytest.mark.slow
 def test_horizon_the_generator_refuses_is_listed(target_tools, tmp_path, build_root, capsys):
     """uav_roll's explicit work budget (100,000 units) is below the unconstrained step of
     N = 300: that row is refused with the generator's reason, N = 10 still measured."""

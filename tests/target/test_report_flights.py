@@ -33,6 +33,7 @@ def _report(config, build_root, sample_every: int = 10, **options):
                       hardest=2, host_repeats=1, build_dir=build_root, **options)
 
 
+@pytest.mark.slow
 def test_flights_are_seeded_distinct_and_name_the_overall_worst(target_tools, slow_uav,
                                                                  build_root):
     # every step counted: the hardest steps are ranked by the (noisy) host clock
