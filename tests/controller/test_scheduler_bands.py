@@ -384,7 +384,7 @@ def test_double_qps_of_every_mode_match_independent_solvers(drives, scenario):
 
 
 # --------------------------------------------------------------------------- build + CLI
-@pytest.mark.parametrize("precision", ["double", "float"])
+@pytest.mark.parametrize("precision", [pytest.param("double", marks=pytest.mark.slow), "float"])
 def test_generates_and_compiles_strict(tmp_path, precision):
     _, ctx = generate(DRIVES, tmp_path / "drives", precision)
     assert ctx["n_modes"] == 3 and ctx["scheduler"]["n_bands"] == 5

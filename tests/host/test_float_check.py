@@ -90,6 +90,7 @@ def test_float_check_warns_on_a_design_float_does_not_serve(tmp_path, capsys):
         "times the float build's cycles" in warning
 
 
+@pytest.mark.slow
 def test_float_check_is_quiet_where_float_serves(tmp_path, capsys):
     code, _, cap = _generate(tmp_path, capsys, ROLL)
     assert code == 0 and cap.err == ""
@@ -151,6 +152,7 @@ def test_check_float_library_call(tmp_path):
     assert (a.error, a.first_move_error, a.floor) == (b.error, b.first_move_error, b.floor)
 
 
+@pytest.mark.slow
 def test_a_scenario_without_moves_checks_nothing_and_does_not_warn(tmp_path, capsys):
     code, _, cap = _generate(tmp_path, capsys, ROLL.replace("[0, 30, -30, 60, 0]", "[0]"))
     assert code == 0 and cap.err == ""

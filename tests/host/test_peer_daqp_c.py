@@ -26,7 +26,7 @@ def sources():
                     f"{exc}")
 
 
-@pytest.mark.parametrize("config, samples", [(CHAIN, 120),
+@pytest.mark.parametrize("config, samples", [pytest.param(CHAIN, 120, marks=pytest.mark.slow),
                                              pytest.param(UAV, 120, marks=pytest.mark.slow)])
 def test_daqp_c_matches_python_daqp(sources, build_root, config, samples):
     from rollmpc_codegen.host.bench_record import record_qp_sequence

@@ -57,7 +57,7 @@ def _built_from(config, precision: str, build_root, budget) -> Built:
     return built
 
 
-@pytest.fixture(scope="module", params=["double", "float"])
+@pytest.fixture(scope="module", params=[pytest.param("double", marks=pytest.mark.slow), "float"])
 def fw_small(request, build_root) -> Built:
     return _built(request.param, build_root, SMALL_BUDGET)
 
