@@ -109,7 +109,7 @@ def _spikes(limit: float, precision: str) -> dict[int, float]:
     return {30: 1e30, 60: -huge, 90: huge, 120: 1.5 * limit, 150: -0.5 * limit}
 
 
-@pytest.mark.parametrize("precision", ["double", "float"])
+@pytest.mark.parametrize("precision", [pytest.param("double", marks=pytest.mark.slow), "float"])
 def test_step_bit_exact_through_spikes_uav(tmp_path, build_root, precision):
     built = Built(short_uav_config(tmp_path), precision, build_root)
     limit = float(built.model.modes[0].data.innovation_limit[0])

@@ -282,6 +282,7 @@ def test_output_disturbance_removes_a_gain_mismatch(tmp_path, build_root):
     assert _steady_error(with_model).max() < 0.005  # measured <= 0.0016 cm (settling)
 
 
+@pytest.mark.slow  # the input model's offset removal: test_input_disturbance_offset_removed
 def test_uav_input_disturbance_offset_removed(tmp_path, build_root):
     """Both UAV modes with an input-disturbance model (5 resp. 6 states), switching."""
     def short(obs):

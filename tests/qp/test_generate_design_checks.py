@@ -207,6 +207,7 @@ def test_a_horizon_of_10000_is_refused_in_well_under_a_second(tmp_path, capsys,
     assert time.perf_counter() - start < 0.5
 
 
+@pytest.mark.slow
 def test_force_size_generates_it_and_force_does_not(tmp_path, capsys):
     small = ship(target={"flash_kib": 16}, precision="float")
     message = ("horizon: too large for the target: the float build needs about 65 KiB of "

@@ -93,7 +93,8 @@ def test_vectors_under_sanitizers_paper_controller(tmp_path, precision):
     _assert_vectors_pass(run, 6000)
 
 
-@pytest.mark.parametrize("kernels", LONG_WIDE)
+@pytest.mark.slow  # the sanitised test vectors above run in make test
+@pytest.mark.parametrize("kernels", KERNEL_VARIANTS)
 def test_soak_under_sanitizers(tmp_path, kernels, steps=20000):
     src = write_soak_program(_short(tmp_path), tmp_path / "soak", "float")
     exe = compile_program(src, tmp_path / "soak.exe", (*SANITIZE, *_kernels(kernels)))
