@@ -106,13 +106,6 @@ def solver_text(ctx: dict) -> str:
     return f"{ctx['solver']['method']}{' + polish' if ctx['solver']['polish'] else ''}"
 
 
-def beyond_text(cfg, y_max_beyond: dict) -> str:
-    """How far each output passed a hard bound, with its unit, e.g. ``roll 23.5 deg,
-    climb 6.21 m/s``."""
-    return ", ".join(f"{name} {v:.3g}{_unit(cfg, [name])}".replace(" [", " ").replace("]", "")
-                     for name, v in y_max_beyond.items())
-
-
 def signals_text(cfg, violations: dict) -> str:
     """``, signals N`` (samples past a hard signal bound) for a design with constrained
     signals, else empty."""
@@ -172,6 +165,7 @@ def print_tracking(cfg, s: dict) -> None:
 
 def print_summary(cfg, ctx: dict, s: dict, found=()) -> None:
     from ..sim.metrics import work_text
+    from ..sim.run_checks import beyond_text
 
     names = [m.name for m in cfg.modes]
     y_unit, u_unit = cfg.units.label("outputs"), cfg.units.label("actuators")
@@ -216,6 +210,7 @@ def print_summary(cfg, ctx: dict, s: dict, found=()) -> None:
 def print_flights(cfg, ctx: dict, s: dict, found=()) -> None:
     """A line per flight, then the totals and the warnings (FlightsRun.warnings)."""
     from ..sim.metrics import work_text
+    from ..sim.run_checks import beyond_text
 
     t = s["totals"]
     print(f"rollmpc simulate: {t['flights']} random flights of {s['steps']} samples, "
@@ -248,6 +243,8 @@ def print_flights(cfg, ctx: dict, s: dict, found=()) -> None:
 def _against_unbudgeted(cfg, flight: dict) -> str:
     """``; unbudgeted: violations N (...)``, and the bounds the budget lost, with
     --against-unbudgeted; else empty."""
+    from ..sim.run_checks import beyond_text
+
     free = flight.get("unbudgeted")
     if free is None:
         return ""

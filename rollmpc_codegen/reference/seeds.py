@@ -95,9 +95,8 @@ class SeedsMixin:
                 C = joined
             else:  # dependent on C: the factor of C stands, p leaves
                 self.chol_holds, self.slack_on[p], dependent[p] = CHOL_DUAL, False, True
-        else:
-            if whole:
-                return C
+        if whole:  # (a whole carry never breaks off)
+            return C
         self.lam[:] = np.where((carried > 0) & ~dependent, carried, self.zero)  # the next QP's
         return OUT_OF_WORK
 

@@ -46,7 +46,9 @@ def output_units(cfg: ControllerConfig) -> dict:
     return dict(zip(cfg.outputs, cfg.units.outputs or ("",) * cfg.n_outputs))
 
 
-def _beyond(cfg: ControllerConfig, y_beyond: dict) -> str:
+def beyond_text(cfg: ControllerConfig, y_beyond: dict) -> str:
+    """How far each output or signal passed a hard bound, with its unit, e.g. ``roll 23.5
+    deg, iq 16.2``."""
     unit = output_units(cfg)
     return ", ".join(f"{name} {v:.3g}{' ' + unit[name] if unit.get(name) else ''}"
                      for name, v in y_beyond.items())
@@ -54,7 +56,7 @@ def _beyond(cfg: ControllerConfig, y_beyond: dict) -> str:
 
 def _signal_hint(cfg: ControllerConfig, names) -> tuple[str, str] | None:
     """(key, text) of the first constrained signal among ``names``: where to make it soft."""
-    for j, mode in enumerate(cfg.modes):
+    for mode in cfg.modes:
         for s in mode.signals:
             if s.name in names:
                 return s.key, f"{s.key}.soft: {{l1: 0, l2: 1000}}"
@@ -68,7 +70,7 @@ def infeasible_check(cfg: ControllerConfig, statuses: np.ndarray, modes: np.ndar
     bound (metrics.constraint_violations); ``keys`` (a Counter, sim/infeasible_rows.py):
     the constraints the infeasible samples' QPs could not meet, by config key."""
     bad = np.asarray(statuses) == INFEASIBLE
-    far = _beyond(cfg, y_beyond)
+    far = beyond_text(cfg, y_beyond)
     if not bad.any():
         if not far:
             return []
