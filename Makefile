@@ -103,7 +103,7 @@ mutation: venv
 
 ## flight-matrix: the table of docs/flight.md: examples/c172_roll.yaml and the PID baseline
 ##   on the JSBSim c172p in every turbulence level, 3 seeds each, each MPC flight replayed
-##   on the emulated M4F, and the latency table (needs the flight and target extras; ~2 CPU-min)
+##   on the emulated M4F, and the latency table (needs the flight and target extras; ~4 CPU-min)
 flight-matrix: venv
 	@mkdir -p build/flight
 	$(PY) -m rollmpc_codegen.flight.matrix --json build/flight/matrix.json > build/flight/matrix.md
