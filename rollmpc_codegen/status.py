@@ -60,8 +60,9 @@ class Status(IntEnum):
                   "the solve reached `solver.work_budget` (`P_last_info()->work`) before the "
                   "KKT conditions held; the next sample continues from the working set it "
                   "reached", "the last point of the dual active set (or of the sweeps); "
-                  "before it has one, the mode's last plan shifted one stage (while younger "
-                  "than the horizon), else the unconstrained optimum; clamped")
+                  "before it has one, the point of the last primal polish in a mode whose rows "
+                  "are all input bounds, else the mode's last plan shifted one stage (while "
+                  "younger than the horizon), else the unconstrained optimum; clamped")
     # the observer's plausibility check (docs/features.md, "Measurement plausibility")
     # reports only when the solve was OPTIMAL: any solver status above wins
     MEASUREMENT_CLIPPED = (10, "optimal; an implausible measurement was clipped",

@@ -18,7 +18,7 @@
 #include <stddef.h>
 #include <stdint.h>
 #include "c172p_roll_config.h"
-#if C172P_ROLL_GENERATION != 0xfeff373ae18efc2
+#if C172P_ROLL_GENERATION != 0x837a3892195facb
 #error "c172p_roll.h and c172p_roll_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
 #endif
 
@@ -50,7 +50,8 @@ typedef enum {
     /** The solve reached `solver.work_budget` (`c172p_roll_last_info()->work`) before the
      *  KKT conditions held; the next sample continues from the working set it reached.
      *  Command: the last point of the dual active set (or of the sweeps); before it has
-     *  one, the mode's last plan shifted one stage (while younger than the horizon), else
+     *  one, the point of the last primal polish in a mode whose rows are all input bounds,
+     *  else the mode's last plan shifted one stage (while younger than the horizon), else
      *  the unconstrained optimum; clamped. */
     C172P_ROLL_TIME_LIMIT = 9,
     /** The solve was optimal, and an innovation y − C x̂ of this sample was beyond
@@ -125,6 +126,7 @@ typedef struct {
     int stop_rows;                                /**< Rows of wset where polish() ran out of work, */
     int stop_known;                               /**< the first of them with multipliers in z. */
     int from_plan;                                /**< This solve's TIME_LIMIT fell back to the mode's last plan. */
+    int th_solved;                                /**< th is this solve's last primal solve: a working set's exact point. */
 } c172p_roll_work;
 
 /** Controller instance. Complete here so firmware can allocate it statically. */

@@ -10,7 +10,7 @@
  */
 #include <math.h>
 #include "c172p_roll_internal.h"
-#if C172P_ROLL_GENERATION != 0x3c3b83a57a4dee4
+#if C172P_ROLL_GENERATION != 0xd7244de9c31644c
 #error "c172p_roll_controller.c and c172p_roll_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
 #endif
 

@@ -25,7 +25,7 @@
  */
 #include <math.h>
 #include "c172p_roll_internal.h"
-#if C172P_ROLL_GENERATION != 0x3c3b83a57a4dee4
+#if C172P_ROLL_GENERATION != 0xd7244de9c31644c
 #error "c172p_roll_solver.c and c172p_roll_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
 #endif
 
@@ -2033,6 +2033,7 @@ static int primal_solve(c172p_roll_work *ws, const c172p_roll_mode_data *md, int
     }
     /* the bound inputs at their bounds only now: out of work, ws->th is still the caller's
      * last point, which TIME_LIMIT returns (the reference's th on entry) */
+    ws->th_solved = 0; /* until the solve below succeeds */
     for (i = 0; i < nw; ++i) {
         const int r = ws->wset[i], q = md->row_q[r];
         ws->th[q] = by_sign(md, r, md->row_c[r]);
@@ -2042,10 +2043,10 @@ static int primal_solve(c172p_roll_work *ws, const c172p_roll_mode_data *md, int
     if (primal_factor(ws, md, k, from) != 0) {
         return -1;
     }
-    if (form == FORM_BOUND) {
-        return (primal_solve_bound(ws, md, nw, by_columns) == 0) ? 1 : -1;
-    }
-    return primal_solve_free(ws, md, k, by_columns);
+    i = (form == FORM_BOUND) ? ((primal_solve_bound(ws, md, nw, by_columns) == 0) ? 1 : -1)
+                             : primal_solve_free(ws, md, k, by_columns);
+    ws->th_solved = i >= 0;
+    return i;
 }
 
 /*
@@ -3042,15 +3043,16 @@ static int dual_active_set(c172p_roll_work *ws, const c172p_roll_mode_data *md,
     c172p_roll_real *lam, int from, int *iterations, int *active)
 {
     int i, nw = 0, steps = 0, code = 0, moved = 0; /* moved: ws->th is a corrected point */
-    for (i = 0; i < md->n; ++i) {
-        ws->th[i] = ws->th0[i]; /* the point until the dual active set has one */
-    }
     if (!afford(ws, md, (ws->out_slacks_ok ? 0u : (uint32_t)md->m + predict_work(md))
                         + 2u * (uint32_t)md->m)) {
         if (from >= 0) {
             keep_progress(ws, md, lam); /* where the shifted guess stopped */
         }
-        return OUT_OF_WORK_AT_TH0;
+        return OUT_OF_WORK_AT_TH0; /* ws->th: a polish's point, or th0 */
+    }
+    ws->th_solved = 0;
+    for (i = 0; i < md->n; ++i) {
+        ws->th[i] = ws->th0[i]; /* the point until the dual active set has one */
     }
     output_slacks(ws, md);
     ws->work += (uint32_t)md->m;
@@ -3176,14 +3178,20 @@ static void fallback_point(c172p_roll_work *ws, const c172p_roll_mode_data *md,
 }
 
 /*
- * The budget ran out before the dual active set: the command is fallback_point() clamped
- * and, if a polish stopped (polished = 1), lam its working set (keep_progress()).
+ * The budget ran out before the dual active set had a point: the command is
+ * fallback_point() clamped and, if a polish stopped (polished = 1), lam its working set
+ * (keep_progress()). In a mode whose rows are all input bounds, a point this solve's
+ * primal polish reached (ws->th_solved) is kept instead: clamped, it meets every row, and
+ * it answers this sample's state and reference, where the plan answers the last
+ * optimal sample's (after a reference step, the old level).
  */
 static int time_limit_at_th0(c172p_roll_work *ws, const c172p_roll_mode_data *md,
     c172p_roll_real *lam, const c172p_roll_real *plan, int plan_age, int polished,
     c172p_roll_real *U)
 {
-    fallback_point(ws, md, plan, plan_age);
+    if (!((md->m_box == md->m) && ws->th_solved)) {
+        fallback_point(ws, md, plan, plan_age);
+    }
     if (polished) {
         keep_progress(ws, md, lam);
     }
@@ -3218,6 +3226,7 @@ int c172p_roll_qp_solve(c172p_roll_work *ws, c172p_roll_real *lam, const c172p_r
     ws->work = 0u;
     ws->work_limit = C172P_ROLL_SOLVER_WORK_BUDGET;
     ws->from_plan = 0;
+    ws->th_solved = 0;
     unconstrained(ws, md, x, r);
     for (i = 0; i < md->n; ++i) {
         ws->th[i] = ws->th0[i];

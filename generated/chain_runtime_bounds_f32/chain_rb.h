@@ -18,7 +18,7 @@
 #include <stddef.h>
 #include <stdint.h>
 #include "chain_rb_config.h"
-#if CHAIN_RB_GENERATION != 0x0ed408fe8024edb
+#if CHAIN_RB_GENERATION != 0x2917ccfe17803f1
 #error "chain_rb.h and chain_rb_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
 #endif
 
@@ -56,6 +56,7 @@ typedef enum {
     /** The solve reached `solver.work_budget` (`chain_rb_last_info()->work`) before the KKT
      *  conditions held; the next sample continues from the working set it reached. Command:
      *  the last point of the dual active set (or of the sweeps); before it has one, the
+     *  point of the last primal polish in a mode whose rows are all input bounds, else the
      *  mode's last plan shifted one stage (while younger than the horizon), else the
      *  unconstrained optimum; clamped. */
     CHAIN_RB_TIME_LIMIT = 9,
@@ -139,6 +140,7 @@ typedef struct {
     int stop_rows;                                /**< Rows of wset where polish() ran out of work, */
     int stop_known;                               /**< the first of them with multipliers in z. */
     int from_plan;                                /**< This solve's TIME_LIMIT fell back to the mode's last plan. */
+    int th_solved;                                /**< th is this solve's last primal solve: a working set's exact point. */
     chain_rb_bounds bounds;                   /**< Copy of the live bounds of the mode being solved
                                                        (no pointer: the instance stays position-independent). */
 } chain_rb_work;

@@ -18,7 +18,7 @@
 #include <stddef.h>
 #include <stdint.h>
 #include "chain_soft_config.h"
-#if CHAIN_SOFT_GENERATION != 0x978ed76cc757bfd
+#if CHAIN_SOFT_GENERATION != 0x04d55d112dd9ecd
 #error "chain_soft.h and chain_soft_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
 #endif
 
@@ -50,7 +50,8 @@ typedef enum {
     /** The solve reached `solver.work_budget` (`chain_soft_last_info()->work`) before the
      *  KKT conditions held; the next sample continues from the working set it reached.
      *  Command: the last point of the dual active set (or of the sweeps); before it has
-     *  one, the mode's last plan shifted one stage (while younger than the horizon), else
+     *  one, the point of the last primal polish in a mode whose rows are all input bounds,
+     *  else the mode's last plan shifted one stage (while younger than the horizon), else
      *  the unconstrained optimum; clamped. */
     CHAIN_SOFT_TIME_LIMIT = 9,
     /** The solve was optimal, and an innovation y − C x̂ of this sample was beyond
@@ -129,6 +130,7 @@ typedef struct {
     int stop_rows;                                /**< Rows of wset where polish() ran out of work, */
     int stop_known;                               /**< the first of them with multipliers in z. */
     int from_plan;                                /**< This solve's TIME_LIMIT fell back to the mode's last plan. */
+    int th_solved;                                /**< th is this solve's last primal solve: a working set's exact point. */
     uint8_t slack_on[CHAIN_SOFT_M_MAX];         /**< Soft row in the working set with a positive slack. */
     chain_soft_real slack_max;                  /**< Largest slack of the last optimal plan. */
     int slack_rows;                               /**< Soft rows with a positive slack in it. */

@@ -18,7 +18,7 @@
 #include <stddef.h>
 #include <stdint.h>
 #include "fwlat_config.h"
-#if FWLAT_GENERATION != 0x5647e32b112dc1b
+#if FWLAT_GENERATION != 0x970f0fff27fe3b6
 #error "fwlat.h and fwlat_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
 #endif
 
@@ -50,6 +50,7 @@ typedef enum {
     /** The solve reached `solver.work_budget` (`fwlat_last_info()->work`) before the KKT
      *  conditions held; the next sample continues from the working set it reached. Command:
      *  the last point of the dual active set (or of the sweeps); before it has one, the
+     *  point of the last primal polish in a mode whose rows are all input bounds, else the
      *  mode's last plan shifted one stage (while younger than the horizon), else the
      *  unconstrained optimum; clamped. */
     FWLAT_TIME_LIMIT = 9,
@@ -129,6 +130,7 @@ typedef struct {
     int stop_rows;                                /**< Rows of wset where polish() ran out of work, */
     int stop_known;                               /**< the first of them with multipliers in z. */
     int from_plan;                                /**< This solve's TIME_LIMIT fell back to the mode's last plan. */
+    int th_solved;                                /**< th is this solve's last primal solve: a working set's exact point. */
     uint8_t slack_on[FWLAT_M_MAX];         /**< Soft row in the working set with a positive slack. */
     fwlat_real slack_max;                  /**< Largest slack of the last optimal plan. */
     int slack_rows;                               /**< Soft rows with a positive slack in it. */

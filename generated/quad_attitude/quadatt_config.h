@@ -28,7 +28,7 @@
  * stops the build unless it is of the same one: a regeneration interrupted between two
  * of its file moves leaves no mixed tree that compiles.
  */
-#define QUADATT_GENERATION 0xf845b9dc282549e
+#define QUADATT_GENERATION 0x3cadfc8c3f7447a
 
 /* The one place where the precision is chosen. */
 #define QUADATT_PRECISION_DOUBLE 1

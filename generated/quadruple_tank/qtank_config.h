@@ -28,7 +28,7 @@
  * stops the build unless it is of the same one: a regeneration interrupted between two
  * of its file moves leaves no mixed tree that compiles.
  */
-#define QTANK_GENERATION 0x833735515d52a35
+#define QTANK_GENERATION 0x454c557b7d217d4
 
 /* The one place where the precision is chosen. */
 #define QTANK_PRECISION_DOUBLE 1

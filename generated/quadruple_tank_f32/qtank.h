@@ -18,7 +18,7 @@
 #include <stddef.h>
 #include <stdint.h>
 #include "qtank_config.h"
-#if QTANK_GENERATION != 0x3422b406f421ea5
+#if QTANK_GENERATION != 0x2c878e1e64ce331
 #error "qtank.h and qtank_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
 #endif
 
@@ -50,6 +50,7 @@ typedef enum {
     /** The solve reached `solver.work_budget` (`qtank_last_info()->work`) before the KKT
      *  conditions held; the next sample continues from the working set it reached. Command:
      *  the last point of the dual active set (or of the sweeps); before it has one, the
+     *  point of the last primal polish in a mode whose rows are all input bounds, else the
      *  mode's last plan shifted one stage (while younger than the horizon), else the
      *  unconstrained optimum; clamped. */
     QTANK_TIME_LIMIT = 9,
@@ -125,6 +126,7 @@ typedef struct {
     int stop_rows;                                /**< Rows of wset where polish() ran out of work, */
     int stop_known;                               /**< the first of them with multipliers in z. */
     int from_plan;                                /**< This solve's TIME_LIMIT fell back to the mode's last plan. */
+    int th_solved;                                /**< th is this solve's last primal solve: a working set's exact point. */
 } qtank_work;
 
 /** Controller instance. Complete here so firmware can allocate it statically. */

@@ -28,7 +28,7 @@
  * stops the build unless it is of the same one: a regeneration interrupted between two
  * of its file moves leaves no mixed tree that compiles.
  */
-#define ZONES_GENERATION 0x29a5abce9dc75aa
+#define ZONES_GENERATION 0x34234f04611d0c1
 
 /* The one place where the precision is chosen. */
 #define ZONES_PRECISION_DOUBLE 0

@@ -28,7 +28,7 @@
  * stops the build unless it is of the same one: a regeneration interrupted between two
  * of its file moves leaves no mixed tree that compiles.
  */
-#define DRIVES_GENERATION 0xfc17080710d8783
+#define DRIVES_GENERATION 0xcfcda5117ae2484
 
 /* The one place where the precision is chosen. */
 #define DRIVES_PRECISION_DOUBLE 0

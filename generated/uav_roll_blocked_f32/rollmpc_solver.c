@@ -25,7 +25,7 @@
  */
 #include <math.h>
 #include "rollmpc_internal.h"
-#if ROLLMPC_GENERATION != 0x6b35611c9f8b275
+#if ROLLMPC_GENERATION != 0x4ec61cf3ef3f448
 #error "rollmpc_solver.c and rollmpc_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
 #endif
 
@@ -2029,6 +2029,7 @@ static int primal_solve(rollmpc_work *ws, const rollmpc_mode_data *md, int nw,
     }
     /* the bound inputs at their bounds only now: out of work, ws->th is still the caller's
      * last point, which TIME_LIMIT returns (the reference's th on entry) */
+    ws->th_solved = 0; /* until the solve below succeeds */
     for (i = 0; i < nw; ++i) {
         const int r = ws->wset[i], q = md->row_q[r];
         ws->th[q] = by_sign(md, r, md->row_c[r]);
@@ -2038,10 +2039,10 @@ static int primal_solve(rollmpc_work *ws, const rollmpc_mode_data *md, int nw,
     if (primal_factor(ws, md, k, from) != 0) {
         return -1;
     }
-    if (form == FORM_BOUND) {
-        return (primal_solve_bound(ws, md, nw, by_columns) == 0) ? 1 : -1;
-    }
-    return primal_solve_free(ws, md, k, by_columns);
+    i = (form == FORM_BOUND) ? ((primal_solve_bound(ws, md, nw, by_columns) == 0) ? 1 : -1)
+                             : primal_solve_free(ws, md, k, by_columns);
+    ws->th_solved = i >= 0;
+    return i;
 }
 
 /*
@@ -3038,15 +3039,16 @@ static int dual_active_set(rollmpc_work *ws, const rollmpc_mode_data *md,
     rollmpc_real *lam, int from, int *iterations, int *active)
 {
     int i, nw = 0, steps = 0, code = 0, moved = 0; /* moved: ws->th is a corrected point */
-    for (i = 0; i < md->n; ++i) {
-        ws->th[i] = ws->th0[i]; /* the point until the dual active set has one */
-    }
     if (!afford(ws, md, (ws->out_slacks_ok ? 0u : (uint32_t)md->m + predict_work(md))
                         + 2u * (uint32_t)md->m)) {
         if (from >= 0) {
             keep_progress(ws, md, lam); /* where the shifted guess stopped */
         }
-        return OUT_OF_WORK_AT_TH0;
+        return OUT_OF_WORK_AT_TH0; /* ws->th: a polish's point, or th0 */
+    }
+    ws->th_solved = 0;
+    for (i = 0; i < md->n; ++i) {
+        ws->th[i] = ws->th0[i]; /* the point until the dual active set has one */
     }
     output_slacks(ws, md);
     ws->work += (uint32_t)md->m;
@@ -3179,14 +3181,20 @@ static void fallback_point(rollmpc_work *ws, const rollmpc_mode_data *md,
 }
 
 /*
- * The budget ran out before the dual active set: the command is fallback_point() clamped
- * and, if a polish stopped (polished = 1), lam its working set (keep_progress()).
+ * The budget ran out before the dual active set had a point: the command is
+ * fallback_point() clamped and, if a polish stopped (polished = 1), lam its working set
+ * (keep_progress()). In a mode whose rows are all input bounds, a point this solve's
+ * primal polish reached (ws->th_solved) is kept instead: clamped, it meets every row, and
+ * it answers this sample's state and reference, where the plan answers the last
+ * optimal sample's (after a reference step, the old level).
  */
 static int time_limit_at_th0(rollmpc_work *ws, const rollmpc_mode_data *md,
     rollmpc_real *lam, const rollmpc_real *plan, int plan_age, int polished,
     rollmpc_real *U)
 {
-    fallback_point(ws, md, plan, plan_age);
+    if (!((md->m_box == md->m) && ws->th_solved)) {
+        fallback_point(ws, md, plan, plan_age);
+    }
     if (polished) {
         keep_progress(ws, md, lam);
     }
@@ -3221,6 +3229,7 @@ int rollmpc_qp_solve(rollmpc_work *ws, rollmpc_real *lam, const rollmpc_real *pl
     ws->work = 0u;
     ws->work_limit = ROLLMPC_SOLVER_WORK_BUDGET;
     ws->from_plan = 0;
+    ws->th_solved = 0;
     unconstrained(ws, md, x, r);
     for (i = 0; i < md->n; ++i) {
         ws->th[i] = ws->th0[i];

@@ -183,6 +183,7 @@ class ActiveSetMixin:
             if from_ >= 0:
                 self.keep_progress(lam)  # where the shifted guess stopped
             return OUT_OF_WORK_AT_TH0, th, 0, 0
+        self.th_solved = None  # the C resets ws->th to th0 here
         self.output_slacks()
         self.work += md.m
         if from_ < 0:

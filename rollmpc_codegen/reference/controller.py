@@ -50,7 +50,7 @@ class ControllerRef:
         self.dt = mode_data[0].Kx.dtype.type
         dt = self.dt
         self.last_plan = LastPlan(ctx["horizon"])  # P_ctrl's U, plan_mode, plan_age
-        self.solvers = [SolverRef(md, ctx["solver"], j, self.last_plan)
+        self.solvers = [SolverRef(md, ctx["solver"], j, self.last_plan, ctx["has_rate_rows"])
                         for j, md in enumerate(mode_data)]
         sc = ctx["scheduler"]
         if sc is not None:

@@ -59,12 +59,15 @@ class PrimalPolishMixin(PrimalRowsMixin):
             return OUT_OF_WORK, None, None
         self.work += cost
         self.factor_rows = rows
+        self.th_solved = None  # the C's th is partly written until the solve succeeds
         ok = self.primal_factor(order, start, deletes)
         if not ok:
             return False, None, None
-        if self.factor_rows.form == BOUND:
-            return self.primal_solve_bound(th0, W, qW, th, dv, bound)
-        return self.primal_solve_free(th0, th, dv, bound)
+        out = (self.primal_solve_bound(th0, W, qW, th, dv, bound)
+               if self.factor_rows.form == BOUND else self.primal_solve_free(th0, th, dv, bound))
+        if out[0] is True:
+            self.th_solved = out[1].copy()
+        return out
 
     def primal_factor(self, order, start=0, deletes=()):
         """Mirror of primal_factor() after primal_deletes(): L of S_FF or (S^-1)_BB and

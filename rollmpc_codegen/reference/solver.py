@@ -66,8 +66,11 @@ class SolverRef(SignalsMixin, UnconstrainedMixin, RowsMixin, SoftRowsMixin, Swee
     The mixins are its parts, one per partial; they share the state set up here."""
 
     def __init__(self, md: ModeData, solver_ctx: dict, mode: int = 0,
-                 last_plan: LastPlan | None = None):
+                 last_plan: LastPlan | None = None, build_rate_rows: bool | None = None):
         self.md = md
+        # the build's has_rate_rows (some mode has Δu rows): that mode's own, alone
+        self.build_rate_rows = md.has_rate_rows if build_rate_rows is None else build_rate_rows
+        self.th_solved = None
         self.dt = md.Kx.dtype.type
         dt = self.dt
         s = solver_ctx
@@ -134,10 +137,18 @@ class SolverRef(SignalsMixin, UnconstrainedMixin, RowsMixin, SoftRowsMixin, Swee
         self.from_plan = True
         return plan.U[:self.md.n][self.next_input]
 
+    def inputs_only(self):
+        """Mirror of the inputs_only() macro: every row of the mode is an input bound (a
+        build with Δu rows: never)."""
+        return not self.build_rate_rows and self.md.m_box == self.md.m
+
     def time_limit_at_th0(self, th0, polished):
-        """Mirror of time_limit_at_th0(): TIME_LIMIT at fallback_point(), lam where a
-        polish stopped."""
-        th = self.fallback_point(th0)
+        """Mirror of time_limit_at_th0(): TIME_LIMIT at fallback_point() or, with input
+        rows only, at this solve's last primal point; lam where a polish stopped."""
+        if self.inputs_only() and self.th_solved is not None:
+            th = self.th_solved
+        else:
+            th = self.fallback_point(th0)
         if polished:
             self.keep_progress(self.lam)
         return self.finish(th, th0, TIME_LIMIT)
@@ -173,6 +184,7 @@ class SolverRef(SignalsMixin, UnconstrainedMixin, RowsMixin, SoftRowsMixin, Swee
         its work is ``work``."""
         md = self.md
         self.from_plan = False
+        self.th_solved = None  # ws->th_solved: the last primal solve's point, if any
         x = np.asarray(x, md.Kx.dtype)
         r = np.asarray(r, md.Kx.dtype)
         lam = self.lam

@@ -117,3 +117,49 @@ def test_tilt_limits_hold_through_the_time_limited_manoeuvre(build_root):
     log = run_closed_loop(built.model.config, built.fresh_c())
     assert np.count_nonzero(log.status == TIME_LIMIT) >= 50
     assert np.abs(log.y[:, :2]).max() <= 30.0 * (1 + 1e-4)
+
+
+def test_inputs_only_time_limit_commands_the_polish_point(tmp_path, build_root):
+    """In a mode whose rows are all input bounds (the UAV without its roll bounds), a
+    TIME_LIMIT after the primal polish has solved a working set commands that point, not
+    the plan: clamped it meets every row, and after a step it is this sample's answer. Bit
+    for bit in the C and the reference, at a budget the reference finds for the step."""
+    import yaml
+
+    from rollmpc_codegen.pipeline import load_model
+    from rollmpc_codegen.qp.work import base_work
+    from rollmpc_codegen.reference.controller import ControllerRef
+    from rollmpc_codegen.status import OPTIMAL, TIME_LIMIT
+
+    path = short_uav_config(tmp_path, HORIZON, "uav_inputs_only", warm_start=False)
+    data = yaml.safe_load(path.read_text())
+    for mode in data["modes"]:
+        mode["bounds"] = {k: v for k, v in mode["bounds"].items() if k.startswith("u_")}
+    path.write_text(yaml.safe_dump(data, sort_keys=False))
+    model, ctx = load_model(path, "double")
+    x, small, step = np.zeros(model.modes[0].data.nx), np.full(HORIZON, 0.2), np.full(HORIZON, 80.0)
+
+    def solve_at(budget):
+        ref = ControllerRef({**ctx, "solver": {**ctx["solver"], "work_budget": budget}},
+                            [m.data for m in model.modes])
+        solver = ref.solvers[0]
+        plan = solver.solve_mode(x, small)
+        return plan, solver.solve_mode(x, step), solver
+
+    least = max(base_work(m.data, True) for m in model.modes)  # at least what generate takes
+    for budget in range(least, 200000, 100):  # the first that stops after a primal solve
+        (st0, plan, *_), (st, U, *_), solver = solve_at(budget)
+        assert st != OPTIMAL or solver.th_solved is not None
+        if st0 == OPTIMAL and st == TIME_LIMIT and solver.th_solved is not None:
+            break
+    else:
+        pytest.fail("no budget stops the step's QP after a primal solve")
+    assert solver.inputs_only() and not np.array_equal(U, shifted(plan))
+    assert U[0] == 15.0 and abs(plan[1]) < 5.0  # the step's answer, not the old level's
+
+    data["solver"]["work_budget"] = budget
+    path.write_text(yaml.safe_dump(data, sort_keys=False))
+    c = Built(path, "double", build_root).fresh_c()
+    assert int(c.solve_qp(0, x, small)[0]) == OPTIMAL
+    st_c, U_c, _ = c.solve_qp(0, x, step)
+    assert int(st_c) == TIME_LIMIT and U_c.tobytes() == U.tobytes()
