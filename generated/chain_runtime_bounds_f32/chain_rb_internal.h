@@ -7,7 +7,7 @@
 
 #include <math.h>
 #include "chain_rb.h"
-#if CHAIN_RB_GENERATION != 0x2917ccfe17803f1
+#if CHAIN_RB_GENERATION != 0xa56c822aea32759
 #error "chain_rb_internal.h and chain_rb_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
 #endif
 

@@ -25,7 +25,7 @@
  */
 #include <math.h>
 #include "chain_rb_internal.h"
-#if CHAIN_RB_GENERATION != 0x2917ccfe17803f1
+#if CHAIN_RB_GENERATION != 0xa56c822aea32759
 #error "chain_rb_solver.c and chain_rb_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
 #endif
 
@@ -1824,6 +1824,7 @@ static int primal_solve_free(chain_rb_work *ws, const chain_rb_mode_data *md, in
     if (terminal_step(ws, md, k) != 0) {
         return -1;
     }
+    ws->th_solved = 1; /* nothing below can fail */
     chain_rb_chol_ltsolve(l, k, ws->rhs);
     for (a = 0; a < k; ++a) {
         const int f = ws->tmp[a];
@@ -1904,6 +1905,7 @@ static int primal_solve_bound(chain_rb_work *ws, const chain_rb_mode_data *md, i
     if (terminal_step(ws, md, k) != 0) {
         return -1;
     }
+    ws->th_solved = 1; /* nothing below can fail */
     chain_rb_chol_ltsolve(l, k, ws->rhs);
     for (a = 0; a < k; ++a) { /* beta, by input: d_B is no longer needed */
         ws->dv[ws->tmp[a]] = ws->rhs[a];
@@ -2047,8 +2049,9 @@ static int primal_solve(chain_rb_work *ws, const chain_rb_mode_data *md, int nw,
         }
     }
     /* the bound inputs at their bounds only now: out of work, ws->th is still the caller's
-     * last point, which TIME_LIMIT returns (the reference's th on entry) */
-    ws->th_solved = 0; /* until the solve below succeeds */
+     * last point, which TIME_LIMIT returns (the reference's th on entry); from here until
+     * the solve succeeds, ws->th is no solved point */
+    ws->th_solved = 0;
     for (i = 0; i < nw; ++i) {
         const int r = ws->wset[i], q = md->row_q[r];
         ws->th[q] = by_sign(md, r, row_const(ws, md, r));
@@ -2058,10 +2061,10 @@ static int primal_solve(chain_rb_work *ws, const chain_rb_mode_data *md, int nw,
     if (primal_factor(ws, md, k, from) != 0) {
         return -1;
     }
-    i = (form == FORM_BOUND) ? ((primal_solve_bound(ws, md, nw, by_columns) == 0) ? 1 : -1)
-                             : primal_solve_free(ws, md, k, by_columns);
-    ws->th_solved = i >= 0;
-    return i;
+    if (form == FORM_BOUND) {
+        return (primal_solve_bound(ws, md, nw, by_columns) == 0) ? 1 : -1;
+    }
+    return primal_solve_free(ws, md, k, by_columns);
 }
 
 /*

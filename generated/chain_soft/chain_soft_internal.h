@@ -7,7 +7,7 @@
 
 #include <math.h>
 #include "chain_soft.h"
-#if CHAIN_SOFT_GENERATION != 0x04d55d112dd9ecd
+#if CHAIN_SOFT_GENERATION != 0x8d041e2b791dd94
 #error "chain_soft_internal.h and chain_soft_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
 #endif
 

@@ -25,7 +25,7 @@
  */
 #include <math.h>
 #include "chain_soft_internal.h"
-#if CHAIN_SOFT_GENERATION != 0x04d55d112dd9ecd
+#if CHAIN_SOFT_GENERATION != 0x8d041e2b791dd94
 #error "chain_soft_solver.c and chain_soft_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
 #endif
 
@@ -1951,6 +1951,7 @@ static int primal_solve_free(chain_soft_work *ws, const chain_soft_mode_data *md
     if (terminal_step(ws, md, k) != 0) {
         return -1;
     }
+    ws->th_solved = 1; /* nothing below can fail */
     chain_soft_chol_ltsolve(l, k, ws->rhs);
     for (a = 0; a < k; ++a) {
         const int f = ws->tmp[a];
@@ -2031,6 +2032,7 @@ static int primal_solve_bound(chain_soft_work *ws, const chain_soft_mode_data *m
     if (terminal_step(ws, md, k) != 0) {
         return -1;
     }
+    ws->th_solved = 1; /* nothing below can fail */
     chain_soft_chol_ltsolve(l, k, ws->rhs);
     for (a = 0; a < k; ++a) { /* beta, by input: d_B is no longer needed */
         ws->dv[ws->tmp[a]] = ws->rhs[a];
@@ -2174,8 +2176,9 @@ static int primal_solve(chain_soft_work *ws, const chain_soft_mode_data *md, int
         }
     }
     /* the bound inputs at their bounds only now: out of work, ws->th is still the caller's
-     * last point, which TIME_LIMIT returns (the reference's th on entry) */
-    ws->th_solved = 0; /* until the solve below succeeds */
+     * last point, which TIME_LIMIT returns (the reference's th on entry); from here until
+     * the solve succeeds, ws->th is no solved point */
+    ws->th_solved = 0;
     for (i = 0; i < nw; ++i) {
         const int r = ws->wset[i], q = md->row_q[r];
         ws->th[q] = by_sign(md, r, md->row_c[r]);
@@ -2185,10 +2188,10 @@ static int primal_solve(chain_soft_work *ws, const chain_soft_mode_data *md, int
     if (primal_factor(ws, md, k, from) != 0) {
         return -1;
     }
-    i = (form == FORM_BOUND) ? ((primal_solve_bound(ws, md, nw, by_columns) == 0) ? 1 : -1)
-                             : primal_solve_free(ws, md, k, by_columns);
-    ws->th_solved = i >= 0;
-    return i;
+    if (form == FORM_BOUND) {
+        return (primal_solve_bound(ws, md, nw, by_columns) == 0) ? 1 : -1;
+    }
+    return primal_solve_free(ws, md, k, by_columns);
 }
 
 /*

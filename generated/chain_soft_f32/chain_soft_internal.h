@@ -7,7 +7,7 @@
 
 #include <math.h>
 #include "chain_soft.h"
-#if CHAIN_SOFT_GENERATION != 0x7898332e94c70a2
+#if CHAIN_SOFT_GENERATION != 0x6f043552b2d0cf7
 #error "chain_soft_internal.h and chain_soft_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
 #endif
 

@@ -18,7 +18,7 @@
 #include <stddef.h>
 #include <stdint.h>
 #include "quadatt_config.h"
-#if QUADATT_GENERATION != 0x3cadfc8c3f7447a
+#if QUADATT_GENERATION != 0x4217799d400f322
 #error "quadatt.h and quadatt_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
 #endif
 

@@ -18,7 +18,7 @@
 #include <stddef.h>
 #include <stdint.h>
 #include "quadatt_config.h"
-#if QUADATT_GENERATION != 0x0af2cc790167ff5
+#if QUADATT_GENERATION != 0x17ca40118242058
 #error "quadatt.h and quadatt_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
 #endif
 

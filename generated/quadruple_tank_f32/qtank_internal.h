@@ -7,7 +7,7 @@
 
 #include <math.h>
 #include "qtank.h"
-#if QTANK_GENERATION != 0x2c878e1e64ce331
+#if QTANK_GENERATION != 0x1d40b5b145f5d8e
 #error "qtank_internal.h and qtank_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
 #endif
 

@@ -28,7 +28,7 @@
  * stops the build unless it is of the same one: a regeneration interrupted between two
  * of its file moves leaves no mixed tree that compiles.
  */
-#define DRIVES_GENERATION 0xd94537d108f5fad
+#define DRIVES_GENERATION 0x481f431a39bd08b
 
 /* The one place where the precision is chosen. */
 #define DRIVES_PRECISION_DOUBLE 1

@@ -10,7 +10,7 @@
  */
 #include <math.h>
 #include "drives_internal.h"
-#if DRIVES_GENERATION != 0xcfcda5117ae2484
+#if DRIVES_GENERATION != 0x804725ab2985bd3
 #error "drives_controller.c and drives_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
 #endif
 

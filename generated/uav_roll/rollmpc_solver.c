@@ -25,7 +25,7 @@
  */
 #include <math.h>
 #include "rollmpc_internal.h"
-#if ROLLMPC_GENERATION != 0x9521342d291dab9
+#if ROLLMPC_GENERATION != 0x309307ba1610a09
 #error "rollmpc_solver.c and rollmpc_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
 #endif
 
@@ -1809,6 +1809,7 @@ static int primal_solve_free(rollmpc_work *ws, const rollmpc_mode_data *md, int 
     if (terminal_step(ws, md, k) != 0) {
         return -1;
     }
+    ws->th_solved = 1; /* nothing below can fail */
     rollmpc_chol_ltsolve(l, k, ws->rhs);
     for (a = 0; a < k; ++a) {
         const int f = ws->tmp[a];
@@ -1889,6 +1890,7 @@ static int primal_solve_bound(rollmpc_work *ws, const rollmpc_mode_data *md, int
     if (terminal_step(ws, md, k) != 0) {
         return -1;
     }
+    ws->th_solved = 1; /* nothing below can fail */
     rollmpc_chol_ltsolve(l, k, ws->rhs);
     for (a = 0; a < k; ++a) { /* beta, by input: d_B is no longer needed */
         ws->dv[ws->tmp[a]] = ws->rhs[a];
@@ -2032,8 +2034,9 @@ static int primal_solve(rollmpc_work *ws, const rollmpc_mode_data *md, int nw,
         }
     }
     /* the bound inputs at their bounds only now: out of work, ws->th is still the caller's
-     * last point, which TIME_LIMIT returns (the reference's th on entry) */
-    ws->th_solved = 0; /* until the solve below succeeds */
+     * last point, which TIME_LIMIT returns (the reference's th on entry); from here until
+     * the solve succeeds, ws->th is no solved point */
+    ws->th_solved = 0;
     for (i = 0; i < nw; ++i) {
         const int r = ws->wset[i], q = md->row_q[r];
         ws->th[q] = by_sign(md, r, md->row_c[r]);
@@ -2043,10 +2046,10 @@ static int primal_solve(rollmpc_work *ws, const rollmpc_mode_data *md, int nw,
     if (primal_factor(ws, md, k, from) != 0) {
         return -1;
     }
-    i = (form == FORM_BOUND) ? ((primal_solve_bound(ws, md, nw, by_columns) == 0) ? 1 : -1)
-                             : primal_solve_free(ws, md, k, by_columns);
-    ws->th_solved = i >= 0;
-    return i;
+    if (form == FORM_BOUND) {
+        return (primal_solve_bound(ws, md, nw, by_columns) == 0) ? 1 : -1;
+    }
+    return primal_solve_free(ws, md, k, by_columns);
 }
 
 /*

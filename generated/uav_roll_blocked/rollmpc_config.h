@@ -28,7 +28,7 @@
  * stops the build unless it is of the same one: a regeneration interrupted between two
  * of its file moves leaves no mixed tree that compiles.
  */
-#define ROLLMPC_GENERATION 0x14203b4511d07b2
+#define ROLLMPC_GENERATION 0x954f5b36d20a06e
 
 /* The one place where the precision is chosen. */
 #define ROLLMPC_PRECISION_DOUBLE 1

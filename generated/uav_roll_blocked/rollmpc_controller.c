@@ -10,7 +10,7 @@
  */
 #include <math.h>
 #include "rollmpc_internal.h"
-#if ROLLMPC_GENERATION != 0x14203b4511d07b2
+#if ROLLMPC_GENERATION != 0x954f5b36d20a06e
 #error "rollmpc_controller.c and rollmpc_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
 #endif
 
