@@ -137,7 +137,8 @@ def test_inputs_only_time_limit_commands_the_polish_point(tmp_path, build_root):
         mode["bounds"] = {k: v for k, v in mode["bounds"].items() if k.startswith("u_")}
     path.write_text(yaml.safe_dump(data, sort_keys=False))
     model, ctx = load_model(path, "double")
-    x, small, step = np.zeros(model.modes[0].data.nx), np.full(HORIZON, 0.2), np.full(HORIZON, 80.0)
+    x = np.zeros(model.modes[0].data.nx)
+    small, step = np.full(HORIZON, 0.2), np.full(HORIZON, 80.0)
 
     def solve_at(budget):
         ref = ControllerRef({**ctx, "solver": {**ctx["solver"], "work_budget": budget}},
@@ -149,7 +150,6 @@ def test_inputs_only_time_limit_commands_the_polish_point(tmp_path, build_root):
     least = max(base_work(m.data, True) for m in model.modes)  # at least what generate takes
     for budget in range(least, 200000, 100):  # the first that stops after a primal solve
         (st0, plan, *_), (st, U, *_), solver = solve_at(budget)
-        assert st != OPTIMAL or solver.th_solved is not None
         if st0 == OPTIMAL and st == TIME_LIMIT and solver.th_solved is not None:
             break
     else:
