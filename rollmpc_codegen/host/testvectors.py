@@ -44,7 +44,8 @@ def qp_cases_from_log(model, ctx, log, xs, count: int = 12) -> list[dict]:
         mode, x = xs[k]
         idx = np.minimum(np.arange(k + 1, k + N + 1), len(ref) - 1)
         r = np.repeat(ref[idx], ny) if ny == 1 else ref[idx].ravel()
-        solver = SolverRef(model.modes[mode].data, ctx["solver"])
+        solver = SolverRef(model.modes[mode].data, ctx["solver"],
+                           build_rate_rows=ctx["has_rate_rows"])  # as the C's inputs_only()
         status, U, its, _, _ = solver.solve_mode(x, r)
         cases.append({"mode": int(mode), "x": x, "r": r.astype(x.dtype), "U": U,
                       "status": int(status), "iterations": int(its), "n": int(U.size)})
