@@ -18,7 +18,7 @@
 #include <stddef.h>
 #include <stdint.h>
 #include "c172p_roll_config.h"
-#if C172P_ROLL_GENERATION != 0x68e63384e0a42ea
+#if C172P_ROLL_GENERATION != 0x23aa8db54945f9b
 #error "c172p_roll.h and c172p_roll_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
 #endif
 

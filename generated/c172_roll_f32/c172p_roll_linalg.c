@@ -12,7 +12,7 @@
  */
 #include <math.h>
 #include "c172p_roll_internal.h"
-#if C172P_ROLL_GENERATION != 0x68e63384e0a42ea
+#if C172P_ROLL_GENERATION != 0x23aa8db54945f9b
 #error "c172p_roll_linalg.c and c172p_roll_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
 #endif
 

@@ -18,7 +18,7 @@
 #include <stddef.h>
 #include <stdint.h>
 #include "chain_config.h"
-#if CHAIN_GENERATION != 0xa5b106728486994
+#if CHAIN_GENERATION != 0x0d3d9f273acb533
 #error "chain.h and chain_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
 #endif
 

@@ -18,7 +18,7 @@
 #include <stddef.h>
 #include <stdint.h>
 #include "chain_config.h"
-#if CHAIN_GENERATION != 0x1f3110ac55749a8
+#if CHAIN_GENERATION != 0x46199f506039580
 #error "chain.h and chain_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
 #endif
 

@@ -7,7 +7,7 @@
 
 #include <math.h>
 #include "chain.h"
-#if CHAIN_GENERATION != 0x1f3110ac55749a8
+#if CHAIN_GENERATION != 0x46199f506039580
 #error "chain_internal.h and chain_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
 #endif
 

@@ -7,7 +7,7 @@
 
 #include <math.h>
 #include "chain_rb.h"
-#if CHAIN_RB_GENERATION != 0xd963aedf8e2728f
+#if CHAIN_RB_GENERATION != 0xd114f62ae8fda7f
 #error "chain_rb_internal.h and chain_rb_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
 #endif
 

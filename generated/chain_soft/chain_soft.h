@@ -18,7 +18,7 @@
 #include <stddef.h>
 #include <stdint.h>
 #include "chain_soft_config.h"
-#if CHAIN_SOFT_GENERATION != 0x8d041e2b791dd94
+#if CHAIN_SOFT_GENERATION != 0xc74bc694864d901
 #error "chain_soft.h and chain_soft_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
 #endif
 

@@ -25,7 +25,7 @@
  */
 #include <math.h>
 #include "fwlat_internal.h"
-#if FWLAT_GENERATION != 0xc7c1d34239f9474
+#if FWLAT_GENERATION != 0xa6514c1c1296474
 #error "fwlat_solver.c and fwlat_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
 #endif
 
@@ -3005,6 +3005,13 @@ static int polish(fwlat_work *ws, const fwlat_mode_data *md, fwlat_real *lam,
                 if (given_up(kept_rows(ws, nw), nw, 1)) {
                     return -1;
                 }
+            }
+            if (nadd > 0 && code == 1 && !(guess && it == 0) && kept_rows(ws, nw) > 0) {
+                /* the bound form's multipliers come with its point: the bounds they release
+                 * leave in the round the violated rows join (a primal-dual active set), not
+                 * only once the point is feasible (one pass, no factor to update) */
+                (void)drop_negative(ws, md, &nw, 0);
+                known = nw;
             }
             if (nadd == 0) {
                 if (code == 0) {

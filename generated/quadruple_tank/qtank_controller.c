@@ -10,7 +10,7 @@
  */
 #include <math.h>
 #include "qtank_internal.h"
-#if QTANK_GENERATION != 0x4e219c87898eecf
+#if QTANK_GENERATION != 0xf4ef167cc03fd77
 #error "qtank_controller.c and qtank_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
 #endif
 

@@ -7,7 +7,7 @@
 
 #include <math.h>
 #include "qtank.h"
-#if QTANK_GENERATION != 0x1d40b5b145f5d8e
+#if QTANK_GENERATION != 0x58c29f5451f6e61
 #error "qtank_internal.h and qtank_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
 #endif
 

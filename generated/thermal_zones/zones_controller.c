@@ -10,7 +10,7 @@
  */
 #include <math.h>
 #include "zones_internal.h"
-#if ZONES_GENERATION != 0x95d6b3fce40e791
+#if ZONES_GENERATION != 0xca5cbfd1df9e97c
 #error "zones_controller.c and zones_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
 #endif
 

@@ -12,7 +12,7 @@
  */
 #include <math.h>
 #include "zrate_internal.h"
-#if ZRATE_GENERATION != 0x89d52847bd8d499
+#if ZRATE_GENERATION != 0x77361e002f22985
 #error "zrate_linalg.c and zrate_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
 #endif
 

@@ -25,7 +25,7 @@
  */
 #include <math.h>
 #include "zrate_internal.h"
-#if ZRATE_GENERATION != 0x89d52847bd8d499
+#if ZRATE_GENERATION != 0x77361e002f22985
 #error "zrate_solver.c and zrate_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
 #endif
 
@@ -2835,6 +2835,13 @@ static int polish(zrate_work *ws, const zrate_mode_data *md, zrate_real *lam,
                 if (given_up(kept_rows(ws, nw), nw, 1)) {
                     return -1;
                 }
+            }
+            if (nadd > 0 && code == 1 && !(guess && it == 0) && kept_rows(ws, nw) > 0) {
+                /* the bound form's multipliers come with its point: the bounds they release
+                 * leave in the round the violated rows join (a primal-dual active set), not
+                 * only once the point is feasible (one pass, no factor to update) */
+                (void)drop_negative(ws, md, &nw, 0);
+                known = nw;
             }
             if (nadd == 0) {
                 if (code == 0) {

@@ -10,7 +10,7 @@
  */
 #include <math.h>
 #include "drives_internal.h"
-#if DRIVES_GENERATION != 0x804725ab2985bd3
+#if DRIVES_GENERATION != 0x2eb6570b2e3a3bf
 #error "drives_controller.c and drives_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
 #endif
 

@@ -10,7 +10,7 @@
  */
 #include <math.h>
 #include "rollmpc_internal.h"
-#if ROLLMPC_GENERATION != 0x89cdcb7e14bb0c3
+#if ROLLMPC_GENERATION != 0xebbb5e361221cc0
 #error "rollmpc_controller.c and rollmpc_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
 #endif
 

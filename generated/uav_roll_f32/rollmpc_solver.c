@@ -25,7 +25,7 @@
  */
 #include <math.h>
 #include "rollmpc_internal.h"
-#if ROLLMPC_GENERATION != 0x6b910fbff37742f
+#if ROLLMPC_GENERATION != 0xaf8016bdf7478af
 #error "rollmpc_solver.c and rollmpc_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
 #endif
 
@@ -2770,6 +2770,13 @@ static int polish(rollmpc_work *ws, const rollmpc_mode_data *md, rollmpc_real *l
                 if (given_up(kept_rows(ws, nw), nw, 1)) {
                     return -1;
                 }
+            }
+            if (nadd > 0 && code == 1 && !(guess && it == 0) && kept_rows(ws, nw) > 0) {
+                /* the bound form's multipliers come with its point: the bounds they release
+                 * leave in the round the violated rows join (a primal-dual active set), not
+                 * only once the point is feasible (one pass, no factor to update) */
+                (void)drop_negative(ws, md, &nw, 0);
+                known = nw;
             }
             if (nadd == 0) {
                 if (code == 0) {
