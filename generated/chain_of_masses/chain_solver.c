@@ -25,7 +25,7 @@
  */
 #include <math.h>
 #include "chain_internal.h"
-#if CHAIN_GENERATION != 0x0d3d9f273acb533
+#if CHAIN_GENERATION != 0x88c33d194633c64
 #error "chain_solver.c and chain_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
 #endif
 
@@ -2771,7 +2771,7 @@ static int polish(chain_work *ws, const chain_mode_data *md, chain_real *lam,
                     return -1;
                 }
             }
-            if (nadd > 0 && code == 1 && !(guess && it == 0) && kept_rows(ws, nw) > 0) {
+            if (nadd > 0 && code == 1 && kept_rows(ws, nw) > 0) {
                 /* the bound form's multipliers come with its point: the bounds they release
                  * leave in the round the violated rows join (a primal-dual active set), not
                  * only once the point is feasible (one pass, no factor to update) */

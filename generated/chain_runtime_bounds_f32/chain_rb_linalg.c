@@ -12,7 +12,7 @@
  */
 #include <math.h>
 #include "chain_rb_internal.h"
-#if CHAIN_RB_GENERATION != 0x8f68b8b5f9a5d46
+#if CHAIN_RB_GENERATION != 0xd9a291bf3661ebb
 #error "chain_rb_linalg.c and chain_rb_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
 #endif
 

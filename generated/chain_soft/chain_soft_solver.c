@@ -25,7 +25,7 @@
  */
 #include <math.h>
 #include "chain_soft_internal.h"
-#if CHAIN_SOFT_GENERATION != 0xc74bc694864d901
+#if CHAIN_SOFT_GENERATION != 0xc48398c0cd3e863
 #error "chain_soft_solver.c and chain_soft_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
 #endif
 
@@ -2941,7 +2941,7 @@ static int polish(chain_soft_work *ws, const chain_soft_mode_data *md, chain_sof
                     return -1;
                 }
             }
-            if (nadd > 0 && code == 1 && !(guess && it == 0) && kept_rows(ws, nw) > 0) {
+            if (nadd > 0 && code == 1 && kept_rows(ws, nw) > 0) {
                 /* the bound form's multipliers come with its point: the bounds they release
                  * leave in the round the violated rows join (a primal-dual active set), not
                  * only once the point is feasible (one pass, no factor to update) */

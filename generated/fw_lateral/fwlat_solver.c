@@ -25,7 +25,7 @@
  */
 #include <math.h>
 #include "fwlat_internal.h"
-#if FWLAT_GENERATION != 0xa6514c1c1296474
+#if FWLAT_GENERATION != 0xdcdafb657b07878
 #error "fwlat_solver.c and fwlat_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
 #endif
 
@@ -3006,7 +3006,7 @@ static int polish(fwlat_work *ws, const fwlat_mode_data *md, fwlat_real *lam,
                     return -1;
                 }
             }
-            if (nadd > 0 && code == 1 && !(guess && it == 0) && kept_rows(ws, nw) > 0) {
+            if (nadd > 0 && code == 1 && kept_rows(ws, nw) > 0) {
                 /* the bound form's multipliers come with its point: the bounds they release
                  * leave in the round the violated rows join (a primal-dual active set), not
                  * only once the point is feasible (one pass, no factor to update) */

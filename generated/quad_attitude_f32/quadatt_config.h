@@ -28,7 +28,7 @@
  * stops the build unless it is of the same one: a regeneration interrupted between two
  * of its file moves leaves no mixed tree that compiles.
  */
-#define QUADATT_GENERATION 0x4ed8d0750d28da8
+#define QUADATT_GENERATION 0x3800de080e11403
 
 /* The one place where the precision is chosen. */
 #define QUADATT_PRECISION_DOUBLE 0

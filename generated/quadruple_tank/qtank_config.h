@@ -28,7 +28,7 @@
  * stops the build unless it is of the same one: a regeneration interrupted between two
  * of its file moves leaves no mixed tree that compiles.
  */
-#define QTANK_GENERATION 0xf4ef167cc03fd77
+#define QTANK_GENERATION 0xf0eeadef25632af
 
 /* The one place where the precision is chosen. */
 #define QTANK_PRECISION_DOUBLE 1

@@ -25,7 +25,7 @@
  */
 #include <math.h>
 #include "qtank_internal.h"
-#if QTANK_GENERATION != 0x58c29f5451f6e61
+#if QTANK_GENERATION != 0x931ad7f4e6b7569
 #error "qtank_solver.c and qtank_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
 #endif
 
@@ -2771,7 +2771,7 @@ static int polish(qtank_work *ws, const qtank_mode_data *md, qtank_real *lam,
                     return -1;
                 }
             }
-            if (nadd > 0 && code == 1 && !(guess && it == 0) && kept_rows(ws, nw) > 0) {
+            if (nadd > 0 && code == 1 && kept_rows(ws, nw) > 0) {
                 /* the bound form's multipliers come with its point: the bounds they release
                  * leave in the round the violated rows join (a primal-dual active set), not
                  * only once the point is feasible (one pass, no factor to update) */

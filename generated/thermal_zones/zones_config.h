@@ -28,7 +28,7 @@
  * stops the build unless it is of the same one: a regeneration interrupted between two
  * of its file moves leaves no mixed tree that compiles.
  */
-#define ZONES_GENERATION 0xca5cbfd1df9e97c
+#define ZONES_GENERATION 0xea60295c17c106e
 
 /* The one place where the precision is chosen. */
 #define ZONES_PRECISION_DOUBLE 1

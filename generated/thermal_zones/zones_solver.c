@@ -25,7 +25,7 @@
  */
 #include <math.h>
 #include "zones_internal.h"
-#if ZONES_GENERATION != 0xca5cbfd1df9e97c
+#if ZONES_GENERATION != 0xea60295c17c106e
 #error "zones_solver.c and zones_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
 #endif
 
@@ -2771,7 +2771,7 @@ static int polish(zones_work *ws, const zones_mode_data *md, zones_real *lam,
                     return -1;
                 }
             }
-            if (nadd > 0 && code == 1 && !(guess && it == 0) && kept_rows(ws, nw) > 0) {
+            if (nadd > 0 && code == 1 && kept_rows(ws, nw) > 0) {
                 /* the bound form's multipliers come with its point: the bounds they release
                  * leave in the round the violated rows join (a primal-dual active set), not
                  * only once the point is feasible (one pass, no factor to update) */

@@ -25,7 +25,7 @@
  */
 #include <math.h>
 #include "drives_internal.h"
-#if DRIVES_GENERATION != 0x2eb6570b2e3a3bf
+#if DRIVES_GENERATION != 0xf65b46b292f68c9
 #error "drives_solver.c and drives_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
 #endif
 
@@ -2771,7 +2771,7 @@ static int polish(drives_work *ws, const drives_mode_data *md, drives_real *lam,
                     return -1;
                 }
             }
-            if (nadd > 0 && code == 1 && !(guess && it == 0) && kept_rows(ws, nw) > 0) {
+            if (nadd > 0 && code == 1 && kept_rows(ws, nw) > 0) {
                 /* the bound form's multipliers come with its point: the bounds they release
                  * leave in the round the violated rows join (a primal-dual active set), not
                  * only once the point is feasible (one pass, no factor to update) */
