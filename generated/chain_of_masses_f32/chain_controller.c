@@ -10,7 +10,7 @@
  */
 #include <math.h>
 #include "chain_internal.h"
-#if CHAIN_GENERATION != 0xd987e456deed95b
+#if CHAIN_GENERATION != 0xe444880109b493d
 #error "chain_controller.c and chain_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
 #endif
 

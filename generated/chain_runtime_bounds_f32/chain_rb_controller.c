@@ -10,7 +10,7 @@
  */
 #include <math.h>
 #include "chain_rb_internal.h"
-#if CHAIN_RB_GENERATION != 0xd9a291bf3661ebb
+#if CHAIN_RB_GENERATION != 0xf90d362446cc81b
 #error "chain_rb_controller.c and chain_rb_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
 #endif
 

@@ -18,7 +18,7 @@
 #include <stddef.h>
 #include <stdint.h>
 #include "fwlat_config.h"
-#if FWLAT_GENERATION != 0xdcdafb657b07878
+#if FWLAT_GENERATION != 0x80858c777ac8a79
 #error "fwlat.h and fwlat_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
 #endif
 

@@ -12,7 +12,7 @@
  */
 #include <math.h>
 #include "fwlat_internal.h"
-#if FWLAT_GENERATION != 0xdcdafb657b07878
+#if FWLAT_GENERATION != 0x80858c777ac8a79
 #error "fwlat_linalg.c and fwlat_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
 #endif
 

@@ -25,7 +25,7 @@
  */
 #include <math.h>
 #include "fwlat_internal.h"
-#if FWLAT_GENERATION != 0xdcdafb657b07878
+#if FWLAT_GENERATION != 0x80858c777ac8a79
 #error "fwlat_solver.c and fwlat_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
 #endif
 
@@ -2978,7 +2978,7 @@ static int polish(fwlat_work *ws, const fwlat_mode_data *md, fwlat_real *lam,
         int nadd, dual; /* dual: a guess' wset[0..dual) dual feasible, factored, or -1 */
         ++*iterations;
         if (box) { /* a subset of input bounds stays one: drop_negative() keeps it */
-            /* primal: bound rows first; the multipliers only at a feasible point */
+            /* primal: bound rows first; the free form's multipliers only at a feasible point */
             repeatable = 0;
             code = primal_solve(ws, md, nw, primal_reserve(md));
             if (code == OUT_OF_WORK) {
@@ -2996,22 +2996,24 @@ static int polish(fwlat_work *ws, const fwlat_mode_data *md, fwlat_real *lam,
                 }
                 continue; /* its first point is the next round's, no longer the guess's */
             }
-            if (nadd > 0 && guess && it == 0) {
-                /* a guess whose first point has most multipliers negative (a reference step
-                 * reversed the saturation) is given up before it grows, by given_up() */
-                if (code == 0) {
-                    free_multipliers(ws, md, nw);
+            if (nadd > 0) {
+                if (guess && it == 0) {
+                    /* a guess whose first point has most multipliers negative (a reference
+                     * step reversed the saturation) is given up before it grows */
+                    if (code == 0) {
+                        free_multipliers(ws, md, nw);
+                    }
+                    if (given_up(kept_rows(ws, nw), nw, 1)) {
+                        return -1;
+                    }
                 }
-                if (given_up(kept_rows(ws, nw), nw, 1)) {
-                    return -1;
+                if (code == 1 && kept_rows(ws, nw) > 0) {
+                    /* the bound form's multipliers come with its point: the bounds they
+                     * release leave in the round the violated rows join (a primal-dual
+                     * active set), not only once the point is feasible (one pass) */
+                    (void)drop_negative(ws, md, &nw, 0);
+                    known = nw;
                 }
-            }
-            if (nadd > 0 && code == 1 && kept_rows(ws, nw) > 0) {
-                /* the bound form's multipliers come with its point: the bounds they release
-                 * leave in the round the violated rows join (a primal-dual active set), not
-                 * only once the point is feasible (one pass, no factor to update) */
-                (void)drop_negative(ws, md, &nw, 0);
-                known = nw;
             }
             if (nadd == 0) {
                 if (code == 0) {

@@ -12,7 +12,7 @@
  */
 #include <math.h>
 #include "fwlat_internal.h"
-#if FWLAT_GENERATION != 0xaada812ddfbdf58
+#if FWLAT_GENERATION != 0xbef122a6d08ae3b
 #error "fwlat_linalg.c and fwlat_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
 #endif
 

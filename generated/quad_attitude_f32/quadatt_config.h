@@ -28,7 +28,7 @@
  * stops the build unless it is of the same one: a regeneration interrupted between two
  * of its file moves leaves no mixed tree that compiles.
  */
-#define QUADATT_GENERATION 0x3800de080e11403
+#define QUADATT_GENERATION 0xc51487c26e4db03
 
 /* The one place where the precision is chosen. */
 #define QUADATT_PRECISION_DOUBLE 0

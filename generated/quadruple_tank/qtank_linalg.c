@@ -12,7 +12,7 @@
  */
 #include <math.h>
 #include "qtank_internal.h"
-#if QTANK_GENERATION != 0xf0eeadef25632af
+#if QTANK_GENERATION != 0xe56d24f1909772e
 #error "qtank_linalg.c and qtank_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
 #endif
 

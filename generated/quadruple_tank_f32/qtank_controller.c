@@ -10,7 +10,7 @@
  */
 #include <math.h>
 #include "qtank_internal.h"
-#if QTANK_GENERATION != 0x931ad7f4e6b7569
+#if QTANK_GENERATION != 0x95899b5d3c69185
 #error "qtank_controller.c and qtank_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
 #endif
 

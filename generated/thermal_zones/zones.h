@@ -18,7 +18,7 @@
 #include <stddef.h>
 #include <stdint.h>
 #include "zones_config.h"
-#if ZONES_GENERATION != 0xea60295c17c106e
+#if ZONES_GENERATION != 0x5cf1477bb060aa8
 #error "zones.h and zones_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
 #endif
 

@@ -10,7 +10,7 @@
  */
 #include <math.h>
 #include "zones_internal.h"
-#if ZONES_GENERATION != 0xea60295c17c106e
+#if ZONES_GENERATION != 0x5cf1477bb060aa8
 #error "zones_controller.c and zones_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
 #endif
 

@@ -18,7 +18,7 @@
 #include <stddef.h>
 #include <stdint.h>
 #include "zones_config.h"
-#if ZONES_GENERATION != 0xc8990e0f92322af
+#if ZONES_GENERATION != 0x4f9970c024598b2
 #error "zones.h and zones_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
 #endif
 

@@ -10,7 +10,7 @@
  */
 #include <math.h>
 #include "zrate_internal.h"
-#if ZRATE_GENERATION != 0x08a9ff776c6cd78
+#if ZRATE_GENERATION != 0x8d414facabc8054
 #error "zrate_controller.c and zrate_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
 #endif
 

@@ -18,7 +18,7 @@
 #include <stddef.h>
 #include <stdint.h>
 #include "zrate_config.h"
-#if ZRATE_GENERATION != 0xdd74b50dde60473
+#if ZRATE_GENERATION != 0xc8862a6f614c31a
 #error "zrate.h and zrate_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
 #endif
 

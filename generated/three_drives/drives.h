@@ -18,7 +18,7 @@
 #include <stddef.h>
 #include <stdint.h>
 #include "drives_config.h"
-#if DRIVES_GENERATION != 0x258531bb10c3a51
+#if DRIVES_GENERATION != 0x026abafd28f060f
 #error "drives.h and drives_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
 #endif
 

@@ -7,7 +7,7 @@
 
 #include <math.h>
 #include "drives.h"
-#if DRIVES_GENERATION != 0x258531bb10c3a51
+#if DRIVES_GENERATION != 0x026abafd28f060f
 #error "drives_internal.h and drives_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
 #endif
 

@@ -18,7 +18,7 @@
 #include <stddef.h>
 #include <stdint.h>
 #include "drives_config.h"
-#if DRIVES_GENERATION != 0xf65b46b292f68c9
+#if DRIVES_GENERATION != 0x8773073d30498eb
 #error "drives.h and drives_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
 #endif
 

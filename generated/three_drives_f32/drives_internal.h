@@ -7,7 +7,7 @@
 
 #include <math.h>
 #include "drives.h"
-#if DRIVES_GENERATION != 0xf65b46b292f68c9
+#if DRIVES_GENERATION != 0x8773073d30498eb
 #error "drives_internal.h and drives_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
 #endif
 

@@ -7,7 +7,7 @@
 
 #include <math.h>
 #include "rollmpc.h"
-#if ROLLMPC_GENERATION != 0x22c8be6e45d64f0
+#if ROLLMPC_GENERATION != 0x4c25104f2a4a0cb
 #error "rollmpc_internal.h and rollmpc_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
 #endif
 

@@ -12,7 +12,7 @@
  */
 #include <math.h>
 #include "rollmpc_internal.h"
-#if ROLLMPC_GENERATION != 0x22c8be6e45d64f0
+#if ROLLMPC_GENERATION != 0x4c25104f2a4a0cb
 #error "rollmpc_linalg.c and rollmpc_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
 #endif
 
