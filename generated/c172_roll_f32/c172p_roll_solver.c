@@ -25,7 +25,7 @@
  */
 #include <math.h>
 #include "c172p_roll_internal.h"
-#if C172P_ROLL_GENERATION != 0x8a0bfe0983fd224
+#if C172P_ROLL_GENERATION != 0xfd822877b73af97
 #error "c172p_roll_solver.c and c172p_roll_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
 #endif
 
@@ -2772,10 +2772,11 @@ static int polish(c172p_roll_work *ws, const c172p_roll_mode_data *md, c172p_rol
                         return -1;
                     }
                 }
-                if (code == 1 && kept_rows(ws, nw) > 0) {
+                if (code == 1) {
                     /* the bound form's multipliers come with its point: the bounds they
                      * release leave in the round the violated rows join (a primal-dual
-                     * active set), not only once the point is feasible (one pass) */
+                     * active set), not only once the point is feasible (one pass; with
+                     * every multiplier negative, given_up() keeps the set) */
                     (void)drop_negative(ws, md, &nw, 0);
                     known = nw;
                 }

@@ -10,7 +10,7 @@
  */
 #include <math.h>
 #include "chain_rb_internal.h"
-#if CHAIN_RB_GENERATION != 0xf90d362446cc81b
+#if CHAIN_RB_GENERATION != 0xf5aa3504d189190
 #error "chain_rb_controller.c and chain_rb_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
 #endif
 

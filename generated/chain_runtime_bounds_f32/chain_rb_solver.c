@@ -25,7 +25,7 @@
  */
 #include <math.h>
 #include "chain_rb_internal.h"
-#if CHAIN_RB_GENERATION != 0xf90d362446cc81b
+#if CHAIN_RB_GENERATION != 0xf5aa3504d189190
 #error "chain_rb_solver.c and chain_rb_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
 #endif
 
@@ -2787,10 +2787,11 @@ static int polish(chain_rb_work *ws, const chain_rb_mode_data *md, chain_rb_real
                         return -1;
                     }
                 }
-                if (code == 1 && kept_rows(ws, nw) > 0) {
+                if (code == 1) {
                     /* the bound form's multipliers come with its point: the bounds they
                      * release leave in the round the violated rows join (a primal-dual
-                     * active set), not only once the point is feasible (one pass) */
+                     * active set), not only once the point is feasible (one pass; with
+                     * every multiplier negative, given_up() keeps the set) */
                     (void)drop_negative(ws, md, &nw, 0);
                     known = nw;
                 }

@@ -28,7 +28,7 @@
  * stops the build unless it is of the same one: a regeneration interrupted between two
  * of its file moves leaves no mixed tree that compiles.
  */
-#define FWLAT_GENERATION 0x80858c777ac8a79
+#define FWLAT_GENERATION 0x3c5fef04cf498d9
 
 /* The one place where the precision is chosen. */
 #define FWLAT_PRECISION_DOUBLE 1

@@ -28,7 +28,7 @@
  * stops the build unless it is of the same one: a regeneration interrupted between two
  * of its file moves leaves no mixed tree that compiles.
  */
-#define QTANK_GENERATION 0xe56d24f1909772e
+#define QTANK_GENERATION 0x78b4b5877251b04
 
 /* The one place where the precision is chosen. */
 #define QTANK_PRECISION_DOUBLE 1

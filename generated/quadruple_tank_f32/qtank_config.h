@@ -28,7 +28,7 @@
  * stops the build unless it is of the same one: a regeneration interrupted between two
  * of its file moves leaves no mixed tree that compiles.
  */
-#define QTANK_GENERATION 0x95899b5d3c69185
+#define QTANK_GENERATION 0x8a33fad98e25658
 
 /* The one place where the precision is chosen. */
 #define QTANK_PRECISION_DOUBLE 0

@@ -25,7 +25,7 @@
  */
 #include <math.h>
 #include "zones_internal.h"
-#if ZONES_GENERATION != 0x4f9970c024598b2
+#if ZONES_GENERATION != 0xa43a1560d3eb71e
 #error "zones_solver.c and zones_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
 #endif
 
@@ -2772,10 +2772,11 @@ static int polish(zones_work *ws, const zones_mode_data *md, zones_real *lam,
                         return -1;
                     }
                 }
-                if (code == 1 && kept_rows(ws, nw) > 0) {
+                if (code == 1) {
                     /* the bound form's multipliers come with its point: the bounds they
                      * release leave in the round the violated rows join (a primal-dual
-                     * active set), not only once the point is feasible (one pass) */
+                     * active set), not only once the point is feasible (one pass; with
+                     * every multiplier negative, given_up() keeps the set) */
                     (void)drop_negative(ws, md, &nw, 0);
                     known = nw;
                 }

@@ -25,7 +25,7 @@
  */
 #include <math.h>
 #include "zrate_internal.h"
-#if ZRATE_GENERATION != 0x8d414facabc8054
+#if ZRATE_GENERATION != 0x9cc3c599e47c32e
 #error "zrate_solver.c and zrate_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
 #endif
 
@@ -2837,10 +2837,11 @@ static int polish(zrate_work *ws, const zrate_mode_data *md, zrate_real *lam,
                         return -1;
                     }
                 }
-                if (code == 1 && kept_rows(ws, nw) > 0) {
+                if (code == 1) {
                     /* the bound form's multipliers come with its point: the bounds they
                      * release leave in the round the violated rows join (a primal-dual
-                     * active set), not only once the point is feasible (one pass) */
+                     * active set), not only once the point is feasible (one pass; with
+                     * every multiplier negative, given_up() keeps the set) */
                     (void)drop_negative(ws, md, &nw, 0);
                     known = nw;
                 }

@@ -25,7 +25,7 @@
  */
 #include <math.h>
 #include "drives_internal.h"
-#if DRIVES_GENERATION != 0x026abafd28f060f
+#if DRIVES_GENERATION != 0x209db22218f0fbd
 #error "drives_solver.c and drives_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
 #endif
 
@@ -2772,10 +2772,11 @@ static int polish(drives_work *ws, const drives_mode_data *md, drives_real *lam,
                         return -1;
                     }
                 }
-                if (code == 1 && kept_rows(ws, nw) > 0) {
+                if (code == 1) {
                     /* the bound form's multipliers come with its point: the bounds they
                      * release leave in the round the violated rows join (a primal-dual
-                     * active set), not only once the point is feasible (one pass) */
+                     * active set), not only once the point is feasible (one pass; with
+                     * every multiplier negative, given_up() keeps the set) */
                     (void)drop_negative(ws, md, &nw, 0);
                     known = nw;
                 }

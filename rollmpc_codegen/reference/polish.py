@@ -147,8 +147,8 @@ class PolishMixin:
                     zc = zp if zp is not None else self.free_multipliers(W)
                     if self.given_up(self.kept_rows(zc), W.size, True):
                         return -1, None, 0, its
-                if add.size and zp is not None and self.kept_rows(zp):
-                    W, z, _ = self.drop_negative(W, zp, False)  # the C's primal-dual round
+                if add.size and zp is not None:  # the C's primal-dual round (all negative: kept)
+                    W, z, _ = self.drop_negative(W, zp, False)
                     known = W.size
                 if add.size == 0:
                     if zp is None:
