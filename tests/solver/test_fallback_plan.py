@@ -62,7 +62,7 @@ def _forced_fallbacks(tmp_path, monkeypatch):
         out = solve(self, x, r)
         x, r, U = np.array(x, float), np.array(r, float), np.array(out[1], float)
         samples.append((x, r, out[0], self.from_plan, age, U))
-        if not forced and out[0] == OPTIMAL and k > 100:
+        if not forced and out[0] == OPTIMAL and k > 100:  # past the start's transient
             if np.count_nonzero(signal_rows & (_excess(qp, x, r, U) > -TIGHT)) >= 5:
                 forced.append(k)
         return out
