@@ -25,7 +25,6 @@ from rollmpc_codegen.sim.simulate import run_closed_loop
 from rollmpc_codegen.status import OPTIMAL, TIME_LIMIT
 
 PMSM = ROOT / "tests" / "data" / "heavy" / "pmsm_speed.yaml"
-TOL = 1e-4  # the float solver's feasibility tolerance, relative to max(1, |rhs|)
 TIGHT = 1e-3  # a row within this of its bound is tight
 
 
@@ -47,17 +46,17 @@ def _excess(qp, x, r, U):
 def _forced_fallbacks(tmp_path, monkeypatch):
     """The nominal loop without a budget, forced to fall back on the N samples after
     the first OPTIMAL one whose plan holds tight q-current rows: per sample (x, R, status,
-    from_plan, the plan's age before it, U), and the model's QP."""
+    from_plan, the plan's age before it, U), the model's QP and config."""
     path = edited_config(tmp_path, PMSM, "pmsm_unbudgeted",
                          lambda d: d["solver"].update(work_budget=1_000_000_000))
     model, ctx = load_model(path, "float")
-    cfg, qp = model.config, model.modes[0].qp
+    cfg, qp, budget = model.config, model.modes[0].qp, ctx["solver"]["work_budget"]
     signal_rows = qp.row_kind == SIGNAL.code
     solve, samples, forced = SolverRef.qp_solve, [], []
 
     def recording(self, x, r):
         k = len(samples)
-        self.budget = 0 if forced and forced[0] < k <= forced[0] + cfg.horizon else 10**9
+        self.budget = 0 if forced and forced[0] < k <= forced[0] + cfg.horizon else budget
         age = self.last_plan.age  # samples since the plan was optimal, before this one
         out = solve(self, x, r)
         x, r, U = np.array(x, float), np.array(r, float), np.array(out[1], float)
@@ -71,11 +70,12 @@ def _forced_fallbacks(tmp_path, monkeypatch):
     ref = ControllerRef(ctx, [m.data for m in model.modes])
     run_closed_loop(cfg, ref, steps=len(scenario_reference(cfg)))
     assert forced, "no OPTIMAL plan with tight q-current rows"
-    return qp, cfg.horizon, forced[0], samples
+    return qp, cfg, forced[0], samples
 
 
 def test_the_shifted_plan_keeps_every_hard_row_it_still_plans(tmp_path, monkeypatch):
-    qp, horizon, k0, samples = _forced_fallbacks(tmp_path, monkeypatch)
+    qp, cfg, k0, samples = _forced_fallbacks(tmp_path, monkeypatch)
+    horizon, tol = cfg.horizon, cfg.feasibility_tol  # relative to max(1, |rhs|)
     nu, stage = qp.nu, _row_stages(qp)
     optimal_plan = samples[k0][5]
     tight_checked = 0
@@ -86,7 +86,7 @@ def test_the_shifted_plan_keeps_every_hard_row_it_still_plans(tmp_path, monkeypa
         assert np.array_equal(U, np.concatenate((optimal_plan[age * nu:], held)).astype(U.dtype))
         excess = _excess(qp, x, r, U)
         planned = stage <= horizon - 1 - age
-        assert excess[planned].max() <= TOL, (age, excess[planned].max())
+        assert excess[planned].max() <= tol, (age, excess[planned].max())
         tight_checked += np.count_nonzero(planned & (qp.row_kind == SIGNAL.code)
                                           & (excess > -TIGHT))
     assert tight_checked >= 20  # q-current rows at their bound are among those held
