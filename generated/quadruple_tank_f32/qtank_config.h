@@ -28,7 +28,7 @@
  * stops the build unless it is of the same one: a regeneration interrupted between two
  * of its file moves leaves no mixed tree that compiles.
  */
-#define QTANK_GENERATION 0x8a33fad98e25658
+#define QTANK_GENERATION 0x8f1d9fcfdf4607b
 
 /* The one place where the precision is chosen. */
 #define QTANK_PRECISION_DOUBLE 0

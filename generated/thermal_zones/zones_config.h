@@ -28,7 +28,7 @@
  * stops the build unless it is of the same one: a regeneration interrupted between two
  * of its file moves leaves no mixed tree that compiles.
  */
-#define ZONES_GENERATION 0x8cd6c75c8ef4fcd
+#define ZONES_GENERATION 0xf0d8269b116a113
 
 /* The one place where the precision is chosen. */
 #define ZONES_PRECISION_DOUBLE 1

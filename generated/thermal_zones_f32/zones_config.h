@@ -28,7 +28,7 @@
  * stops the build unless it is of the same one: a regeneration interrupted between two
  * of its file moves leaves no mixed tree that compiles.
  */
-#define ZONES_GENERATION 0xa43a1560d3eb71e
+#define ZONES_GENERATION 0xeab28ff0fe060ea
 
 /* The one place where the precision is chosen. */
 #define ZONES_PRECISION_DOUBLE 0

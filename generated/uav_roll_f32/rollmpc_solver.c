@@ -25,7 +25,7 @@
  */
 #include <math.h>
 #include "rollmpc_internal.h"
-#if ROLLMPC_GENERATION != 0xdca8fe6b1ab35e3
+#if ROLLMPC_GENERATION != 0x1efb0239f1b49a2
 #error "rollmpc_solver.c and rollmpc_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
 #endif
 
@@ -2589,6 +2589,29 @@ static int drop_negative(rollmpc_work *ws, const rollmpc_mode_data *md, int *nw,
 }
 
 /*
+ * drop_negative() for polish(), which also keeps ws->guess_left (wset is in joining order,
+ * and the drops keep it). Returns 2 instead of 1 when a row that joined in this polish is
+ * among those dropped.
+ */
+static int drop_negative_tracked(rollmpc_work *ws, const rollmpc_mode_data *md, int *nw,
+    int guess)
+{
+    int i, code, leaving = 0, joined = 0;
+    for (i = 0; i < *nw; ++i) {
+        if (!(ws->z[i] >= R_(0.0))) {
+            leaving += (i < ws->guess_left);
+            joined |= (i >= ws->guess_left);
+        }
+    }
+    code = drop_negative(ws, md, nw, guess);
+    if (code == 1) {
+        ws->guess_left -= leaving;
+        code += joined;
+    }
+    return code;
+}
+
+/*
  * Do the working-set rows hold (within the feasibility tolerance) at ws->th? predicted:
  * violated_outside() has just predicted the outputs at ws->th into ws->yv (it found no
  * violated row), so only whether they need checking is decided again (outputs_uncertified(),
@@ -2717,8 +2740,8 @@ static void keep_progress(rollmpc_work *ws, const rollmpc_mode_data *md,
  * same, for a guess whose every round was a dual solve that switched soft states or
  * dropped rows: resume_working_set() would repeat them exactly), GUESS_HANDED_OVER (a
  * guess' dual-feasible working set whose violated rows overflow it, or one of which is
- * dependent: the dual active set goes on from that set and its factor, which the appends
- * kept) or OUT_OF_WORK when the budget cannot afford the next step (where: stopped()).
+ * dependent, or a guess' working set after it dropped a row it had added: the dual active
+ * set goes on from that set and its factor, which the appends and drops kept) or OUT_OF_WORK when the budget cannot afford the next step (where: stopped()).
  */
 static int polish(rollmpc_work *ws, const rollmpc_mode_data *md, rollmpc_real *lam,
     int nw, int guess, int *iterations, int *active)
@@ -2732,6 +2755,7 @@ static int polish(rollmpc_work *ws, const rollmpc_mode_data *md, rollmpc_real *l
         return stopped(ws, nw, 0, OUT_OF_WORK);
     }
     ws->work += (uint32_t)md->m;
+    ws->guess_left = nw;
     for (i = 0; i < md->m; ++i) {
         ws->in_set[i] = 0; /* in_set flags the working set from here on */
     }
@@ -2759,6 +2783,7 @@ static int polish(rollmpc_work *ws, const rollmpc_mode_data *md, rollmpc_real *l
                 if (nw < 0) {
                     return -1;
                 }
+                ws->guess_left = nw;
                 continue; /* its first point is the next round's, no longer the guess's */
             }
             if (nadd > 0) {
@@ -2777,7 +2802,7 @@ static int polish(rollmpc_work *ws, const rollmpc_mode_data *md, rollmpc_real *l
                      * release leave in the round the violated rows join (a primal-dual
                      * active set), not only once the point is feasible (one pass; with
                      * every multiplier negative, given_up() keeps the set) */
-                    (void)drop_negative(ws, md, &nw, 0);
+                    (void)drop_negative_tracked(ws, md, &nw, 0);
                     known = nw;
                 }
             }
@@ -2786,7 +2811,7 @@ static int polish(rollmpc_work *ws, const rollmpc_mode_data *md, rollmpc_real *l
                     free_multipliers(ws, md, nw);
                 }
                 known = nw;
-                code = drop_negative(ws, md, &nw, guess);
+                code = drop_negative_tracked(ws, md, &nw, guess);
                 if (code != 0) {
                     if (code < 0) {
                         return stopped(ws, nw, known, code);
@@ -2802,12 +2827,18 @@ static int polish(rollmpc_work *ws, const rollmpc_mode_data *md, rollmpc_real *l
                 return stopped(ws, nw, known, code);
             }
             known = nw;
-            code = drop_negative(ws, md, &nw, guess);
+            code = drop_negative_tracked(ws, md, &nw, guess);
             if (code != 0) {
                 if (code < 0) {
                     return stopped(ws, nw, known, code);
                 }
                 known = nw;
+                if (code == 2 && guess && ROLLMPC_SOLVER_ACTIVE_SET
+                    && ws->chol_holds == ROLLMPC_CHOL_DUAL) {
+                    /* a row the guess added leaves again: rounds that add and drop cycle
+                     * (on pmsm_speed to the rounds cap), the dual active set ends them */
+                    return stopped(ws, nw, known, GUESS_HANDED_OVER);
+                }
                 box = box_only(ws, md, nw); /* the last rows of other kinds may have left */
                 continue;
             }

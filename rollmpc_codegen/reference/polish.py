@@ -43,6 +43,17 @@ class PolishMixin:
             W, z = self.remove_row(W, z, k)
         return W, z, 1
 
+    def drop_negative_tracked(self, W, z, guess):
+        """Mirror of drop_negative_tracked(): drop_negative()'s (W, z, code), keeping
+        ``guess_left`` (W[:guess_left] are the guess's rows still in W); code 2 instead of 1
+        when a row that joined in this polish is among those dropped."""
+        neg = np.flatnonzero(~(z >= 0))
+        W, z, code = self.drop_negative(W, z, guess)
+        if code == 1:
+            code += bool(np.any(neg >= self.guess_left))
+            self.guess_left -= int(np.count_nonzero(neg < self.guess_left))
+        return W, z, code
+
     def working_set_holds(self, W, z, th, gam, predicted=False):
         """Mirror of working_set_holds() (violated_in_set() with soft rows) at th;
         ``predicted``: violated_outside() has just predicted the outputs at th."""
@@ -124,6 +135,7 @@ class PolishMixin:
         if not self.afford(md.m):
             return self.stopped(W, z, 0, OUT_OF_WORK), th, 0, its
         self.work += md.m
+        self.guess_left = W.size
         for _ in range(self.polish_max):
             its += 1
             if self.box_only(W):
@@ -142,19 +154,20 @@ class PolishMixin:
                     W = self.trim_guess(W, lam, K)  # before free_multipliers()
                     if W is None:
                         return -1, None, 0, its
+                    self.guess_left = W.size
                     continue
                 if add.size and guess and its == 1:  # the C's early test of a guess
                     zc = zp if zp is not None else self.free_multipliers(W)
                     if self.given_up(self.kept_rows(zc), W.size, True):
                         return -1, None, 0, its
                 if add.size and zp is not None:  # the C's primal-dual round (all negative: kept)
-                    W, z, _ = self.drop_negative(W, zp, False)
+                    W, z, _ = self.drop_negative_tracked(W, zp, False)
                     known = W.size
                 if add.size == 0:
                     if zp is None:
                         z = self.free_multipliers(W)
                     known = W.size
-                    W, z, code = self.drop_negative(W, z, guess)
+                    W, z, code = self.drop_negative_tracked(W, z, guess)
                     if code < 0:
                         return self.stopped(W, z, known, code), th, 0, its
                     if code:
@@ -172,11 +185,14 @@ class PolishMixin:
                         return self.stopped(W, z, known, code), th, 0, its
                     if code:
                         continue
-                W, z, code = self.drop_negative(W, z, guess)
+                W, z, code = self.drop_negative_tracked(W, z, guess)
                 if code < 0:
                     return self.stopped(W, z, known, code), th, 0, its
                 if code:
                     known = W.size
+                    if code == 2 and guess and self.active_set and self.chol_holds == CHOL_DUAL:
+                        # a row the guess added leaves again: the dual active set ends the cycle
+                        return self.stopped(W, z, known, GUESS_HANDED_OVER), th, 0, its
                     continue
                 repeatable = False  # dual feasible: the resume would stop here
                 if not self.afford(correct_work(md, W.size) + 2 * scan_work(md) + md.m):

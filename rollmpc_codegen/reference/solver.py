@@ -71,6 +71,7 @@ class SolverRef(SignalsMixin, UnconstrainedMixin, RowsMixin, SoftRowsMixin, Swee
         # the build's has_rate_rows (some mode has Δu rows): that mode's own, alone
         self.build_rate_rows = md.has_rate_rows if build_rate_rows is None else build_rate_rows
         self.th_solved = None
+        self.guess_left = 0  # ws->guess_left: see polish.drop_negative_tracked()
         self.dt = md.Kx.dtype.type
         dt = self.dt
         s = solver_ctx
