@@ -18,7 +18,7 @@
 #include <stddef.h>
 #include <stdint.h>
 #include "c172p_roll_config.h"
-#if C172P_ROLL_GENERATION != 0xa4d1cdd1edda332
+#if C172P_ROLL_GENERATION != 0x570b13987e00329
 #error "c172p_roll.h and c172p_roll_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
 #endif
 
@@ -125,8 +125,8 @@ typedef struct {
     uint32_t work_limit;                          /**< What the running part may spend up to (afford()). */
     int stop_rows;                                /**< Rows of wset where polish() ran out of work, */
     int stop_known;                               /**< the first of them with multipliers in z. */
-    int guess_left;                               /**< In polish(): wset[0..guess_left) are the shifted
-                                                       guess' rows still in its working set. */
+    int guess_left;                               /**< In polish(): wset[0..guess_left) are the rows it
+                                                       started from (a guess') still in its set. */
     int from_plan;                                /**< This solve's TIME_LIMIT fell back to the mode's last plan. */
     int th_solved;                                /**< th is this solve's last primal solve: a working set's exact point. */
 } c172p_roll_work;

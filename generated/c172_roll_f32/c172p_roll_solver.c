@@ -25,7 +25,7 @@
  */
 #include <math.h>
 #include "c172p_roll_internal.h"
-#if C172P_ROLL_GENERATION != 0x0ed0e9d0a267043
+#if C172P_ROLL_GENERATION != 0x1d74a2ee076283f
 #error "c172p_roll_solver.c and c172p_roll_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
 #endif
 
@@ -2741,7 +2741,8 @@ static void keep_progress(c172p_roll_work *ws, const c172p_roll_mode_data *md,
  * dropped rows: resume_working_set() would repeat them exactly), GUESS_HANDED_OVER (a
  * guess' dual-feasible working set whose violated rows overflow it, or one of which is
  * dependent, or a guess' working set after it dropped a row it had added: the dual active
- * set goes on from that set and its factor, which the appends and drops kept) or OUT_OF_WORK when the budget cannot afford the next step (where: stopped()).
+ * set goes on from that set and its factor, which the appends and drops kept) or
+ * OUT_OF_WORK when the budget cannot afford the next step (where: stopped()).
  */
 static int polish(c172p_roll_work *ws, const c172p_roll_mode_data *md, c172p_roll_real *lam,
     int nw, int guess, int *iterations, int *active)

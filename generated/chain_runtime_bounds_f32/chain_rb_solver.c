@@ -25,7 +25,7 @@
  */
 #include <math.h>
 #include "chain_rb_internal.h"
-#if CHAIN_RB_GENERATION != 0x8d04745e3c3f9e3
+#if CHAIN_RB_GENERATION != 0x363a5f19d9f1961
 #error "chain_rb_solver.c and chain_rb_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
 #endif
 
@@ -2756,7 +2756,8 @@ static void keep_progress(chain_rb_work *ws, const chain_rb_mode_data *md,
  * dropped rows: resume_working_set() would repeat them exactly), GUESS_HANDED_OVER (a
  * guess' dual-feasible working set whose violated rows overflow it, or one of which is
  * dependent, or a guess' working set after it dropped a row it had added: the dual active
- * set goes on from that set and its factor, which the appends and drops kept) or OUT_OF_WORK when the budget cannot afford the next step (where: stopped()).
+ * set goes on from that set and its factor, which the appends and drops kept) or
+ * OUT_OF_WORK when the budget cannot afford the next step (where: stopped()).
  */
 static int polish(chain_rb_work *ws, const chain_rb_mode_data *md, chain_rb_real *lam,
     int nw, int guess, int *iterations, int *active)

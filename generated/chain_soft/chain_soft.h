@@ -18,7 +18,7 @@
 #include <stddef.h>
 #include <stdint.h>
 #include "chain_soft_config.h"
-#if CHAIN_SOFT_GENERATION != 0x3315b4e25213aa3
+#if CHAIN_SOFT_GENERATION != 0x257447f40bdb569
 #error "chain_soft.h and chain_soft_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
 #endif
 
@@ -129,8 +129,8 @@ typedef struct {
     uint32_t work_limit;                          /**< What the running part may spend up to (afford()). */
     int stop_rows;                                /**< Rows of wset where polish() ran out of work, */
     int stop_known;                               /**< the first of them with multipliers in z. */
-    int guess_left;                               /**< In polish(): wset[0..guess_left) are the shifted
-                                                       guess' rows still in its working set. */
+    int guess_left;                               /**< In polish(): wset[0..guess_left) are the rows it
+                                                       started from (a guess') still in its set. */
     int from_plan;                                /**< This solve's TIME_LIMIT fell back to the mode's last plan. */
     int th_solved;                                /**< th is this solve's last primal solve: a working set's exact point. */
     uint8_t slack_on[CHAIN_SOFT_M_MAX];         /**< Soft row in the working set with a positive slack. */

@@ -25,7 +25,7 @@
  */
 #include <math.h>
 #include "fwlat_internal.h"
-#if FWLAT_GENERATION != 0x1a2d3a39a2a4756
+#if FWLAT_GENERATION != 0xd8de51dc409733d
 #error "fwlat_solver.c and fwlat_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
 #endif
 
@@ -2976,7 +2976,8 @@ static void keep_progress(fwlat_work *ws, const fwlat_mode_data *md,
  * dropped rows: resume_working_set() would repeat them exactly), GUESS_HANDED_OVER (a
  * guess' dual-feasible working set whose violated rows overflow it, or one of which is
  * dependent, or a guess' working set after it dropped a row it had added: the dual active
- * set goes on from that set and its factor, which the appends and drops kept) or OUT_OF_WORK when the budget cannot afford the next step (where: stopped()).
+ * set goes on from that set and its factor, which the appends and drops kept) or
+ * OUT_OF_WORK when the budget cannot afford the next step (where: stopped()).
  */
 static int polish(fwlat_work *ws, const fwlat_mode_data *md, fwlat_real *lam,
     int nw, int guess, int *iterations, int *active)

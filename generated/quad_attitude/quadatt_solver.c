@@ -25,7 +25,7 @@
  */
 #include <math.h>
 #include "quadatt_internal.h"
-#if QUADATT_GENERATION != 0x19cf543b473426c
+#if QUADATT_GENERATION != 0x33c0d2cc137149b
 #error "quadatt_solver.c and quadatt_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
 #endif
 
@@ -2741,7 +2741,8 @@ static void keep_progress(quadatt_work *ws, const quadatt_mode_data *md,
  * dropped rows: resume_working_set() would repeat them exactly), GUESS_HANDED_OVER (a
  * guess' dual-feasible working set whose violated rows overflow it, or one of which is
  * dependent, or a guess' working set after it dropped a row it had added: the dual active
- * set goes on from that set and its factor, which the appends and drops kept) or OUT_OF_WORK when the budget cannot afford the next step (where: stopped()).
+ * set goes on from that set and its factor, which the appends and drops kept) or
+ * OUT_OF_WORK when the budget cannot afford the next step (where: stopped()).
  */
 static int polish(quadatt_work *ws, const quadatt_mode_data *md, quadatt_real *lam,
     int nw, int guess, int *iterations, int *active)

@@ -25,7 +25,7 @@
  */
 #include <math.h>
 #include "zrate_internal.h"
-#if ZRATE_GENERATION != 0xf99f296b283bfee
+#if ZRATE_GENERATION != 0x757e56a42071c47
 #error "zrate_solver.c and zrate_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
 #endif
 
@@ -2806,7 +2806,8 @@ static void keep_progress(zrate_work *ws, const zrate_mode_data *md,
  * dropped rows: resume_working_set() would repeat them exactly), GUESS_HANDED_OVER (a
  * guess' dual-feasible working set whose violated rows overflow it, or one of which is
  * dependent, or a guess' working set after it dropped a row it had added: the dual active
- * set goes on from that set and its factor, which the appends and drops kept) or OUT_OF_WORK when the budget cannot afford the next step (where: stopped()).
+ * set goes on from that set and its factor, which the appends and drops kept) or
+ * OUT_OF_WORK when the budget cannot afford the next step (where: stopped()).
  */
 static int polish(zrate_work *ws, const zrate_mode_data *md, zrate_real *lam,
     int nw, int guess, int *iterations, int *active)

@@ -28,7 +28,7 @@
  * stops the build unless it is of the same one: a regeneration interrupted between two
  * of its file moves leaves no mixed tree that compiles.
  */
-#define ZRATE_GENERATION 0xe344643432be014
+#define ZRATE_GENERATION 0x0cb0aeb0d1135ad
 
 /* The one place where the precision is chosen. */
 #define ZRATE_PRECISION_DOUBLE 0

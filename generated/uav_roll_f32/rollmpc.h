@@ -18,7 +18,7 @@
 #include <stddef.h>
 #include <stdint.h>
 #include "rollmpc_config.h"
-#if ROLLMPC_GENERATION != 0x1efb0239f1b49a2
+#if ROLLMPC_GENERATION != 0x296565a2f7f0841
 #error "rollmpc.h and rollmpc_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
 #endif
 
@@ -125,8 +125,8 @@ typedef struct {
     uint32_t work_limit;                          /**< What the running part may spend up to (afford()). */
     int stop_rows;                                /**< Rows of wset where polish() ran out of work, */
     int stop_known;                               /**< the first of them with multipliers in z. */
-    int guess_left;                               /**< In polish(): wset[0..guess_left) are the shifted
-                                                       guess' rows still in its working set. */
+    int guess_left;                               /**< In polish(): wset[0..guess_left) are the rows it
+                                                       started from (a guess') still in its set. */
     int from_plan;                                /**< This solve's TIME_LIMIT fell back to the mode's last plan. */
     int th_solved;                                /**< th is this solve's last primal solve: a working set's exact point. */
 } rollmpc_work;

@@ -126,7 +126,7 @@ class PolishMixin:
         ``chol_holds`` says it is W's); returns (0 / -1 / GUESS_CAPPED / GUESS_HANDED_OVER /
         OUT_OF_WORK, th, active, iterations), th after OUT_OF_WORK being the C's ws->th
         then (``th`` on entry) and ``stop`` where it stopped (after GUESS_HANDED_OVER: a
-        guess' dual-feasible rows, with their factor)."""
+        guess' rows, dual feasible or after a drop, with their factor)."""
         md = self.md
         its, known, z = 0, 0, None
         repeatable = guess  # every round so far a dual solve that switched or dropped
