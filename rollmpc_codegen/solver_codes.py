@@ -30,7 +30,7 @@ INTERNAL_CODES = (
     InternalCode("GUESS_CAPPED", -4, "polish",
                  "polish(): a guess that resume_working_set() would repeat"),
     InternalCode("GUESS_HANDED_OVER", -5, "polish",
-                 "polish(): a guess' dual-feasible set goes on (stopped())"),
+                 "polish(): a guess' set goes on, dual feasible or cycling (stopped())"),
     # dual_active_set()'s `from` is a row count (>= 0), -1 (nothing to resume: the warm
     # start may run) or COLD_START; it never meets OUT_OF_WORK, whose value it shares
     InternalCode("COLD_START", -2, "active_set",

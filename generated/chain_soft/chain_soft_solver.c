@@ -2865,7 +2865,7 @@ static int converged(chain_soft_work *ws, const chain_soft_mode_data *md, chain_
 }
 
 #define GUESS_CAPPED (-4) /* polish(): a guess that resume_working_set() would repeat */
-#define GUESS_HANDED_OVER (-5) /* polish(): a guess' dual-feasible set goes on (stopped()) */
+#define GUESS_HANDED_OVER (-5) /* polish(): a guess' set goes on, dual feasible or cycling (stopped()) */
 
 /*
  * Where polish() stopped when the budget ran out (code OUT_OF_WORK), or at a guess'

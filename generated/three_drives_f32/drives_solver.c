@@ -2695,7 +2695,7 @@ static int converged(drives_work *ws, const drives_mode_data *md, drives_real *l
 }
 
 #define GUESS_CAPPED (-4) /* polish(): a guess that resume_working_set() would repeat */
-#define GUESS_HANDED_OVER (-5) /* polish(): a guess' dual-feasible set goes on (stopped()) */
+#define GUESS_HANDED_OVER (-5) /* polish(): a guess' set goes on, dual feasible or cycling (stopped()) */
 
 /*
  * Where polish() stopped when the budget ran out (code OUT_OF_WORK), or at a guess'
