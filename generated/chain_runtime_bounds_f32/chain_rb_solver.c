@@ -25,7 +25,7 @@
  */
 #include <math.h>
 #include "chain_rb_internal.h"
-#if CHAIN_RB_GENERATION != 0x363a5f19d9f1961
+#if CHAIN_RB_GENERATION != 0xe70fc6bb50f9e22
 #error "chain_rb_solver.c and chain_rb_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
 #endif
 
@@ -262,6 +262,15 @@ static uint32_t add_step_work(int nw)
     const uint32_t leave = delete_work(0, nw);
     const uint32_t flip = rank_one_work(nw);
     return 2u * tri_work(nw) + 5u * (uint32_t)nw + ((leave > flip) ? leave : flip);
+}
+
+/*
+ * What the dual active set still spends to accept the resumed working set at its scanned
+ * point without polish(): working_set_holds()' certificate and converged().
+ */
+static uint32_t resumed_check_work(const chain_rb_mode_data *md)
+{
+    return (uint32_t)md->n + 2u * (uint32_t)md->m;
 }
 
 /*
@@ -3081,6 +3090,21 @@ static int resume_working_set(chain_rb_work *ws, const chain_rb_mode_data *md,
     return 0;
 }
 
+/*
+ * Does the resumed working set, dual feasible and with no row violated outside it, also
+ * hold at its point ws->th (most_violated() has just predicted the outputs there)? Then
+ * it is optimal as it stands: polish() would solve it the same way and check the same
+ * rows. Only in the dual form: a box-only set goes to the primal form, whose point is
+ * more accurate.
+ */
+static int resumed_set_holds(chain_rb_work *ws, const chain_rb_mode_data *md, int nw)
+{
+    if (nw > md->n || box_only(ws, md, nw) || !afford(ws, md, resumed_check_work(md))) {
+        return 0;
+    }
+    return working_set_holds(ws, md, nw, 1);
+}
+
 #define COLD_START (-2) /* dual_active_set()'s from: no warm start (the guess' repeat) */
 
 /*
@@ -3103,6 +3127,7 @@ static int dual_active_set(chain_rb_work *ws, const chain_rb_mode_data *md,
     chain_rb_real *lam, int from, int *iterations, int *active)
 {
     int i, nw = 0, steps = 0, code = 0, moved = 0; /* moved: ws->th is a corrected point */
+    int resumed = 0; /* ws->th: the exact dual solve of the resumed set, as polish() would */
     if (!afford(ws, md, (ws->out_slacks_ok ? 0u : (uint32_t)md->m + predict_work(md))
                         + 2u * (uint32_t)md->m)) {
         if (from >= 0) {
@@ -3131,6 +3156,7 @@ static int dual_active_set(chain_rb_work *ws, const chain_rb_mode_data *md,
             return OUT_OF_WORK_AT_TH0;
         }
         moved = (nw > 0); /* resumed: corrected at its working set */
+        resumed = moved;
     }
     for (;;) {
         int p, c;
@@ -3142,6 +3168,7 @@ static int dual_active_set(chain_rb_work *ws, const chain_rb_mode_data *md,
         if (p == 0) {
             break;
         }
+        resumed = 0;
         for (c = 0; c < p && code == 0; ++c) { /* 2: no longer violated, skipped */
             code = add_to_set(ws, md, ws->tmp[c], c > 0, &nw, &steps);
             code = (code == 2) ? 0 : code;
@@ -3163,6 +3190,9 @@ static int dual_active_set(chain_rb_work *ws, const chain_rb_mode_data *md,
     /* the next sample's warm start, until polish() replaces it (its cost is part of the
      * finish() every check reserves: finish() then leaves lam as it is) */
     keep_working_set(ws, md, lam, nw);
+    if (code != OUT_OF_WORK && resumed && resumed_set_holds(ws, md, nw)) {
+        return converged(ws, md, lam, nw, active);
+    }
     i = (code == OUT_OF_WORK) ? OUT_OF_WORK : polish(ws, md, lam, nw, 0, iterations, active);
     if (i == OUT_OF_WORK) {
         *active = nw;

@@ -7,7 +7,7 @@
 
 #include <math.h>
 #include "quadatt.h"
-#if QUADATT_GENERATION != 0xb7db72b54893da5
+#if QUADATT_GENERATION != 0x0b10a450dc709a0
 #error "quadatt_internal.h and quadatt_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
 #endif
 

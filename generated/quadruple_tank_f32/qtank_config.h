@@ -28,7 +28,7 @@
  * stops the build unless it is of the same one: a regeneration interrupted between two
  * of its file moves leaves no mixed tree that compiles.
  */
-#define QTANK_GENERATION 0x3c1844a1a6ca607
+#define QTANK_GENERATION 0x5790c63d0dd62a4
 
 /* The one place where the precision is chosen. */
 #define QTANK_PRECISION_DOUBLE 0

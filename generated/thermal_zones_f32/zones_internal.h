@@ -7,7 +7,7 @@
 
 #include <math.h>
 #include "zones.h"
-#if ZONES_GENERATION != 0x95e9d9256bb6047
+#if ZONES_GENERATION != 0xe9608b936aa72d3
 #error "zones_internal.h and zones_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
 #endif
 

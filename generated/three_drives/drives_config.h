@@ -28,7 +28,7 @@
  * stops the build unless it is of the same one: a regeneration interrupted between two
  * of its file moves leaves no mixed tree that compiles.
  */
-#define DRIVES_GENERATION 0x98b86829a0c3e9a
+#define DRIVES_GENERATION 0x6a85bd8c701a47a
 
 /* The one place where the precision is chosen. */
 #define DRIVES_PRECISION_DOUBLE 1

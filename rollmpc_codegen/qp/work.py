@@ -69,6 +69,13 @@ def scan_work(m) -> int:
     return 3 * m.m + m.n + m.nzq + predict_work(m)
 
 
+@formula()
+def resumed_check_work(m) -> int:
+    """What the dual active set still spends to accept the resumed working set at its
+    scanned point without polish(): working_set_holds()' certificate and converged()."""
+    return m.n + 2 * m.m + m.nzq
+
+
 @formula(uint=("nin", "nout"))
 def correct_cost(m, count: int, nin: int, nout: int) -> int:
     """correct() over ``count`` rows whose multipliers reach ``nin`` input and ``nout``

@@ -12,7 +12,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..qp.work import (add_step_work, correct_work, factor_work, hq_work, independent_work,
-                       predict_work, scan_work, tri_work)
+                       predict_work, resumed_check_work, scan_work, tri_work)
 from .linalg import chol_ltsolve, seqsum
 from .factor_update import pivot_independent
 from ..solver_codes import CHOL_DUAL, COLD_START, OUT_OF_WORK, OUT_OF_WORK_AT_TH0
@@ -171,6 +171,17 @@ class ActiveSetMixin:
         self.chol_holds, self.chol_set = CHOL_DUAL, W[:0]
         return 0, th0
 
+    def resumed_set_holds(self, W, z, th, gam):
+        """Mirror of resumed_set_holds(): does the resumed working set, dual feasible and
+        with no row violated outside it, also hold at its point (then it is optimal)?  Only
+        in the dual form, which polish() would solve the same way: a box-only set goes to
+        the primal form, whose point is more accurate."""
+        if W.size > self.wcap or self.box_only(W):
+            return False
+        if not self.afford(resumed_check_work(self.md)):
+            return False
+        return self.working_set_holds(W, z, th, gam, predicted=True)
+
     def dual_active_set(self, lam, th0, K, gam, from_=-1):
         """Mirror of dual_active_set() (``from_``: the rows of ``stop``, where the guess
         stopped; -1: none; COLD_START: no warm start either): (code 0/1/-1/OUT_OF_WORK/
@@ -195,6 +206,7 @@ class ActiveSetMixin:
                 self.keep_progress(lam)
                 return OUT_OF_WORK_AT_TH0, th, 0, st["steps"]
             moved = nw > 0  # resumed: corrected at its working set
+        resumed = moved  # th: the exact dual solve of W, what polish() would compute again
         code = 0
         while True:
             if not self.afford(scan_work(md) + md.m):
@@ -203,6 +215,7 @@ class ActiveSetMixin:
             cands = self.most_violated(th, gam, st["in_set"])
             if not cands.size:
                 break
+            resumed = False
             for c, p in enumerate(cands):  # 2: no longer violated, skipped
                 code = self.add_to_set(p, st, c > 0)
                 code = 0 if code == 2 else code
@@ -223,6 +236,8 @@ class ActiveSetMixin:
         self.keep_working_set(lam, W, st["z"])  # the warm start, until the polish's
         if code == OUT_OF_WORK:
             return (OUT_OF_WORK if moved else OUT_OF_WORK_AT_TH0), th, W.size, st["steps"]
+        if resumed and self.resumed_set_holds(W, st["z"], th, gam):
+            return 0, th, self.converged(lam, W, st["z"]), st["steps"]
         code2, th_p, act, its = self.polish(W, lam, th0, K, gam, th=th)
         if code2 == 0:
             return 0, th_p, act, st["steps"] + its

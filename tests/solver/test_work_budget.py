@@ -222,9 +222,9 @@ def test_time_limit_is_bit_exact_with_the_reference(fw_small):
     bad, seen = lockstep_closed_loop(fw_small, 700)
     assert bad == []
     statuses = [s for s, _ in seen]
-    # measured 155 and 545 (double), 79 and 621 (float) with the back substitution's sums
-    # in decreasing k (91 and 609 before it, in float)
-    assert statuses.count(TIME_LIMIT) >= 60 and statuses.count(OPTIMAL) >= 400
+    # enough stops to exercise them: measured 59 TIME_LIMIT and 641 OPTIMAL (float); fewer
+    # stops since an optimal resumed working set is accepted without polish
+    assert statuses.count(TIME_LIMIT) >= 40 and statuses.count(OPTIMAL) >= 400
     assert max(w for _, w in seen) <= budget
 
 
@@ -288,7 +288,9 @@ def _assert_safe(log, works, budget, md):
 def test_randomized_loop_stays_within_a_small_budget(fw_small):
     log, works, budget = _randomized_loop(fw_small)
     _assert_safe(log, works, budget, fw_small.model.modes[0].data)
-    assert np.count_nonzero(log.status == TIME_LIMIT) >= 100  # the budget binds: 150, 200
+    # the budget binds: measured 75 (float; 150 before an optimal resumed set was accepted
+    # without polish)
+    assert np.count_nonzero(log.status == TIME_LIMIT) >= 40
 
 
 def test_randomized_loop_recovers_within_the_default_budget(fw_default):
