@@ -13,6 +13,7 @@ from __future__ import annotations
 import copy
 
 import numpy as np
+import pytest
 
 from conftest import ROOT, Built, lockstep_closed_loop
 from rollmpc_codegen.reference.solver import SolverRef
@@ -21,8 +22,11 @@ from rollmpc_codegen.status import OPTIMAL, TIME_LIMIT
 PMSM = ROOT / "tests" / "data" / "heavy" / "pmsm_speed.yaml"
 
 
-def test_an_optimal_resumed_set_is_accepted_as_polish_would(build_root, monkeypatch):
-    built = Built(PMSM, "float", build_root)
+def _recorded_hits(monkeypatch, built, steps):
+    """The lockstep closed loop of ``built`` with every accepted resumed set checked
+    against polish() on a copy of the solver as it stands there, free of the budget:
+    (C/reference mismatches, (status, work) of every sample, one tuple per hit: polish's
+    code, same point, same active count, same warm start, polish spent more)."""
     args, hits = [], []
     dual_active_set, holds = SolverRef.dual_active_set, SolverRef.resumed_set_holds
 
@@ -34,8 +38,6 @@ def test_an_optimal_resumed_set_is_accepted_as_polish_would(build_root, monkeypa
             args.pop()
 
     def checked_holds(self, W, z, th, gam):
-        # polish() on a copy of the solver as it stands here, free of the budget: where
-        # the budget stopped it, the shortcut is what turns the sample OPTIMAL
         twin, (lam, th0, K, _) = copy.deepcopy(self), args[-1]
         twin.work_limit = 10**9
         accepted = holds(self, W, z, th, gam)
@@ -45,12 +47,17 @@ def test_an_optimal_resumed_set_is_accepted_as_polish_would(build_root, monkeypa
             kept = np.zeros_like(lam_p)
             kept[W] = z  # the warm start converged() leaves
             hits.append((code, th_p.tobytes() == th.tobytes(), active == W.size,
-                         lam_p.tobytes() == kept.tobytes(), twin.work > self.work))
+                         lam_p.tobytes() == kept.tobytes(), bool(twin.work > self.work)))
         return accepted
 
     monkeypatch.setattr(SolverRef, "dual_active_set", recording_dual_active_set)
     monkeypatch.setattr(SolverRef, "resumed_set_holds", checked_holds)
-    bad, seen = lockstep_closed_loop(built, 160)
+    bad, seen = lockstep_closed_loop(built, steps)
+    return bad, seen, hits
+
+
+def test_an_optimal_resumed_set_is_accepted_as_polish_would(build_root, monkeypatch):
+    bad, seen, hits = _recorded_hits(monkeypatch, Built(PMSM, "float", build_root), 160)
     statuses = [s for s, _ in seen]
     assert bad == []
     assert len(hits) >= 10
@@ -59,3 +66,20 @@ def test_an_optimal_resumed_set_is_accepted_as_polish_would(build_root, monkeypa
     # 146-156 were TIME_LIMIT without the shortcut; the run of stops still starts at 130
     assert all(s == OPTIMAL for s in statuses[146:157])
     assert statuses[130] == TIME_LIMIT
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("config, fewest", [
+    # soft pitch rows and Δu rows: 51 hits over the scenario (float)
+    (ROOT / "tests" / "data" / "heavy" / "fw_longitudinal.yaml", 40),
+    # Δu rows: 6 hits
+    (ROOT / "examples" / "thermal_zones_rate.yaml", 4),
+])
+def test_the_shortcut_agrees_with_polish_on_soft_and_rate_rows(build_root, monkeypatch,
+                                                               config, fewest):
+    """The same equivalence where polish() would also switch slack states (soft rows) and
+    read Δu quantities, over the whole scenario."""
+    bad, _, hits = _recorded_hits(monkeypatch, Built(config, "float", build_root), 100000)
+    assert bad == []
+    assert len(hits) >= fewest
+    assert all(h == (0, True, True, True, True) for h in hits)
