@@ -104,7 +104,7 @@ CORTEX_M7 = Core(
     name="cortex-m7", label="Cortex-M7 (FPv5-D16)", short="m7",
     cflags=("-mcpu=cortex-m7", "-mthumb", "-mfpu=fpv5-d16", "-mfloat-abi=hard"),
     fpu_double=True, emulator_cpu="UC_CPU_ARM_CORTEX_M7", cycle_model="m7",
-    cycle_band="-15 %/+35 % (caches not modelled)",
+    cycle_band="-15 %/+40 % (caches not modelled)",
     work_unit_cycles=(("float", 13.5), ("double", 17.0)), code_bytes=36 * KIB)
 
 # the M4's table, neighbouring loads and stores pipelined, a one-cycle branch refill (LLVM

@@ -58,11 +58,13 @@ def largest_control_horizon(cfg: ControllerConfig, test: Test) -> int | None:
 
 
 def at_least(value: float) -> str:
-    """``value`` rounded up to three significant digits: a bound that still holds."""
+    """``value`` rounded up to three significant digits: a bound that still holds (from
+    1,000 up as a whole number with thousands separators, never in exponent form)."""
     if value <= 0:
         return "0"
     scale = 10.0 ** (math.floor(math.log10(value)) - 2)
-    return f"{math.ceil(value / scale - 1e-9) * scale:.3g}"
+    rounded = math.ceil(value / scale - 1e-9) * scale
+    return f"{rounded:,.0f}" if rounded >= 1000 else f"{rounded:.3g}"
 
 
 def what_fits(cfg: ControllerConfig, test: Test, scalings: list[str]) -> str:

@@ -101,3 +101,15 @@ def test_the_budget_check_reads_the_sizes_as_it_reads_the_stored_data():
     sizes = [mode_sizes(cfg, m) for m in cfg.modes]
     assert check_work_budget(cfg, sizes, 1) == check_work_budget(
         cfg, [mm.data for mm in model.modes], 1)
+
+
+def test_what_fits_bounds_read_as_numbers_a_user_can_paste():
+    """A bound is rounded up (it still holds) and never in exponent form: quad_attitude's
+    certificate once said "target.cpu_mhz >= 2.64e+03"."""
+    from rollmpc_codegen.qp.fits import at_least
+
+    assert at_least(2638.0) == "2,640"
+    assert at_least(174.2) == "175"
+    assert at_least(0.5163) == "0.517"
+    assert at_least(1.2e6) == "1,200,000"
+    assert all("e" not in at_least(v) for v in np.geomspace(1e-3, 1e9, 50))
