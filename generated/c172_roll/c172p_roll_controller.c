@@ -10,7 +10,7 @@
  */
 #include <math.h>
 #include "c172p_roll_internal.h"
-#if C172P_ROLL_GENERATION != 0x7f3d6f467becc64
+#if C172P_ROLL_GENERATION != 0xe7919275b384ea4
 #error "c172p_roll_controller.c and c172p_roll_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
 #endif
 

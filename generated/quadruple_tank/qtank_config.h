@@ -28,7 +28,7 @@
  * stops the build unless it is of the same one: a regeneration interrupted between two
  * of its file moves leaves no mixed tree that compiles.
  */
-#define QTANK_GENERATION 0x3c0bdd006a0db19
+#define QTANK_GENERATION 0x2034c6c1bff317d
 
 /* The one place where the precision is chosen. */
 #define QTANK_PRECISION_DOUBLE 1

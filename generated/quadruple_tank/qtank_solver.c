@@ -25,7 +25,7 @@
  */
 #include <math.h>
 #include "qtank_internal.h"
-#if QTANK_GENERATION != 0x3c0bdd006a0db19
+#if QTANK_GENERATION != 0x2034c6c1bff317d
 #error "qtank_solver.c and qtank_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
 #endif
 
@@ -265,10 +265,10 @@ static uint32_t add_step_work(int nw)
 }
 
 /*
- * What the dual active set still spends to accept the resumed working set at its scanned
- * point without polish(): working_set_holds()' certificate and converged().
+ * What the dual active set still spends to accept its final working set at its scanned
+ * point without polish(): the output certificate and converged().
  */
-static uint32_t resumed_check_work(const qtank_mode_data *md)
+static uint32_t final_check_work(const qtank_mode_data *md)
 {
     return (uint32_t)md->n + 2u * (uint32_t)md->m;
 }
@@ -3076,18 +3076,34 @@ static int resume_working_set(qtank_work *ws, const qtank_mode_data *md,
 }
 
 /*
- * Does the resumed working set, dual feasible and with no row violated outside it, also
- * hold at its point ws->th (most_violated() has just predicted the outputs there)? Then
- * it is optimal as it stands: polish() would solve it the same way and check the same
- * rows. Only in the dual form: a box-only set goes to the primal form, whose point is
- * more accurate.
+ * Is the dual active set's final working set, with no row violated outside it, optimal at
+ * its point ws->th as it stands (most_violated() has just predicted the outputs there)?
+ * Then polish() is not needed. exact: ws->th is the exact dual solve of the set (the
+ * resume), what polish() would compute again, so its rows need only hold. Else the
+ * multipliers were accumulated by the steps, and the rows must also be tight within the
+ * tolerance (complementarity) and no multiplier negative. Only in the dual form: a
+ * box-only set goes to the primal form, whose point is more accurate.
  */
-static int resumed_set_holds(qtank_work *ws, const qtank_mode_data *md, int nw)
+static int final_set_holds(qtank_work *ws, const qtank_mode_data *md, int nw,
+    int exact)
 {
-    if (nw > md->n || box_only(ws, md, nw) || !afford(ws, md, resumed_check_work(md))) {
+    int i, outputs;
+    if (nw > md->n || box_only(ws, md, nw) || !afford(ws, md, final_check_work(md))) {
         return 0;
     }
-    return working_set_holds(ws, md, nw, 1);
+    if (exact) {
+        return working_set_holds(ws, md, nw, 1);
+    }
+    outputs = outputs_uncertified(ws, md, ws->th); /* else ws->yv is not this point's */
+    for (i = 0; i < nw; ++i) {
+        const int r = ws->wset[i];
+        const qtank_real e = row_excess(ws, md, ws->th, r);
+        if ((!outputs && md->row_q[r] >= md->n) || ws->z[i] < R_(0.0)
+            || QTANK_FABS(e) > QTANK_SOLVER_FEAS_TOL * tol_scale(ws, r)) {
+            return 0;
+        }
+    }
+    return 1;
 }
 
 #define COLD_START (-2) /* dual_active_set()'s from: no warm start (the guess' repeat) */
@@ -3175,7 +3191,7 @@ static int dual_active_set(qtank_work *ws, const qtank_mode_data *md,
     /* the next sample's warm start, until polish() replaces it (its cost is part of the
      * finish() every check reserves: finish() then leaves lam as it is) */
     keep_working_set(ws, md, lam, nw);
-    if (code != OUT_OF_WORK && resumed && resumed_set_holds(ws, md, nw)) {
+    if (code != OUT_OF_WORK && moved && final_set_holds(ws, md, nw, resumed)) {
         return converged(ws, md, lam, nw, active);
     }
     i = (code == OUT_OF_WORK) ? OUT_OF_WORK : polish(ws, md, lam, nw, 0, iterations, active);

@@ -28,7 +28,7 @@
  * stops the build unless it is of the same one: a regeneration interrupted between two
  * of its file moves leaves no mixed tree that compiles.
  */
-#define QTANK_GENERATION 0x5790c63d0dd62a4
+#define QTANK_GENERATION 0x7d5f08b69259f3b
 
 /* The one place where the precision is chosen. */
 #define QTANK_PRECISION_DOUBLE 0

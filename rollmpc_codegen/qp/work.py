@@ -70,9 +70,9 @@ def scan_work(m) -> int:
 
 
 @formula()
-def resumed_check_work(m) -> int:
-    """What the dual active set still spends to accept the resumed working set at its
-    scanned point without polish(): working_set_holds()' certificate and converged()."""
+def final_check_work(m) -> int:
+    """What the dual active set still spends to accept its final working set at its
+    scanned point without polish(): the output certificate and converged()."""
     return m.n + 2 * m.m + m.nzq
 
 

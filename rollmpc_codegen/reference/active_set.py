@@ -12,7 +12,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..qp.work import (add_step_work, correct_work, factor_work, hq_work, independent_work,
-                       predict_work, resumed_check_work, scan_work, tri_work)
+                       predict_work, final_check_work, scan_work, tri_work)
 from .linalg import chol_ltsolve, seqsum
 from .factor_update import pivot_independent
 from ..solver_codes import CHOL_DUAL, COLD_START, OUT_OF_WORK, OUT_OF_WORK_AT_TH0
@@ -171,16 +171,22 @@ class ActiveSetMixin:
         self.chol_holds, self.chol_set = CHOL_DUAL, W[:0]
         return 0, th0
 
-    def resumed_set_holds(self, W, z, th, gam):
-        """Mirror of resumed_set_holds(): does the resumed working set, dual feasible and
-        with no row violated outside it, also hold at its point (then it is optimal)?  Only
-        in the dual form, which polish() would solve the same way: a box-only set goes to
-        the primal form, whose point is more accurate."""
-        if W.size > self.wcap or self.box_only(W):
+    def final_set_holds(self, W, z, th, gam, exact):
+        """Mirror of final_set_holds(): is the final working set, with no row violated
+        outside it, optimal at its point?  ``exact``: th is its exact dual solve (the
+        resume), so its rows need only hold; else its rows must also be tight within the
+        tolerance and no multiplier negative.  Only in the dual form."""
+        md = self.md
+        if W.size > self.wcap or self.box_only(W) or not self.afford(final_check_work(md)):
             return False
-        if not self.afford(resumed_check_work(self.md)):
+        if exact:
+            return self.working_set_holds(W, z, th, gam, predicted=True)
+        outputs = self.outputs_uncertified(th, gam)  # its work
+        if not outputs and np.any(self.is_predicted()[W]):
             return False
-        return self.working_set_holds(W, z, th, gam, predicted=True)
+        excess, scale = self.row_excess(th, gam)
+        e = excess[W] - self.slack_in_set(W, z) if self.soft else excess[W]
+        return bool(np.all(z >= 0) and not np.any(np.abs(e) > self.tol * scale[W]))
 
     def dual_active_set(self, lam, th0, K, gam, from_=-1):
         """Mirror of dual_active_set() (``from_``: the rows of ``stop``, where the guess
@@ -236,7 +242,7 @@ class ActiveSetMixin:
         self.keep_working_set(lam, W, st["z"])  # the warm start, until the polish's
         if code == OUT_OF_WORK:
             return (OUT_OF_WORK if moved else OUT_OF_WORK_AT_TH0), th, W.size, st["steps"]
-        if resumed and self.resumed_set_holds(W, st["z"], th, gam):
+        if moved and self.final_set_holds(W, st["z"], th, gam, resumed):
             return 0, th, self.converged(lam, W, st["z"]), st["steps"]
         code2, th_p, act, its = self.polish(W, lam, th0, K, gam, th=th)
         if code2 == 0:
