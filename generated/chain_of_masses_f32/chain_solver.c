@@ -25,7 +25,7 @@
  */
 #include <math.h>
 #include "chain_internal.h"
-#if CHAIN_GENERATION != 0xfc25e4b7ebf4bb4
+#if CHAIN_GENERATION != 0x0d3c4be5582cb52
 #error "chain_solver.c and chain_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
 #endif
 
@@ -3076,13 +3076,10 @@ static int resume_working_set(chain_work *ws, const chain_mode_data *md,
 }
 
 /*
- * Is the dual active set's final working set, with no row violated outside it, optimal at
- * its point ws->th as it stands (most_violated() has just predicted the outputs there)?
- * Then polish() is not needed. exact: ws->th is the exact dual solve of the set (the
- * resume), what polish() would compute again, so its rows need only hold. Else the
- * multipliers were accumulated by the steps, and the rows must also be tight within the
- * tolerance (complementarity) and no multiplier negative. Only in the dual form: a
- * box-only set goes to the primal form, whose point is more accurate.
+ * Is the final working set (no row violated outside it) optimal at ws->th, its outputs just
+ * predicted? exact: ws->th is its exact dual solve (the resume), so its rows need only
+ * hold; else the steps accumulated its multipliers, so its rows must also be tight within
+ * the tolerance and none negative. Dual form only (a box-only set: the primal form's).
  */
 static int final_set_holds(chain_work *ws, const chain_mode_data *md, int nw,
     int exact)
@@ -3111,11 +3108,11 @@ static int final_set_holds(chain_work *ws, const chain_mode_data *md, int nw,
 /*
  * Dual active-set solve (Goldfarb-Idnani) from the warm start (resume_working_set(), from
  * where the shifted guess stopped if from >= 0; none if from is COLD_START) or the
- * unconstrained optimum: add the
- * most violated rows until none is, keeping the multipliers
+ * unconstrained optimum: add the most violated rows until none is, keeping the multipliers
  * >= 0 and the working set linearly independent, so it finishes where the polish fails
  * (dependent active sets, working sets the shifted guess and the violated rows do not
- * reach). Its working set then goes to polish() for the exact solve and KKT check -- also
+ * reach). Unless final_set_holds() accepts it as it stands, its working set then goes to
+ * polish() for the exact solve and KKT check -- also
  * after a claim of infeasibility, because far from the origin (multipliers ~1e9 in float)
  * th = th0 - E^-1 M' z loses the digits the primal form keeps; with it goes the factor of
  * H_WW, which the polish keeps, and lam takes its multipliers (the next sample's warm
@@ -3156,8 +3153,7 @@ static int dual_active_set(chain_work *ws, const chain_mode_data *md,
             *iterations += steps;
             return OUT_OF_WORK_AT_TH0;
         }
-        moved = (nw > 0); /* resumed: corrected at its working set */
-        resumed = moved;
+        resumed = moved = (nw > 0); /* corrected at its resumed working set */
     }
     for (;;) {
         int p, c;
@@ -3188,10 +3184,9 @@ static int dual_active_set(chain_work *ws, const chain_mode_data *md,
     if (nw == 0 && code != OUT_OF_WORK) { /* code 0: violations of th0 within the tolerance only */
         return (code == 0) ? converged(ws, md, lam, 0, active) : code;
     }
-    /* the next sample's warm start, until polish() replaces it (its cost is part of the
-     * finish() every check reserves: finish() then leaves lam as it is) */
+    /* the next sample's warm start until polish() replaces it (paid by finish()'s reserve) */
     keep_working_set(ws, md, lam, nw);
-    if (code != OUT_OF_WORK && moved && final_set_holds(ws, md, nw, resumed)) {
+    if (code == 0 && moved && final_set_holds(ws, md, nw, resumed)) {
         return converged(ws, md, lam, nw, active);
     }
     i = (code == OUT_OF_WORK) ? OUT_OF_WORK : polish(ws, md, lam, nw, 0, iterations, active);

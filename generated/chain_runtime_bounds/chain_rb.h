@@ -18,7 +18,7 @@
 #include <stddef.h>
 #include <stdint.h>
 #include "chain_rb_config.h"
-#if CHAIN_RB_GENERATION != 0x045a0818f22d90e
+#if CHAIN_RB_GENERATION != 0x7d453b5f88f726d
 #error "chain_rb.h and chain_rb_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
 #endif
 

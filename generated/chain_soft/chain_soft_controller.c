@@ -10,7 +10,7 @@
  */
 #include <math.h>
 #include "chain_soft_internal.h"
-#if CHAIN_SOFT_GENERATION != 0x421650996b768da
+#if CHAIN_SOFT_GENERATION != 0x776691c444dc25d
 #error "chain_soft_controller.c and chain_soft_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
 #endif
 

@@ -18,7 +18,7 @@
 #include <stddef.h>
 #include <stdint.h>
 #include "fwlat_config.h"
-#if FWLAT_GENERATION != 0x481e1255774b6f6
+#if FWLAT_GENERATION != 0x22fc218016ba478
 #error "fwlat.h and fwlat_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
 #endif
 

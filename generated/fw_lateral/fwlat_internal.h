@@ -7,7 +7,7 @@
 
 #include <math.h>
 #include "fwlat.h"
-#if FWLAT_GENERATION != 0x481e1255774b6f6
+#if FWLAT_GENERATION != 0x22fc218016ba478
 #error "fwlat_internal.h and fwlat_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
 #endif
 

@@ -12,7 +12,7 @@
  */
 #include <math.h>
 #include "quadatt_internal.h"
-#if QUADATT_GENERATION != 0xa5f8869ae5c1c90
+#if QUADATT_GENERATION != 0xbf58b9d93719885
 #error "quadatt_linalg.c and quadatt_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
 #endif
 

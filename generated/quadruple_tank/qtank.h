@@ -18,7 +18,7 @@
 #include <stddef.h>
 #include <stdint.h>
 #include "qtank_config.h"
-#if QTANK_GENERATION != 0x2034c6c1bff317d
+#if QTANK_GENERATION != 0x3311182fffff415
 #error "qtank.h and qtank_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
 #endif
 

@@ -10,7 +10,7 @@
  */
 #include <math.h>
 #include "qtank_internal.h"
-#if QTANK_GENERATION != 0x2034c6c1bff317d
+#if QTANK_GENERATION != 0x3311182fffff415
 #error "qtank_controller.c and qtank_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
 #endif
 

@@ -28,7 +28,7 @@
  * stops the build unless it is of the same one: a regeneration interrupted between two
  * of its file moves leaves no mixed tree that compiles.
  */
-#define ZONES_GENERATION 0x0094b31a4e6fa10
+#define ZONES_GENERATION 0x849e14225bb0845
 
 /* The one place where the precision is chosen. */
 #define ZONES_PRECISION_DOUBLE 1

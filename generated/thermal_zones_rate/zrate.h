@@ -18,7 +18,7 @@
 #include <stddef.h>
 #include <stdint.h>
 #include "zrate_config.h"
-#if ZRATE_GENERATION != 0x5be71b50a52076e
+#if ZRATE_GENERATION != 0xf4c5163d3e4e382
 #error "zrate.h and zrate_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
 #endif
 

@@ -10,7 +10,7 @@
  */
 #include <math.h>
 #include "zrate_internal.h"
-#if ZRATE_GENERATION != 0x5be71b50a52076e
+#if ZRATE_GENERATION != 0xf4c5163d3e4e382
 #error "zrate_controller.c and zrate_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
 #endif
 

@@ -18,7 +18,7 @@
 #include <stddef.h>
 #include <stdint.h>
 #include "zrate_config.h"
-#if ZRATE_GENERATION != 0xedda027a6755944
+#if ZRATE_GENERATION != 0xe681bd1e37886c9
 #error "zrate.h and zrate_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
 #endif
 

@@ -7,7 +7,7 @@
 
 #include <math.h>
 #include "zrate.h"
-#if ZRATE_GENERATION != 0xedda027a6755944
+#if ZRATE_GENERATION != 0xe681bd1e37886c9
 #error "zrate_internal.h and zrate_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
 #endif
 

@@ -18,7 +18,7 @@
 #include <stddef.h>
 #include <stdint.h>
 #include "drives_config.h"
-#if DRIVES_GENERATION != 0x0fe5d44eb03462a
+#if DRIVES_GENERATION != 0x3b72f6857b99405
 #error "drives.h and drives_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
 #endif
 

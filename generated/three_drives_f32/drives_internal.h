@@ -7,7 +7,7 @@
 
 #include <math.h>
 #include "drives.h"
-#if DRIVES_GENERATION != 0xc1f73cb781940a0
+#if DRIVES_GENERATION != 0xe7a4760b449e574
 #error "drives_internal.h and drives_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
 #endif
 

@@ -18,7 +18,7 @@
 #include <stddef.h>
 #include <stdint.h>
 #include "rollmpc_config.h"
-#if ROLLMPC_GENERATION != 0x16de13ce1976223
+#if ROLLMPC_GENERATION != 0x19e090a23c7e3c2
 #error "rollmpc.h and rollmpc_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
 #endif
 

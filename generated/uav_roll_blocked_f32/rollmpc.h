@@ -18,7 +18,7 @@
 #include <stddef.h>
 #include <stdint.h>
 #include "rollmpc_config.h"
-#if ROLLMPC_GENERATION != 0x82a40a15aef5a5b
+#if ROLLMPC_GENERATION != 0x16a1dde4eeaf518
 #error "rollmpc.h and rollmpc_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
 #endif
 

@@ -242,7 +242,7 @@ class ActiveSetMixin:
         self.keep_working_set(lam, W, st["z"])  # the warm start, until the polish's
         if code == OUT_OF_WORK:
             return (OUT_OF_WORK if moved else OUT_OF_WORK_AT_TH0), th, W.size, st["steps"]
-        if moved and self.final_set_holds(W, st["z"], th, gam, resumed):
+        if code == 0 and moved and self.final_set_holds(W, st["z"], th, gam, resumed):
             return 0, th, self.converged(lam, W, st["z"]), st["steps"]
         code2, th_p, act, its = self.polish(W, lam, th0, K, gam, th=th)
         if code2 == 0:

@@ -288,9 +288,9 @@ def _assert_safe(log, works, budget, md):
 def test_randomized_loop_stays_within_a_small_budget(fw_small):
     log, works, budget = _randomized_loop(fw_small)
     _assert_safe(log, works, budget, fw_small.model.modes[0].data)
-    # the budget binds: measured 75 (float; 150 before an optimal resumed set was accepted
-    # without polish)
-    assert np.count_nonzero(log.status == TIME_LIMIT) >= 40
+    # the budget binds: measured 32 (float; 150 before an optimal final working set was
+    # accepted without polish)
+    assert np.count_nonzero(log.status == TIME_LIMIT) >= 20
 
 
 def test_randomized_loop_recovers_within_the_default_budget(fw_default):
