@@ -25,7 +25,7 @@
  */
 #include <math.h>
 #include "chain_rb_internal.h"
-#if CHAIN_RB_GENERATION != 0x9741bb121ac8b7e
+#if CHAIN_RB_GENERATION != 0xf8ecaa76bf0e52b
 #error "chain_rb_solver.c and chain_rb_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
 #endif
 
@@ -2639,18 +2639,29 @@ static int drop_negative_tracked(chain_rb_work *ws, const chain_rb_mode_data *md
  * Do the working-set rows hold (within the feasibility tolerance) at ws->th? predicted:
  * violated_outside() has just predicted the outputs at ws->th into ws->yv (it found no
  * violated row), so only whether they need checking is decided again (outputs_uncertified(),
- * n + m), not the N^2/2 prediction.
+ * n + m), not the N^2/2 prediction. tight: the rows must also be tight within the
+ * tolerance and no multiplier negative (final_set_holds()).
  */
 static int working_set_holds(chain_rb_work *ws, const chain_rb_mode_data *md, int nw,
-    int predicted)
+    int predicted, int tight)
 {
     int i;
     const int outputs = predicted ? outputs_uncertified(ws, md, ws->th)
                                   : outputs_to_check(ws, md, ws->th);
     for (i = 0; i < nw; ++i) {
         const int r = ws->wset[i];
-        if ((outputs || md->row_q[r] < md->n) && row_violated(ws, md, ws->th, r)) {
-            return 0;
+        if (outputs || md->row_q[r] < md->n) {
+            if (row_violated(ws, md, ws->th, r)) {
+                return 0;
+            }
+            if (tight) { /* and not slack beyond the tolerance, its multiplier not negative */
+                const chain_rb_real e = row_excess(ws, md, ws->th, r);
+                if (ws->z[i] < R_(0.0) || e < -CHAIN_RB_SOLVER_FEAS_TOL * tol_scale(ws, r)) {
+                    return 0;
+                }
+            }
+        } else if (tight) {
+            return 0; /* cleared by the certificate: inside its bound, not tight */
         }
     }
     return 1;
@@ -2688,7 +2699,7 @@ static int refine_dual(chain_rb_work *ws, const chain_rb_mode_data *md, int nw)
             return -1; /* a sign changed: not this working set's point */
         }
         correct(ws, md, ws->wset, nw, ws->z, 0);
-        if (working_set_holds(ws, md, nw, 0)) {
+        if (working_set_holds(ws, md, nw, 0, 0)) {
             return (violated_outside(ws, md, ws->th, ws->in_set, ws->tmp, 0) == 0) ? 0 : -1;
         }
     }
@@ -2876,7 +2887,7 @@ static int polish(chain_rb_work *ws, const chain_rb_mode_data *md, chain_rb_real
             if (nadd == 0) {
                 /* a (near-)singular H_WW, e.g. parallel rows of an infeasible QP, can give
                  * multipliers whose point misses its own working set: not optimal */
-                code = working_set_holds(ws, md, nw, 1) ? 0 : refine_dual(ws, md, nw);
+                code = working_set_holds(ws, md, nw, 1, 0) ? 0 : refine_dual(ws, md, nw);
                 return (code == 0) ? converged(ws, md, lam, nw, active) : stopped(ws, nw, known, code);
             }
         }
@@ -3099,23 +3110,8 @@ static int resume_working_set(chain_rb_work *ws, const chain_rb_mode_data *md,
 static int final_set_holds(chain_rb_work *ws, const chain_rb_mode_data *md, int nw,
     int exact)
 {
-    int i, outputs;
-    if (nw > md->n || box_only(ws, md, nw) || !afford(ws, md, final_check_work(md))) {
-        return 0;
-    }
-    if (exact) {
-        return working_set_holds(ws, md, nw, 1);
-    }
-    outputs = outputs_uncertified(ws, md, ws->th); /* else ws->yv is not this point's */
-    for (i = 0; i < nw; ++i) {
-        const int r = ws->wset[i];
-        const chain_rb_real e = row_excess(ws, md, ws->th, r);
-        if ((!outputs && md->row_q[r] >= md->n) || ws->z[i] < R_(0.0)
-            || CHAIN_RB_FABS(e) > CHAIN_RB_SOLVER_FEAS_TOL * tol_scale(ws, r)) {
-            return 0;
-        }
-    }
-    return 1;
+    return nw <= md->n && !box_only(ws, md, nw) && afford(ws, md, final_check_work(md))
+        && working_set_holds(ws, md, nw, 1, !exact);
 }
 
 #define COLD_START (-2) /* dual_active_set()'s from: no warm start (the guess' repeat) */

@@ -28,7 +28,7 @@
  * stops the build unless it is of the same one: a regeneration interrupted between two
  * of its file moves leaves no mixed tree that compiles.
  */
-#define FWLAT_GENERATION 0x22fc218016ba478
+#define FWLAT_GENERATION 0x71dc0cc778f4f28
 
 /* The one place where the precision is chosen. */
 #define FWLAT_PRECISION_DOUBLE 1

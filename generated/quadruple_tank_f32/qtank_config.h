@@ -28,7 +28,7 @@
  * stops the build unless it is of the same one: a regeneration interrupted between two
  * of its file moves leaves no mixed tree that compiles.
  */
-#define QTANK_GENERATION 0x8fa3c9590b266ee
+#define QTANK_GENERATION 0x5ce96a086f97ea8
 
 /* The one place where the precision is chosen. */
 #define QTANK_PRECISION_DOUBLE 0

@@ -28,7 +28,7 @@
  * stops the build unless it is of the same one: a regeneration interrupted between two
  * of its file moves leaves no mixed tree that compiles.
  */
-#define ZONES_GENERATION 0x849e14225bb0845
+#define ZONES_GENERATION 0x9de5ea60b0cb715
 
 /* The one place where the precision is chosen. */
 #define ZONES_PRECISION_DOUBLE 1

@@ -28,7 +28,7 @@
  * stops the build unless it is of the same one: a regeneration interrupted between two
  * of its file moves leaves no mixed tree that compiles.
  */
-#define ZRATE_GENERATION 0xe681bd1e37886c9
+#define ZRATE_GENERATION 0xb44bedeab28f4d6
 
 /* The one place where the precision is chosen. */
 #define ZRATE_PRECISION_DOUBLE 0

@@ -174,19 +174,11 @@ class ActiveSetMixin:
     def final_set_holds(self, W, z, th, gam, exact):
         """Mirror of final_set_holds(): is the final working set, with no row violated
         outside it, optimal at its point?  ``exact``: th is its exact dual solve (the
-        resume), so its rows need only hold; else its rows must also be tight within the
-        tolerance and no multiplier negative.  Only in the dual form."""
-        md = self.md
-        if W.size > self.wcap or self.box_only(W) or not self.afford(final_check_work(md)):
-            return False
-        if exact:
-            return self.working_set_holds(W, z, th, gam, predicted=True)
-        outputs = self.outputs_uncertified(th, gam)  # its work
-        if not outputs and np.any(self.is_predicted()[W]):
-            return False
-        excess, scale = self.row_excess(th, gam)
-        e = excess[W] - self.slack_in_set(W, z) if self.soft else excess[W]
-        return bool(np.all(z >= 0) and not np.any(np.abs(e) > self.tol * scale[W]))
+        resume), so its rows need only hold; else they must also be tight.  Dual form
+        only."""
+        return (W.size <= self.wcap and not self.box_only(W)
+                and self.afford(final_check_work(self.md))
+                and self.working_set_holds(W, z, th, gam, predicted=True, tight=not exact))
 
     def dual_active_set(self, lam, th0, K, gam, from_=-1):
         """Mirror of dual_active_set() (``from_``: the rows of ``stop``, where the guess

@@ -54,17 +54,23 @@ class PolishMixin:
             self.guess_left -= int(np.count_nonzero(neg < self.guess_left))
         return W, z, code
 
-    def working_set_holds(self, W, z, th, gam, predicted=False):
+    def working_set_holds(self, W, z, th, gam, predicted=False, tight=False):
         """Mirror of working_set_holds() (violated_in_set() with soft rows) at th;
-        ``predicted``: violated_outside() has just predicted the outputs at th."""
+        ``predicted``: violated_outside() has just predicted the outputs at th; ``tight``:
+        the rows must also be tight within the tolerance and no multiplier negative."""
         if predicted:
-            self.outputs_uncertified(th, gam)  # its work: the prediction stands
+            outputs = self.outputs_uncertified(th, gam)  # its work: the prediction stands
         else:
-            self.outputs_to_check(th, gam)  # its work; the mirror checks every row
+            outputs = self.outputs_to_check(th, gam)  # its work; the mirror checks every row
         viol, scale = self.row_excess(th, gam)
-        if self.soft:
-            return not np.any(self.violated_in_set(W, z, viol, scale))
-        return not np.any((viol > self.tol * scale)[W])
+        e = viol[W] - self.slack_in_set(W, z) if self.soft else viol[W]
+        tol = self.tol * scale[W]
+        if np.any(e > tol):
+            return False
+        if tight:  # a row the certificate cleared is inside its bound: not tight
+            return not (np.any(e < -tol) or np.any(z < 0)
+                        or (not outputs and np.any(self.is_predicted()[W])))
+        return True
 
     def refine_dual(self, W, z, th0, K, gam, th):
         """Mirror of refine_dual(): (0 / -1 / OUT_OF_WORK, th, z) after up to two rounds."""
