@@ -25,7 +25,7 @@
  */
 #include <math.h>
 #include "c172p_roll_internal.h"
-#if C172P_ROLL_GENERATION != 0x86b5769879ba2ad
+#if C172P_ROLL_GENERATION != 0x1357c8192ab0d93
 #error "c172p_roll_solver.c and c172p_roll_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
 #endif
 
@@ -2635,6 +2635,9 @@ static int working_set_holds(c172p_roll_work *ws, const c172p_roll_mode_data *md
                                   : outputs_to_check(ws, md, ws->th);
     for (i = 0; i < nw; ++i) {
         const int r = ws->wset[i];
+        if ((tight != 0) && !(outputs || md->row_q[r] < md->n)) {
+            return 0; /* cleared by the certificate: inside its bound, not tight */
+        }
         if (outputs || md->row_q[r] < md->n) {
             if (row_violated(ws, md, ws->th, r)) {
                 return 0;
@@ -2645,8 +2648,6 @@ static int working_set_holds(c172p_roll_work *ws, const c172p_roll_mode_data *md
                     return 0;
                 }
             }
-        } else if (tight) {
-            return 0; /* cleared by the certificate: inside its bound, not tight */
         }
     }
     return 1;

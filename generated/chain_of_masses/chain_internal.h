@@ -7,7 +7,7 @@
 
 #include <math.h>
 #include "chain.h"
-#if CHAIN_GENERATION != 0x17598100b49a653
+#if CHAIN_GENERATION != 0xa3bfee7109754bd
 #error "chain_internal.h and chain_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
 #endif
 

@@ -25,7 +25,7 @@
  */
 #include <math.h>
 #include "chain_internal.h"
-#if CHAIN_GENERATION != 0x922415e5a133f25
+#if CHAIN_GENERATION != 0xf75e3d849cf48d2
 #error "chain_solver.c and chain_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
 #endif
 
@@ -2635,6 +2635,9 @@ static int working_set_holds(chain_work *ws, const chain_mode_data *md, int nw,
                                   : outputs_to_check(ws, md, ws->th);
     for (i = 0; i < nw; ++i) {
         const int r = ws->wset[i];
+        if ((tight != 0) && !(outputs || md->row_q[r] < md->n)) {
+            return 0; /* cleared by the certificate: inside its bound, not tight */
+        }
         if (outputs || md->row_q[r] < md->n) {
             if (row_violated(ws, md, ws->th, r)) {
                 return 0;
@@ -2645,8 +2648,6 @@ static int working_set_holds(chain_work *ws, const chain_mode_data *md, int nw,
                     return 0;
                 }
             }
-        } else if (tight) {
-            return 0; /* cleared by the certificate: inside its bound, not tight */
         }
     }
     return 1;

@@ -25,7 +25,7 @@
  */
 #include <math.h>
 #include "chain_rb_internal.h"
-#if CHAIN_RB_GENERATION != 0xf8ecaa76bf0e52b
+#if CHAIN_RB_GENERATION != 0xb82fb88cf7e26e3
 #error "chain_rb_solver.c and chain_rb_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
 #endif
 
@@ -2650,6 +2650,9 @@ static int working_set_holds(chain_rb_work *ws, const chain_rb_mode_data *md, in
                                   : outputs_to_check(ws, md, ws->th);
     for (i = 0; i < nw; ++i) {
         const int r = ws->wset[i];
+        if ((tight != 0) && !(outputs || md->row_q[r] < md->n)) {
+            return 0; /* cleared by the certificate: inside its bound, not tight */
+        }
         if (outputs || md->row_q[r] < md->n) {
             if (row_violated(ws, md, ws->th, r)) {
                 return 0;
@@ -2660,8 +2663,6 @@ static int working_set_holds(chain_rb_work *ws, const chain_rb_mode_data *md, in
                     return 0;
                 }
             }
-        } else if (tight) {
-            return 0; /* cleared by the certificate: inside its bound, not tight */
         }
     }
     return 1;

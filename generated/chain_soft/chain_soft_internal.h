@@ -7,7 +7,7 @@
 
 #include <math.h>
 #include "chain_soft.h"
-#if CHAIN_SOFT_GENERATION != 0x5bdc6fbe184d761
+#if CHAIN_SOFT_GENERATION != 0x34ec9614ebcaf4e
 #error "chain_soft_internal.h and chain_soft_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
 #endif
 

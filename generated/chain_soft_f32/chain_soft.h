@@ -18,7 +18,7 @@
 #include <stddef.h>
 #include <stdint.h>
 #include "chain_soft_config.h"
-#if CHAIN_SOFT_GENERATION != 0x63a2b15af03fea2
+#if CHAIN_SOFT_GENERATION != 0x0fe7033d3769d80
 #error "chain_soft.h and chain_soft_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
 #endif
 

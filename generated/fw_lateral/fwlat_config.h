@@ -28,7 +28,7 @@
  * stops the build unless it is of the same one: a regeneration interrupted between two
  * of its file moves leaves no mixed tree that compiles.
  */
-#define FWLAT_GENERATION 0x71dc0cc778f4f28
+#define FWLAT_GENERATION 0xae88ac49b68319d
 
 /* The one place where the precision is chosen. */
 #define FWLAT_PRECISION_DOUBLE 1

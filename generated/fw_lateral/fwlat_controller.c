@@ -10,7 +10,7 @@
  */
 #include <math.h>
 #include "fwlat_internal.h"
-#if FWLAT_GENERATION != 0x71dc0cc778f4f28
+#if FWLAT_GENERATION != 0xae88ac49b68319d
 #error "fwlat_controller.c and fwlat_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
 #endif
 

@@ -12,7 +12,7 @@
  */
 #include <math.h>
 #include "quadatt_internal.h"
-#if QUADATT_GENERATION != 0x35cabec76b682f8
+#if QUADATT_GENERATION != 0xc6e13ee991f0ef6
 #error "quadatt_linalg.c and quadatt_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
 #endif
 

@@ -28,7 +28,7 @@
  * stops the build unless it is of the same one: a regeneration interrupted between two
  * of its file moves leaves no mixed tree that compiles.
  */
-#define QUADATT_GENERATION 0xa8c3728ad37b313
+#define QUADATT_GENERATION 0x1bc2be32d00b501
 
 /* The one place where the precision is chosen. */
 #define QUADATT_PRECISION_DOUBLE 0

@@ -25,7 +25,7 @@
  */
 #include <math.h>
 #include "quadatt_internal.h"
-#if QUADATT_GENERATION != 0xa8c3728ad37b313
+#if QUADATT_GENERATION != 0x1bc2be32d00b501
 #error "quadatt_solver.c and quadatt_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
 #endif
 
@@ -2635,6 +2635,9 @@ static int working_set_holds(quadatt_work *ws, const quadatt_mode_data *md, int 
                                   : outputs_to_check(ws, md, ws->th);
     for (i = 0; i < nw; ++i) {
         const int r = ws->wset[i];
+        if ((tight != 0) && !(outputs || md->row_q[r] < md->n)) {
+            return 0; /* cleared by the certificate: inside its bound, not tight */
+        }
         if (outputs || md->row_q[r] < md->n) {
             if (row_violated(ws, md, ws->th, r)) {
                 return 0;
@@ -2645,8 +2648,6 @@ static int working_set_holds(quadatt_work *ws, const quadatt_mode_data *md, int 
                     return 0;
                 }
             }
-        } else if (tight) {
-            return 0; /* cleared by the certificate: inside its bound, not tight */
         }
     }
     return 1;

@@ -28,7 +28,7 @@
  * stops the build unless it is of the same one: a regeneration interrupted between two
  * of its file moves leaves no mixed tree that compiles.
  */
-#define ZONES_GENERATION 0x9de5ea60b0cb715
+#define ZONES_GENERATION 0x104359db5fb659f
 
 /* The one place where the precision is chosen. */
 #define ZONES_PRECISION_DOUBLE 1

@@ -10,7 +10,7 @@
  */
 #include <math.h>
 #include "zones_internal.h"
-#if ZONES_GENERATION != 0x9de5ea60b0cb715
+#if ZONES_GENERATION != 0x104359db5fb659f
 #error "zones_controller.c and zones_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
 #endif
 

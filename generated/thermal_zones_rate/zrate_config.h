@@ -28,7 +28,7 @@
  * stops the build unless it is of the same one: a regeneration interrupted between two
  * of its file moves leaves no mixed tree that compiles.
  */
-#define ZRATE_GENERATION 0x9a0de820cab35eb
+#define ZRATE_GENERATION 0x9cedb69246ac23a
 
 /* The one place where the precision is chosen. */
 #define ZRATE_PRECISION_DOUBLE 1

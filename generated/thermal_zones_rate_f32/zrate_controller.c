@@ -10,7 +10,7 @@
  */
 #include <math.h>
 #include "zrate_internal.h"
-#if ZRATE_GENERATION != 0xb44bedeab28f4d6
+#if ZRATE_GENERATION != 0x46bd0f5444f8e54
 #error "zrate_controller.c and zrate_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
 #endif
 

@@ -25,7 +25,7 @@
  */
 #include <math.h>
 #include "zrate_internal.h"
-#if ZRATE_GENERATION != 0xb44bedeab28f4d6
+#if ZRATE_GENERATION != 0x46bd0f5444f8e54
 #error "zrate_solver.c and zrate_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
 #endif
 
@@ -2700,6 +2700,9 @@ static int working_set_holds(zrate_work *ws, const zrate_mode_data *md, int nw,
                                   : outputs_to_check(ws, md, ws->th);
     for (i = 0; i < nw; ++i) {
         const int r = ws->wset[i];
+        if ((tight != 0) && !(outputs || (md->row_q[r] < md->n || md->row_q[r] >= md->n + md->nyq))) {
+            return 0; /* cleared by the certificate: inside its bound, not tight */
+        }
         if (outputs || (md->row_q[r] < md->n || md->row_q[r] >= md->n + md->nyq)) {
             if (row_violated(ws, md, ws->th, r)) {
                 return 0;
@@ -2710,8 +2713,6 @@ static int working_set_holds(zrate_work *ws, const zrate_mode_data *md, int nw,
                     return 0;
                 }
             }
-        } else if (tight) {
-            return 0; /* cleared by the certificate: inside its bound, not tight */
         }
     }
     return 1;

@@ -28,7 +28,7 @@
  * stops the build unless it is of the same one: a regeneration interrupted between two
  * of its file moves leaves no mixed tree that compiles.
  */
-#define ROLLMPC_GENERATION 0x0dbf2c9ac152b03
+#define ROLLMPC_GENERATION 0x07275e9a90e907e
 
 /* The one place where the precision is chosen. */
 #define ROLLMPC_PRECISION_DOUBLE 0

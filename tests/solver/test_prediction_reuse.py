@@ -26,10 +26,10 @@ def test_the_final_check_reuses_the_prediction(build_root, monkeypatch):
 
     holds, reuses, works = SolverRef.working_set_holds, [], []
 
-    def predicting_again(self, W, z, th, gam, predicted=False):
+    def predicting_again(self, W, z, th, gam, predicted=False, tight=False):
         if predicted:
             reuses.append(len(works))
-        return holds(self, W, z, th, gam, False)
+        return holds(self, W, z, th, gam, False, tight)
 
     monkeypatch.setattr(SolverRef, "working_set_holds", predicting_again)
     ref = built.reference()
