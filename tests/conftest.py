@@ -197,8 +197,9 @@ def reference_closed_loop(built: Built, ref, steps: int) -> list:
     return seen
 
 
-def lockstep_closed_loop(built: Built, steps: int, ref=None) -> tuple[list, list]:
-    """The scenario's closed loop driven by a fresh host C controller, the reference
+def lockstep_closed_loop(built: Built, steps: int, ref=None, **loop_options) -> tuple[list, list]:
+    """The scenario's closed loop (or a flight's: ``loop_options``, as
+    FlightPlan.loop_options() gives them) driven by a fresh host C controller, the reference
     (``ref``, possibly with recording wrappers, or a new one) stepped beside it on the same
     inputs: (mismatches as (step, C's, reference's), and (status, work) of every step). A
     step matches when its status, command bytes, sweeps, polish corrections, active rows
@@ -221,7 +222,7 @@ def lockstep_closed_loop(built: Built, steps: int, ref=None) -> tuple[list, list
             seen.append((st_c, info["work"]))
             return st_c, u_c
 
-    run_closed_loop(built.model.config, Lockstep(), steps=steps)
+    run_closed_loop(built.model.config, Lockstep(), steps=steps, **loop_options)
     return bad, seen
 
 

@@ -18,7 +18,7 @@
 #include <stddef.h>
 #include <stdint.h>
 #include "c172p_roll_config.h"
-#if C172P_ROLL_GENERATION != 0xf9c0c6fe866683c
+#if C172P_ROLL_GENERATION != 0xcacbc1e022f292e
 #error "c172p_roll.h and c172p_roll_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
 #endif
 

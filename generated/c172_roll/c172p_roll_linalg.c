@@ -12,7 +12,7 @@
  */
 #include <math.h>
 #include "c172p_roll_internal.h"
-#if C172P_ROLL_GENERATION != 0xf9c0c6fe866683c
+#if C172P_ROLL_GENERATION != 0xcacbc1e022f292e
 #error "c172p_roll_linalg.c and c172p_roll_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
 #endif
 

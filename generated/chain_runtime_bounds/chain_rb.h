@@ -18,7 +18,7 @@
 #include <stddef.h>
 #include <stdint.h>
 #include "chain_rb_config.h"
-#if CHAIN_RB_GENERATION != 0x3be18beb3aa0308
+#if CHAIN_RB_GENERATION != 0xcbe47bd5a110946
 #error "chain_rb.h and chain_rb_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
 #endif
 

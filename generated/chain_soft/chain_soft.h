@@ -18,7 +18,7 @@
 #include <stddef.h>
 #include <stdint.h>
 #include "chain_soft_config.h"
-#if CHAIN_SOFT_GENERATION != 0x34ec9614ebcaf4e
+#if CHAIN_SOFT_GENERATION != 0x0b9ab534ecfefa6
 #error "chain_soft.h and chain_soft_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
 #endif
 

@@ -12,7 +12,7 @@
  */
 #include <math.h>
 #include "chain_soft_internal.h"
-#if CHAIN_SOFT_GENERATION != 0x34ec9614ebcaf4e
+#if CHAIN_SOFT_GENERATION != 0x0b9ab534ecfefa6
 #error "chain_soft_linalg.c and chain_soft_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
 #endif
 

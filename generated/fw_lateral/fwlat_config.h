@@ -28,7 +28,7 @@
  * stops the build unless it is of the same one: a regeneration interrupted between two
  * of its file moves leaves no mixed tree that compiles.
  */
-#define FWLAT_GENERATION 0xae88ac49b68319d
+#define FWLAT_GENERATION 0x7b13a3f981d4855
 
 /* The one place where the precision is chosen. */
 #define FWLAT_PRECISION_DOUBLE 1

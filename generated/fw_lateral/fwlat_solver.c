@@ -25,7 +25,7 @@
  */
 #include <math.h>
 #include "fwlat_internal.h"
-#if FWLAT_GENERATION != 0xae88ac49b68319d
+#if FWLAT_GENERATION != 0x7b13a3f981d4855
 #error "fwlat_solver.c and fwlat_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
 #endif
 
@@ -3446,7 +3446,8 @@ static int dual_active_set(fwlat_work *ws, const fwlat_mode_data *md,
             *iterations += steps;
             return OUT_OF_WORK_AT_TH0;
         }
-        resumed = moved = (nw > 0); /* corrected at its resumed working set */
+        moved = (nw > 0); /* corrected at its resumed working set */
+        resumed = moved; /* ws->th: its exact dual solve, what polish() would compute again */
     }
     for (;;) {
         int p, c;
@@ -3628,9 +3629,14 @@ int fwlat_qp_solve(fwlat_work *ws, fwlat_real *lam, const fwlat_real *plan,
     /* Polish first: from the previous active set (warm start), then from the rows the
      * unconstrained solution violates; what follows runs only if both fail. The shifted
      * guess, in the dual form, may spend a third of what the budget has left: the dual
-     * active set then continues from where it stopped. With a warm start, the violated rows are polished
-     * only in the primal form: in the dual form the resumed dual active set costs less
-     * than a factor of H_WW over every violated row (which breaks down on dependent rows). */
+     * active set then continues from where it stopped, as it does where the polish of the
+     * violated rows runs out of work (typically on the block of rows it would append
+     * next: parked there, a sample would stop on a fraction of its budget, and the next
+     * one the same way) -- except in a mode of input bounds only after a primal solve,
+     * whose point meets every row once clamped (time_limit_at_th0()). With a warm start,
+     * the violated rows are polished only in the primal form: in the dual form the resumed
+     * dual active set costs less than a factor of H_WW over every violated row (which
+     * breaks down on dependent rows). */
     count = 0; /* rows of the warm start */
     if (FWLAT_SOLVER_WARM_START) {
         if (!afford(ws, md, (uint32_t)md->m)) {
@@ -3668,8 +3674,11 @@ int fwlat_qp_solve(fwlat_work *ws, fwlat_real *lam, const fwlat_real *plan,
             if (i == 0) {
                 return finish(ws, md, lam, FWLAT_OPTIMAL, U);
             }
-            if (i == OUT_OF_WORK) {
-                return time_limit_at_th0(ws, md, lam, plan, plan_age, 1, U);
+            if (i == OUT_OF_WORK) { /* the dual active set goes on, a row at a time, unless */
+                if (!FWLAT_SOLVER_ACTIVE_SET || (0 && ws->th_solved)) {
+                    return time_limit_at_th0(ws, md, lam, plan, plan_age, 1, U); /* a point */
+                }
+                resume = ws->stop_rows;
             }
             if (i == -1 && count == 0 && FWLAT_SOLVER_ACTIVE_SET) {
                 resume = violated_resume(ws, md); /* not cold: from the rows th0 violates */

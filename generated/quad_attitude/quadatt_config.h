@@ -28,7 +28,7 @@
  * stops the build unless it is of the same one: a regeneration interrupted between two
  * of its file moves leaves no mixed tree that compiles.
  */
-#define QUADATT_GENERATION 0xc6e13ee991f0ef6
+#define QUADATT_GENERATION 0x94f9e12638344e4
 
 /* The one place where the precision is chosen. */
 #define QUADATT_PRECISION_DOUBLE 1

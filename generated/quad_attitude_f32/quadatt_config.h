@@ -28,7 +28,7 @@
  * stops the build unless it is of the same one: a regeneration interrupted between two
  * of its file moves leaves no mixed tree that compiles.
  */
-#define QUADATT_GENERATION 0x1bc2be32d00b501
+#define QUADATT_GENERATION 0xd169115444d5838
 
 /* The one place where the precision is chosen. */
 #define QUADATT_PRECISION_DOUBLE 0

@@ -12,7 +12,7 @@
  */
 #include <math.h>
 #include "quadatt_internal.h"
-#if QUADATT_GENERATION != 0x1bc2be32d00b501
+#if QUADATT_GENERATION != 0xd169115444d5838
 #error "quadatt_linalg.c and quadatt_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
 #endif
 

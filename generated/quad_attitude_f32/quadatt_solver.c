@@ -25,7 +25,7 @@
  */
 #include <math.h>
 #include "quadatt_internal.h"
-#if QUADATT_GENERATION != 0x1bc2be32d00b501
+#if QUADATT_GENERATION != 0xd169115444d5838
 #error "quadatt_solver.c and quadatt_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
 #endif
 
@@ -3150,7 +3150,8 @@ static int dual_active_set(quadatt_work *ws, const quadatt_mode_data *md,
             *iterations += steps;
             return OUT_OF_WORK_AT_TH0;
         }
-        resumed = moved = (nw > 0); /* corrected at its resumed working set */
+        moved = (nw > 0); /* corrected at its resumed working set */
+        resumed = moved; /* ws->th: its exact dual solve, what polish() would compute again */
     }
     for (;;) {
         int p, c;
@@ -3323,9 +3324,14 @@ int quadatt_qp_solve(quadatt_work *ws, quadatt_real *lam, const quadatt_real *pl
     /* Polish first: from the previous active set (warm start), then from the rows the
      * unconstrained solution violates; what follows runs only if both fail. The shifted
      * guess, in the dual form, may spend a third of what the budget has left: the dual
-     * active set then continues from where it stopped. With a warm start, the violated rows are polished
-     * only in the primal form: in the dual form the resumed dual active set costs less
-     * than a factor of H_WW over every violated row (which breaks down on dependent rows). */
+     * active set then continues from where it stopped, as it does where the polish of the
+     * violated rows runs out of work (typically on the block of rows it would append
+     * next: parked there, a sample would stop on a fraction of its budget, and the next
+     * one the same way) -- except in a mode of input bounds only after a primal solve,
+     * whose point meets every row once clamped (time_limit_at_th0()). With a warm start,
+     * the violated rows are polished only in the primal form: in the dual form the resumed
+     * dual active set costs less than a factor of H_WW over every violated row (which
+     * breaks down on dependent rows). */
     count = 0; /* rows of the warm start */
     if (QUADATT_SOLVER_WARM_START) {
         if (!afford(ws, md, (uint32_t)md->m)) {
@@ -3363,8 +3369,11 @@ int quadatt_qp_solve(quadatt_work *ws, quadatt_real *lam, const quadatt_real *pl
             if (i == 0) {
                 return finish(ws, md, lam, QUADATT_OPTIMAL, U);
             }
-            if (i == OUT_OF_WORK) {
-                return time_limit_at_th0(ws, md, lam, plan, plan_age, 1, U);
+            if (i == OUT_OF_WORK) { /* the dual active set goes on, a row at a time, unless */
+                if (!QUADATT_SOLVER_ACTIVE_SET || ((md->m_box == md->m) && ws->th_solved)) {
+                    return time_limit_at_th0(ws, md, lam, plan, plan_age, 1, U); /* a point */
+                }
+                resume = ws->stop_rows;
             }
             if (i == -1 && count == 0 && QUADATT_SOLVER_ACTIVE_SET) {
                 resume = violated_resume(ws, md); /* not cold: from the rows th0 violates */

@@ -10,7 +10,7 @@
  */
 #include <math.h>
 #include "qtank_internal.h"
-#if QTANK_GENERATION != 0x4121cd20d4ae948
+#if QTANK_GENERATION != 0xa4f62e6dc9a842e
 #error "qtank_controller.c and qtank_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
 #endif
 

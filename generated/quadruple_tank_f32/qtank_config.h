@@ -28,7 +28,7 @@
  * stops the build unless it is of the same one: a regeneration interrupted between two
  * of its file moves leaves no mixed tree that compiles.
  */
-#define QTANK_GENERATION 0x957c38bd7ad01fc
+#define QTANK_GENERATION 0xffef2991ea818f6
 
 /* The one place where the precision is chosen. */
 #define QTANK_PRECISION_DOUBLE 0

@@ -12,7 +12,7 @@
  */
 #include <math.h>
 #include "qtank_internal.h"
-#if QTANK_GENERATION != 0x957c38bd7ad01fc
+#if QTANK_GENERATION != 0xffef2991ea818f6
 #error "qtank_linalg.c and qtank_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
 #endif
 

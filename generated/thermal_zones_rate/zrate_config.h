@@ -28,7 +28,7 @@
  * stops the build unless it is of the same one: a regeneration interrupted between two
  * of its file moves leaves no mixed tree that compiles.
  */
-#define ZRATE_GENERATION 0x9cedb69246ac23a
+#define ZRATE_GENERATION 0xe794b47d3f7fc4d
 
 /* The one place where the precision is chosen. */
 #define ZRATE_PRECISION_DOUBLE 1

@@ -7,7 +7,7 @@
 
 #include <math.h>
 #include "zrate.h"
-#if ZRATE_GENERATION != 0x9cedb69246ac23a
+#if ZRATE_GENERATION != 0xe794b47d3f7fc4d
 #error "zrate_internal.h and zrate_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
 #endif
 

@@ -12,7 +12,7 @@
  */
 #include <math.h>
 #include "drives_internal.h"
-#if DRIVES_GENERATION != 0xde451e6ae7299b2
+#if DRIVES_GENERATION != 0x8078a6bcea7b5cb
 #error "drives_linalg.c and drives_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
 #endif
 

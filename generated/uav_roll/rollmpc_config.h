@@ -28,7 +28,7 @@
  * stops the build unless it is of the same one: a regeneration interrupted between two
  * of its file moves leaves no mixed tree that compiles.
  */
-#define ROLLMPC_GENERATION 0x6929bed55bed721
+#define ROLLMPC_GENERATION 0x8e7a5ed86842c8b
 
 /* The one place where the precision is chosen. */
 #define ROLLMPC_PRECISION_DOUBLE 1

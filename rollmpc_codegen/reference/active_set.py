@@ -11,8 +11,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..qp.work import (add_step_work, correct_work, factor_work, hq_work, independent_work,
-                       predict_work, final_check_work, scan_work, tri_work)
+from ..qp.work import (add_step_work, correct_work, factor_work, final_check_work, hq_work,
+                       independent_work, predict_work, scan_work, tri_work)
 from .linalg import chol_ltsolve, seqsum
 from .factor_update import pivot_independent
 from ..solver_codes import CHOL_DUAL, COLD_START, OUT_OF_WORK, OUT_OF_WORK_AT_TH0

@@ -230,8 +230,12 @@ class SolverRef(SignalsMixin, UnconstrainedMixin, RowsMixin, SoftRowsMixin, Swee
                     polish_its += its
                     if code == 0:
                         return self.finish(th_p, th0, OPTIMAL) + (0, polish_its, act)
-                    if code == OUT_OF_WORK:
-                        return self.time_limit_at_th0(th0, True) + (0, polish_its, 0)
+                    if code == OUT_OF_WORK:  # the dual active set goes on, a row at a time,
+                        # unless a mode of input bounds only has its primal point
+                        point = self.inputs_only() and self.th_solved is not None
+                        if not self.active_set or point:
+                            return self.time_limit_at_th0(th0, True) + (0, polish_its, 0)
+                        resume = self.stop[0].size
                     if code == -1 and count == 0 and self.active_set:
                         resume = self.violated_resume(K)  # not cold: from the rows th0 violates
         if self.active_set:

@@ -10,10 +10,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from conftest import ROOT, Built
+from conftest import ROOT, Built, lockstep_closed_loop
 from rollmpc_codegen.sim.flight_plan import FlightPlan
 from rollmpc_codegen.sim.scenario import scenario_reference
-from rollmpc_codegen.sim.simulate import run_closed_loop
 from rollmpc_codegen.status import TIME_LIMIT
 
 QUAD = ROOT / "examples" / "quad_attitude.yaml"
@@ -36,21 +35,8 @@ def test_a_cut_carry_goes_on_where_it_stopped(build_root):
     cfg = built.model.config
     plan = FlightPlan(flights=1, seed=108, noise_std=0.05, mismatch=0.2)
     flight = plan.plan(cfg, len(scenario_reference(cfg)))[0]
-    c, ref = built.fresh_c(), built.reference()
-    bad, statuses, works = [], [], []
-
-    class Both:
-        def step(self, y, s, r):
-            st_c, u_c = c.step(y, s, r)
-            st_r, u_r = ref.step(y, s, r)
-            work = c.info()["work"]
-            if (st_c, u_c.tobytes(), work) != (st_r, u_r.tobytes(), ref.last["work"]):
-                bad.append(len(statuses))
-            statuses.append(st_c)
-            works.append(work)
-            return st_c, u_c
-
-    run_closed_loop(cfg, Both(), steps=SAMPLES, **plan.loop_options(flight))
+    bad, seen = lockstep_closed_loop(built, SAMPLES, **plan.loop_options(flight))
+    statuses, works = [st for st, _ in seen], [work for _, work in seen]
     assert bad == []
     assert np.count_nonzero(np.array(statuses[800:]) == TIME_LIMIT) >= 20  # the budget binds
     assert _parked_runs(statuses, works) < PARKED
