@@ -25,7 +25,7 @@
  */
 #include <math.h>
 #include "c172p_roll_internal.h"
-#if C172P_ROLL_GENERATION != 0xcacbc1e022f292e
+#if C172P_ROLL_GENERATION != 0x3771774138c0f29
 #error "c172p_roll_solver.c and c172p_roll_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
 #endif
 
@@ -2635,10 +2635,11 @@ static int working_set_holds(c172p_roll_work *ws, const c172p_roll_mode_data *md
                                   : outputs_to_check(ws, md, ws->th);
     for (i = 0; i < nw; ++i) {
         const int r = ws->wset[i];
-        if ((tight != 0) && !(outputs || md->row_q[r] < md->n)) {
+        const int checked = outputs || md->row_q[r] < md->n;
+        if ((tight != 0) && !checked) {
             return 0; /* cleared by the certificate: inside its bound, not tight */
         }
-        if (outputs || md->row_q[r] < md->n) {
+        if (checked) {
             if (row_violated(ws, md, ws->th, r)) {
                 return 0;
             }

@@ -7,7 +7,7 @@
 
 #include <math.h>
 #include "c172p_roll.h"
-#if C172P_ROLL_GENERATION != 0xb58733a63a8cb34
+#if C172P_ROLL_GENERATION != 0xb35a8284dc50475
 #error "c172p_roll_internal.h and c172p_roll_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
 #endif
 

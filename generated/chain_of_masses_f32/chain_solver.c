@@ -25,7 +25,7 @@
  */
 #include <math.h>
 #include "chain_internal.h"
-#if CHAIN_GENERATION != 0x3ab7b4f9d11d355
+#if CHAIN_GENERATION != 0xf7e55b38021043f
 #error "chain_solver.c and chain_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
 #endif
 
@@ -2635,10 +2635,11 @@ static int working_set_holds(chain_work *ws, const chain_mode_data *md, int nw,
                                   : outputs_to_check(ws, md, ws->th);
     for (i = 0; i < nw; ++i) {
         const int r = ws->wset[i];
-        if ((tight != 0) && !(outputs || md->row_q[r] < md->n)) {
+        const int checked = outputs || md->row_q[r] < md->n;
+        if ((tight != 0) && !checked) {
             return 0; /* cleared by the certificate: inside its bound, not tight */
         }
-        if (outputs || md->row_q[r] < md->n) {
+        if (checked) {
             if (row_violated(ws, md, ws->th, r)) {
                 return 0;
             }

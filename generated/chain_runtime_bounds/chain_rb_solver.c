@@ -25,7 +25,7 @@
  */
 #include <math.h>
 #include "chain_rb_internal.h"
-#if CHAIN_RB_GENERATION != 0xcbe47bd5a110946
+#if CHAIN_RB_GENERATION != 0x3f33f703ece0b77
 #error "chain_rb_solver.c and chain_rb_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
 #endif
 
@@ -2650,10 +2650,11 @@ static int working_set_holds(chain_rb_work *ws, const chain_rb_mode_data *md, in
                                   : outputs_to_check(ws, md, ws->th);
     for (i = 0; i < nw; ++i) {
         const int r = ws->wset[i];
-        if ((tight != 0) && !(outputs || md->row_q[r] < md->n)) {
+        const int checked = outputs || md->row_q[r] < md->n;
+        if ((tight != 0) && !checked) {
             return 0; /* cleared by the certificate: inside its bound, not tight */
         }
-        if (outputs || md->row_q[r] < md->n) {
+        if (checked) {
             if (row_violated(ws, md, ws->th, r)) {
                 return 0;
             }

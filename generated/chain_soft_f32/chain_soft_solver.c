@@ -25,7 +25,7 @@
  */
 #include <math.h>
 #include "chain_soft_internal.h"
-#if CHAIN_SOFT_GENERATION != 0xb056fa44ea482c6
+#if CHAIN_SOFT_GENERATION != 0xb071121419d6d13
 #error "chain_soft_solver.c and chain_soft_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
 #endif
 
@@ -2800,10 +2800,11 @@ static int working_set_holds(chain_soft_work *ws, const chain_soft_mode_data *md
                                   : outputs_to_check(ws, md, ws->th);
     for (i = 0; i < nw; ++i) {
         const int r = ws->wset[i];
-        if ((tight != 0) && !(outputs || md->row_q[r] < md->n)) {
+        const int checked = outputs || md->row_q[r] < md->n;
+        if ((tight != 0) && !checked) {
             return 0; /* cleared by the certificate: inside its bound, not tight */
         }
-        if (outputs || md->row_q[r] < md->n) {
+        if (checked) {
             if (violated_in_set(ws, md, ws->th, r, ws->z[i])) {
                 return 0;
             }

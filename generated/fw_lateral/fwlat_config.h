@@ -28,7 +28,7 @@
  * stops the build unless it is of the same one: a regeneration interrupted between two
  * of its file moves leaves no mixed tree that compiles.
  */
-#define FWLAT_GENERATION 0x7b13a3f981d4855
+#define FWLAT_GENERATION 0xb9a16902c9fa0ab
 
 /* The one place where the precision is chosen. */
 #define FWLAT_PRECISION_DOUBLE 1

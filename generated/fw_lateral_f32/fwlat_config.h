@@ -28,7 +28,7 @@
  * stops the build unless it is of the same one: a regeneration interrupted between two
  * of its file moves leaves no mixed tree that compiles.
  */
-#define FWLAT_GENERATION 0xedc80069cdecbad
+#define FWLAT_GENERATION 0xb5265eed7aebe10
 
 /* The one place where the precision is chosen. */
 #define FWLAT_PRECISION_DOUBLE 0

@@ -25,7 +25,7 @@
  */
 #include <math.h>
 #include "fwlat_internal.h"
-#if FWLAT_GENERATION != 0xedc80069cdecbad
+#if FWLAT_GENERATION != 0xb5265eed7aebe10
 #error "fwlat_solver.c and fwlat_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
 #endif
 
@@ -2865,10 +2865,11 @@ static int working_set_holds(fwlat_work *ws, const fwlat_mode_data *md, int nw,
                                   : outputs_to_check(ws, md, ws->th);
     for (i = 0; i < nw; ++i) {
         const int r = ws->wset[i];
-        if ((tight != 0) && !(outputs || (md->row_q[r] < md->n || md->row_q[r] >= md->n + md->nyq))) {
+        const int checked = outputs || (md->row_q[r] < md->n || md->row_q[r] >= md->n + md->nyq);
+        if ((tight != 0) && !checked) {
             return 0; /* cleared by the certificate: inside its bound, not tight */
         }
-        if (outputs || (md->row_q[r] < md->n || md->row_q[r] >= md->n + md->nyq)) {
+        if (checked) {
             if (violated_in_set(ws, md, ws->th, r, ws->z[i])) {
                 return 0;
             }

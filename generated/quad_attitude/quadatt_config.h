@@ -28,7 +28,7 @@
  * stops the build unless it is of the same one: a regeneration interrupted between two
  * of its file moves leaves no mixed tree that compiles.
  */
-#define QUADATT_GENERATION 0x94f9e12638344e4
+#define QUADATT_GENERATION 0xdd3cbd8216eb381
 
 /* The one place where the precision is chosen. */
 #define QUADATT_PRECISION_DOUBLE 1

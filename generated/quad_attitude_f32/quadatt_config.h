@@ -28,7 +28,7 @@
  * stops the build unless it is of the same one: a regeneration interrupted between two
  * of its file moves leaves no mixed tree that compiles.
  */
-#define QUADATT_GENERATION 0xd169115444d5838
+#define QUADATT_GENERATION 0xdd2c6bb58fa5206
 
 /* The one place where the precision is chosen. */
 #define QUADATT_PRECISION_DOUBLE 0

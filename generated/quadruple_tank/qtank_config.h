@@ -28,7 +28,7 @@
  * stops the build unless it is of the same one: a regeneration interrupted between two
  * of its file moves leaves no mixed tree that compiles.
  */
-#define QTANK_GENERATION 0xa4f62e6dc9a842e
+#define QTANK_GENERATION 0x6711b67c794ad40
 
 /* The one place where the precision is chosen. */
 #define QTANK_PRECISION_DOUBLE 1

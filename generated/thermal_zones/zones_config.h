@@ -28,7 +28,7 @@
  * stops the build unless it is of the same one: a regeneration interrupted between two
  * of its file moves leaves no mixed tree that compiles.
  */
-#define ZONES_GENERATION 0xa8214af49e608c5
+#define ZONES_GENERATION 0x7dd8ccb0cbc2899
 
 /* The one place where the precision is chosen. */
 #define ZONES_PRECISION_DOUBLE 1

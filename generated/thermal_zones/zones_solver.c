@@ -25,7 +25,7 @@
  */
 #include <math.h>
 #include "zones_internal.h"
-#if ZONES_GENERATION != 0xa8214af49e608c5
+#if ZONES_GENERATION != 0x7dd8ccb0cbc2899
 #error "zones_solver.c and zones_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
 #endif
 
@@ -2635,10 +2635,11 @@ static int working_set_holds(zones_work *ws, const zones_mode_data *md, int nw,
                                   : outputs_to_check(ws, md, ws->th);
     for (i = 0; i < nw; ++i) {
         const int r = ws->wset[i];
-        if ((tight != 0) && !(outputs || md->row_q[r] < md->n)) {
+        const int checked = outputs || md->row_q[r] < md->n;
+        if ((tight != 0) && !checked) {
             return 0; /* cleared by the certificate: inside its bound, not tight */
         }
-        if (outputs || md->row_q[r] < md->n) {
+        if (checked) {
             if (row_violated(ws, md, ws->th, r)) {
                 return 0;
             }

@@ -25,7 +25,7 @@
  */
 #include <math.h>
 #include "zrate_internal.h"
-#if ZRATE_GENERATION != 0xe794b47d3f7fc4d
+#if ZRATE_GENERATION != 0x2c47e1f5b26d9d1
 #error "zrate_solver.c and zrate_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
 #endif
 
@@ -2700,10 +2700,11 @@ static int working_set_holds(zrate_work *ws, const zrate_mode_data *md, int nw,
                                   : outputs_to_check(ws, md, ws->th);
     for (i = 0; i < nw; ++i) {
         const int r = ws->wset[i];
-        if ((tight != 0) && !(outputs || (md->row_q[r] < md->n || md->row_q[r] >= md->n + md->nyq))) {
+        const int checked = outputs || (md->row_q[r] < md->n || md->row_q[r] >= md->n + md->nyq);
+        if ((tight != 0) && !checked) {
             return 0; /* cleared by the certificate: inside its bound, not tight */
         }
-        if (outputs || (md->row_q[r] < md->n || md->row_q[r] >= md->n + md->nyq)) {
+        if (checked) {
             if (row_violated(ws, md, ws->th, r)) {
                 return 0;
             }

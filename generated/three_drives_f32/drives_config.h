@@ -28,7 +28,7 @@
  * stops the build unless it is of the same one: a regeneration interrupted between two
  * of its file moves leaves no mixed tree that compiles.
  */
-#define DRIVES_GENERATION 0x8078a6bcea7b5cb
+#define DRIVES_GENERATION 0x09442dc8088c663
 
 /* The one place where the precision is chosen. */
 #define DRIVES_PRECISION_DOUBLE 0
