@@ -28,7 +28,7 @@
  * stops the build unless it is of the same one: a regeneration interrupted between two
  * of its file moves leaves no mixed tree that compiles.
  */
-#define C172P_ROLL_GENERATION 0x3771774138c0f29
+#define C172P_ROLL_GENERATION 0xd0fcd7bf7a44a8e
 
 /* The one place where the precision is chosen. */
 #define C172P_ROLL_PRECISION_DOUBLE 1
@@ -104,7 +104,7 @@ typedef char c172p_roll_double_tree_built_with_single_precision_constants[
  * "Work budget"): before each unit of work the solver checks that it fits, else it returns
  * C172P_ROLL_TIME_LIMIT with its best command so far. c172p_roll_last_info()->work is what a solve spent.
  */
-#define C172P_ROLL_SOLVER_WORK_BUDGET 42000u
+#define C172P_ROLL_SOLVER_WORK_BUDGET 41865u
 
 /**
  * Optional time stamp around the QP solve, e.g. a cycle counter on the target.

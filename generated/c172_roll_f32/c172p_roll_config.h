@@ -28,7 +28,7 @@
  * stops the build unless it is of the same one: a regeneration interrupted between two
  * of its file moves leaves no mixed tree that compiles.
  */
-#define C172P_ROLL_GENERATION 0xb35a8284dc50475
+#define C172P_ROLL_GENERATION 0x4ac21d8f0d2c630
 
 /* The one place where the precision is chosen. */
 #define C172P_ROLL_PRECISION_DOUBLE 0
@@ -95,7 +95,7 @@ typedef float c172p_roll_real;
  * "Work budget"): before each unit of work the solver checks that it fits, else it returns
  * C172P_ROLL_TIME_LIMIT with its best command so far. c172p_roll_last_info()->work is what a solve spent.
  */
-#define C172P_ROLL_SOLVER_WORK_BUDGET 42000u
+#define C172P_ROLL_SOLVER_WORK_BUDGET 41865u
 
 /**
  * Optional time stamp around the QP solve, e.g. a cycle counter on the target.

@@ -28,7 +28,7 @@
  * stops the build unless it is of the same one: a regeneration interrupted between two
  * of its file moves leaves no mixed tree that compiles.
  */
-#define CHAIN_GENERATION 0xfd03f5df4212be0
+#define CHAIN_GENERATION 0xd0bdc8e9ba8ba1d
 
 /* The one place where the precision is chosen. */
 #define CHAIN_PRECISION_DOUBLE 1
@@ -100,7 +100,7 @@ typedef char chain_double_tree_built_with_single_precision_constants[
  * "Work budget"): before each unit of work the solver checks that it fits, else it returns
  * CHAIN_TIME_LIMIT with its best command so far. chain_last_info()->work is what a solve spent.
  */
-#define CHAIN_SOLVER_WORK_BUDGET 2100000u
+#define CHAIN_SOLVER_WORK_BUDGET 2099865u
 
 /**
  * Optional time stamp around the QP solve, e.g. a cycle counter on the target.

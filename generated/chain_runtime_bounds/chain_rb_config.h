@@ -28,7 +28,7 @@
  * stops the build unless it is of the same one: a regeneration interrupted between two
  * of its file moves leaves no mixed tree that compiles.
  */
-#define CHAIN_RB_GENERATION 0x3f33f703ece0b77
+#define CHAIN_RB_GENERATION 0xe6a857adb94aa5f
 
 /* The one place where the precision is chosen. */
 #define CHAIN_RB_PRECISION_DOUBLE 1
@@ -100,7 +100,7 @@ typedef char chain_rb_double_tree_built_with_single_precision_constants[
  * "Work budget"): before each unit of work the solver checks that it fits, else it returns
  * CHAIN_RB_TIME_LIMIT with its best command so far. chain_rb_last_info()->work is what a solve spent.
  */
-#define CHAIN_RB_SOLVER_WORK_BUDGET 2100000u
+#define CHAIN_RB_SOLVER_WORK_BUDGET 2099865u
 
 /**
  * Optional time stamp around the QP solve, e.g. a cycle counter on the target.

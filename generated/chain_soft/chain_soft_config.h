@@ -28,7 +28,7 @@
  * stops the build unless it is of the same one: a regeneration interrupted between two
  * of its file moves leaves no mixed tree that compiles.
  */
-#define CHAIN_SOFT_GENERATION 0x7bd2a5e5fa05bfa
+#define CHAIN_SOFT_GENERATION 0xb426badd27c8ac7
 
 /* The one place where the precision is chosen. */
 #define CHAIN_SOFT_PRECISION_DOUBLE 1
@@ -102,7 +102,7 @@ typedef char chain_soft_double_tree_built_with_single_precision_constants[
  * "Work budget"): before each unit of work the solver checks that it fits, else it returns
  * CHAIN_SOFT_TIME_LIMIT with its best command so far. chain_soft_last_info()->work is what a solve spent.
  */
-#define CHAIN_SOFT_SOLVER_WORK_BUDGET 2100000u
+#define CHAIN_SOFT_SOLVER_WORK_BUDGET 2099865u
 
 /**
  * Optional time stamp around the QP solve, e.g. a cycle counter on the target.

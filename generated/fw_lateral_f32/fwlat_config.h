@@ -28,7 +28,7 @@
  * stops the build unless it is of the same one: a regeneration interrupted between two
  * of its file moves leaves no mixed tree that compiles.
  */
-#define FWLAT_GENERATION 0xb5265eed7aebe10
+#define FWLAT_GENERATION 0xc601d6280ffcf79
 
 /* The one place where the precision is chosen. */
 #define FWLAT_PRECISION_DOUBLE 0
@@ -93,7 +93,7 @@ typedef float fwlat_real;
  * "Work budget"): before each unit of work the solver checks that it fits, else it returns
  * FWLAT_TIME_LIMIT with its best command so far. fwlat_last_info()->work is what a solve spent.
  */
-#define FWLAT_SOLVER_WORK_BUDGET 84000u
+#define FWLAT_SOLVER_WORK_BUDGET 83865u
 
 /**
  * Optional time stamp around the QP solve, e.g. a cycle counter on the target.

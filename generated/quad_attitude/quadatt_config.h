@@ -28,7 +28,7 @@
  * stops the build unless it is of the same one: a regeneration interrupted between two
  * of its file moves leaves no mixed tree that compiles.
  */
-#define QUADATT_GENERATION 0xdd3cbd8216eb381
+#define QUADATT_GENERATION 0x8f50d4f925aea7c
 
 /* The one place where the precision is chosen. */
 #define QUADATT_PRECISION_DOUBLE 1
@@ -100,7 +100,7 @@ typedef char quadatt_double_tree_built_with_single_precision_constants[
  * "Work budget"): before each unit of work the solver checks that it fits, else it returns
  * QUADATT_TIME_LIMIT with its best command so far. quadatt_last_info()->work is what a solve spent.
  */
-#define QUADATT_SOLVER_WORK_BUDGET 42000u
+#define QUADATT_SOLVER_WORK_BUDGET 41865u
 
 /**
  * Optional time stamp around the QP solve, e.g. a cycle counter on the target.

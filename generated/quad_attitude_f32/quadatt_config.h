@@ -28,7 +28,7 @@
  * stops the build unless it is of the same one: a regeneration interrupted between two
  * of its file moves leaves no mixed tree that compiles.
  */
-#define QUADATT_GENERATION 0xdd2c6bb58fa5206
+#define QUADATT_GENERATION 0xfa4683105816052
 
 /* The one place where the precision is chosen. */
 #define QUADATT_PRECISION_DOUBLE 0
@@ -91,7 +91,7 @@ typedef float quadatt_real;
  * "Work budget"): before each unit of work the solver checks that it fits, else it returns
  * QUADATT_TIME_LIMIT with its best command so far. quadatt_last_info()->work is what a solve spent.
  */
-#define QUADATT_SOLVER_WORK_BUDGET 42000u
+#define QUADATT_SOLVER_WORK_BUDGET 41865u
 
 /**
  * Optional time stamp around the QP solve, e.g. a cycle counter on the target.

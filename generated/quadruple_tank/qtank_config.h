@@ -28,7 +28,7 @@
  * stops the build unless it is of the same one: a regeneration interrupted between two
  * of its file moves leaves no mixed tree that compiles.
  */
-#define QTANK_GENERATION 0x6711b67c794ad40
+#define QTANK_GENERATION 0x3e70872f9f8f453
 
 /* The one place where the precision is chosen. */
 #define QTANK_PRECISION_DOUBLE 1
@@ -100,7 +100,7 @@ typedef char qtank_double_tree_built_with_single_precision_constants[
  * "Work budget"): before each unit of work the solver checks that it fits, else it returns
  * QTANK_TIME_LIMIT with its best command so far. qtank_last_info()->work is what a solve spent.
  */
-#define QTANK_SOLVER_WORK_BUDGET 21000000u
+#define QTANK_SOLVER_WORK_BUDGET 20999865u
 
 /**
  * Optional time stamp around the QP solve, e.g. a cycle counter on the target.

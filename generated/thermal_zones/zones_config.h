@@ -28,7 +28,7 @@
  * stops the build unless it is of the same one: a regeneration interrupted between two
  * of its file moves leaves no mixed tree that compiles.
  */
-#define ZONES_GENERATION 0x7dd8ccb0cbc2899
+#define ZONES_GENERATION 0xb83c1ef33a79389
 
 /* The one place where the precision is chosen. */
 #define ZONES_PRECISION_DOUBLE 1
@@ -100,7 +100,7 @@ typedef char zones_double_tree_built_with_single_precision_constants[
  * "Work budget"): before each unit of work the solver checks that it fits, else it returns
  * ZONES_TIME_LIMIT with its best command so far. zones_last_info()->work is what a solve spent.
  */
-#define ZONES_SOLVER_WORK_BUDGET 21000000u
+#define ZONES_SOLVER_WORK_BUDGET 20999865u
 
 /**
  * Optional time stamp around the QP solve, e.g. a cycle counter on the target.

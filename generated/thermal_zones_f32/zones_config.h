@@ -28,7 +28,7 @@
  * stops the build unless it is of the same one: a regeneration interrupted between two
  * of its file moves leaves no mixed tree that compiles.
  */
-#define ZONES_GENERATION 0xa078fa3da593bdb
+#define ZONES_GENERATION 0x76f522b050bc052
 
 /* The one place where the precision is chosen. */
 #define ZONES_PRECISION_DOUBLE 0
@@ -91,7 +91,7 @@ typedef float zones_real;
  * "Work budget"): before each unit of work the solver checks that it fits, else it returns
  * ZONES_TIME_LIMIT with its best command so far. zones_last_info()->work is what a solve spent.
  */
-#define ZONES_SOLVER_WORK_BUDGET 21000000u
+#define ZONES_SOLVER_WORK_BUDGET 20999865u
 
 /**
  * Optional time stamp around the QP solve, e.g. a cycle counter on the target.

@@ -28,7 +28,7 @@
  * stops the build unless it is of the same one: a regeneration interrupted between two
  * of its file moves leaves no mixed tree that compiles.
  */
-#define ZRATE_GENERATION 0xdae5b0497339fd3
+#define ZRATE_GENERATION 0xa1840257ac23381
 
 /* The one place where the precision is chosen. */
 #define ZRATE_PRECISION_DOUBLE 0
@@ -91,7 +91,7 @@ typedef float zrate_real;
  * "Work budget"): before each unit of work the solver checks that it fits, else it returns
  * ZRATE_TIME_LIMIT with its best command so far. zrate_last_info()->work is what a solve spent.
  */
-#define ZRATE_SOLVER_WORK_BUDGET 21000000u
+#define ZRATE_SOLVER_WORK_BUDGET 20999865u
 
 /**
  * Optional time stamp around the QP solve, e.g. a cycle counter on the target.

@@ -28,7 +28,7 @@
  * stops the build unless it is of the same one: a regeneration interrupted between two
  * of its file moves leaves no mixed tree that compiles.
  */
-#define DRIVES_GENERATION 0x032cabb00814eef
+#define DRIVES_GENERATION 0xb0ead172e1e765e
 
 /* The one place where the precision is chosen. */
 #define DRIVES_PRECISION_DOUBLE 1
@@ -104,7 +104,7 @@ typedef char drives_double_tree_built_with_single_precision_constants[
  * "Work budget"): before each unit of work the solver checks that it fits, else it returns
  * DRIVES_TIME_LIMIT with its best command so far. drives_last_info()->work is what a solve spent.
  */
-#define DRIVES_SOLVER_WORK_BUDGET 84000u
+#define DRIVES_SOLVER_WORK_BUDGET 83865u
 
 /**
  * Optional time stamp around the QP solve, e.g. a cycle counter on the target.

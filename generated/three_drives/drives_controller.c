@@ -10,7 +10,7 @@
  */
 #include <math.h>
 #include "drives_internal.h"
-#if DRIVES_GENERATION != 0x032cabb00814eef
+#if DRIVES_GENERATION != 0xb0ead172e1e765e
 #error "drives_controller.c and drives_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
 #endif
 

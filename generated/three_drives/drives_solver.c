@@ -25,7 +25,7 @@
  */
 #include <math.h>
 #include "drives_internal.h"
-#if DRIVES_GENERATION != 0x032cabb00814eef
+#if DRIVES_GENERATION != 0xb0ead172e1e765e
 #error "drives_solver.c and drives_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
 #endif
 
@@ -112,12 +112,19 @@ static uint32_t finish_work(const drives_mode_data *md)
  * Can the budget still pay for `need` units (and the final finish())? Every unit of work
  * asks before it starts, so ws->work + finish_work() never passes the budget (the
  * generator checks that the unconstrained step leaves room); ws->work_limit is the
- * budget, or less while the shifted guess runs (P_qp_solve()).
+ * budget, or less while the shifted guess runs (P_qp_solve()). A granted unit pays
+ * UNIT_CALL_WORK at once: the calls, checks and copies around its operations,
+ * which its formula does not count and which dominate the small units of a small QP.
  */
-static int afford(const drives_work *ws, const drives_mode_data *md, uint32_t need)
+#define UNIT_CALL_WORK 15u
+static int afford(drives_work *ws, const drives_mode_data *md, uint32_t need)
 {
-    const uint32_t used = ws->work + finish_work(md);
-    return used <= ws->work_limit && need <= ws->work_limit - used;
+    const uint32_t used = ws->work + finish_work(md) + UNIT_CALL_WORK;
+    if (used <= ws->work_limit && need <= ws->work_limit - used) {
+        ws->work += UNIT_CALL_WORK;
+        return 1;
+    }
+    return 0;
 }
 
 /*
@@ -2287,6 +2294,22 @@ static int seed_from_multipliers(drives_work *ws, const drives_mode_data *md,
 }
 
 
+/* Clears in_set on the `count` rows of `rows`, or on every row (count < 0). */
+static void clear_flags(drives_work *ws, const drives_mode_data *md, const int16_t *rows,
+    int count)
+{
+    int i;
+    if (count < 0) {
+        for (i = 0; i < md->m; ++i) {
+            ws->in_set[i] = 0u;
+        }
+        return;
+    }
+    for (i = 0; i < count; ++i) {
+        ws->in_set[rows[i]] = 0u;
+    }
+}
+
 /*
  * The guess of seed_shifted() (row r where lam[row_next[r]] > 0) in the order of the dual
  * factor the last QP of the mode left (wset[0..chol_n)), which reaches it by updates: its
@@ -2310,15 +2333,23 @@ static int seed_from_multipliers(drives_work *ws, const drives_mode_data *md,
 static int carry_factor(drives_work *ws, const drives_mode_data *md,
     drives_real *lam)
 {
-    int i, r, nw = 0, box = 1, size, whole, kept = (ws->chol_holds == DRIVES_CHOL_DUAL) ? ws->chol_n : 0;
+    int g, i, r, nw = 0, box = 1, size, whole, kept = (ws->chol_holds == DRIVES_CHOL_DUAL) ? ws->chol_n : 0;
     uint32_t cost = 0u;
+    int16_t *guess = ws->tmp; /* the guess's rows in order, while the working set holds them */
     for (r = 0; r < md->m; ++r) { /* 1: a row of the guess */
-        ws->in_set[r] = 0u;
-        if (lam[md->row_next[r]] > R_(0.0)) {
-            ws->in_set[r] = 1u;
+        const int in = lam[md->row_next[r]] > R_(0.0);
+        ws->in_set[r] = (uint8_t)in;
+        if (in) {
+            if (nw < md->n) {
+                guess[nw] = (int16_t)r;
+            }
+            ++nw;
+            box = box && md->row_q[r] < md->n;
         }
-        nw += ws->in_set[r];
-        box = box && (!ws->in_set[r] || md->row_q[r] < md->n);
+    }
+    if (nw > md->n) {
+        clear_flags(ws, md, guess, -1);
+        return -1;
     }
     size = kept;
     for (i = kept - 1; i >= 0; --i) { /* 2: a factor row the guess keeps in its state */
@@ -2333,12 +2364,9 @@ static int carry_factor(drives_work *ws, const drives_mode_data *md,
     for (i = size; i < nw; ++i) {
         cost += append_work(md, i);
     }
-    whole = nw > 0 && nw <= md->n && !box && cost < factor_work(md, nw) && afford(ws, md, cost);
-    if (nw == 0 || nw > md->n || box
-        || (!whole && afford(ws, md, dual_solve_work(ws, md, nw, 0)))) {
-        for (r = 0; r < md->m; ++r) {
-            ws->in_set[r] = 0;
-        }
+    whole = nw > 0 && !box && cost < factor_work(md, nw) && afford(ws, md, cost);
+    if (nw == 0 || box || (!whole && afford(ws, md, dual_solve_work(ws, md, nw, 0)))) {
+        clear_flags(ws, md, guess, nw);
         return -1;
     }
     if (ws->chol_holds != DRIVES_CHOL_DUAL) { /* the factor of the empty set, to append to */
@@ -2350,7 +2378,7 @@ static int carry_factor(drives_work *ws, const drives_mode_data *md,
     for (i = kept - 1; i >= 0; --i) {
         if (ws->in_set[ws->wset[i]] != 2) {
             if (!whole && !afford(ws, md, delete_work(i, size))) {
-                break;
+                break; /* (rows outside the guess stay flagged: the pass over lam clears them) */
             }
             remove_row(ws, i, &size);
         }
@@ -2358,8 +2386,9 @@ static int carry_factor(drives_work *ws, const drives_mode_data *md,
     for (i = 0; i < size; ++i) {
         ws->in_set[ws->wset[i]] = 2; /* in the factor */
     }
-    for (r = 0; r < md->m && (whole || size < nw); ++r) {
-        if (lam[md->row_next[r]] > R_(0.0) && ws->in_set[r] != 2) {
+    for (g = 0; g < nw && (whole || size < nw); ++g) {
+        r = guess[g];
+        if (ws->in_set[r] != 2) {
             if (!whole && !afford(ws, md, append_work(md, size))) {
                 break;
             }
@@ -2374,14 +2403,16 @@ static int carry_factor(drives_work *ws, const drives_mode_data *md,
             }
         }
     }
-    for (r = 0; r < md->m; ++r) {
-        if (!whole) { /* the guess, which the next QP goes on from (row_next[r] >= r) */
-            const drives_real l = lam[md->row_next[r]];
-            lam[r] = (l > R_(0.0) && ws->in_set[r] != 3u) ? l : R_(0.0);
-        }
+    if (whole) {
+        clear_flags(ws, md, guess, nw); /* every flag is on a row of the guess */
+        return size;
+    }
+    for (r = 0; r < md->m; ++r) { /* the guess, which the next QP goes on from (row_next[r] >= r) */
+        const drives_real l = lam[md->row_next[r]];
+        lam[r] = (l > R_(0.0) && ws->in_set[r] != 3u) ? l : R_(0.0);
         ws->in_set[r] = 0;
     }
-    return whole ? size : OUT_OF_WORK;
+    return OUT_OF_WORK;
 }
 
 /*

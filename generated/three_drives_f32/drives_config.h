@@ -28,7 +28,7 @@
  * stops the build unless it is of the same one: a regeneration interrupted between two
  * of its file moves leaves no mixed tree that compiles.
  */
-#define DRIVES_GENERATION 0x09442dc8088c663
+#define DRIVES_GENERATION 0xf7f921787fccb40
 
 /* The one place where the precision is chosen. */
 #define DRIVES_PRECISION_DOUBLE 0
@@ -95,7 +95,7 @@ typedef float drives_real;
  * "Work budget"): before each unit of work the solver checks that it fits, else it returns
  * DRIVES_TIME_LIMIT with its best command so far. drives_last_info()->work is what a solve spent.
  */
-#define DRIVES_SOLVER_WORK_BUDGET 84000u
+#define DRIVES_SOLVER_WORK_BUDGET 83865u
 
 /**
  * Optional time stamp around the QP solve, e.g. a cycle counter on the target.

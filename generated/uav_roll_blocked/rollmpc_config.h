@@ -28,7 +28,7 @@
  * stops the build unless it is of the same one: a regeneration interrupted between two
  * of its file moves leaves no mixed tree that compiles.
  */
-#define ROLLMPC_GENERATION 0xb823a9ce1966031
+#define ROLLMPC_GENERATION 0xd488c9a85949f50
 
 /* The one place where the precision is chosen. */
 #define ROLLMPC_PRECISION_DOUBLE 1
@@ -104,7 +104,7 @@ typedef char rollmpc_double_tree_built_with_single_precision_constants[
  * "Work budget"): before each unit of work the solver checks that it fits, else it returns
  * ROLLMPC_TIME_LIMIT with its best command so far. rollmpc_last_info()->work is what a solve spent.
  */
-#define ROLLMPC_SOLVER_WORK_BUDGET 42000u
+#define ROLLMPC_SOLVER_WORK_BUDGET 41865u
 
 /**
  * Optional time stamp around the QP solve, e.g. a cycle counter on the target.

@@ -28,7 +28,7 @@
  * stops the build unless it is of the same one: a regeneration interrupted between two
  * of its file moves leaves no mixed tree that compiles.
  */
-#define ROLLMPC_GENERATION 0x470363dc81d9661
+#define ROLLMPC_GENERATION 0x5ee6532057c9ee1
 
 /* The one place where the precision is chosen. */
 #define ROLLMPC_PRECISION_DOUBLE 0
@@ -95,7 +95,7 @@ typedef float rollmpc_real;
  * "Work budget"): before each unit of work the solver checks that it fits, else it returns
  * ROLLMPC_TIME_LIMIT with its best command so far. rollmpc_last_info()->work is what a solve spent.
  */
-#define ROLLMPC_SOLVER_WORK_BUDGET 42000u
+#define ROLLMPC_SOLVER_WORK_BUDGET 41865u
 
 /**
  * Optional time stamp around the QP solve, e.g. a cycle counter on the target.

@@ -21,7 +21,7 @@ from ..qp.budget import check_work_budget
 from ..qp.work import cycles_per_work_unit
 from ..qp.work import (ADD_BATCH, CHOL_UNITS_PER_OP, GUESS_SAMPLE_MIN, PREDICT_UNITS_PER_OP,
                        PRIMAL_CALL_OPS, PRIMAL_CALL_UNITS, PRIMAL_SIXTHS_PER_OP,
-                       TRI_UNITS_PER_OP)
+                       TRI_UNITS_PER_OP, UNIT_CALL_WORK)
 from ..info_struct import context_info_fields
 from ..solver_codes import context_codes
 from ..status import UNKNOWN_MESSAGE, context_statuses
@@ -166,7 +166,7 @@ def build_context(model: ControllerModel) -> dict:
                            "primal": PRIMAL_SIXTHS_PER_OP, "primal_call": PRIMAL_CALL_UNITS,
                            "primal_call_ops": PRIMAL_CALL_OPS,
                            "guess_sample_min": GUESS_SAMPLE_MIN,
-                           "predict": PREDICT_UNITS_PER_OP},
+                           "predict": PREDICT_UNITS_PER_OP, "unit_call": UNIT_CALL_WORK},
         },
         "sizes": {
             "nx_max": max(m["nx"] for m in modes), "nu_max": max(m["nu"] for m in modes),

@@ -18,7 +18,7 @@ from ..config.schema import WORK_BUDGET_AUTO
 from .fits import at_least, what_fits
 from .footprint import predict, rounded
 from .sizes import mode_sizes
-from .work import (WORK_LIMIT, base_work, cycles_per_work_unit, free_step_work,
+from .work import (STEP_FIXED_UNITS, WORK_LIMIT, base_work, cycles_per_work_unit, free_step_work,
                    largest_unit, work_budget_of)
 
 
@@ -35,7 +35,7 @@ def _scalings(cfg: ControllerConfig, need: int) -> list[str]:
     s = cfg.solver
     if s.work_budget != WORK_BUDGET_AUTO:
         return [f"solver.work_budget >= {need:,}"]
-    cycles = need * cycles_per_work_unit(cfg)
+    cycles = (need + STEP_FIXED_UNITS) * cycles_per_work_unit(cfg)  # auto_work_budget()
     share = cycles / (cfg.sample_time * cfg.target.cpu_mhz * 1e6)
     mhz = cycles / (s.budget_share * cfg.sample_time * 1e6)
     out = [f"solver.budget_share >= {at_least(share)}"] if share <= 1 else []
@@ -58,7 +58,7 @@ def check_work_budget(cfg: ControllerConfig, modes, factor: int) -> int:
     s = cfg.solver
     how = (f"auto: {s.budget_share:g} of Ts = {seconds_text(cfg.sample_time)} at "
            f"{cfg.target.cpu_mhz:g} MHz, {cycles_per_work_unit(cfg):g} cycles per unit on the "
-           f"{cfg.target.core_decl.label}"
+           f"{cfg.target.core_decl.label}, less {STEP_FIXED_UNITS} for the step outside the solver"
            if s.work_budget == WORK_BUDGET_AUTO else "given")
     sizes = _sizes(cfg)
     held = max(free_step_work(m) for m in sizes)

@@ -48,10 +48,10 @@ from ..parts import CORTEX_M4F
 from .fits import at_least, what_fits
 from .sizes import (ModeSizes, condensing_bytes, largest_mode, mode_sizes, stored_bytes,
                     struct_bytes)
-from .work import free_step_work, work_budget_of
+from .work import STEP_FIXED_UNITS, free_step_work, work_budget_of
 
 CYCLES_PER_FREE_UNIT = 9  # per work unit of a step without active bounds (a fit, above)
-FIXED_STEP_CYCLES = 2_700  # per step, outside the solver's count
+FIXED_STEP_CYCLES = STEP_FIXED_UNITS * 20  # per step, outside the solver's count (M4F cycles)
 FIT_CORE = CORTEX_M4F  # the core both were fitted on (another core's scales them)
 # dense condensing matrices beyond this take about a second (N = 150 for the paper's
 # plant on this machine): the prediction is then printed before the maths, not after

@@ -72,6 +72,8 @@ UNMIRRORED = {
                           _BOOKKEEPING + "a row's (l1, w): the table soft_l1, soft_w"),
     "forget_row": Unmirrored("reference/polish_dual.py.remove_row",
                              _BOOKKEEPING + "a row's flags cleared"),
+    "clear_flags": Unmirrored("reference/seeds.py.carry_factor",
+                              _BOOKKEEPING + "the guess's membership flags cleared"),
     **{name: Unmirrored(_ORDER, _BOOKKEEPING + "the order of the primal factor's rows")
        for name in ("in_form", "role_gen", "sort_by_generation", "primal_diff")},
     "primal_old_order": Unmirrored("reference/primal_rows.py.primal_deletes",

@@ -26,7 +26,8 @@ import numpy as np
 from ..features.move_blocking import next_input_quantity
 from ..features.soft_constraints import multiplier_slack
 from ..qp.storage import ModeData
-from ..qp.work import correct_work, finish_work, predict_work, scan_work, sweep_work
+from ..qp.work import (UNIT_CALL_WORK, correct_work, finish_work, predict_work, scan_work,
+                       sweep_work)
 from ..status import INACCURATE, INFEASIBLE, MAX_ITER, NUMERICAL, OPTIMAL, TIME_LIMIT
 from .active_set import ActiveSetMixin
 from .hq import hessian_reads
@@ -124,9 +125,13 @@ class SolverRef(SignalsMixin, UnconstrainedMixin, RowsMixin, SoftRowsMixin, Swee
         self.work_limit, self.stop = self.budget, None
 
     def afford(self, need):
-        """Mirror of afford(): can the running part still pay ``need`` units and finish()?"""
-        used = self.work + finish_work(self.md)
-        return used <= self.work_limit and need <= self.work_limit - used
+        """Mirror of afford(): can the running part still pay ``need`` units and finish()?
+        A granted unit pays UNIT_CALL_WORK at once."""
+        used = self.work + finish_work(self.md) + UNIT_CALL_WORK
+        if used <= self.work_limit and need <= self.work_limit - used:
+            self.work += UNIT_CALL_WORK
+            return True
+        return False
 
     def fallback_point(self, th0):
         """Mirror of fallback_point(): the last plan shifted one stage while it is younger

@@ -6,7 +6,9 @@ library returns on ``.warnings`` (and in the JSON as ``checks``).
   (metrics.short_segment_warnings);
 * ``time_limit``: samples stopped at the work budget (metrics.time_limit_warning);
 * ``infeasible_samples``: samples whose QP was INFEASIBLE (without any, but with an
-  output past a hard bound: ``hard_bound_passed``).  Hard output bounds under
+  output past a hard bound: ``hard_bound_passed``, which sends a run with TIME_LIMIT
+  samples to the unbudgeted copy first: a new user's converter, nominal, passed its
+  current bound by 10 times its value only where the budget stopped it).  Hard output bounds under
   noise, a disturbance or a mismatched plant: a drone whose vertical speed is bounded hard
   flew 135 of 500 samples INFEASIBLE and 3.99 m/s past the bound with only the TIME_LIMIT
   warning.  An INFEASIBLE command keeps the input bounds only; soft bounds
@@ -18,7 +20,7 @@ import numpy as np
 
 from ..config import ControllerConfig
 from ..config.diagnostics import DesignWarning
-from ..status import INFEASIBLE, STATUS_NAMES
+from ..status import INFEASIBLE, STATUS_NAMES, TIME_LIMIT
 from .metrics import time_limit_warning
 
 INFEASIBLE_NAME = STATUS_NAMES[INFEASIBLE]
@@ -80,12 +82,18 @@ def infeasible_check(cfg: ControllerConfig, statuses: np.ndarray, modes: np.ndar
         key, hint, doc = (f"modes[{j}].bounds.soft", _soft_hint(cfg, j), "Soft output bounds")
         if signal and not outputs:
             (key, hint), doc = signal, "General constraints"
+        stopped = int(np.count_nonzero(np.asarray(statuses) == TIME_LIMIT))
+        first = (f" With {stopped} samples stopped at the work budget, first see whether the "
+                 "bound holds without it: `rollmpc simulate` of a copy with a large "
+                 "solver.work_budget (--against-unbudgeted with --flights); if it does, the "
+                 "stops cost it: give the solver more of Ts or a smaller QP. Else tighten"
+                 if stopped else " Tighten")
         return [DesignWarning(
             "hard_bound_passed", key,
             f"the {'outputs' if not signal else 'signals' if not outputs else 'outputs and signals'}"
             f" passed a hard bound by up to {far}: a plan keeps the bounds on the "
             "model (a TIME_LIMIT one not even there), not on a plant that noise, disturbance "
-            "or mismatch take elsewhere. Tighten the bound by that margin or make it soft, e.g. "
+            f"or mismatch take elsewhere.{first} the bound by that margin or make it soft, e.g. "
             f"{hint} (docs/features.md, \"{doc}\")")]
     counts = np.bincount(np.asarray(modes)[bad], minlength=len(cfg.modes))
     j = int(counts.argmax())

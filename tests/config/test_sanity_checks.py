@@ -84,7 +84,7 @@ def test_a_horizon_far_shorter_than_the_closed_loop_warns():
 
 def test_b_off_by_a_million_warns_on_the_output_it_cannot_move():
     """B in the wrong unit: the buck settled with an error equal to its reference."""
-    data = buck()
+    data = buck(horizon=6)  # the figures below: what 6 samples of the wrong B move
     data["modes"][0]["plant"]["state_space"]["B"] = [[0.12], [0.0]]
     found = warnings_of(data)
     assert codes(found) == [("output_scale", "modes[0].plant")] * 2  # vout and iL

@@ -12,8 +12,8 @@ import pytest
 
 from rollmpc_codegen.cli.main import main
 from rollmpc_codegen.host.build import build_host_controller
-from rollmpc_codegen.host.float_check import (FLOAT_ERROR_LIMIT, check_float, double_twin,
-                                              floor_context)
+from rollmpc_codegen.host.float_check import (FLOAT_ERROR_LIMIT, FloatCheck, check_float,
+                                              double_twin, floor_context)
 from rollmpc_codegen.pipeline import load_model, load_model_from_config
 from rollmpc_codegen.qp.work import UNBOUNDED_WORK
 from rollmpc_codegen.status import OPTIMAL
@@ -158,3 +158,20 @@ def test_a_scenario_without_moves_checks_nothing_and_does_not_warn(tmp_path, cap
     assert code == 0 and cap.err == ""
     assert "rollmpc: float check: nothing to check (the scenario's states and references " \
            "are all zero)\n" in cap.out
+
+
+def _check(lost: dict) -> FloatCheck:
+    return FloatCheck(qps=40, perturbed=8, error=2e-6, first_move_error=2e-6, floor=1e-6,
+                      float_not_optimal=sum(lost.values()),
+                      float_statuses={"optimal": 48 - sum(lost.values()), **lost}, lost=lost,
+                      seconds=1.0, worst="sample 3, mode m")
+
+
+def test_a_qp_float_stops_at_the_budget_is_not_laid_to_float():
+    """A small inverter loop's check said "2 QPs that double solves are not OPTIMAL in float
+    (29 TIME_LIMIT)" and sent it to double, 7-22 times slower on the M4F, for budget stops
+    (its 29 counted every float QP, not the 2)."""
+    assert not _check({"time_limit": 2}).unsafe and _check({"time_limit": 2}).warning() is None
+    mixed = _check({"time_limit": 2, "max_iter": 1})
+    assert mixed.unsafe and "1 QPs that double solves are not OPTIMAL in float (1 MAX_ITER)" \
+        in mixed.warning()

@@ -34,7 +34,8 @@ from rollmpc_codegen.host.testvectors import write_test_vectors
 VALGRIND_HINT = "apt-get install -y --no-install-recommends valgrind"
 ARM_HINT = "apt-get install -y --no-install-recommends gcc-arm-none-eabi libnewlib-arm-none-eabi"
 FREESTANDING = ("-ffreestanding", "-fno-math-errno")  # beside each core's flags (parts.py)
-STACK_LIMIT = 1024  # bytes, worst path; PX4's controller work queue has 2,240 B in all
+STACK_LIMIT = 1024  # bytes, worst path on a core; PX4's controller work queue has 2,240 B in all
+HOST_STACK_LIMIT = 1152  # bytes: x86-64 GCC inlines more into P_qp_solve and polish
 
 
 def _short(tmp_path):
@@ -153,5 +154,6 @@ def test_stack_worst_path(tmp_path, target, precision):
         report.external  # libm and the block moves GCC emits for loops
     for entry in ("rollmpc_step", "rollmpc_solve_qp", "rollmpc_init"):
         depth, chain = report.worst_path(entry)  # raises on recursion
-        assert depth <= STACK_LIMIT, (entry, depth, chain)
+        assert depth <= (STACK_LIMIT if target.startswith("cortex") else HOST_STACK_LIMIT), \
+            (entry, depth, chain)
         assert depth > 0 or entry == "rollmpc_init"  # a leaf may need no frame at all

@@ -17,7 +17,7 @@ from rollmpc_codegen.config import parse
 from rollmpc_codegen.sim.metrics import summarize, weighted_outputs
 from rollmpc_codegen.sim.run_checks import infeasible_check, scenario_checks
 from rollmpc_codegen.sim.simulate import ClosedLoopLog
-from rollmpc_codegen.status import INFEASIBLE, OPTIMAL
+from rollmpc_codegen.status import INFEASIBLE, OPTIMAL, TIME_LIMIT
 
 BUCK = yaml.safe_load((ROOT / "tests" / "data" / "newuser" / "buck.yaml").read_text())
 K = 400  # the buck's scenario: 4 levels of 100 samples
@@ -101,6 +101,19 @@ def test_a_hard_bound_passed_without_infeasible_samples_is_named_too():
     (found,) = infeasible_check(cfg, np.full(K, OPTIMAL), np.zeros(K, int), {"iL": 0.2})
     assert found.code == "hard_bound_passed" and "by up to iL 0.2 A" in found.message
     assert infeasible_check(cfg, np.full(K, OPTIMAL), np.zeros(K, int), {}) == []
+    assert "Tighten the bound by that margin" in found.message
+
+
+def test_a_bound_passed_where_samples_stopped_sends_to_the_unbudgeted_copy_first():
+    """A DC motor's current loop, nominal, passed its 6 A bound by 61.9 A where the budget
+    stopped it, and was told to tighten the bound by 61.9 A."""
+    cfg = buck_cfg()
+    status = np.full(K, OPTIMAL)
+    status[100:130] = TIME_LIMIT
+    (found,) = infeasible_check(cfg, status, np.zeros(K, int), {"iL": 10.0})
+    assert "With 30 samples stopped at the work budget, first see whether the bound holds " \
+        "without it" in found.message
+    assert "Else tighten the bound by that margin" in found.message
 
 
 def test_the_cli_prints_the_run_warnings_in_their_order(capsys):

@@ -84,8 +84,8 @@ def test_an_optimal_final_set_is_accepted_as_polish_would(build_root, monkeypatc
     statuses = [s for s, _ in seen]
     assert bad == []
     _assert_as_polish_would(hits, 10, 0, 1e-4)
-    # 146-156 were TIME_LIMIT without the shortcut; the run of stops still starts at 130
-    assert all(s == OPTIMAL for s in statuses[146:157])
+    # 147-156 were TIME_LIMIT without the shortcut; the run of stops still starts at 130
+    assert all(s == OPTIMAL for s in statuses[147:157])
     assert statuses[130] == TIME_LIMIT
 
 

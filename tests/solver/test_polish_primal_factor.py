@@ -182,7 +182,7 @@ def test_a_row_that_leaves_mid_factor_is_deleted_by_an_update(uav_double):
     (Y carried) costs less than factoring them again, so the solve keeps them: the charge
     is the deletion's plus a solve with no row factored, and the updated L and Y are those
     of the new order (L L' = S_FF, L Y = V_F'), to rounding."""
-    from rollmpc_codegen.qp.work import primal_delete_work, primal_work
+    from rollmpc_codegen.qp.work import UNIT_CALL_WORK, primal_delete_work, primal_work
     from rollmpc_codegen.reference.linalg import _tri_offsets
     from rollmpc_codegen.reference.solver import SolverRef
 
@@ -204,7 +204,7 @@ def test_a_row_that_leaves_mid_factor_is_deleted_by_an_update(uav_double):
     order = [q for q in range(99, 59, -1) if q != 80]
     assert ref.factor_rows.head == order and list(ref._idx) == order
     runs = 2  # bound runs: 0..59 and 80
-    assert ref.work == primal_delete_work(19, 40, md.nt) + primal_work(
+    assert ref.work == UNIT_CALL_WORK + primal_delete_work(19, 40, md.nt) + primal_work(
         md, W.size, 39, 39, False, runs) < primal_work(md, W.size, 39, 19, False, runs)
     k, tri = 39, _tri_offsets(39)
     L = np.zeros((k, k))

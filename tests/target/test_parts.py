@@ -14,6 +14,7 @@ from conftest import UAV, config_error, require_tool, short_uav_config
 from rollmpc_codegen.config import load
 from rollmpc_codegen.config.canonical import canonical_json
 from rollmpc_codegen.parts import CORES, DEFAULT_PART, PARTS
+from rollmpc_codegen.qp.work import STEP_FIXED_UNITS
 
 ARM_HINT = "apt-get install -y --no-install-recommends gcc-arm-none-eabi libnewlib-arm-none-eabi"
 
@@ -126,11 +127,13 @@ def auto_budget(tmp_path, precision, part):
                                              ("stm32l562", "float")])
 def test_the_auto_work_budget_is_the_parts(tmp_path, part, precision):
     """Half of Ts at the part's clock over its core's cycles per unit in the precision it
-    runs (the M4F's double tree is judged as its float build), and P_target.mk names it."""
+    runs (the M4F's double tree is judged as its float build), less the step's fixed
+    units, and P_target.mk names it."""
     ctx = auto_budget(tmp_path, precision, part)
     decl = PARTS[part or DEFAULT_PART]
     per_unit = decl.core.cycles_per_work_unit(precision)
-    assert ctx["solver"]["work_budget"] == int(0.01 * 0.5 * decl.cpu_mhz * 1e6 / per_unit)
+    assert ctx["solver"]["work_budget"] == \
+        int(0.01 * 0.5 * decl.cpu_mhz * 1e6 / per_unit) - STEP_FIXED_UNITS
     from rollmpc_codegen.codegen.render import render_sources
 
     mk = render_sources(ctx)["rollmpc_target.mk"]
