@@ -9,12 +9,14 @@ into the controller instance's RAM; the build is the firmware's (float, -O2).
 """
 from __future__ import annotations
 
+import argparse
 import sys
 import tempfile
 from pathlib import Path
 
 import numpy as np
 
+from ..config.errors import ConfigError
 from ..pipeline import load_model
 from ..qp.work import chol_ops, tri_ops
 from .build import build_target
@@ -50,9 +52,19 @@ def kernel_cycles(config: str | Path, orders=ORDERS) -> list[dict]:
 
 
 def main(argv=None) -> int:
-    args = sys.argv[1:] if argv is None else argv
+    ap = argparse.ArgumentParser(prog="python -m rollmpc_codegen.target.kernel_cycles",
+                                 description="Cycles per operation of the factor and "
+                                 "triangular-solve kernels on the emulated Cortex-M4F.")
+    ap.add_argument("config", nargs="?", default="examples/uav_roll.yaml",
+                    help="a design to build the kernels from (default: %(default)s)")
+    args = ap.parse_args(argv)
+    try:
+        rows = kernel_cycles(args.config)
+    except ConfigError as exc:
+        print(f"kernel_cycles: error: {exc}", file=sys.stderr)
+        return 2
     print("order  cholesky  cycles/op   forward     back  cycles/op (slower solve)")
-    for r in kernel_cycles(args[0] if args else "examples/uav_roll.yaml"):
+    for r in rows:
         print(f"{r['order']:5d} {r['cholesky']:9d} {r['per_chol_op']:10.2f} {r['forward']:9d}"
               f" {r['back']:8d} {r['per_tri_op']:10.2f}")
     return 0

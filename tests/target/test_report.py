@@ -200,6 +200,18 @@ def test_kernel_charges_cover_their_cycles(target_tools):
     assert rows[-1]["per_chol_op"] < rows[0]["per_chol_op"]  # the blocked kernel pays at size
 
 
+def test_kernel_cycles_names_a_bad_config_in_one_line(tmp_path, capsys):
+    """The measurement tool's own CLI: --help, and a missing config as exit 2, no traceback."""
+    from rollmpc_codegen.target.kernel_cycles import main
+
+    with pytest.raises(SystemExit) as stop:
+        main(["--help"])
+    assert stop.value.code == 0 and "config" in capsys.readouterr().out
+    assert main([str(tmp_path / "absent.yaml")]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "absent.yaml: cannot read" in err
+
+
 def test_instances_equal_but_for_the_sign_of_nan():
     """report's instance check takes a NaN for a NaN whatever its sign (x86 makes -NaN
     where the M4F makes +NaN: "bit-exact vs host: NO (0 mismatches)" on a diverged run),
