@@ -28,7 +28,7 @@
  * stops the build unless it is of the same one: a regeneration interrupted between two
  * of its file moves leaves no mixed tree that compiles.
  */
-#define FWLAT_GENERATION 0x0e52cba78664c07
+#define FWLAT_GENERATION 0x96effd638c9a9f7
 
 /* The one place where the precision is chosen. */
 #define FWLAT_PRECISION_DOUBLE 1

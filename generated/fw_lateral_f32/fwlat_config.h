@@ -28,7 +28,7 @@
  * stops the build unless it is of the same one: a regeneration interrupted between two
  * of its file moves leaves no mixed tree that compiles.
  */
-#define FWLAT_GENERATION 0xc601d6280ffcf79
+#define FWLAT_GENERATION 0xfee7d593fb1e67a
 
 /* The one place where the precision is chosen. */
 #define FWLAT_PRECISION_DOUBLE 0

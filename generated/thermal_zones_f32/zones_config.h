@@ -28,7 +28,7 @@
  * stops the build unless it is of the same one: a regeneration interrupted between two
  * of its file moves leaves no mixed tree that compiles.
  */
-#define ZONES_GENERATION 0x76f522b050bc052
+#define ZONES_GENERATION 0x3d810cd20088836
 
 /* The one place where the precision is chosen. */
 #define ZONES_PRECISION_DOUBLE 0

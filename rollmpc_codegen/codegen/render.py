@@ -14,7 +14,7 @@ import numpy as np
 from ..qp.arrays import MODE_SIZES
 from ..qp.work import (ADD_BATCH, CHOL_UNITS_PER_OP, GUESS_SAMPLE_MIN,
                        PREDICT_UNITS_PER_OP, PRIMAL_CALL_OPS, PRIMAL_CALL_UNITS,
-                       PRIMAL_SIXTHS_PER_OP, TRI_UNITS_PER_OP)
+                       PRIMAL_SIXTHS_PER_OP, STEP_FIXED_UNITS, TRI_UNITS_PER_OP, UNIT_CALL_WORK)
 from ..qp.work_formula import FORMULAS, traced
 from .build_flags import context_build_flags
 from .context import context_json, rendering_context
@@ -118,7 +118,8 @@ def package_facts() -> dict:
                 "CHOL_UNITS_PER_OP": CHOL_UNITS_PER_OP, "TRI_UNITS_PER_OP": TRI_UNITS_PER_OP,
                 "PRIMAL_SIXTHS_PER_OP": PRIMAL_SIXTHS_PER_OP,
                 "PRIMAL_CALL_UNITS": PRIMAL_CALL_UNITS, "PRIMAL_CALL_OPS": PRIMAL_CALL_OPS,
-                "GUESS_SAMPLE_MIN": GUESS_SAMPLE_MIN, "ADD_BATCH": ADD_BATCH}}
+                "GUESS_SAMPLE_MIN": GUESS_SAMPLE_MIN, "ADD_BATCH": ADD_BATCH,
+                "UNIT_CALL_WORK": UNIT_CALL_WORK, "STEP_FIXED_UNITS": STEP_FIXED_UNITS}}
 
 
 # one per precision: jinja compiles each template once per environment (about half of a

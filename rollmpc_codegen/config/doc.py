@@ -14,6 +14,7 @@ from dataclasses import MISSING, fields
 
 from ..model.observer import DEFAULT_POLE_RANGE
 from ..parts import CORES
+from ..qp.work import STEP_FIXED_UNITS
 from . import schema
 from .keys import SECTIONS, Section
 
@@ -28,6 +29,7 @@ def _values() -> dict[str, object]:
             "POLE_LOW": f"{DEFAULT_POLE_RANGE[0]:.2f}", "POLE_HIGH": f"{DEFAULT_POLE_RANGE[1]:.2f}",
             # the default core's (parts.py), in the float build the M4F runs
             "CYCLES_PER_WORK_UNIT": CORES[schema.DEFAULT_CORE].cycles_per_work_unit("float"),
+            "STEP_FIXED_UNITS": STEP_FIXED_UNITS,
             "FEAS_DOUBLE": _number(schema.default_feasibility_tol("double")),
             "FEAS_FLOAT": _number(schema.default_feasibility_tol("float")),
             "DEP_DOUBLE": _number(schema.default_dependence_tol("double")),

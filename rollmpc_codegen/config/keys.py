@@ -250,7 +250,8 @@ SECTIONS = (
         Key("work_budget", None, "work units (about one multiply-add each) a QP solve may "
             "spend; past it the status is `TIME_LIMIT`. `auto`: `budget_share` of the sample "
             "time at `target.cpu_mhz`, at the target core's cycles per unit ({CYCLES_PER_WORK_UNIT:g} "
-            "on the default Cortex-M4F; target.md \"Parts\") (no budget with `polish: false`) "
+            "on the default Cortex-M4F; target.md \"Parts\"), less {STEP_FIXED_UNITS} units for the "
+            "step outside the solver (no budget with `polish: false`) "
             "(solver.md, \"Sizing\")"),
         Key("budget_share", None, "the fraction of the sample time `work_budget: auto` gives "
             "the solver"),
