@@ -62,11 +62,15 @@ class FloatCheck:
     error: float  # float build against the double build, the whole plan U
     first_move_error: float  # the same, first move only (what the closed loop applies)
     floor: float  # floor build (float-stored numbers, double arithmetic) against double
-    float_not_optimal: int  # QPs OPTIMAL in double but not in float
     float_statuses: dict  # status name -> QPs, float build, every QP
-    lost: dict  # status name -> the float_not_optimal QPs, by their float status
+    lost: dict  # float status name -> QPs OPTIMAL in double but not in float
     seconds: float
     worst: str  # the QP of the largest error, e.g. "sample 591 (perturbed), mode lateral"
+
+    @property
+    def float_not_optimal(self) -> int:
+        """QPs OPTIMAL in double but not in float."""
+        return sum(self.lost.values())
 
     @property
     def lost_to_precision(self) -> int:
@@ -186,7 +190,6 @@ def check_float(float_model: ControllerModel, float_ctx: dict, *,
     qps = [(int(seq.mode[i]), seq.x[i], seq.r[i], f"sample {int(seq.k[i])}") for i in picks]
     qps += _perturbed(seq, picks, perturbed_qps, float_ctx["n_outputs"], seed)
     errors, first, floors, statuses, lost, worst = [], [], [], {}, {}, ("", -1.0)
-    solved = 0  # QPs OPTIMAL in double
     for mode, x, r, label in qps:
         nu = float_ctx["modes"][mode]["nu"]
         sd, Ud, _ = solve("double", mode, x, r)
@@ -195,7 +198,6 @@ def check_float(float_model: ControllerModel, float_ctx: dict, *,
         statuses[name] = statuses.get(name, 0) + 1
         if sd != OPTIMAL:
             continue
-        solved += 1
         sl, Ul, _ = solve("floor", mode, x, r)
         if sl == OPTIMAL:
             floors.append(relative_error(Ul, Ud))
@@ -210,5 +212,5 @@ def check_float(float_model: ControllerModel, float_ctx: dict, *,
                       error=max(errors, default=float("nan")),
                       first_move_error=float(max(first, default=float("nan"))),
                       floor=max(floors, default=float("nan")),
-                      float_not_optimal=solved - len(errors), float_statuses=statuses, lost=lost,
+                      float_statuses=statuses, lost=lost,
                       seconds=time.perf_counter() - t0, worst=worst[0])

@@ -51,8 +51,9 @@ from .sizes import (ModeSizes, condensing_bytes, largest_mode, mode_sizes, store
 from .work import STEP_FIXED_UNITS, free_step_work, work_budget_of
 
 CYCLES_PER_FREE_UNIT = 9  # per work unit of a step without active bounds (a fit, above)
-FIXED_STEP_CYCLES = STEP_FIXED_UNITS * 20  # per step, outside the solver's count (M4F cycles)
 FIT_CORE = CORTEX_M4F  # the core both were fitted on (another core's scales them)
+# per step, outside the solver's count: the units the auto budget leaves for it, in cycles
+FIXED_STEP_CYCLES = int(STEP_FIXED_UNITS * FIT_CORE.cycles_per_work_unit("float"))
 # dense condensing matrices beyond this take about a second (N = 150 for the paper's
 # plant on this machine): the prediction is then printed before the maths, not after
 SLOW_MATHS_BYTES = 1 << 20

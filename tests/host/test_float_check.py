@@ -162,7 +162,6 @@ def test_a_scenario_without_moves_checks_nothing_and_does_not_warn(tmp_path, cap
 
 def _check(lost: dict) -> FloatCheck:
     return FloatCheck(qps=40, perturbed=8, error=2e-6, first_move_error=2e-6, floor=1e-6,
-                      float_not_optimal=sum(lost.values()),
                       float_statuses={"optimal": 48 - sum(lost.values()), **lost}, lost=lost,
                       seconds=1.0, worst="sample 3, mode m")
 
