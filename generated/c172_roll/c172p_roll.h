@@ -18,7 +18,7 @@
 #include <stddef.h>
 #include <stdint.h>
 #include "c172p_roll_config.h"
-#if C172P_ROLL_GENERATION != 0xbd1afbb2d21e05d
+#if C172P_ROLL_GENERATION != 0x424e6ca1bf529ac
 #error "c172p_roll.h and c172p_roll_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
 #endif
 

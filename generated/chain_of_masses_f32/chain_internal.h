@@ -7,7 +7,7 @@
 
 #include <math.h>
 #include "chain.h"
-#if CHAIN_GENERATION != 0xf7e279cac968bf3
+#if CHAIN_GENERATION != 0x0b47410e768e467
 #error "chain_internal.h and chain_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
 #endif
 

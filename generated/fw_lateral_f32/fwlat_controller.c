@@ -10,7 +10,7 @@
  */
 #include <math.h>
 #include "fwlat_internal.h"
-#if FWLAT_GENERATION != 0xfee7d593fb1e67a
+#if FWLAT_GENERATION != 0x1d0f09161ae988e
 #error "fwlat_controller.c and fwlat_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
 #endif
 

@@ -28,7 +28,7 @@
  * stops the build unless it is of the same one: a regeneration interrupted between two
  * of its file moves leaves no mixed tree that compiles.
  */
-#define QTANK_GENERATION 0xc251a883e70c354
+#define QTANK_GENERATION 0xf48259303bf4125
 
 /* The one place where the precision is chosen. */
 #define QTANK_PRECISION_DOUBLE 1

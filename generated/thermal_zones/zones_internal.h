@@ -7,7 +7,7 @@
 
 #include <math.h>
 #include "zones.h"
-#if ZONES_GENERATION != 0xc218b7a1be80222
+#if ZONES_GENERATION != 0x8dd2e5787d335e6
 #error "zones_internal.h and zones_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
 #endif
 

@@ -7,7 +7,7 @@
 
 #include <math.h>
 #include "drives.h"
-#if DRIVES_GENERATION != 0xf8e83c356652f23
+#if DRIVES_GENERATION != 0xd041edfefcca8db
 #error "drives_internal.h and drives_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
 #endif
 

@@ -25,7 +25,7 @@
  */
 #include <math.h>
 #include "drives_internal.h"
-#if DRIVES_GENERATION != 0xf8e83c356652f23
+#if DRIVES_GENERATION != 0xd041edfefcca8db
 #error "drives_solver.c and drives_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
 #endif
 
@@ -1293,8 +1293,16 @@ static void add_sinv_pair(drives_work *ws, const drives_mode_data *md, int j,
     }
 }
 
+/* correct()'s ``how``: mult[j] of list[j], or mult[row]; a step from ws->th (below). */
+#define CORRECT_BY_LIST 0
+#define CORRECT_BY_ROW 1
+#define CORRECT_STEP 2
+
 /*
  * th = th0 - E^-1 M_L' mult over the rows L = list[0..count) with a positive multiplier.
+ * With CORRECT_STEP, th = th - E^-1 M_L' mult instead, over every nonzero multiplier: a
+ * step of iterative refinement, which adds E^-1 M_L' times the small change of the
+ * multipliers to the point, not their large total to th0 (refine_dual()).
  * The multipliers are first summed by quantity, v = M_L' mult (inputs into ws->dv, outputs
  * into ws->yv, a Δu row into its two inputs), then E^-1 v = S^-1 v_in - Ew' (Ew v_in)
  * + E^-1 G' v_out is accumulated in ws->th column by column over the nonzero entries of v
@@ -1302,14 +1310,16 @@ static void add_sinv_pair(drives_work *ws, const drives_mode_data *md, int j,
  * by entry cost n |L| reads of E^-1 (nt operations each for an input, twice for a Δu row).
  */
 static void correct(drives_work *ws, const drives_mode_data *md, const int16_t *list,
-    int count, const drives_real *mult, int mult_by_row)
+    int count, const drives_real *mult, int how)
 {
-    const int n = md->n, nyq = md->nyq, nt = md->nt;
+    const int n = md->n, nyq = md->nyq, nt = md->nt, step = (how == CORRECT_STEP);
     int i, j, o;
     uint32_t nin = 0u, nout = 0u; /* the quantities met: the work charged */
     for (i = 0; i < n; ++i) {
         ws->dv[i] = R_(0.0);
-        ws->th[i] = R_(0.0);
+        if (!step) {
+            ws->th[i] = R_(0.0);
+        }
     }
     for (i = 0; i < nyq; ++i) {
         ws->yv[i] = R_(0.0);
@@ -1319,9 +1329,9 @@ static void correct(drives_work *ws, const drives_mode_data *md, const int16_t *
     }
     for (j = 0; j < count; ++j) {
         const int s = list[j], q = md->row_q[s];
-        const drives_real mu = mult_by_row ? mult[s] : mult[j];
-        if (mu > R_(0.0)) {
-            const drives_real v = by_sign(md, s, mu);
+        const drives_real mu = (how == CORRECT_BY_ROW) ? mult[s] : mult[j];
+        if (mu > R_(0.0) || (step && mu < R_(0.0))) {
+            const drives_real v = by_sign(md, s, step ? -mu : mu);
             if (q < n) {
                 ws->dv[q] += v;
             } else {
@@ -1367,8 +1377,10 @@ static void correct(drives_work *ws, const drives_mode_data *md, const int16_t *
             }
         }
     }
-    for (i = 0; i < n; ++i) {
-        ws->th[i] = ws->th0[i] - ws->th[i];
+    if (!step) {
+        for (i = 0; i < n; ++i) {
+            ws->th[i] = ws->th0[i] - ws->th[i];
+        }
     }
     ws->work += correct_cost(md, count, nin, nout);
 }
@@ -2687,10 +2699,13 @@ static int working_set_holds(drives_work *ws, const drives_mode_data *md, int nw
 
 /*
  * Iterative refinement of a dual solve whose point misses its own working set: with
- * multipliers ~1e9 (float), th = th0 - E^-1 M_W' z cancels most digits. The residual
- * e = M_W th - gamma_W is small, so z += H_WW^-1 e (ws->chol holds the factor) and
- * a new th lose far fewer. Up to two rounds; 0 once the working set holds, no multiplier
- * is negative and no other row is violated, else -1 (or OUT_OF_WORK).
+ * large multipliers (~1e9 from a terminal weight, or ~1e3 against a far unconstrained
+ * optimum, in float), th = th0 - E^-1 M_W' z cancels most digits. The residual
+ * e = M_W th - gamma_W is small, so d = H_WW^-1 e (ws->chol holds the factor), z += d and
+ * th -= E^-1 M_W' d: the step moves th by a small vector, where forming th from th0 again
+ * would cancel the same digits (a brushed motor's current loop braking at its current
+ * limit held its 8 rows only to 1e-3). Up to two rounds; 0 once the working set holds,
+ * no multiplier is negative and no other row is violated, else -1 (or OUT_OF_WORK).
  */
 static int refine_dual(drives_work *ws, const drives_mode_data *md, int nw)
 {
@@ -2716,7 +2731,7 @@ static int refine_dual(drives_work *ws, const drives_mode_data *md, int nw)
         if (negative != 0) {
             return -1; /* a sign changed: not this working set's point */
         }
-        correct(ws, md, ws->wset, nw, ws->z, 0);
+        correct(ws, md, ws->wset, nw, ws->rhs, CORRECT_STEP);
         if (working_set_holds(ws, md, nw, 0, 0)) {
             return (violated_outside(ws, md, ws->th, ws->in_set, ws->tmp, 0) == 0) ? 0 : -1;
         }
@@ -2900,7 +2915,7 @@ static int polish(drives_work *ws, const drives_mode_data *md, drives_real *lam,
             if (!afford(ws, md, correct_work(md, nw) + 2u * scan_work(md) + (uint32_t)md->m)) {
                 return stopped(ws, nw, known, OUT_OF_WORK);
             }
-            correct(ws, md, ws->wset, nw, ws->z, 0);
+            correct(ws, md, ws->wset, nw, ws->z, CORRECT_BY_LIST);
             nadd = violated_outside(ws, md, ws->th, ws->in_set, ws->tmp, md->n - nw);
             if (nadd == 0) {
                 /* a (near-)singular H_WW, e.g. parallel rows of an infeasible QP, can give
@@ -3104,7 +3119,7 @@ static int resume_working_set(drives_work *ws, const drives_mode_data *md,
             if (!afford(ws, md, correct_work(md, nw))) {
                 return stopped(ws, nw, nw, OUT_OF_WORK);
             }
-            correct(ws, md, ws->wset, nw, ws->z, 0);
+            correct(ws, md, ws->wset, nw, ws->z, CORRECT_BY_LIST);
             return nw;
         }
         if (code < 0) {
@@ -3207,7 +3222,7 @@ static int dual_active_set(drives_work *ws, const drives_mode_data *md,
             code = OUT_OF_WORK;
             break;
         }
-        correct(ws, md, ws->wset, nw, ws->z, 0);
+        correct(ws, md, ws->wset, nw, ws->z, CORRECT_BY_LIST);
         moved = 1;
     }
     *iterations += steps;
@@ -3468,7 +3483,7 @@ int drives_qp_solve(drives_work *ws, drives_real *lam, const drives_real *plan,
             status = DRIVES_INFEASIBLE;
             break;
         }
-        correct(ws, md, ws->set, count, lam, 1);
+        correct(ws, md, ws->set, count, lam, CORRECT_BY_ROW);
         i = polish(ws, md, lam, seed_from_multipliers(ws, md, lam, ws->set, count), 0,
                    polish_iterations, active);
         if (i == 0) {
@@ -3487,7 +3502,7 @@ int drives_qp_solve(drives_work *ws, drives_real *lam, const drives_real *plan,
         for (i = 0; i < count; ++i) {
             ws->in_set[ws->set[i]] = 1;
         }
-        correct(ws, md, ws->set, count, lam, 1);
+        correct(ws, md, ws->set, count, lam, CORRECT_BY_ROW);
         nviol = violated_outside(ws, md, ws->th, 0, ws->tmp, 0);
         if (DRIVES_SOLVER_REDUCED && nviol != 0) {
             /* every violated row joins: predict the outputs unless certified */

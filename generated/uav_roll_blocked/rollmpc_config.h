@@ -28,7 +28,7 @@
  * stops the build unless it is of the same one: a regeneration interrupted between two
  * of its file moves leaves no mixed tree that compiles.
  */
-#define ROLLMPC_GENERATION 0x9482be1acb3a580
+#define ROLLMPC_GENERATION 0x578b2dad4cc109d
 
 /* The one place where the precision is chosen. */
 #define ROLLMPC_PRECISION_DOUBLE 1

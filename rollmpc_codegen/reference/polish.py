@@ -72,8 +72,9 @@ class PolishMixin:
                         or (not outputs and np.any(self.is_predicted()[W])))
         return True
 
-    def refine_dual(self, W, z, th0, K, gam, th):
-        """Mirror of refine_dual(): (0 / -1 / OUT_OF_WORK, th, z) after up to two rounds."""
+    def refine_dual(self, W, z, gam, th):
+        """Mirror of refine_dual(): (0 / -1 / OUT_OF_WORK, th, z) after up to two rounds,
+        each z += d and th -= E^-1 M_W' d for d = H_WW^-1 e."""
         md, nw = self.md, W.size
         if not self.afford(2 * (2 * tri_work(nw) + correct_work(md, nw) + 2 * scan_work(md))
                            + md.m):
@@ -94,7 +95,7 @@ class PolishMixin:
                 code = self.switch_states(W, z)
                 if code:
                     return (OUT_OF_WORK if code == OUT_OF_WORK else -1), th, z
-            th = self.correct(th0, W, z)
+            th = self.correct(th, W, e, step=True)  # the step d = e, not th0 - E^-1 M' z
             if self.working_set_holds(W, z, th, gam):
                 return (0 if self.violated_outside(th, gam, W).size == 0 else -1), th, z
         return -1, th, z
@@ -208,7 +209,7 @@ class PolishMixin:
                 if add.size == 0:
                     code = 0
                     if not self.working_set_holds(W, z, th, gam, predicted=True):
-                        code, th, z = self.refine_dual(W, z, th0, K, gam, th)
+                        code, th, z = self.refine_dual(W, z, gam, th)
                     if code:
                         return self.stopped(W, z, known, code), th, 0, its
                     return 0, th, self.converged(lam, W, z), its

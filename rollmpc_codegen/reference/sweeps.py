@@ -16,15 +16,17 @@ class SweepsMixin:
         """Mirror of build_set(): the sorted rows of the sweep set."""
         self.work += self.md.m
         return np.flatnonzero(in_set)
-    def correct(self, th0, rows, mult):
+    def correct(self, th0, rows, mult, step=False):
         """Mirror of correct(): th0 - E^-1 M' mult over the rows with mult > 0, the
         multipliers summed by quantity first (in row order), then E^-1 v column by column
-        over the nonzero entries: S^-1 v_in, minus Ew' (Ew v_in), plus E^-1 G' v_out."""
+        over the nonzero entries: S^-1 v_in, minus Ew' (Ew v_in), plus E^-1 G' v_out.
+        ``step`` (CORRECT_STEP): th0 is the current point, every nonzero multiplier
+        counts, and E^-1 M' mult is accumulated onto it (refine_dual())."""
         md = self.md
         n, nyq, dt = md.n, md.n_yq, md.Kx.dtype
         count = rows.size
-        sel = mult > 0
-        rows, mult = rows[sel], mult[sel]
+        sel = (mult > 0) | ((mult < 0) if step else False)
+        rows, mult = rows[sel], (-mult[sel] if step else mult[sel])
         v = np.where(md.row_sign[rows] > 0, mult, -mult)
         q = md.row_q[rows]
         nzq, z0 = md.nzq, 2 * n + nyq
@@ -41,7 +43,7 @@ class SweepsMixin:
         qv = np.zeros(n + nyq + nzq, dt)
         np.add.at(qv, at, val)  # sequential, in the rows' order
         met = (qv < 0) | (qv > 0)  # the C's test: a NaN sum (inf - inf) is skipped, as there
-        th = np.zeros(n, dt)
+        th = th0.copy() if step else np.zeros(n, dt)
         ew_v = np.zeros(md.nt, dt)
         for j in np.flatnonzero(met[:n]):
             th = th + self.Sinv[:, j] * qv[j]
@@ -54,7 +56,7 @@ class SweepsMixin:
             th = th + md.EinvZt[:, k] * qv[n + nyq + k]
         self.work += correct_cost(md, count, int(np.count_nonzero(met[:n])),
                                   int(np.count_nonzero(met[n:])))
-        return th0 - th
+        return th if step else th0 - th
 
     def sweep(self, S, K, lam):
         """Mirror of sweep() over the sorted rows S, in place on lam: (e2, diverged)."""
