@@ -12,7 +12,7 @@
  */
 #include <math.h>
 #include "c172p_roll_internal.h"
-#if C172P_ROLL_GENERATION != 0xf2cc66e7f1f4986
+#if C172P_ROLL_GENERATION != 0x4e992444f885e9f
 #error "c172p_roll_linalg.c and c172p_roll_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
 #endif
 

@@ -25,7 +25,7 @@
  */
 #include <math.h>
 #include "chain_internal.h"
-#if CHAIN_GENERATION != 0x0b47410e768e467
+#if CHAIN_GENERATION != 0xe157d2d25ced324
 #error "chain_solver.c and chain_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
 #endif
 
@@ -1312,12 +1312,12 @@ static void add_sinv_pair(chain_work *ws, const chain_mode_data *md, int j,
 static void correct(chain_work *ws, const chain_mode_data *md, const int16_t *list,
     int count, const chain_real *mult, int how)
 {
-    const int n = md->n, nyq = md->nyq, nt = md->nt, step = (how == CORRECT_STEP);
+    const int n = md->n, nyq = md->nyq, nt = md->nt, from_th = (how == CORRECT_STEP);
     int i, j, o;
     uint32_t nin = 0u, nout = 0u; /* the quantities met: the work charged */
     for (i = 0; i < n; ++i) {
         ws->dv[i] = R_(0.0);
-        if (!step) {
+        if (!from_th) {
             ws->th[i] = R_(0.0);
         }
     }
@@ -1330,8 +1330,8 @@ static void correct(chain_work *ws, const chain_mode_data *md, const int16_t *li
     for (j = 0; j < count; ++j) {
         const int s = list[j], q = md->row_q[s];
         const chain_real mu = (how == CORRECT_BY_ROW) ? mult[s] : mult[j];
-        if (mu > R_(0.0) || (step && mu < R_(0.0))) {
-            const chain_real v = by_sign(md, s, step ? -mu : mu);
+        if (mu > R_(0.0) || (from_th && mu < R_(0.0))) {
+            const chain_real v = by_sign(md, s, from_th ? -mu : mu);
             if (q < n) {
                 ws->dv[q] += v;
             } else {
@@ -1377,7 +1377,7 @@ static void correct(chain_work *ws, const chain_mode_data *md, const int16_t *li
             }
         }
     }
-    if (!step) {
+    if (!from_th) {
         for (i = 0; i < n; ++i) {
             ws->th[i] = ws->th0[i] - ws->th[i];
         }

@@ -25,7 +25,7 @@
  */
 #include <math.h>
 #include "chain_soft_internal.h"
-#if CHAIN_SOFT_GENERATION != 0x8127c6a67381003
+#if CHAIN_SOFT_GENERATION != 0x15484ff3d643755
 #error "chain_soft_solver.c and chain_soft_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
 #endif
 
@@ -1445,12 +1445,12 @@ static void add_sinv_pair(chain_soft_work *ws, const chain_soft_mode_data *md, i
 static void correct(chain_soft_work *ws, const chain_soft_mode_data *md, const int16_t *list,
     int count, const chain_soft_real *mult, int how)
 {
-    const int n = md->n, nyq = md->nyq, nt = md->nt, step = (how == CORRECT_STEP);
+    const int n = md->n, nyq = md->nyq, nt = md->nt, from_th = (how == CORRECT_STEP);
     int i, j, o;
     uint32_t nin = 0u, nout = 0u; /* the quantities met: the work charged */
     for (i = 0; i < n; ++i) {
         ws->dv[i] = R_(0.0);
-        if (!step) {
+        if (!from_th) {
             ws->th[i] = R_(0.0);
         }
     }
@@ -1463,8 +1463,8 @@ static void correct(chain_soft_work *ws, const chain_soft_mode_data *md, const i
     for (j = 0; j < count; ++j) {
         const int s = list[j], q = md->row_q[s];
         const chain_soft_real mu = (how == CORRECT_BY_ROW) ? mult[s] : mult[j];
-        if (mu > R_(0.0) || (step && mu < R_(0.0))) {
-            const chain_soft_real v = by_sign(md, s, step ? -mu : mu);
+        if (mu > R_(0.0) || (from_th && mu < R_(0.0))) {
+            const chain_soft_real v = by_sign(md, s, from_th ? -mu : mu);
             if (q < n) {
                 ws->dv[q] += v;
             } else {
@@ -1510,7 +1510,7 @@ static void correct(chain_soft_work *ws, const chain_soft_mode_data *md, const i
             }
         }
     }
-    if (!step) {
+    if (!from_th) {
         for (i = 0; i < n; ++i) {
             ws->th[i] = ws->th0[i] - ws->th[i];
         }

@@ -28,7 +28,7 @@
  * stops the build unless it is of the same one: a regeneration interrupted between two
  * of its file moves leaves no mixed tree that compiles.
  */
-#define FWLAT_GENERATION 0x1d0f09161ae988e
+#define FWLAT_GENERATION 0x9b30c54e762de14
 
 /* The one place where the precision is chosen. */
 #define FWLAT_PRECISION_DOUBLE 0

@@ -25,7 +25,7 @@
  */
 #include <math.h>
 #include "fwlat_internal.h"
-#if FWLAT_GENERATION != 0x1d0f09161ae988e
+#if FWLAT_GENERATION != 0x9b30c54e762de14
 #error "fwlat_solver.c and fwlat_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
 #endif
 
@@ -1504,12 +1504,12 @@ static void add_sinv_pair(fwlat_work *ws, const fwlat_mode_data *md, int j,
 static void correct(fwlat_work *ws, const fwlat_mode_data *md, const int16_t *list,
     int count, const fwlat_real *mult, int how)
 {
-    const int n = md->n, nyq = md->nyq, nt = md->nt, step = (how == CORRECT_STEP);
+    const int n = md->n, nyq = md->nyq, nt = md->nt, from_th = (how == CORRECT_STEP);
     int i, j, o;
     uint32_t nin = 0u, nout = 0u; /* the quantities met: the work charged */
     for (i = 0; i < n; ++i) {
         ws->dv[i] = R_(0.0);
-        if (!step) {
+        if (!from_th) {
             ws->th[i] = R_(0.0);
         }
     }
@@ -1522,8 +1522,8 @@ static void correct(fwlat_work *ws, const fwlat_mode_data *md, const int16_t *li
     for (j = 0; j < count; ++j) {
         const int s = list[j], q = md->row_q[s];
         const fwlat_real mu = (how == CORRECT_BY_ROW) ? mult[s] : mult[j];
-        if (mu > R_(0.0) || (step && mu < R_(0.0))) {
-            const fwlat_real v = by_sign(md, s, step ? -mu : mu);
+        if (mu > R_(0.0) || (from_th && mu < R_(0.0))) {
+            const fwlat_real v = by_sign(md, s, from_th ? -mu : mu);
             const int d = q - (n + nyq);
             if (d >= 0) { /* Δu: U_d - U_(d-nu), or U_d in the first stage */
                 ws->dv[d] += v;
@@ -1577,7 +1577,7 @@ static void correct(fwlat_work *ws, const fwlat_mode_data *md, const int16_t *li
             }
         }
     }
-    if (!step) {
+    if (!from_th) {
         for (i = 0; i < n; ++i) {
             ws->th[i] = ws->th0[i] - ws->th[i];
         }

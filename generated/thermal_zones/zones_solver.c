@@ -25,7 +25,7 @@
  */
 #include <math.h>
 #include "zones_internal.h"
-#if ZONES_GENERATION != 0x8dd2e5787d335e6
+#if ZONES_GENERATION != 0x702e2b33cd413a7
 #error "zones_solver.c and zones_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
 #endif
 
@@ -1312,12 +1312,12 @@ static void add_sinv_pair(zones_work *ws, const zones_mode_data *md, int j,
 static void correct(zones_work *ws, const zones_mode_data *md, const int16_t *list,
     int count, const zones_real *mult, int how)
 {
-    const int n = md->n, nyq = md->nyq, nt = md->nt, step = (how == CORRECT_STEP);
+    const int n = md->n, nyq = md->nyq, nt = md->nt, from_th = (how == CORRECT_STEP);
     int i, j, o;
     uint32_t nin = 0u, nout = 0u; /* the quantities met: the work charged */
     for (i = 0; i < n; ++i) {
         ws->dv[i] = R_(0.0);
-        if (!step) {
+        if (!from_th) {
             ws->th[i] = R_(0.0);
         }
     }
@@ -1330,8 +1330,8 @@ static void correct(zones_work *ws, const zones_mode_data *md, const int16_t *li
     for (j = 0; j < count; ++j) {
         const int s = list[j], q = md->row_q[s];
         const zones_real mu = (how == CORRECT_BY_ROW) ? mult[s] : mult[j];
-        if (mu > R_(0.0) || (step && mu < R_(0.0))) {
-            const zones_real v = by_sign(md, s, step ? -mu : mu);
+        if (mu > R_(0.0) || (from_th && mu < R_(0.0))) {
+            const zones_real v = by_sign(md, s, from_th ? -mu : mu);
             if (q < n) {
                 ws->dv[q] += v;
             } else {
@@ -1377,7 +1377,7 @@ static void correct(zones_work *ws, const zones_mode_data *md, const int16_t *li
             }
         }
     }
-    if (!step) {
+    if (!from_th) {
         for (i = 0; i < n; ++i) {
             ws->th[i] = ws->th0[i] - ws->th[i];
         }

@@ -25,7 +25,7 @@
  */
 #include <math.h>
 #include "zrate_internal.h"
-#if ZRATE_GENERATION != 0x651a4c3781fe726
+#if ZRATE_GENERATION != 0x897c1d21f11c3ed
 #error "zrate_solver.c and zrate_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
 #endif
 
@@ -1371,12 +1371,12 @@ static void add_sinv_pair(zrate_work *ws, const zrate_mode_data *md, int j,
 static void correct(zrate_work *ws, const zrate_mode_data *md, const int16_t *list,
     int count, const zrate_real *mult, int how)
 {
-    const int n = md->n, nyq = md->nyq, nt = md->nt, step = (how == CORRECT_STEP);
+    const int n = md->n, nyq = md->nyq, nt = md->nt, from_th = (how == CORRECT_STEP);
     int i, j, o;
     uint32_t nin = 0u, nout = 0u; /* the quantities met: the work charged */
     for (i = 0; i < n; ++i) {
         ws->dv[i] = R_(0.0);
-        if (!step) {
+        if (!from_th) {
             ws->th[i] = R_(0.0);
         }
     }
@@ -1389,8 +1389,8 @@ static void correct(zrate_work *ws, const zrate_mode_data *md, const int16_t *li
     for (j = 0; j < count; ++j) {
         const int s = list[j], q = md->row_q[s];
         const zrate_real mu = (how == CORRECT_BY_ROW) ? mult[s] : mult[j];
-        if (mu > R_(0.0) || (step && mu < R_(0.0))) {
-            const zrate_real v = by_sign(md, s, step ? -mu : mu);
+        if (mu > R_(0.0) || (from_th && mu < R_(0.0))) {
+            const zrate_real v = by_sign(md, s, from_th ? -mu : mu);
             const int d = q - (n + nyq);
             if (d >= 0) { /* Δu: U_d - U_(d-nu), or U_d in the first stage */
                 ws->dv[d] += v;
@@ -1444,7 +1444,7 @@ static void correct(zrate_work *ws, const zrate_mode_data *md, const int16_t *li
             }
         }
     }
-    if (!step) {
+    if (!from_th) {
         for (i = 0; i < n; ++i) {
             ws->th[i] = ws->th0[i] - ws->th[i];
         }

@@ -25,7 +25,7 @@
  */
 #include <math.h>
 #include "rollmpc_internal.h"
-#if ROLLMPC_GENERATION != 0xe96f6f2566e1a3c
+#if ROLLMPC_GENERATION != 0x4684e9762b174d2
 #error "rollmpc_solver.c and rollmpc_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
 #endif
 
@@ -1308,12 +1308,12 @@ static void add_sinv_pair(rollmpc_work *ws, const rollmpc_mode_data *md, int j,
 static void correct(rollmpc_work *ws, const rollmpc_mode_data *md, const int16_t *list,
     int count, const rollmpc_real *mult, int how)
 {
-    const int n = md->n, nyq = md->nyq, nt = md->nt, step = (how == CORRECT_STEP);
+    const int n = md->n, nyq = md->nyq, nt = md->nt, from_th = (how == CORRECT_STEP);
     int i, j, o;
     uint32_t nin = 0u, nout = 0u; /* the quantities met: the work charged */
     for (i = 0; i < n; ++i) {
         ws->dv[i] = R_(0.0);
-        if (!step) {
+        if (!from_th) {
             ws->th[i] = R_(0.0);
         }
     }
@@ -1326,8 +1326,8 @@ static void correct(rollmpc_work *ws, const rollmpc_mode_data *md, const int16_t
     for (j = 0; j < count; ++j) {
         const int s = list[j], q = md->row_q[s];
         const rollmpc_real mu = (how == CORRECT_BY_ROW) ? mult[s] : mult[j];
-        if (mu > R_(0.0) || (step && mu < R_(0.0))) {
-            const rollmpc_real v = by_sign(md, s, step ? -mu : mu);
+        if (mu > R_(0.0) || (from_th && mu < R_(0.0))) {
+            const rollmpc_real v = by_sign(md, s, from_th ? -mu : mu);
             if (q < n) {
                 ws->dv[q] += v;
             } else {
@@ -1373,7 +1373,7 @@ static void correct(rollmpc_work *ws, const rollmpc_mode_data *md, const int16_t
             }
         }
     }
-    if (!step) {
+    if (!from_th) {
         for (i = 0; i < n; ++i) {
             ws->th[i] = ws->th0[i] - ws->th[i];
         }
