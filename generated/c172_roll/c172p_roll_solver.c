@@ -25,7 +25,7 @@
  */
 #include <math.h>
 #include "c172p_roll_internal.h"
-#if C172P_ROLL_GENERATION != 0x43b9fc9167be456
+#if C172P_ROLL_GENERATION != 0x67137c2913fbc8a
 #error "c172p_roll_solver.c and c172p_roll_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
 #endif
 
@@ -1300,9 +1300,9 @@ static void add_sinv_pair(c172p_roll_work *ws, const c172p_roll_mode_data *md, i
 
 /*
  * th = th0 - E^-1 M_L' mult over the rows L = list[0..count) with a positive multiplier.
- * With CORRECT_STEP, th = th - E^-1 M_L' mult instead, over every nonzero multiplier: a
+ * With CORRECT_STEP, th = th + E^-1 M_L' mult instead, over every nonzero multiplier: a
  * step of iterative refinement, which adds E^-1 M_L' times the small change of the
- * multipliers to the point, not their large total to th0 (refine_dual()).
+ * multipliers (negated) to the point, not their large total to th0 (refine_dual()).
  * The multipliers are first summed by quantity, v = M_L' mult (inputs into ws->dv, outputs
  * into ws->yv, a Δu row into its two inputs), then E^-1 v = S^-1 v_in - Ew' (Ew v_in)
  * + E^-1 G' v_out is accumulated in ws->th column by column over the nonzero entries of v
@@ -1331,7 +1331,7 @@ static void correct(c172p_roll_work *ws, const c172p_roll_mode_data *md, const i
         const int s = list[j], q = md->row_q[s];
         const c172p_roll_real mu = (how == CORRECT_BY_ROW) ? mult[s] : mult[j];
         if (mu > R_(0.0) || (from_th && mu < R_(0.0))) {
-            const c172p_roll_real v = by_sign(md, s, from_th ? -mu : mu);
+            const c172p_roll_real v = by_sign(md, s, mu);
             if (q < n) {
                 ws->dv[q] += v;
             } else {
@@ -2726,6 +2726,7 @@ static int refine_dual(c172p_roll_work *ws, const c172p_roll_mode_data *md, int 
         c172p_roll_chol_solve(ws->chol, nw, ws->rhs);
         for (i = 0; i < nw; ++i) {
             ws->z[i] += ws->rhs[i];
+            ws->rhs[i] = -ws->rhs[i]; /* th += E^-1 M_W' (-d) below */
             negative += (ws->z[i] < R_(0.0));
         }
         if (negative != 0) {

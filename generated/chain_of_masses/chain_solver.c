@@ -25,7 +25,7 @@
  */
 #include <math.h>
 #include "chain_internal.h"
-#if CHAIN_GENERATION != 0x27ec038bd0a6cc8
+#if CHAIN_GENERATION != 0x4bc2bf2be50cd69
 #error "chain_solver.c and chain_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
 #endif
 
@@ -1300,9 +1300,9 @@ static void add_sinv_pair(chain_work *ws, const chain_mode_data *md, int j,
 
 /*
  * th = th0 - E^-1 M_L' mult over the rows L = list[0..count) with a positive multiplier.
- * With CORRECT_STEP, th = th - E^-1 M_L' mult instead, over every nonzero multiplier: a
+ * With CORRECT_STEP, th = th + E^-1 M_L' mult instead, over every nonzero multiplier: a
  * step of iterative refinement, which adds E^-1 M_L' times the small change of the
- * multipliers to the point, not their large total to th0 (refine_dual()).
+ * multipliers (negated) to the point, not their large total to th0 (refine_dual()).
  * The multipliers are first summed by quantity, v = M_L' mult (inputs into ws->dv, outputs
  * into ws->yv, a Δu row into its two inputs), then E^-1 v = S^-1 v_in - Ew' (Ew v_in)
  * + E^-1 G' v_out is accumulated in ws->th column by column over the nonzero entries of v
@@ -1331,7 +1331,7 @@ static void correct(chain_work *ws, const chain_mode_data *md, const int16_t *li
         const int s = list[j], q = md->row_q[s];
         const chain_real mu = (how == CORRECT_BY_ROW) ? mult[s] : mult[j];
         if (mu > R_(0.0) || (from_th && mu < R_(0.0))) {
-            const chain_real v = by_sign(md, s, from_th ? -mu : mu);
+            const chain_real v = by_sign(md, s, mu);
             if (q < n) {
                 ws->dv[q] += v;
             } else {
@@ -2726,6 +2726,7 @@ static int refine_dual(chain_work *ws, const chain_mode_data *md, int nw)
         chain_chol_solve(ws->chol, nw, ws->rhs);
         for (i = 0; i < nw; ++i) {
             ws->z[i] += ws->rhs[i];
+            ws->rhs[i] = -ws->rhs[i]; /* th += E^-1 M_W' (-d) below */
             negative += (ws->z[i] < R_(0.0));
         }
         if (negative != 0) {

@@ -12,7 +12,7 @@
  */
 #include <math.h>
 #include "chain_soft_internal.h"
-#if CHAIN_SOFT_GENERATION != 0x15484ff3d643755
+#if CHAIN_SOFT_GENERATION != 0xbdc9a0970364937
 #error "chain_soft_linalg.c and chain_soft_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
 #endif
 

@@ -7,7 +7,7 @@
 
 #include <math.h>
 #include "quadatt.h"
-#if QUADATT_GENERATION != 0x8952084254199d1
+#if QUADATT_GENERATION != 0x99d89d343d93cf8
 #error "quadatt_internal.h and quadatt_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
 #endif
 

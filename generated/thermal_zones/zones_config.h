@@ -28,7 +28,7 @@
  * stops the build unless it is of the same one: a regeneration interrupted between two
  * of its file moves leaves no mixed tree that compiles.
  */
-#define ZONES_GENERATION 0x702e2b33cd413a7
+#define ZONES_GENERATION 0x0ab9ebe2f8bce9a
 
 /* The one place where the precision is chosen. */
 #define ZONES_PRECISION_DOUBLE 1

@@ -25,7 +25,7 @@
  */
 #include <math.h>
 #include "zrate_internal.h"
-#if ZRATE_GENERATION != 0x897c1d21f11c3ed
+#if ZRATE_GENERATION != 0x85b33d928a503b9
 #error "zrate_solver.c and zrate_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
 #endif
 
@@ -1359,9 +1359,9 @@ static void add_sinv_pair(zrate_work *ws, const zrate_mode_data *md, int j,
 
 /*
  * th = th0 - E^-1 M_L' mult over the rows L = list[0..count) with a positive multiplier.
- * With CORRECT_STEP, th = th - E^-1 M_L' mult instead, over every nonzero multiplier: a
+ * With CORRECT_STEP, th = th + E^-1 M_L' mult instead, over every nonzero multiplier: a
  * step of iterative refinement, which adds E^-1 M_L' times the small change of the
- * multipliers to the point, not their large total to th0 (refine_dual()).
+ * multipliers (negated) to the point, not their large total to th0 (refine_dual()).
  * The multipliers are first summed by quantity, v = M_L' mult (inputs into ws->dv, outputs
  * into ws->yv, a Δu row into its two inputs), then E^-1 v = S^-1 v_in - Ew' (Ew v_in)
  * + E^-1 G' v_out is accumulated in ws->th column by column over the nonzero entries of v
@@ -1390,7 +1390,7 @@ static void correct(zrate_work *ws, const zrate_mode_data *md, const int16_t *li
         const int s = list[j], q = md->row_q[s];
         const zrate_real mu = (how == CORRECT_BY_ROW) ? mult[s] : mult[j];
         if (mu > R_(0.0) || (from_th && mu < R_(0.0))) {
-            const zrate_real v = by_sign(md, s, from_th ? -mu : mu);
+            const zrate_real v = by_sign(md, s, mu);
             const int d = q - (n + nyq);
             if (d >= 0) { /* Δu: U_d - U_(d-nu), or U_d in the first stage */
                 ws->dv[d] += v;
@@ -2791,6 +2791,7 @@ static int refine_dual(zrate_work *ws, const zrate_mode_data *md, int nw)
         zrate_chol_solve(ws->chol, nw, ws->rhs);
         for (i = 0; i < nw; ++i) {
             ws->z[i] += ws->rhs[i];
+            ws->rhs[i] = -ws->rhs[i]; /* th += E^-1 M_W' (-d) below */
             negative += (ws->z[i] < R_(0.0));
         }
         if (negative != 0) {

@@ -28,7 +28,7 @@
  * stops the build unless it is of the same one: a regeneration interrupted between two
  * of its file moves leaves no mixed tree that compiles.
  */
-#define DRIVES_GENERATION 0x11dbf7cc36a1601
+#define DRIVES_GENERATION 0x1d37ca08221d302
 
 /* The one place where the precision is chosen. */
 #define DRIVES_PRECISION_DOUBLE 1

@@ -25,7 +25,7 @@
  */
 #include <math.h>
 #include "rollmpc_internal.h"
-#if ROLLMPC_GENERATION != 0x1e288da36300983
+#if ROLLMPC_GENERATION != 0x239c2de17eafc96
 #error "rollmpc_solver.c and rollmpc_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
 #endif
 
@@ -1296,9 +1296,9 @@ static void add_sinv_pair(rollmpc_work *ws, const rollmpc_mode_data *md, int j,
 
 /*
  * th = th0 - E^-1 M_L' mult over the rows L = list[0..count) with a positive multiplier.
- * With CORRECT_STEP, th = th - E^-1 M_L' mult instead, over every nonzero multiplier: a
+ * With CORRECT_STEP, th = th + E^-1 M_L' mult instead, over every nonzero multiplier: a
  * step of iterative refinement, which adds E^-1 M_L' times the small change of the
- * multipliers to the point, not their large total to th0 (refine_dual()).
+ * multipliers (negated) to the point, not their large total to th0 (refine_dual()).
  * The multipliers are first summed by quantity, v = M_L' mult (inputs into ws->dv, outputs
  * into ws->yv, a Δu row into its two inputs), then E^-1 v = S^-1 v_in - Ew' (Ew v_in)
  * + E^-1 G' v_out is accumulated in ws->th column by column over the nonzero entries of v
@@ -1327,7 +1327,7 @@ static void correct(rollmpc_work *ws, const rollmpc_mode_data *md, const int16_t
         const int s = list[j], q = md->row_q[s];
         const rollmpc_real mu = (how == CORRECT_BY_ROW) ? mult[s] : mult[j];
         if (mu > R_(0.0) || (from_th && mu < R_(0.0))) {
-            const rollmpc_real v = by_sign(md, s, from_th ? -mu : mu);
+            const rollmpc_real v = by_sign(md, s, mu);
             if (q < n) {
                 ws->dv[q] += v;
             } else {
@@ -2722,6 +2722,7 @@ static int refine_dual(rollmpc_work *ws, const rollmpc_mode_data *md, int nw)
         rollmpc_chol_solve(ws->chol, nw, ws->rhs);
         for (i = 0; i < nw; ++i) {
             ws->z[i] += ws->rhs[i];
+            ws->rhs[i] = -ws->rhs[i]; /* th += E^-1 M_W' (-d) below */
             negative += (ws->z[i] < R_(0.0));
         }
         if (negative != 0) {

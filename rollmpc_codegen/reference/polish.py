@@ -95,7 +95,7 @@ class PolishMixin:
                 code = self.switch_states(W, z)
                 if code:
                     return (OUT_OF_WORK if code == OUT_OF_WORK else -1), th, z
-            th = self.correct(th, W, e, step=True)  # the step d = e, not th0 - E^-1 M' z
+            th = self.correct(th, W, -e, step=True)  # th - E^-1 M' d, not th0 - E^-1 M' z
             if self.working_set_holds(W, z, th, gam):
                 return (0 if self.violated_outside(th, gam, W).size == 0 else -1), th, z
         return -1, th, z

@@ -21,12 +21,12 @@ class SweepsMixin:
         multipliers summed by quantity first (in row order), then E^-1 v column by column
         over the nonzero entries: S^-1 v_in, minus Ew' (Ew v_in), plus E^-1 G' v_out.
         ``step`` (CORRECT_STEP): th0 is the current point, every nonzero multiplier
-        counts, and E^-1 M' mult is accumulated onto it (refine_dual())."""
+        counts, and th0 + E^-1 M' mult is returned (refine_dual() passes -d)."""
         md = self.md
         n, nyq, dt = md.n, md.n_yq, md.Kx.dtype
         count = rows.size
         sel = (mult > 0) | ((mult < 0) if step else False)
-        rows, mult = rows[sel], (-mult[sel] if step else mult[sel])
+        rows, mult = rows[sel], mult[sel]
         v = np.where(md.row_sign[rows] > 0, mult, -mult)
         q = md.row_q[rows]
         nzq, z0 = md.nzq, 2 * n + nyq
