@@ -31,6 +31,8 @@ INTERNAL_CODES = (
                  "polish(): a guess that resume_working_set() would repeat"),
     InternalCode("GUESS_HANDED_OVER", -5, "polish",
                  "polish(): a guess' set goes on, dual feasible or cycling (stopped())"),
+    InternalCode("SET_HANDED_BACK", -6, "polish",
+                 "polish(): the dual active set's set goes back to it, a row outside violated"),
     # dual_active_set()'s `from` is a row count (>= 0), -1 (nothing to resume: the warm
     # start may run) or COLD_START; it never meets OUT_OF_WORK, whose value it shares
     InternalCode("COLD_START", -2, "active_set",
@@ -40,7 +42,7 @@ INTERNAL_CODES = (
 # What the work array chol holds (ws->chol_holds; P_CHOL_* in internal.h)
 CHOL_STATES = (("NONE", 0), ("DUAL", 1), ("PRIMAL", 2))
 
-(OUT_OF_WORK, OUT_OF_WORK_AT_TH0, GUESS_CAPPED, GUESS_HANDED_OVER,
+(OUT_OF_WORK, OUT_OF_WORK_AT_TH0, GUESS_CAPPED, GUESS_HANDED_OVER, SET_HANDED_BACK,
  COLD_START) = (c.value for c in INTERNAL_CODES)
 CHOL_NONE, CHOL_DUAL, CHOL_PRIMAL = (value for _, value in CHOL_STATES)
 

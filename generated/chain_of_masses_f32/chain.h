@@ -18,7 +18,7 @@
 #include <stddef.h>
 #include <stdint.h>
 #include "chain_config.h"
-#if CHAIN_GENERATION != 0x83e5bfa00d6406f
+#if CHAIN_GENERATION != 0x000e31cacbfde6e
 #error "chain.h and chain_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
 #endif
 

@@ -7,7 +7,7 @@
 
 #include <math.h>
 #include "chain.h"
-#if CHAIN_GENERATION != 0x83e5bfa00d6406f
+#if CHAIN_GENERATION != 0x000e31cacbfde6e
 #error "chain_internal.h and chain_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
 #endif
 

@@ -18,7 +18,7 @@
 #include <stddef.h>
 #include <stdint.h>
 #include "chain_soft_config.h"
-#if CHAIN_SOFT_GENERATION != 0xbdc9a0970364937
+#if CHAIN_SOFT_GENERATION != 0x266724b92a93538
 #error "chain_soft.h and chain_soft_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
 #endif
 

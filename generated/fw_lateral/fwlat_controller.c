@@ -10,7 +10,7 @@
  */
 #include <math.h>
 #include "fwlat_internal.h"
-#if FWLAT_GENERATION != 0x413df7a3ca38fb9
+#if FWLAT_GENERATION != 0x157bede053cfa62
 #error "fwlat_controller.c and fwlat_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
 #endif
 

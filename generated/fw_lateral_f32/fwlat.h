@@ -18,7 +18,7 @@
 #include <stddef.h>
 #include <stdint.h>
 #include "fwlat_config.h"
-#if FWLAT_GENERATION != 0x22f35bd8f226b80
+#if FWLAT_GENERATION != 0xaf466408a99551d
 #error "fwlat.h and fwlat_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
 #endif
 

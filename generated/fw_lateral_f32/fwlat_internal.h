@@ -7,7 +7,7 @@
 
 #include <math.h>
 #include "fwlat.h"
-#if FWLAT_GENERATION != 0x22f35bd8f226b80
+#if FWLAT_GENERATION != 0xaf466408a99551d
 #error "fwlat_internal.h and fwlat_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
 #endif
 

@@ -18,7 +18,7 @@
 #include <stddef.h>
 #include <stdint.h>
 #include "quadatt_config.h"
-#if QUADATT_GENERATION != 0x99d89d343d93cf8
+#if QUADATT_GENERATION != 0x0fb5cc965f6ccfc
 #error "quadatt.h and quadatt_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
 #endif
 

@@ -28,7 +28,7 @@
  * stops the build unless it is of the same one: a regeneration interrupted between two
  * of its file moves leaves no mixed tree that compiles.
  */
-#define QUADATT_GENERATION 0x99d89d343d93cf8
+#define QUADATT_GENERATION 0x0fb5cc965f6ccfc
 
 /* The one place where the precision is chosen. */
 #define QUADATT_PRECISION_DOUBLE 0

@@ -10,7 +10,7 @@
  */
 #include <math.h>
 #include "quadatt_internal.h"
-#if QUADATT_GENERATION != 0x99d89d343d93cf8
+#if QUADATT_GENERATION != 0x0fb5cc965f6ccfc
 #error "quadatt_controller.c and quadatt_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
 #endif
 

@@ -18,7 +18,7 @@
 #include <stddef.h>
 #include <stdint.h>
 #include "qtank_config.h"
-#if QTANK_GENERATION != 0x4db5f13294c0333
+#if QTANK_GENERATION != 0xab0da534d4c665d
 #error "qtank.h and qtank_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
 #endif
 

@@ -18,7 +18,7 @@
 #include <stddef.h>
 #include <stdint.h>
 #include "zones_config.h"
-#if ZONES_GENERATION != 0x0ab9ebe2f8bce9a
+#if ZONES_GENERATION != 0xde0f3d1704fa7d4
 #error "zones.h and zones_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
 #endif
 

@@ -25,7 +25,7 @@
  */
 #include <math.h>
 #include "zones_internal.h"
-#if ZONES_GENERATION != 0x0ab9ebe2f8bce9a
+#if ZONES_GENERATION != 0xde0f3d1704fa7d4
 #error "zones_solver.c and zones_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
 #endif
 
@@ -2269,6 +2269,84 @@ static int dual_solve(zones_work *ws, const zones_mode_data *md, int nw)
     return 0;
 }
 
+/*
+ * Do the working-set rows hold (within the feasibility tolerance) at ws->th? predicted:
+ * violated_outside() has just predicted the outputs at ws->th into ws->yv (it found no
+ * violated row), so only whether they need checking is decided again (outputs_uncertified(),
+ * n + m), not the N^2/2 prediction. tight: the rows must also be tight within the
+ * tolerance and no multiplier negative (final_set_holds()).
+ */
+static int working_set_holds(zones_work *ws, const zones_mode_data *md, int nw,
+    int predicted, int tight)
+{
+    int i;
+    const int outputs = predicted ? outputs_uncertified(ws, md, ws->th)
+                                  : outputs_to_check(ws, md, ws->th);
+    for (i = 0; i < nw; ++i) {
+        const int r = ws->wset[i];
+        const int checked = outputs || md->row_q[r] < md->n;
+        if ((tight != 0) && !checked) {
+            return 0; /* cleared by the certificate: inside its bound, not tight */
+        }
+        if (checked) {
+            if (row_violated(ws, md, ws->th, r)) {
+                return 0;
+            }
+            if (tight) { /* and not slack beyond the tolerance, its multiplier not negative */
+                const zones_real e = row_excess(ws, md, ws->th, r);
+                if (ws->z[i] < R_(0.0) || e < -ZONES_SOLVER_FEAS_TOL * tol_scale(ws, r)) {
+                    return 0;
+                }
+            }
+        }
+    }
+    return 1;
+}
+
+/*
+ * Iterative refinement of a dual solve whose point misses its own working set: with
+ * large multipliers (~1e9 from a terminal weight, or ~1e3 against a far unconstrained
+ * optimum, in float), th = th0 - E^-1 M_W' z cancels most digits. The residual
+ * e = M_W th - gamma_W is small, so d = H_WW^-1 e (ws->chol holds the factor), z += d and
+ * th -= E^-1 M_W' d: the step moves th by a small vector, where forming th from th0 again
+ * would cancel the same digits (a brushed motor's current loop braking at its current
+ * limit held its 8 rows only to 1e-3). Up to two rounds; 0 once the working set holds,
+ * no multiplier is negative and no other row is violated; 1 when the set holds but a row
+ * outside it is violated (ws->th the refined point); else -1 (or OUT_OF_WORK).
+ */
+static int refine_dual(zones_work *ws, const zones_mode_data *md, int nw)
+{
+    int pass, i;
+    if (!afford(ws, md, 2u * (2u * tri_work(nw) + correct_work(md, nw) + 2u * scan_work(md))
+                        + (uint32_t)md->m)) {
+        return OUT_OF_WORK;
+    }
+    for (pass = 0; pass < 2; ++pass) {
+        int negative = 0;
+        if (md->GEinvGt_p != 0) {
+            predict_outputs(ws, md, ws->th);
+        }
+        for (i = 0; i < nw; ++i) {
+            ws->rhs[i] = row_excess(ws, md, ws->th, ws->wset[i]);
+        }
+        ws->work += 2u * tri_work(nw);
+        zones_chol_solve(ws->chol, nw, ws->rhs);
+        for (i = 0; i < nw; ++i) {
+            ws->z[i] += ws->rhs[i];
+            ws->rhs[i] = -ws->rhs[i]; /* th += E^-1 M_W' (-d) below */
+            negative += (ws->z[i] < R_(0.0));
+        }
+        if (negative != 0) {
+            return -1; /* a sign changed: not this working set's point */
+        }
+        correct(ws, md, ws->wset, nw, ws->rhs, CORRECT_STEP);
+        if (working_set_holds(ws, md, nw, 0, 0)) {
+            return (violated_outside(ws, md, ws->th, ws->in_set, ws->tmp, 0) == 0) ? 0 : 1;
+        }
+    }
+    return -1;
+}
+
 /* Does the unconstrained solution violate row r (K < 0; seed_from_violated()'s rows)? */
 static inline int violated_at_th0(const zones_work *ws, const zones_mode_data *md, int r)
 {
@@ -2663,83 +2741,6 @@ static int drop_negative_tracked(zones_work *ws, const zones_mode_data *md, int 
     return code;
 }
 
-/*
- * Do the working-set rows hold (within the feasibility tolerance) at ws->th? predicted:
- * violated_outside() has just predicted the outputs at ws->th into ws->yv (it found no
- * violated row), so only whether they need checking is decided again (outputs_uncertified(),
- * n + m), not the N^2/2 prediction. tight: the rows must also be tight within the
- * tolerance and no multiplier negative (final_set_holds()).
- */
-static int working_set_holds(zones_work *ws, const zones_mode_data *md, int nw,
-    int predicted, int tight)
-{
-    int i;
-    const int outputs = predicted ? outputs_uncertified(ws, md, ws->th)
-                                  : outputs_to_check(ws, md, ws->th);
-    for (i = 0; i < nw; ++i) {
-        const int r = ws->wset[i];
-        const int checked = outputs || md->row_q[r] < md->n;
-        if ((tight != 0) && !checked) {
-            return 0; /* cleared by the certificate: inside its bound, not tight */
-        }
-        if (checked) {
-            if (row_violated(ws, md, ws->th, r)) {
-                return 0;
-            }
-            if (tight) { /* and not slack beyond the tolerance, its multiplier not negative */
-                const zones_real e = row_excess(ws, md, ws->th, r);
-                if (ws->z[i] < R_(0.0) || e < -ZONES_SOLVER_FEAS_TOL * tol_scale(ws, r)) {
-                    return 0;
-                }
-            }
-        }
-    }
-    return 1;
-}
-
-/*
- * Iterative refinement of a dual solve whose point misses its own working set: with
- * large multipliers (~1e9 from a terminal weight, or ~1e3 against a far unconstrained
- * optimum, in float), th = th0 - E^-1 M_W' z cancels most digits. The residual
- * e = M_W th - gamma_W is small, so d = H_WW^-1 e (ws->chol holds the factor), z += d and
- * th -= E^-1 M_W' d: the step moves th by a small vector, where forming th from th0 again
- * would cancel the same digits (a brushed motor's current loop braking at its current
- * limit held its 8 rows only to 1e-3). Up to two rounds; 0 once the working set holds,
- * no multiplier is negative and no other row is violated, else -1 (or OUT_OF_WORK).
- */
-static int refine_dual(zones_work *ws, const zones_mode_data *md, int nw)
-{
-    int pass, i;
-    if (!afford(ws, md, 2u * (2u * tri_work(nw) + correct_work(md, nw) + 2u * scan_work(md))
-                        + (uint32_t)md->m)) {
-        return OUT_OF_WORK;
-    }
-    for (pass = 0; pass < 2; ++pass) {
-        int negative = 0;
-        if (md->GEinvGt_p != 0) {
-            predict_outputs(ws, md, ws->th);
-        }
-        for (i = 0; i < nw; ++i) {
-            ws->rhs[i] = row_excess(ws, md, ws->th, ws->wset[i]);
-        }
-        ws->work += 2u * tri_work(nw);
-        zones_chol_solve(ws->chol, nw, ws->rhs);
-        for (i = 0; i < nw; ++i) {
-            ws->z[i] += ws->rhs[i];
-            ws->rhs[i] = -ws->rhs[i]; /* th += E^-1 M_W' (-d) below */
-            negative += (ws->z[i] < R_(0.0));
-        }
-        if (negative != 0) {
-            return -1; /* a sign changed: not this working set's point */
-        }
-        correct(ws, md, ws->wset, nw, ws->rhs, CORRECT_STEP);
-        if (working_set_holds(ws, md, nw, 0, 0)) {
-            return (violated_outside(ws, md, ws->th, ws->in_set, ws->tmp, 0) == 0) ? 0 : -1;
-        }
-    }
-    return -1;
-}
-
 /* lam = the working set's multipliers, 0 elsewhere: the next sample's warm start. */
 static void keep_working_set(const zones_work *ws, const zones_mode_data *md,
     zones_real *lam, int nw)
@@ -2765,15 +2766,17 @@ static int converged(zones_work *ws, const zones_mode_data *md, zones_real *lam,
 
 #define GUESS_CAPPED (-4) /* polish(): a guess that resume_working_set() would repeat */
 #define GUESS_HANDED_OVER (-5) /* polish(): a guess' set goes on, dual feasible or cycling (stopped()) */
+#define SET_HANDED_BACK (-6) /* polish(): the dual active set's set goes back to it, a row outside violated */
 
 /*
- * Where polish() stopped when the budget ran out (code OUT_OF_WORK), or at a guess'
- * dual-feasible working set it hands over (GUESS_HANDED_OVER): its working set
- * wset[0..nw), the first `known` of them with their multipliers in z. Returns code.
+ * Where polish() stopped when the budget ran out (code OUT_OF_WORK), or at a dual-feasible
+ * working set it hands to the dual active set (GUESS_HANDED_OVER, SET_HANDED_BACK): its
+ * working set wset[0..nw), the first `known` of them with their multipliers in z. Returns
+ * code.
  */
 static int stopped(zones_work *ws, int nw, int known, int code)
 {
-    if (code == OUT_OF_WORK || code == GUESS_HANDED_OVER) {
+    if (code == OUT_OF_WORK || code == GUESS_HANDED_OVER || code == SET_HANDED_BACK) {
         ws->stop_rows = nw;
         ws->stop_known = known;
     }
@@ -2810,11 +2813,15 @@ static void keep_progress(zones_work *ws, const zones_mode_data *md,
  * dropped rows: resume_working_set() would repeat them exactly), GUESS_HANDED_OVER (a
  * guess' dual-feasible working set whose violated rows overflow it, or one of which is
  * dependent, or a guess' working set after it dropped a row it had added: the dual active
- * set goes on from that set and its factor, which the appends and drops kept) or
- * OUT_OF_WORK when the budget cannot afford the next step (where: stopped()).
+ * set goes on from that set and its factor, which the appends and drops kept),
+ * SET_HANDED_BACK (with hand_back = 1, dual_active_set()'s final set: the same hand-over
+ * when its violated rows overflow it or one is dependent, or when its refined point holds
+ * it but violates a row outside, which the dual active set makes room for or proves
+ * infeasible) or OUT_OF_WORK when the budget cannot afford the next step (where:
+ * stopped()).
  */
 static int polish(zones_work *ws, const zones_mode_data *md, zones_real *lam,
-    int nw, int guess, int *iterations, int *active)
+    int nw, int guess, int hand_back, int *iterations, int *active)
 {
     int i, it, code, box, known = 0; /* known: the first wset rows whose z is their multiplier */
     int repeatable = guess; /* every round so far a dual solve that switched or dropped */
@@ -2922,13 +2929,19 @@ static int polish(zones_work *ws, const zones_mode_data *md, zones_real *lam,
                 /* a (near-)singular H_WW, e.g. parallel rows of an infeasible QP, can give
                  * multipliers whose point misses its own working set: not optimal */
                 code = working_set_holds(ws, md, nw, 1, 0) ? 0 : refine_dual(ws, md, nw);
+                if (code == 1) { /* a row outside: the dual active set makes room for it */
+                    code = -1;
+                    if (hand_back != 0) { /* dual_active_set()'s set */
+                        code = SET_HANDED_BACK;
+                    }
+                }
                 return (code == 0) ? converged(ws, md, lam, nw, active) : stopped(ws, nw, known, code);
             }
         }
-        dual = (guess && ZONES_SOLVER_ACTIVE_SET
+        dual = ((guess || hand_back) && ZONES_SOLVER_ACTIVE_SET
                 && ws->chol_holds == ZONES_CHOL_DUAL) ? nw : -1;
         if (nadd > md->n - nw) {
-            return (dual >= 0) ? stopped(ws, dual, dual, GUESS_HANDED_OVER) : -1;
+            return (dual >= 0) ? stopped(ws, dual, dual, guess ? GUESS_HANDED_OVER : SET_HANDED_BACK) : -1;
         }
         if (ws->chol_holds == ZONES_CHOL_DUAL
             && !afford(ws, md, (uint32_t)nadd * append_work(md, nw + nadd))) {
@@ -2941,10 +2954,76 @@ static int polish(zones_work *ws, const zones_mode_data *md, zones_real *lam,
         if (dual >= 0 && ws->chol_holds != ZONES_CHOL_DUAL) {
             ws->chol_holds = ZONES_CHOL_DUAL; /* rows 0..dual-1 of it stand */
             ws->chol_n = dual;
-            return stopped(ws, dual, dual, GUESS_HANDED_OVER);
+            return stopped(ws, dual, dual, guess ? GUESS_HANDED_OVER : SET_HANDED_BACK);
         }
     }
     return repeatable ? GUESS_CAPPED : -1;
+}
+
+/*
+ * The warm start of dual_active_set(): the working set where the shifted guess' polish
+ * stopped (wset[0..from), its factor as ws->chol_holds says), or with from < 0 the
+ * previous working set shifted one stage (seed_shifted(): optimal, or where a TIME_LIMIT
+ * stopped; its first rows that the working set holds), made dual feasible by solving on
+ * it (if its factor breaks down, its dependent rows leave: independent_rows()), switching
+ * the soft states whose multipliers cross l1 and dropping the rows with negative
+ * multipliers until none is;
+ * ws->th is then its point. Returns its size (0: no seed, or it broke down or emptied:
+ * start cold) or OUT_OF_WORK (where: stopped()).
+ */
+static int resume_working_set(zones_work *ws, const zones_mode_data *md,
+    zones_real *lam, int from, int *steps)
+{
+    int i, pass, code, nw = (from >= 0) ? from : seed_shifted(ws, md, lam, 1);
+    for (i = 0; i < nw; ++i) {
+        ws->in_set[ws->wset[i]] = 1;
+    }
+    for (pass = 0; nw > 0 && pass < ZONES_SOLVER_POLISH_MAX; ++pass) {
+        int known;
+        ++*steps;
+        code = dual_solve(ws, md, nw);
+        if (code == -1) { /* dependent rows: keep the independent ones, in order */
+            if (!afford(ws, md, independent_work(md, nw))) {
+                break; /* start cold, with the work that is left */
+            }
+            nw = independent_rows(ws, md, nw);
+            continue;
+        }
+        known = (code == 0) ? nw : 0;
+        code = (code == 0) ? drop_negative(ws, md, &nw, 0) : code;
+        if (code == OUT_OF_WORK) {
+            return stopped(ws, nw, known, OUT_OF_WORK);
+        }
+        if (code == 0) {
+            if (!afford(ws, md, correct_work(md, nw))) {
+                return stopped(ws, nw, nw, OUT_OF_WORK);
+            }
+            correct(ws, md, ws->wset, nw, ws->z, CORRECT_BY_LIST);
+            return nw;
+        }
+        if (code < 0) {
+            break;
+        }
+    }
+    for (i = 0; i < nw; ++i) { /* start cold */
+        ws->in_set[ws->wset[i]] = 0;
+    }
+    ws->chol_holds = ZONES_CHOL_DUAL; /* the factor of the empty working set */
+    ws->chol_n = 0;
+    return 0;
+}
+
+/*
+ * Is the final working set (no row violated outside it) optimal at ws->th, its outputs just
+ * predicted? exact: ws->th is its exact dual solve (the resume), so its rows need only
+ * hold; else the steps accumulated its multipliers, so its rows must also be tight within
+ * the tolerance and none negative. Dual form only (a box-only set: the primal form's).
+ */
+static int final_set_holds(zones_work *ws, const zones_mode_data *md, int nw,
+    int exact)
+{
+    return nw <= md->n && !box_only(ws, md, nw) && afford(ws, md, final_check_work(md))
+        && working_set_holds(ws, md, nw, 1, !exact);
 }
 
 /* rows added per scan of every row: the scan and the corrected point are paid once for
@@ -3082,73 +3161,41 @@ static int add_to_set(zones_work *ws, const zones_mode_data *md, int p, int rech
     }
 }
 
-/*
- * The warm start of dual_active_set(): the working set where the shifted guess' polish
- * stopped (wset[0..from), its factor as ws->chol_holds says), or with from < 0 the
- * previous working set shifted one stage (seed_shifted(): optimal, or where a TIME_LIMIT
- * stopped; its first rows that the working set holds), made dual feasible by solving on
- * it (if its factor breaks down, its dependent rows leave: independent_rows()), switching
- * the soft states whose multipliers cross l1 and dropping the rows with negative
- * multipliers until none is;
- * ws->th is then its point. Returns its size (0: no seed, or it broke down or emptied:
- * start cold) or OUT_OF_WORK (where: stopped()).
- */
-static int resume_working_set(zones_work *ws, const zones_mode_data *md,
-    zones_real *lam, int from, int *steps)
-{
-    int i, pass, code, nw = (from >= 0) ? from : seed_shifted(ws, md, lam, 1);
-    for (i = 0; i < nw; ++i) {
-        ws->in_set[ws->wset[i]] = 1;
-    }
-    for (pass = 0; nw > 0 && pass < ZONES_SOLVER_POLISH_MAX; ++pass) {
-        int known;
-        ++*steps;
-        code = dual_solve(ws, md, nw);
-        if (code == -1) { /* dependent rows: keep the independent ones, in order */
-            if (!afford(ws, md, independent_work(md, nw))) {
-                break; /* start cold, with the work that is left */
-            }
-            nw = independent_rows(ws, md, nw);
-            continue;
-        }
-        known = (code == 0) ? nw : 0;
-        code = (code == 0) ? drop_negative(ws, md, &nw, 0) : code;
-        if (code == OUT_OF_WORK) {
-            return stopped(ws, nw, known, OUT_OF_WORK);
-        }
-        if (code == 0) {
-            if (!afford(ws, md, correct_work(md, nw))) {
-                return stopped(ws, nw, nw, OUT_OF_WORK);
-            }
-            correct(ws, md, ws->wset, nw, ws->z, CORRECT_BY_LIST);
-            return nw;
-        }
-        if (code < 0) {
-            break;
-        }
-    }
-    for (i = 0; i < nw; ++i) { /* start cold */
-        ws->in_set[ws->wset[i]] = 0;
-    }
-    ws->chol_holds = ZONES_CHOL_DUAL; /* the factor of the empty working set */
-    ws->chol_n = 0;
-    return 0;
-}
-
-/*
- * Is the final working set (no row violated outside it) optimal at ws->th, its outputs just
- * predicted? exact: ws->th is its exact dual solve (the resume), so its rows need only
- * hold; else the steps accumulated its multipliers, so its rows must also be tight within
- * the tolerance and none negative. Dual form only (a box-only set: the primal form's).
- */
-static int final_set_holds(zones_work *ws, const zones_mode_data *md, int nw,
-    int exact)
-{
-    return nw <= md->n && !box_only(ws, md, nw) && afford(ws, md, final_check_work(md))
-        && working_set_holds(ws, md, nw, 1, !exact);
-}
-
 #define COLD_START (-2) /* dual_active_set()'s from: no warm start (the guess' repeat) */
+
+/*
+ * The dual active set's steps from ws->th: the most violated rows join wset[0..*nw), a
+ * batch per scan (add_to_set()), and th is corrected at the grown set, until no row is
+ * violated. Returns 0, 1 (a dependent row no other can make room for: infeasible), -1
+ * (step cap, breakdown) or OUT_OF_WORK; *moved = 1 once th is corrected.
+ */
+static int add_violated_rows(zones_work *ws, const zones_mode_data *md, int *nw,
+    int *steps, int *moved)
+{
+    int code = 0;
+    for (;;) {
+        int p, c;
+        if (!afford(ws, md, scan_work(md) + (uint32_t)md->m)) {
+            return OUT_OF_WORK;
+        }
+        p = most_violated(ws, md, ws->th);
+        if (p == 0) {
+            return 0;
+        }
+        for (c = 0; c < p && code == 0; ++c) { /* 2: no longer violated, skipped */
+            code = add_to_set(ws, md, ws->tmp[c], c > 0, nw, steps);
+            code = (code == 2) ? 0 : code;
+        }
+        if (code != 0) {
+            return code;
+        }
+        if (!afford(ws, md, correct_work(md, *nw))) {
+            return OUT_OF_WORK;
+        }
+        correct(ws, md, ws->wset, *nw, ws->z, CORRECT_BY_LIST);
+        *moved = 1;
+    }
+}
 
 /*
  * Dual active-set solve (Goldfarb-Idnani) from the warm start (resume_working_set(), from
@@ -3161,7 +3208,10 @@ static int final_set_holds(zones_work *ws, const zones_mode_data *md, int nw,
  * after a claim of infeasibility, because far from the origin (multipliers ~1e9 in float)
  * th = th0 - E^-1 M' z loses the digits the primal form keeps; with it goes the factor of
  * H_WW, which the polish keeps, and lam takes its multipliers (the next sample's warm
- * start if the budget runs out). Returns 0 (optimal, as polish()), 1 (infeasible: ws->th
+ * start if the budget runs out). Once, the polish may hand the set back (SET_HANDED_BACK:
+ * its exact point violates a row outside the set, often one dependent on it, that the
+ * dual active set's own point did not); the steps go on from the polish's point,
+ * multipliers and factor. Returns 0 (optimal, as polish()), 1 (infeasible: ws->th
  * is then th0), -1 (step cap, breakdown, or the polish rejects the set), OUT_OF_WORK
  * (ws->th the last point reached, lam its working set) or OUT_OF_WORK_AT_TH0 (the same,
  * before it corrected th0: the caller falls back, fallback_point()).
@@ -3169,7 +3219,7 @@ static int final_set_holds(zones_work *ws, const zones_mode_data *md, int nw,
 static int dual_active_set(zones_work *ws, const zones_mode_data *md,
     zones_real *lam, int from, int *iterations, int *active)
 {
-    int i, nw = 0, steps = 0, code = 0, moved = 0; /* moved: ws->th is a corrected point */
+    int i, pass, nw = 0, steps = 0, code = 0, moved = 0; /* moved: ws->th is a corrected point */
     int resumed = 0; /* ws->th: the exact dual solve of the resumed set, as polish() would */
     if (!afford(ws, md, (ws->out_slacks_ok ? 0u : (uint32_t)md->m + predict_work(md))
                         + 2u * (uint32_t)md->m)) {
@@ -3201,46 +3251,47 @@ static int dual_active_set(zones_work *ws, const zones_mode_data *md,
         moved = (nw > 0); /* corrected at its resumed working set */
         resumed = moved; /* ws->th: its exact dual solve, what polish() would compute again */
     }
-    for (;;) {
-        int p, c;
-        if (!afford(ws, md, scan_work(md) + (uint32_t)md->m)) {
-            code = OUT_OF_WORK;
+    for (pass = 0; pass < 2; ++pass) { /* pass 1: the set the polish handed back */
+        int grown = 0;
+        code = add_violated_rows(ws, md, &nw, &steps, &grown);
+        moved = moved || grown;
+        resumed = resumed && !grown;
+        if (nw == 0 && code != OUT_OF_WORK) { /* code 0: violations of th0 within the tolerance only */
+            *iterations += steps;
+            return (code == 0) ? converged(ws, md, lam, 0, active) : code;
+        }
+        /* the next sample's warm start until polish() replaces it (paid by finish()'s reserve) */
+        keep_working_set(ws, md, lam, nw);
+        if (code == 0 && moved && final_set_holds(ws, md, nw, resumed)) {
+            *iterations += steps;
+            return converged(ws, md, lam, nw, active);
+        }
+        if (code == OUT_OF_WORK) {
             break;
         }
-        p = most_violated(ws, md, ws->th);
-        if (p == 0) {
+        i = polish(ws, md, lam, nw, 0, pass == 0 && code == 0, iterations, active);
+        if (i != SET_HANDED_BACK) {
             break;
         }
+        nw = ws->stop_rows; /* dual feasible at ws->th, with its factor */
         resumed = 0;
-        for (c = 0; c < p && code == 0; ++c) { /* 2: no longer violated, skipped */
-            code = add_to_set(ws, md, ws->tmp[c], c > 0, &nw, &steps);
-            code = (code == 2) ? 0 : code;
+        for (i = 0; i < md->m; ++i) {
+            ws->in_set[i] = 0;
         }
-        if (code != 0) {
-            break;
+        for (i = 0; i < nw; ++i) {
+            ws->in_set[ws->wset[i]] = 1;
         }
-        if (!afford(ws, md, correct_work(md, nw))) {
-            code = OUT_OF_WORK;
-            break;
-        }
-        correct(ws, md, ws->wset, nw, ws->z, CORRECT_BY_LIST);
-        moved = 1;
     }
     *iterations += steps;
-    if (nw == 0 && code != OUT_OF_WORK) { /* code 0: violations of th0 within the tolerance only */
-        return (code == 0) ? converged(ws, md, lam, 0, active) : code;
+    if (code == OUT_OF_WORK) {
+        *active = nw;
+        return moved ? OUT_OF_WORK : OUT_OF_WORK_AT_TH0; /* no polish ran */
     }
-    /* the next sample's warm start until polish() replaces it (paid by finish()'s reserve) */
-    keep_working_set(ws, md, lam, nw);
-    if (code == 0 && moved && final_set_holds(ws, md, nw, resumed)) {
-        return converged(ws, md, lam, nw, active);
-    }
-    i = (code == OUT_OF_WORK) ? OUT_OF_WORK : polish(ws, md, lam, nw, 0, iterations, active);
     if (i == OUT_OF_WORK) {
         *active = nw;
     }
     if (i == 0 || i == OUT_OF_WORK) {
-        return (code == OUT_OF_WORK && !moved) ? OUT_OF_WORK_AT_TH0 : i; /* no polish ran */
+        return i;
     }
     if (code == 1) {
         for (i = 0; i < md->n; ++i) {
@@ -3392,7 +3443,7 @@ int zones_qp_solve(zones_work *ws, zones_real *lam, const zones_real *plan,
         if (ZONES_SOLVER_ACTIVE_SET && !box_only(ws, md, count)) {
             ws->work_limit = ws->work + (ZONES_SOLVER_WORK_BUDGET - ws->work) / 3u;
         }
-        i = polish(ws, md, lam, count, 1, polish_iterations, active);
+        i = polish(ws, md, lam, count, 1, 0, polish_iterations, active);
         ws->work_limit = ZONES_SOLVER_WORK_BUDGET;
         if (i == 0) {
             return finish(ws, md, lam, ZONES_OPTIMAL, U);
@@ -3413,7 +3464,7 @@ int zones_qp_solve(zones_work *ws, zones_real *lam, const zones_real *plan,
         }
         i = seed_from_violated(ws, md);
         if (count <= 0 || !ZONES_SOLVER_ACTIVE_SET || box_only(ws, md, i)) {
-            i = polish(ws, md, lam, i, 0, polish_iterations, active);
+            i = polish(ws, md, lam, i, 0, 0, polish_iterations, active);
             if (i == 0) {
                 return finish(ws, md, lam, ZONES_OPTIMAL, U);
             }
@@ -3485,7 +3536,7 @@ int zones_qp_solve(zones_work *ws, zones_real *lam, const zones_real *plan,
             break;
         }
         correct(ws, md, ws->set, count, lam, CORRECT_BY_ROW);
-        i = polish(ws, md, lam, seed_from_multipliers(ws, md, lam, ws->set, count), 0,
+        i = polish(ws, md, lam, seed_from_multipliers(ws, md, lam, ws->set, count), 0, 0,
                    polish_iterations, active);
         if (i == 0) {
             status = ZONES_OPTIMAL;

@@ -18,7 +18,7 @@
 #include <stddef.h>
 #include <stdint.h>
 #include "zones_config.h"
-#if ZONES_GENERATION != 0x440030714fa580a
+#if ZONES_GENERATION != 0x375f64e5578cdd6
 #error "zones.h and zones_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
 #endif
 

@@ -28,7 +28,7 @@
  * stops the build unless it is of the same one: a regeneration interrupted between two
  * of its file moves leaves no mixed tree that compiles.
  */
-#define ZONES_GENERATION 0x440030714fa580a
+#define ZONES_GENERATION 0x375f64e5578cdd6
 
 /* The one place where the precision is chosen. */
 #define ZONES_PRECISION_DOUBLE 0

@@ -7,7 +7,7 @@
 
 #include <math.h>
 #include "zones.h"
-#if ZONES_GENERATION != 0x440030714fa580a
+#if ZONES_GENERATION != 0x375f64e5578cdd6
 #error "zones_internal.h and zones_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
 #endif
 

@@ -18,7 +18,7 @@
 #include <stddef.h>
 #include <stdint.h>
 #include "zrate_config.h"
-#if ZRATE_GENERATION != 0x77ce63f0512fe87
+#if ZRATE_GENERATION != 0xd9cde4139687d86
 #error "zrate.h and zrate_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
 #endif
 

@@ -12,7 +12,7 @@
  */
 #include <math.h>
 #include "zrate_internal.h"
-#if ZRATE_GENERATION != 0x77ce63f0512fe87
+#if ZRATE_GENERATION != 0xd9cde4139687d86
 #error "zrate_linalg.c and zrate_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
 #endif
 

@@ -11,11 +11,12 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..qp.work import (add_step_work, correct_work, factor_work, final_check_work, hq_work,
-                       independent_work, predict_work, scan_work, tri_work)
+from ..qp.work import (add_step_work, correct_work, factor_work, hq_work, predict_work,
+                       scan_work, tri_work)
 from .linalg import chol_ltsolve, seqsum
 from .factor_update import pivot_independent
-from ..solver_codes import CHOL_DUAL, COLD_START, OUT_OF_WORK, OUT_OF_WORK_AT_TH0
+from ..solver_codes import (CHOL_DUAL, COLD_START, OUT_OF_WORK, OUT_OF_WORK_AT_TH0,
+                            SET_HANDED_BACK)
 
 
 class ActiveSetMixin:
@@ -131,55 +132,6 @@ class ActiveSetMixin:
                     k, tblock, event = i, ratio, ev
         return k, tblock, event
 
-    def resume_working_set(self, lam, th0, K, st, from_):
-        """Mirror of resume_working_set(): the working set where the guess stopped (``stop``,
-        ``from_`` >= 0 rows), else the shifted previous one (its first wcap rows), made dual
-        feasible in st (W, z, in_set), its dependent rows leaving if its factor breaks
-        down; returns (its size, 0 to start cold, or OUT_OF_WORK with ``stop``; th)."""
-        W = self.stop[0] if from_ >= 0 else self.seed_shifted(lam, True)
-        st["in_set"][W] = True
-        for _ in range(self.polish_max):
-            if not W.size:  # no seed, or independent_rows() emptied it: start cold
-                break
-            st["steps"] += 1
-            code, z = self.dual_solve(W, K)
-            if code == -1:  # dependent rows: keep the independent ones, in order
-                if not self.afford(independent_work(self.md, W.size, self.hq_factor)):
-                    break  # start cold, with the work that is left
-                st["in_set"][W] = False
-                W = self.independent_rows(W)
-                st["in_set"][W] = True
-                continue
-            known = W.size if code == 0 else 0
-            if code == 0 and self.soft:
-                code = self.switch_states(W, z)
-            if code == 0:
-                W, z, code = self.drop_negative(W, z, False)
-            if code == OUT_OF_WORK:
-                return self.stopped(W, z, known, OUT_OF_WORK), th0
-            if code == 0:
-                if not self.afford(correct_work(self.md, W.size)):
-                    return self.stopped(W, z, W.size, OUT_OF_WORK), th0
-                st["W"], st["z"] = W, z
-                st["in_set"][:] = False  # remove_row() unflagged the dropped rows
-                st["in_set"][W] = True
-                return W.size, self.correct(th0, W, z)
-            if code < 0:
-                break
-        st["in_set"][:] = False  # start cold
-        self.slack_on[W] = False
-        self.chol_holds, self.chol_set = CHOL_DUAL, W[:0]
-        return 0, th0
-
-    def final_set_holds(self, W, z, th, gam, exact):
-        """Mirror of final_set_holds(): is the final working set, with no row violated
-        outside it, optimal at its point?  ``exact``: th is its exact dual solve (the
-        resume), so its rows need only hold; else they must also be tight.  Dual form
-        only."""
-        return (W.size <= self.wcap and not self.box_only(W)
-                and self.afford(final_check_work(self.md))
-                and self.working_set_holds(W, z, th, gam, predicted=True, tight=not exact))
-
     def dual_active_set(self, lam, th0, K, gam, from_=-1):
         """Mirror of dual_active_set() (``from_``: the rows of ``stop``, where the guess
         stopped; -1: none; COLD_START: no warm start either): (code 0/1/-1/OUT_OF_WORK/
@@ -205,40 +157,53 @@ class ActiveSetMixin:
                 return OUT_OF_WORK_AT_TH0, th, 0, st["steps"]
             moved = nw > 0  # resumed: corrected at its working set
         resumed = moved  # th: the exact dual solve of W, what polish() would compute again
-        code = 0
+        polished = 0  # the polish's iterations
+        for hand_back in (True, False):  # the polish may hand the set back once
+            code, th, grown = self.add_violated_rows(th0, gam, st, th)
+            moved, resumed = moved or grown, resumed and not grown
+            W = st["W"]
+            if not W.size and code != OUT_OF_WORK:
+                if code == 0:
+                    self.converged(lam, W, st["z"])
+                return code, th, 0, st["steps"] + polished
+            self.keep_working_set(lam, W, st["z"])  # the warm start, until the polish's
+            if code == OUT_OF_WORK:
+                return ((OUT_OF_WORK if moved else OUT_OF_WORK_AT_TH0), th, W.size,
+                        st["steps"] + polished)
+            if code == 0 and moved and self.final_set_holds(W, st["z"], th, gam, resumed):
+                return 0, th, self.converged(lam, W, st["z"]), st["steps"] + polished
+            code2, th_p, act, its = self.polish(W, lam, th0, K, gam, th=th,
+                                                hand_back=hand_back and code == 0)
+            polished += its
+            if code2 != SET_HANDED_BACK:
+                break
+            W, st["z"], _ = self.stop  # dual feasible at th_p, with its factor
+            st["W"], th, resumed = W, th_p, False
+            st["in_set"][:] = False
+            st["in_set"][W] = True
+        if code2 == 0:
+            return 0, th_p, act, st["steps"] + polished
+        if code2 == OUT_OF_WORK:
+            return OUT_OF_WORK, th_p, W.size, st["steps"] + polished
+        return (1 if code == 1 else -1), th0, 0, st["steps"] + polished
+
+    def add_violated_rows(self, th0, gam, st, th):
+        """Mirror of add_violated_rows(): the most violated rows join st's working set, a
+        batch per scan, until none is violated: (0 / 1 infeasible / -1 / OUT_OF_WORK, th,
+        whether th moved)."""
+        md, moved = self.md, False
         while True:
             if not self.afford(scan_work(md) + md.m):
-                code = OUT_OF_WORK
-                break
+                return OUT_OF_WORK, th, moved
             cands = self.most_violated(th, gam, st["in_set"])
             if not cands.size:
-                break
-            resumed = False
+                return 0, th, moved
             for c, p in enumerate(cands):  # 2: no longer violated, skipped
                 code = self.add_to_set(p, st, c > 0)
                 code = 0 if code == 2 else code
                 if code != 0:
-                    break
-            if code != 0:
-                break
+                    return code, th, moved
             if not self.afford(correct_work(md, len(st["W"]))):
-                code = OUT_OF_WORK
-                break
+                return OUT_OF_WORK, th, moved
             th = self.correct(th0, st["W"], st["z"])
             moved = True
-        W = st["W"]
-        if not W.size and code != OUT_OF_WORK:
-            if code == 0:
-                self.converged(lam, W, st["z"])
-            return code, th, 0, st["steps"]
-        self.keep_working_set(lam, W, st["z"])  # the warm start, until the polish's
-        if code == OUT_OF_WORK:
-            return (OUT_OF_WORK if moved else OUT_OF_WORK_AT_TH0), th, W.size, st["steps"]
-        if code == 0 and moved and self.final_set_holds(W, st["z"], th, gam, resumed):
-            return 0, th, self.converged(lam, W, st["z"]), st["steps"]
-        code2, th_p, act, its = self.polish(W, lam, th0, K, gam, th=th)
-        if code2 == 0:
-            return 0, th_p, act, st["steps"] + its
-        if code2 == OUT_OF_WORK:
-            return OUT_OF_WORK, th_p, W.size, st["steps"] + its
-        return (1 if code == 1 else -1), th0, 0, st["steps"] + its

@@ -10,10 +10,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..qp.work import (append_work, correct_work, delete_work, predict_work,
-                       primal_reserve, scan_work, tri_work)
-from .linalg import chol_solve
-from ..solver_codes import CHOL_DUAL, GUESS_CAPPED, GUESS_HANDED_OVER, OUT_OF_WORK
+from ..qp.work import append_work, correct_work, delete_work, primal_reserve, scan_work
+from ..solver_codes import (CHOL_DUAL, GUESS_CAPPED, GUESS_HANDED_OVER, OUT_OF_WORK,
+                            SET_HANDED_BACK)
 
 
 class PolishMixin:
@@ -54,52 +53,6 @@ class PolishMixin:
             self.guess_left -= int(np.count_nonzero(neg < self.guess_left))
         return W, z, code
 
-    def working_set_holds(self, W, z, th, gam, predicted=False, tight=False):
-        """Mirror of working_set_holds() (violated_in_set() with soft rows) at th;
-        ``predicted``: violated_outside() has just predicted the outputs at th; ``tight``:
-        the rows must also be tight within the tolerance and no multiplier negative."""
-        if predicted:
-            outputs = self.outputs_uncertified(th, gam)  # its work: the prediction stands
-        else:
-            outputs = self.outputs_to_check(th, gam)  # its work; the mirror checks every row
-        viol, scale = self.row_excess(th, gam)
-        e = viol[W] - self.slack_in_set(W, z) if self.soft else viol[W]
-        tol = self.tol * scale[W]
-        if np.any(e > tol):
-            return False
-        if tight:  # a row the certificate cleared is inside its bound: not tight
-            return not (np.any(e < -tol) or np.any(z < 0)
-                        or (not outputs and np.any(self.is_predicted()[W])))
-        return True
-
-    def refine_dual(self, W, z, gam, th):
-        """Mirror of refine_dual(): (0 / -1 / OUT_OF_WORK, th, z) after up to two rounds,
-        each z += d and th -= E^-1 M_W' d for d = H_WW^-1 e."""
-        md, nw = self.md, W.size
-        if not self.afford(2 * (2 * tri_work(nw) + correct_work(md, nw) + 2 * scan_work(md))
-                           + md.m):
-            return OUT_OF_WORK, th, z
-        chol = self.chol  # the factor dual_solve() used
-        for _ in range(2):
-            if self.has_pred:
-                self.work += predict_work(md)
-            e = self.row_excess(th, gam)[0][W]
-            if self.soft:
-                e = e - self.slack_in_set(W, z)
-            self.work += 2 * tri_work(nw)
-            chol_solve(chol, nw, e)
-            z = z + e
-            if np.any(z < 0):
-                return -1, th, z
-            if self.soft:
-                code = self.switch_states(W, z)
-                if code:
-                    return (OUT_OF_WORK if code == OUT_OF_WORK else -1), th, z
-            th = self.correct(th, W, -e, step=True)  # th - E^-1 M' d, not th0 - E^-1 M' z
-            if self.working_set_holds(W, z, th, gam):
-                return (0 if self.violated_outside(th, gam, W).size == 0 else -1), th, z
-        return -1, th, z
-
     @staticmethod
     def keep_working_set(lam, W, z):
         """Mirror of keep_working_set(): lam = W's multipliers, 0 elsewhere."""
@@ -115,7 +68,7 @@ class PolishMixin:
     def stopped(self, W, z, known, code):
         """Mirror of stopped(): where polish() ran out of work, or the working set a guess
         hands over (W, z, known); returns code."""
-        if code in (OUT_OF_WORK, GUESS_HANDED_OVER):
+        if code in (OUT_OF_WORK, GUESS_HANDED_OVER, SET_HANDED_BACK):
             self.stop = (W.copy(), np.zeros(0, self.md.Kx.dtype) if z is None else z.copy(),
                          known)
         return code
@@ -128,12 +81,14 @@ class PolishMixin:
         zk[:known] = np.where(z[:known] > 0, z[:known], self.zero)
         self.keep_working_set(lam, W, zk)
 
-    def polish(self, W, lam, th0, K, gam, guess=False, th=None):
+    def polish(self, W, lam, th0, K, gam, guess=False, th=None, hand_back=False):
         """Mirror of polish() from working set W (taking the dual factor ``chol`` when
         ``chol_holds`` says it is W's); returns (0 / -1 / GUESS_CAPPED / GUESS_HANDED_OVER /
-        OUT_OF_WORK, th, active, iterations), th after OUT_OF_WORK being the C's ws->th
-        then (``th`` on entry) and ``stop`` where it stopped (after GUESS_HANDED_OVER: a
-        guess' rows, dual feasible or after a drop, with their factor)."""
+        SET_HANDED_BACK / OUT_OF_WORK, th, active, iterations), th after OUT_OF_WORK being
+        the C's ws->th then (``th`` on entry) and ``stop`` where it stopped (after
+        GUESS_HANDED_OVER: a guess' rows, dual feasible or after a drop, with their factor;
+        after SET_HANDED_BACK, ``hand_back`` being set: the dual active set's rows, dual
+        feasible, with their factor, th their point)."""
         md = self.md
         its, known, z = 0, 0, None
         repeatable = guess  # every round so far a dual solve that switched or dropped
@@ -210,13 +165,16 @@ class PolishMixin:
                     code = 0
                     if not self.working_set_holds(W, z, th, gam, predicted=True):
                         code, th, z = self.refine_dual(W, z, gam, th)
+                        if code == 1:  # a row outside: the dual active set makes room
+                            code = SET_HANDED_BACK if hand_back else -1
                     if code:
                         return self.stopped(W, z, known, code), th, 0, its
                     return 0, th, self.converged(lam, W, z), its
-            dual = (W.size if guess and self.active_set and self.chol_holds == CHOL_DUAL
-                    else -1)  # a guess' dual-feasible, factored working set
+            dual = (W.size if (guess or hand_back) and self.active_set
+                    and self.chol_holds == CHOL_DUAL else -1)  # dual feasible, factored
+            handed = GUESS_HANDED_OVER if guess else SET_HANDED_BACK
             if add.size > self.wcap - W.size:
-                code = self.stopped(W, z, dual, GUESS_HANDED_OVER) if dual >= 0 else -1
+                code = self.stopped(W, z, dual, handed) if dual >= 0 else -1
                 return code, th, 0, its
             if self.chol_holds == CHOL_DUAL and not self.afford(
                     add.size * append_work(md, W.size + add.size, self.hq_factor)):
@@ -226,5 +184,5 @@ class PolishMixin:
             if dual >= 0 and self.chol_holds != CHOL_DUAL:
                 # of W[:dual], which the appends kept
                 self.chol_holds, self.chol_set = CHOL_DUAL, W[:dual].copy()
-                return self.stopped(W[:dual], z, dual, GUESS_HANDED_OVER), th, 0, its
+                return self.stopped(W[:dual], z, dual, handed), th, 0, its
         return (GUESS_CAPPED if repeatable else -1), th, 0, its

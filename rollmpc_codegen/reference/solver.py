@@ -4,8 +4,9 @@ It mirrors ``templates/solver.c.j2``, a module per partial of ``templates/solver
 :mod:`.signals`, :mod:`.hq`, :mod:`.dot`, :mod:`.unconstrained`, :mod:`.rows` (with
 ``violated_rows``),
 :mod:`.factor_update`, :mod:`.soft_rows`, :mod:`.sweeps`, :mod:`.primal_rows`,
-:mod:`.polish_primal`, :mod:`.polish_dual`, :mod:`.seeds`, :mod:`.guess`, :mod:`.polish`,
-:mod:`.active_set`, and this module for ``qp_solve``; ``bounds`` is
+:mod:`.polish_primal`, :mod:`.polish_dual`, :mod:`.kkt`, :mod:`.seeds`, :mod:`.guess`,
+:mod:`.polish`,
+:mod:`.resume`, :mod:`.active_set`, and this module for ``qp_solve``; ``bounds`` is
 :mod:`rollmpc_codegen.features.runtime_bounds`, ``work`` :mod:`rollmpc_codegen.qp.work`
 and ``linalg.c.j2`` :mod:`.linalg` (:mod:`.mirror` declares the rule and its exceptions).
 Each method is named after the C function it mirrors.
@@ -36,7 +37,9 @@ from .polish import PolishMixin
 from ..solver_codes import (CHOL_NONE, COLD_START, GUESS_CAPPED, GUESS_HANDED_OVER, LAMBDA_LIMIT,
                             OUT_OF_WORK, OUT_OF_WORK_AT_TH0)
 from .polish_dual import DualPolishMixin
+from .kkt import KktMixin
 from .polish_primal import PrimalPolishMixin
+from .resume import ResumeMixin
 from .rows import RowsMixin
 from .seeds import SeedsMixin
 from .signals import SignalsMixin
@@ -59,8 +62,8 @@ class LastPlan:
 
 
 class SolverRef(SignalsMixin, UnconstrainedMixin, RowsMixin, SoftRowsMixin, SweepsMixin,
-                PrimalPolishMixin, DualPolishMixin, SeedsMixin, GuessMixin, PolishMixin,
-                ActiveSetMixin):
+                PrimalPolishMixin, DualPolishMixin, KktMixin, SeedsMixin, GuessMixin, PolishMixin,
+                ResumeMixin, ActiveSetMixin):
     """Reference of ``P_qp_solve`` for one mode; holds that mode's warm-start multipliers
     and shares the controller's :class:`LastPlan` with the other modes' solvers.
 

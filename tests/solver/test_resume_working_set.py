@@ -1,4 +1,4 @@
-"""resume_working_set() (templates/solver/active_set.c.j2, reference/active_set.py) on a
+"""resume_working_set() (templates/solver/resume.c.j2, reference/resume.py) on a
 warm start that independent_rows() empties: it starts cold at once, no further round.
 
 In tests/data/kernels/repeated_rows.yaml the first predicted output is y_1 = 0.5 x_1 +
