@@ -9,8 +9,12 @@ times the penalty of docs/target.md "Parts" (an assumption per part, not measure
         --precision double --step 3071
 
 The run is replayed on the emulator up to the step (not counted), then the step's code
-fetches (per executed block) and data reads and writes (a memory hook) go through the two
-simulated caches.  Data in the controller instance is cached like the constants: on the
+fetches (per executed block) and data reads and writes go through the two simulated
+caches.  The data addresses are decoded from each load and store as it is about to run
+(:func:`data_accesses`: its base, index and offset registers, or the register list of a
+load or store multiple), not taken from a memory hook: with one installed, unicorn 2.x
+skipped a 16-bit ``ldr`` after a not-taken ``beq.n`` on fw_lateral's steps 572 and 760,
+and the next load read through a stale register.  Data in the controller instance is cached like the constants: on the
 H743 it lives in AXI SRAM (parts.py); in DTCM, as on the F765's first 128 KiB, it would
 not miss at all.
 """
@@ -47,10 +51,102 @@ class Cache:
                 ways.popitem(last=False)
 
 
-def step_misses(model, ctx: dict, build_root: Path, step: int) -> dict:
-    """The cold-cache misses of ``step`` of the config's scenario on its target image."""
-    from unicorn import UC_HOOK_BLOCK, UC_HOOK_MEM_READ, UC_HOOK_MEM_WRITE
+# the bytes of one element of each load or store, by capstone's base name (d registers
+# of the FPU: 8, by the operand); the multiple forms' elements are their listed registers
+_ELEMENT = {"ldrb": 1, "ldrsb": 1, "strb": 1, "ldrexb": 1, "strexb": 1, "tbb": 1,
+            "ldrh": 2, "ldrsh": 2, "strh": 2, "ldrexh": 2, "strexh": 2, "tbh": 2,
+            "ldrd": 8, "strd": 8}
+_SINGLE = ("ldr", "str", "vldr", "vstr", "pld", "tbb", "tbh")
+_MULTIPLE = {"push": "down_sp", "vpush": "down_sp", "pop": "up_sp", "vpop": "up_sp",
+             "ldm": "up", "stm": "up", "vldmia": "up", "vstmia": "up",
+             "ldmdb": "down", "stmdb": "down", "vldmdb": "down", "vstmdb": "down"}
 
+
+def condition_passes(cc: int, flags: int) -> bool:
+    """Whether ARM condition ``cc`` (capstone's ARM_CC_*: EQ 1 .. LE 14, AL 15, none 0)
+    holds on the APSR ``flags`` (N, Z, C, V in bits 31-28): a conditional load or store in
+    an IT block that does not pass touches nothing."""
+    n, z, c, v = (bool(flags >> bit & 1) for bit in (31, 30, 29, 28))
+    base = {1: z, 3: c, 5: n, 7: v, 9: c and not z, 11: n == v, 13: not z and n == v}
+    if cc in (0, 15):
+        return True
+    return base[cc] if cc % 2 else not base[cc - 1]
+
+
+def _register_bytes(insn, reg: int) -> int:
+    return 8 if insn.reg_name(reg).startswith("d") else 4
+
+
+def data_accesses(insn, reg) -> list[tuple[int, int]]:
+    """The (address, bytes) that a load or store ``insn`` (capstone, with detail) touches
+    when it runs with the registers ``reg(name)`` hold now; [] for any other instruction.
+    Thumb's pc reads as the instruction's address + 4, word-aligned for a literal."""
+    from capstone.arm import ARM_OP_MEM, ARM_OP_REG, ARM_SFT_INVALID
+
+    name = insn.insn_name()
+
+    def value(r: int) -> int:
+        rn = insn.reg_name(r)
+        return ((insn.address + 4) & ~3) if rn == "pc" else reg(rn)
+
+    if name in _MULTIPLE:
+        regs = [o.reg for o in insn.operands if o.type == ARM_OP_REG]
+        how = _MULTIPLE[name]
+        if how.endswith("_sp"):
+            base, listed = reg("sp"), regs
+        else:
+            base, listed = value(regs[0]), regs[1:]
+        total = sum(_register_bytes(insn, r) for r in listed)
+        start = base - total if how.startswith("down") else base
+        out, at = [], start
+        for r in listed:
+            out.append((at, _register_bytes(insn, r)))
+            at += _register_bytes(insn, r)
+        return out
+    if not name.startswith(_SINGLE):
+        return []
+    for o in insn.operands:
+        if o.type != ARM_OP_MEM:
+            continue
+        address = value(o.mem.base) + o.mem.disp  # a post-index offset is its own operand
+        if o.mem.index:
+            shift = o.shift.value if o.shift.type != ARM_SFT_INVALID else o.mem.lshift
+            step = value(o.mem.index) << shift
+            address += -step if o.subtracted else step
+        size = _ELEMENT.get(name, 4)
+        if name in ("vldr", "vstr"):
+            size = _register_bytes(insn, insn.operands[0].reg)
+        return [(address & 0xFFFFFFFF, size)]
+    return []
+
+
+class DataTracer:
+    """A per-instruction hook that decodes each load and store (once per address) and
+    sends what it touches to ``cache``."""
+
+    def __init__(self, cache: Cache):
+        from capstone import CS_ARCH_ARM, CS_MODE_MCLASS, CS_MODE_THUMB, Cs
+        from unicorn import arm_const
+
+        self.cache, self._decoded = cache, {}
+        self._cs = Cs(CS_ARCH_ARM, CS_MODE_THUMB | CS_MODE_MCLASS)
+        self._cs.detail = True
+        self._ids = {n[len("UC_ARM_REG_"):].lower(): getattr(arm_const, n)
+                     for n in dir(arm_const) if n.startswith("UC_ARM_REG_")}
+
+    def __call__(self, uc, address: int, size: int, _user) -> None:
+        insn = self._decoded.get(address)
+        if insn is None:
+            insn = next(self._cs.disasm(bytes(uc.mem_read(address, size)), address), False)
+            self._decoded[address] = insn
+        if insn and condition_passes(insn.cc, uc.reg_read(self._ids["apsr"])):
+            for at, nbytes in data_accesses(insn, lambda rn: uc.reg_read(self._ids[rn])):
+                self.cache.access(at, nbytes)
+
+
+def emulator_at_step(model, ctx: dict, build_root: Path, step: int):
+    """(the emulated target image with steps 0..step-1 of the config's scenario run and
+    step's inputs written, the host run's record up to step)."""
     from .build import build_target
     from .emulate import CortexM
     from .replay import record_host_run
@@ -70,18 +166,31 @@ def step_misses(model, ctx: dict, build_root: Path, step: int) -> dict:
         feed(k)
         em.call(f"{p}_target_step")
     feed(step)
-    code, data = Cache(), Cache()
-    hooks = [em.uc.hook_add(UC_HOOK_BLOCK, lambda uc, a, s, _u: code.access(a, s)),
-             em.uc.hook_add(UC_HOOK_MEM_READ | UC_HOOK_MEM_WRITE,
-                            lambda uc, _acc, a, s, _v, _u: data.access(a, s))]
+    return em, record
+
+
+def run_step_with(em, ctx: dict, hooks: list) -> np.ndarray:
+    """Run the prepared step with unicorn ``hooks`` ((type, callback) pairs) installed;
+    returns its command."""
+    ids = [em.uc.hook_add(kind, callback) for kind, callback in hooks]
     em.uc.ctl_flush_tb()
     try:
-        em.call(f"{p}_target_step")
+        em.call(f"{ctx['prefix']}_target_step")
     finally:
-        for h in hooks:
+        for h in ids:
             em.uc.hook_del(h)
-    out = np.frombuffer(em.read(f"{p}_target_u"), np.float64 if ctx["real"] == "double"
-                        else np.float32)
+    return np.frombuffer(em.read(f"{ctx['prefix']}_target_u"),
+                         np.float64 if ctx["real"] == "double" else np.float32)
+
+
+def step_misses(model, ctx: dict, build_root: Path, step: int) -> dict:
+    """The cold-cache misses of ``step`` of the config's scenario on its target image."""
+    from unicorn import UC_HOOK_BLOCK, UC_HOOK_CODE
+
+    em, record = emulator_at_step(model, ctx, build_root, step)
+    code, data = Cache(), Cache()
+    out = run_step_with(em, ctx, [(UC_HOOK_BLOCK, lambda uc, a, s, _u: code.access(a, s)),
+                                  (UC_HOOK_CODE, DataTracer(data))])
     if out.tobytes() != record.u[step].tobytes():
         raise RuntimeError(f"step {step}: the emulated command differs from the host's")
     return {"step": step, "code_lines": code.accesses, "code_misses": code.misses,

@@ -115,3 +115,41 @@ def test_the_cache_estimate_counts_lru_misses():
     c.access(0)
     c.access(30, 4)  # lines 0 and 1
     assert c.misses == 1 + 4 + 1 + 1
+
+
+REGS = {"r1": 0x1000, "r2": 3, "r4": 0x2000, "sp": 0x3000}
+
+
+@pytest.mark.parametrize("text, touched", [
+    ("ldr r0, [r1], #4", [(0x1000, 4)]),  # post-index: the base, then the write-back
+    ("ldr r0, [r1, #-4]!", [(0x0ffc, 4)]),  # pre-index
+    ("ldr.w r0, [r1, r2, lsl #2]", [(0x100c, 4)]),
+    ("ldrd r0, r1, [r1, #-8]", [(0x0ff8, 8)]),
+    ("ldr r0, [pc, #16]", [(0x14, 4)]),  # pc + 4, word-aligned
+    ("vldr d0, [r1, #16]", [(0x1010, 8)]),
+    ("vldmia r1!, {d0-d1}", [(0x1000, 8), (0x1008, 8)]),
+    ("push {r4, r5, lr}", [(0x2ff4, 4), (0x2ff8, 4), (0x2ffc, 4)]),
+    ("ldmdb r1, {r2, r3}", [(0x0ff8, 4), (0x0ffc, 4)]),
+    ("ldrsh r3, [r4, r2]", [(0x2003, 2)]),
+    ("adds r0, r1, #1", []),
+])
+def test_the_cache_tool_decodes_what_a_load_or_store_touches(tmp_path, text, touched):
+    """cache_lines.data_accesses(): the bytes an instruction reads or writes, from its
+    operands and the registers before it runs (no memory hook: unicorn 2.x skipped a
+    16-bit load with one installed)."""
+    from rollmpc_codegen.target.cache_lines import data_accesses
+
+    (insn,) = insns(tmp_path, text)
+    assert data_accesses(insn, REGS.__getitem__) == touched
+
+
+@pytest.mark.parametrize("cc, flags, passes", [
+    (1, 0x4000_0000, True), (2, 0x4000_0000, False),  # EQ, NE with Z
+    (9, 0x2000_0000, True), (10, 0x6000_0000, True),  # HI: C and not Z; LS: Z
+    (11, 0x9000_0000, True), (12, 0x8000_0000, True),  # GE: N == V; LT: N != V
+    (13, 0x0000_0000, True), (14, 0x4000_0000, True), (15, 0, True), (0, 0, True),
+])
+def test_a_conditional_access_counts_only_when_its_condition_passes(cc, flags, passes):
+    from rollmpc_codegen.target.cache_lines import condition_passes
+
+    assert condition_passes(cc, flags) is passes
