@@ -14,9 +14,9 @@ caches.  The data addresses are decoded from each load and store as it is about 
 (:func:`data_accesses`: its base, index and offset registers, or the register list of a
 load or store multiple), not taken from a memory hook: with one installed, unicorn 2.x
 skipped a 16-bit ``ldr`` after a not-taken ``beq.n`` on fw_lateral's steps 572 and 760,
-and the next load read through a stale register.  Data in the controller instance is cached like the constants: on the
-H743 it lives in AXI SRAM (parts.py); in DTCM, as on the F765's first 128 KiB, it would
-not miss at all.
+and the next load read through a stale register.  Data in the controller instance is
+cached like the constants: on the H743 it lives in AXI SRAM (parts.py); in DTCM, as on
+the F765's first 128 KiB, it would not miss at all.
 """
 from __future__ import annotations
 
@@ -96,12 +96,12 @@ def data_accesses(insn, reg) -> list[tuple[int, int]]:
             base, listed = reg("sp"), regs
         else:
             base, listed = value(regs[0]), regs[1:]
-        total = sum(_register_bytes(insn, r) for r in listed)
-        start = base - total if how.startswith("down") else base
-        out, at = [], start
-        for r in listed:
-            out.append((at, _register_bytes(insn, r)))
-            at += _register_bytes(insn, r)
+        sizes = [_register_bytes(insn, r) for r in listed]
+        at = base - sum(sizes) if how.startswith("down") else base
+        out = []
+        for size in sizes:
+            out.append((at, size))
+            at += size
         return out
     if not name.startswith(_SINGLE):
         return []
@@ -149,23 +149,16 @@ def emulator_at_step(model, ctx: dict, build_root: Path, step: int):
     step's inputs written, the host run's record up to step)."""
     from .build import build_target
     from .emulate import CortexM
-    from .replay import record_host_run
+    from .replay import record_host_run, write_inputs
 
     build = build_target(ctx, build_root)
     record = record_host_run(model, ctx, build_root, steps=step + 1, progress=False)
     em, p = CortexM(build.elf, build.core), ctx["prefix"]
     em.call(f"{p}_target_init")
-
-    def feed(k: int) -> None:
-        em.write(f"{p}_target_y", record.y[k])
-        if ctx["n_schedule"]:
-            em.write(f"{p}_target_sched", record.sched[k])
-        em.write(f"{p}_target_r", record.r[k])
-
     for k in range(step):
-        feed(k)
+        write_inputs(em, ctx, record, k)
         em.call(f"{p}_target_step")
-    feed(step)
+    write_inputs(em, ctx, record, step)
     return em, record
 
 

@@ -189,6 +189,15 @@ def _compare_outputs(k: int, record: HostRecord, u: np.ndarray, status: int,
             mismatches.append((k, name, host_info[name], int(info[i])))
 
 
+def write_inputs(em, ctx: dict, record: HostRecord, k: int) -> None:
+    """Step k's recorded inputs into the emulated harness (y, the schedule, r)."""
+    p = ctx["prefix"]
+    em.write(f"{p}_target_y", record.y[k])
+    if ctx["n_schedule"]:
+        em.write(f"{p}_target_sched", record.sched[k])
+    em.write(f"{p}_target_r", record.r[k])
+
+
 def replay_on_target(build, ctx: dict, record: HostRecord, count_steps: set[int],
                      progress=None, label: str = "report") -> TargetRun:
     """Replay the recorded inputs from step 0 on the emulated core; compare every output
@@ -205,10 +214,7 @@ def replay_on_target(build, ctx: dict, record: HostRecord, count_steps: set[int]
     cb = start_phase(progress, n, f"{label}: target run ")
     counts, mismatches, state_steps, first_members = {}, [], [], []
     for k in range(n):
-        em.write(f"{p}_target_y", record.y[k])
-        if ctx["n_schedule"]:
-            em.write(f"{p}_target_sched", record.sched[k])
-        em.write(f"{p}_target_r", record.r[k])
+        write_inputs(em, ctx, record, k)
         status, c = em.call(f"{p}_target_step", count=k in count_steps)
         if c is not None:
             counts[k] = c
