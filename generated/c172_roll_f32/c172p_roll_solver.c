@@ -25,7 +25,7 @@
  */
 #include <math.h>
 #include "c172p_roll_internal.h"
-#if C172P_ROLL_GENERATION != 0x19193796dd4d1c3
+#if C172P_ROLL_GENERATION != 0xfff9c407bcdfd9b
 #error "c172p_roll_solver.c and c172p_roll_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
 #endif
 
@@ -223,30 +223,33 @@ static uint32_t trim_work(const c172p_roll_mode_data *md, int nw)
 }
 
 /*
- * primal_solve() on nw bound inputs with a factor of order k whose rows (and Y's) from
- * `start` are factored again (0: a new factor): its Cholesky, its solves for the nt + 1
- * right-hand sides, the terminal Schur complement and its products, at
- * PRIMAL_SIXTHS_PER_OP, and PRIMAL_CALL_UNITS per call (the bookkeeping). The free form's
- * product -S_FB d_B is what it does: k (n - k) multiply-adds, nt (n - k) for V_B d_B, n
- * for the point, and PRIMAL_CALL_OPS per free row and run of bound inputs (`bound_runs`:
- * sparse_rows_dot() calls packed_range_dot() for each); its multipliers are charged by
- * free_multipliers() (multipliers_work()). The bound form pays 2 n (k + nt) and
- * multipliers_work() for its product over the packed S^-1, whose calls per free row and
- * run of bound inputs its operations alone undercount.
+ * primal_solve() with a factor of order k whose rows (and Y's) from `start` are factored
+ * again (0: a new factor): its Cholesky at PRIMAL_SIXTHS_PER_OP[0], the nt forward solves
+ * of Y's new rows at FORWARD_UNITS_PER_OP, the two solves of the right-hand side as
+ * tri_work(), the terminal Schur complement and the products at PRIMAL_SIXTHS_PER_OP[1],
+ * and PRIMAL_CALL_UNITS per call (the bookkeeping). The free form's product -S_FB d_B is
+ * what it does: k (n - k) multiply-adds, nt (n - k) for V_B d_B, n for the point, and
+ * PRIMAL_CALL_OPS per free row and run of bound inputs (`bound_runs`: sparse_rows_dot()
+ * calls packed_range_dot() for each); its multipliers are charged by free_multipliers()
+ * (multipliers_work()). The bound form's product S^-1_FB beta - Uv_F' nu is what it does
+ * too: (k + nt) multiply-adds for each free row (up to three rows more: gather_dot4() sums
+ * four rows a call, the last repeated), 2 n to gather the bound inputs and walk the list,
+ * and PRIMAL_CALL_OPS per call.
  */
-static uint32_t primal_work(const c172p_roll_mode_data *md, int nw, int k, int start,
-    int bound_form, int bound_runs)
+static uint32_t primal_work(const c172p_roll_mode_data *md, int k, int start, int bound_form,
+    int bound_runs)
 {
     const uint32_t n = (uint32_t)md->n;
     const uint32_t nt = (uint32_t)md->nt;
     const uint32_t factor = chol_ops(k) - chol_ops(start) + chol_ops(md->nt);
-    const uint32_t products = bound_form ? 2u * n * ((uint32_t)k + nt) : ((uint32_t)k + nt) *
-        (n - (uint32_t)k) + n + 4u * (uint32_t)k * (uint32_t)bound_runs;
+    const uint32_t products = bound_form ? 4u * ((n - (uint32_t)k + 3u) / 4u) * ((uint32_t)k +
+        nt + 1u) + 2u * n : ((uint32_t)k + nt) * (n - (uint32_t)k) + n +
+        4u * (uint32_t)k * (uint32_t)bound_runs;
     const uint32_t loops = ((uint32_t)k * (uint32_t)k - (uint32_t)start * (uint32_t)start) / 2u
-        + 2u * (nt * (tri_ops(k) - tri_ops(start)) + tri_ops(k)) + nt * nt *
-        (uint32_t)k / 2u + 2u * tri_ops(md->nt) + 3u * nt * n + products;
-    return (2u * factor + 3u * loops) / 6u + 200u + (bound_form ? multipliers_work(md, nw) :
-        0u);
+        + nt * nt * (uint32_t)k / 2u + 2u * tri_ops(md->nt) + 3u * nt * n +
+        products;
+    const uint32_t y_rows = nt * (tri_ops(k) - tri_ops(start));
+    return (2u * factor + 3u * loops) / 6u + y_rows * 2u / 5u + 2u * tri_work(k) + 200u;
 }
 
 /* independent_rows() on nw rows, at most: each appended to all the rows before it. */
@@ -1553,20 +1556,33 @@ static int role_gen(int role)
 }
 
 /*
- * ws->tmp[from..to): inputs in the head's order; sorts them by generation, keeping that
- * order within one (an insertion sort, in place: the tail rarely holds more than a few
- * generations out of order, and it needs no memory).
+ * The tail rows (the inputs whose role has ROLE_TAIL) into ws->tmp[from..): by generation,
+ * each generation in the head's order (descending inputs when down, else ascending): the
+ * rows of each generation counted, then each input placed after those of the generations
+ * before its own. Cost: 2 n flag reads, whatever the order the tail grew in.
  */
-static void sort_by_generation(c172p_roll_work *ws, int from, int to)
+static void place_tail(c172p_roll_work *ws, int n, int from, int down)
 {
-    int a, b;
-    for (a = from + 1; a < to; ++a) {
-        const int16_t q = ws->tmp[a];
-        const int g = role_gen(ws->input_role[q]);
-        for (b = a; b > from && role_gen(ws->input_role[ws->tmp[b - 1]]) > g; --b) {
-            ws->tmp[b] = ws->tmp[b - 1];
+    int16_t next[ROLE_GEN_MAX + 1]; /* the place of a generation's next row */
+    int g, j, at = from;
+    for (g = 0; g <= ROLE_GEN_MAX; ++g) {
+        next[g] = 0;
+    }
+    for (j = 0; j < n; ++j) {
+        if ((ws->input_role[j] & ROLE_TAIL) != 0) {
+            ++next[role_gen(ws->input_role[j])];
         }
-        ws->tmp[b] = q;
+    }
+    for (g = 0; g <= ROLE_GEN_MAX; ++g) {
+        const int rows = next[g];
+        next[g] = (int16_t)at;
+        at += rows;
+    }
+    for (j = 0; j < n; ++j) {
+        const int i = down ? n - 1 - j : j, role = ws->input_role[i];
+        if ((role & ROLE_TAIL) != 0) {
+            ws->tmp[next[role_gen(role)]++] = (int16_t)i;
+        }
     }
 }
 
@@ -1637,7 +1653,7 @@ static void primal_order(c172p_roll_work *ws, int n, int form, int update, int k
     int newest)
 {
     const int down = form == FORM_FREE, stride = down ? -1 : 1;
-    int i, h = down ? head - 1 : 0, t = down ? k - 1 : head, rest = k;
+    int i, h = down ? head - 1 : 0, rest = k;
     for (i = 0; i < n; ++i) {
         const int role = ws->input_role[i], bound = role & ROLE_BOUND;
         if (!in_form(role, form)) {
@@ -1649,13 +1665,10 @@ static void primal_order(c172p_roll_work *ws, int n, int form, int update, int k
             ws->input_role[i] = (uint8_t)(bound | ROLE_HEAD);
         } else {
             const int g = (role & ROLE_TAIL) ? role_gen(role) : newest + 1;
-            const int tail_role = bound | ROLE_TAIL | (g * ROLE_GEN_ONE);
-            ws->tmp[t] = (int16_t)i;
-            t += stride;
-            ws->input_role[i] = (uint8_t)tail_role;
+            ws->input_role[i] = (uint8_t)(bound | ROLE_TAIL | (g * ROLE_GEN_ONE));
         }
     }
-    sort_by_generation(ws, head, k);
+    place_tail(ws, n, head, down);
     ws->primal_form = (int16_t)form;
     ws->primal_head = (int16_t)head;
 }
@@ -1668,25 +1681,19 @@ static void primal_order(c172p_roll_work *ws, int n, int form, int update, int k
 static int primal_old_order(c172p_roll_work *ws, int n)
 {
     const int down = ws->primal_form == FORM_FREE, stride = down ? -1 : 1;
-    int i, heads = 0, rows = 0, h, t;
+    int i, heads = 0, rows = 0, h;
     for (i = 0; i < n; ++i) {
         heads += (ws->input_role[i] & ROLE_HEAD) != 0;
         rows += (ws->input_role[i] & (ROLE_HEAD | ROLE_TAIL)) != 0;
     }
     h = down ? heads - 1 : 0;
-    t = down ? rows - 1 : heads;
     for (i = 0; i < n; ++i) {
-        const int role = ws->input_role[i];
-        if (role & ROLE_HEAD) {
+        if (ws->input_role[i] & ROLE_HEAD) {
             ws->tmp[h] = (int16_t)i;
             h += stride;
         }
-        if (role & ROLE_TAIL) {
-            ws->tmp[t] = (int16_t)i;
-            t += stride;
-        }
     }
-    sort_by_generation(ws, heads, rows);
+    place_tail(ws, n, heads, down);
     return rows;
 }
 
@@ -1721,6 +1728,82 @@ static int box_only(const c172p_roll_work *ws, const c172p_roll_mode_data *md, i
         box = box && md->row_q[ws->wset[i]] < md->n;
     }
     return box;
+}
+
+/*
+ * The bound form's d_F needs (S^-1 beta)_f for every free input f, with beta zero outside
+ * the k bound inputs. The bound inputs are gathered once, ascending, with their beta; each
+ * four free rows then walk that short list, four sums per list entry read, with no
+ * call or test per run of bound inputs however they are scattered. Each row's terms are
+ * added in increasing j, as the dense sum adds them (the terms left out are exact zeros:
+ * the same sums to the bit as the NumPy reference's dense row).
+ */
+
+/*
+ * The inputs whose role has ROLE_BOUND, ascending, into list[0..k), and x at each into
+ * xs[0..k). Returns k. Cost: n flag reads.
+ */
+static int gather_bound(const uint8_t *role, int n, const c172p_roll_real *x, int16_t *list,
+    c172p_roll_real *xs)
+{
+    int q, k = 0;
+    for (q = 0; q < n; ++q) {
+        if ((role[q] & ROLE_BOUND) != 0) {
+            list[k] = (int16_t)q;
+            xs[k] = x[q];
+            ++k;
+        }
+    }
+    return k;
+}
+
+/*
+ * acc[b] = sum_t M(rows[b], list[t]) xs[t] for b < 4, over the ascending list[0..count)
+ * of entries other than the rows (ascending, a row repeated at the end: the same sum
+ * again), `lo` of them below rows[0] and `hi` below rows[3]: row q holds M(q, j) for
+ * j < q, column q (entry q of row j) the rest. Below every row the four rows are read
+ * along, above every row four entries of one row j; only the few entries among the rows
+ * choose per row. Cost: 4 count multiply-adds.
+ */
+static void gather_dot4(const c172p_roll_real *mp, const int16_t *rows, const int16_t *list,
+    const c172p_roll_real *xs, int count, int lo, int hi, c172p_roll_real *acc)
+{
+    const uint32_t q0 = (uint32_t)rows[0], q1 = (uint32_t)rows[1], q2 = (uint32_t)rows[2];
+    const uint32_t q3 = (uint32_t)rows[3];
+    const c172p_roll_real *r0 = &mp[C172P_ROLL_TRI(q0, 0u)], *r1 = &mp[C172P_ROLL_TRI(q1, 0u)];
+    const c172p_roll_real *r2 = &mp[C172P_ROLL_TRI(q2, 0u)], *r3 = &mp[C172P_ROLL_TRI(q3, 0u)];
+    c172p_roll_real a0 = R_(0.0), a1 = R_(0.0), a2 = R_(0.0), a3 = R_(0.0);
+    int t = 0;
+    for (; t < lo; ++t) { /* j below every row: along the four rows */
+        const uint32_t j = (uint32_t)list[t];
+        const c172p_roll_real x = xs[t];
+        a0 += r0[j] * x;
+        a1 += r1[j] * x;
+        a2 += r2[j] * x;
+        a3 += r3[j] * x;
+    }
+    for (; t < hi; ++t) { /* j among the rows: along a row above j, down one below it */
+        const uint32_t j = (uint32_t)list[t];
+        const c172p_roll_real *row_j = &mp[C172P_ROLL_TRI(j, 0u)];
+        const c172p_roll_real x = xs[t];
+        a0 += ((j < q0) ? r0[j] : row_j[q0]) * x;
+        a1 += ((j < q1) ? r1[j] : row_j[q1]) * x;
+        a2 += ((j < q2) ? r2[j] : row_j[q2]) * x;
+        a3 += ((j < q3) ? r3[j] : row_j[q3]) * x;
+    }
+    for (; t < count; ++t) { /* j above every row: four entries of row j */
+        const uint32_t j = (uint32_t)list[t];
+        const c172p_roll_real *row_j = &mp[C172P_ROLL_TRI(j, 0u)];
+        const c172p_roll_real x = xs[t];
+        a0 += row_j[q0] * x;
+        a1 += row_j[q1] * x;
+        a2 += row_j[q2] * x;
+        a3 += row_j[q3] * x;
+    }
+    acc[0] = a0;
+    acc[1] = a1;
+    acc[2] = a2;
+    acc[3] = a3;
 }
 
 /*
@@ -1905,12 +1988,11 @@ static void free_multipliers(c172p_roll_work *ws, const c172p_roll_mode_data *md
  *     d_F = S^-1_FB beta - Uv_F' nu,  z_k = -sign_k beta_k.
  * ws->tmp[0..k) holds B in factor order, ws->tmp[k..n) the free inputs.
  */
-static int primal_solve_bound(c172p_roll_work *ws, const c172p_roll_mode_data *md, int nw,
-    int by_columns)
+static int primal_solve_bound(c172p_roll_work *ws, const c172p_roll_mode_data *md, int nw)
 {
     const int n = md->n, nt = md->nt, k = nw;
     const c172p_roll_real *l = ws->chol;
-    int i, a, o;
+    int i, a, o, lo;
     for (a = 0; a < k; ++a) {
         ws->rhs[a] = ws->dv[ws->tmp[a]];
     }
@@ -1928,17 +2010,32 @@ static int primal_solve_bound(c172p_roll_work *ws, const c172p_roll_mode_data *m
         const c172p_roll_real beta = ws->dv[md->row_q[r]];
         ws->z[i] = -by_sign(md, r, beta);
     }
-    /* d_F = S^-1_FB beta - Uv_F' nu: beta (in dv) is zero outside B, the complement of
-     * F = tmp[k..n); ws->rhs is free again */
-    sparse_rows_dot(md->Sinv_p, n, &ws->tmp[k], n - k, ws->dv, &ws->tmp[k], n - k, 1, by_columns,
-                    ws->rhs);
-    for (i = k; i < n; ++i) {
-        const int f = ws->tmp[i];
-        c172p_roll_real acc = ws->rhs[i - k];
-        for (o = 0; o < nt; ++o) {
-            acc -= md->Uv[o * n + f] * ws->nu[o];
+    /* d_F = S^-1_FB beta - Uv_F' nu, four free inputs (tmp[k..n), ascending) at a time:
+     * beta (in dv) is zero outside B, gathered ascending into tmp[0..k) and rhs[0..k) (the
+     * factor's order there is no longer needed: the next solve reads it from the roles) */
+    (void)gather_bound(ws->input_role, n, ws->dv, ws->tmp, ws->rhs);
+    for (i = k, lo = 0; i < n; i += 4) {
+        const int take = (n - i < 4) ? n - i : 4;
+        int16_t rows[4];
+        int b, hi;
+        c172p_roll_real d[4];
+        for (b = 0; b < 4; ++b) { /* the last row repeated past the end */
+            rows[b] = ws->tmp[i + ((b < take) ? b : take - 1)];
         }
-        ws->th[f] = ws->th0[f] + acc;
+        for (; lo < k && ws->tmp[lo] < rows[0]; ++lo) {
+        }
+        for (hi = lo; hi < k && ws->tmp[hi] < rows[3]; ++hi) {
+        }
+        gather_dot4(md->Sinv_p, rows, ws->tmp, ws->rhs, k, lo, hi, d);
+        for (b = 0; b < take; ++b) {
+            const int f = rows[b];
+            c172p_roll_real acc = d[b];
+            for (o = 0; o < nt; ++o) {
+                acc -= md->Uv[o * n + f] * ws->nu[o];
+            }
+            ws->th[f] = ws->th0[f] + acc;
+        }
+        lo = hi;
     }
     return 0;
 }
@@ -2038,7 +2135,7 @@ static int primal_solve(c172p_roll_work *ws, const c172p_roll_mode_data *md, int
         const int intact = ws->chol_holds == C172P_ROLL_CHOL_PRIMAL, runs = nw - adjacent;
         const int bound_form = form == FORM_BOUND;
         int k_old = 0; /* > 0: rows leave by chol_delete() */
-        uint32_t cost = primal_work(md, nw, k, intact ? from : 0, bound_form, runs);
+        uint32_t cost = primal_work(md, k, intact ? from : 0, bound_form, runs);
         /* the free form's multipliers are charged by free_multipliers(), granted here */
         const uint32_t later = bound_form ? 0u : multipliers_work(md, nw);
         if (update && intact && from < k - joined) {
@@ -2046,7 +2143,7 @@ static int primal_solve(c172p_roll_work *ws, const c172p_roll_mode_data *md, int
              * rows below them, when that costs less than factoring those again */
             const int kept = k - joined, k_prev = primal_old_order(ws, n);
             const uint32_t by_update = primal_deletes(ws, md, k_prev, 0)
-                + primal_work(md, nw, k, kept, bound_form, runs);
+                + primal_work(md, k, kept, bound_form, runs);
             if (by_update < cost) {
                 cost = by_update;
                 k_old = k_prev;
@@ -2075,7 +2172,7 @@ static int primal_solve(c172p_roll_work *ws, const c172p_roll_mode_data *md, int
         return -1;
     }
     if (form == FORM_BOUND) {
-        return (primal_solve_bound(ws, md, nw, by_columns) == 0) ? 1 : -1;
+        return (primal_solve_bound(ws, md, nw) == 0) ? 1 : -1;
     }
     return primal_solve_free(ws, md, k, by_columns);
 }

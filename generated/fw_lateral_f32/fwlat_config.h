@@ -28,7 +28,7 @@
  * stops the build unless it is of the same one: a regeneration interrupted between two
  * of its file moves leaves no mixed tree that compiles.
  */
-#define FWLAT_GENERATION 0xaf466408a99551d
+#define FWLAT_GENERATION 0xcf16dd0d495ed39
 
 /* The one place where the precision is chosen. */
 #define FWLAT_PRECISION_DOUBLE 0

@@ -28,7 +28,7 @@
  * stops the build unless it is of the same one: a regeneration interrupted between two
  * of its file moves leaves no mixed tree that compiles.
  */
-#define QUADATT_GENERATION 0x0fb5cc965f6ccfc
+#define QUADATT_GENERATION 0xbefae4ca96dff38
 
 /* The one place where the precision is chosen. */
 #define QUADATT_PRECISION_DOUBLE 0

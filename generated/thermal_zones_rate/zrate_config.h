@@ -28,7 +28,7 @@
  * stops the build unless it is of the same one: a regeneration interrupted between two
  * of its file moves leaves no mixed tree that compiles.
  */
-#define ZRATE_GENERATION 0xbe0df5b22abafd1
+#define ZRATE_GENERATION 0xba08b6e334b7b60
 
 /* The one place where the precision is chosen. */
 #define ZRATE_PRECISION_DOUBLE 1

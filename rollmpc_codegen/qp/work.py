@@ -123,6 +123,9 @@ def finish_work(m) -> int:
 # (7.6 and 11.4 cycles at the M4F's 20 per unit); checked on whole steps with rollmpc report.
 CHOL_UNITS_PER_OP = (2, 5)
 TRI_UNITS_PER_OP = (3, 5)
+# a forward solve alone (chol_lsolve_from(), 6.9-7.1 cycles per operation): Y's rows in
+# the primal solve, at 8 cycles per operation at the M4F's 20 per unit
+FORWARD_UNITS_PER_OP = (2, 5)
 # primal_solve(), in sixths of a unit per operation (one division, so the C's
 # intermediates stay integers): its Cholesky at 2/6 (6.3 cycles; the kernel takes 5.3-6.2
 # from order 10), its solves for nt + 1 right-hand sides, Schur complement, gathers and
@@ -135,6 +138,11 @@ PRIMAL_SIXTHS_PER_OP = (2, 3)  # (factor, loops)
 # heavy steps of the n = 40 examples ran at 21.7 (quadruple_tank) and 21.2 (thermal_zones)
 # cycles per unit (docs/solver.md, "Work budget").
 PRIMAL_CALL_UNITS = 200
+# and per input: the passes over the inputs' roles each call makes (mark_bound_inputs(),
+# primal_diff(), primal_order(), gather_bound(), the finish of every free input), 8-14
+# cycles each on the M4F; c172_roll's step 2911 (n = 100, three calls of 6-14 bound
+# inputs) spends about 85 cycles per input and call in them
+PRIMAL_INPUT_OPS = 8
 # a call of packed_range_dot() in the free form's product, in operations at 3/6 of a unit
 # (2 units, ~40 cycles: its setup and the tail of its unrolled loop)
 PRIMAL_CALL_OPS = 4
@@ -204,27 +212,34 @@ def independent_work(m, nw: int, factor: int) -> int:
 
 
 @formula()
-def primal_work(m, nw: int, k: int, start: int = 0, bound_form: bool = True,
+def primal_work(m, k: int, start: int = 0, bound_form: bool = True,
                 bound_runs: int = 0) -> int:
-    """primal_solve() on nw bound inputs with a factor of order k whose rows (and Y's)
-    from ``start`` are factored again (0: a new factor): its Cholesky, its solves for the
-    nt + 1 right-hand sides, the terminal Schur complement and its products, at
-    PRIMAL_SIXTHS_PER_OP, and PRIMAL_CALL_UNITS per call (the bookkeeping). The free
+    """primal_solve() with a factor of order k whose rows (and Y's) from ``start`` are
+    factored again (0: a new factor): its Cholesky at PRIMAL_SIXTHS_PER_OP[0], the nt
+    forward solves of Y's new rows at FORWARD_UNITS_PER_OP, the two solves of the
+    right-hand side as tri_work(), the terminal Schur complement and the products at
+    PRIMAL_SIXTHS_PER_OP[1], and PRIMAL_CALL_UNITS per call and PRIMAL_INPUT_OPS per input
+    (the bookkeeping). The free
     form's product -S_FB d_B is what it does: k (n - k) multiply-adds, nt (n - k) for
     V_B d_B, n for the point, and PRIMAL_CALL_OPS per free row and run of bound inputs
     (``bound_runs``: sparse_rows_dot() calls packed_range_dot() for each); its
-    multipliers are charged by free_multipliers() (multipliers_work()). The bound form
-    pays 2 n (k + nt) and multipliers_work() for its product over the packed S^-1, whose
-    calls per free row and run of bound inputs its operations alone undercount."""
+    multipliers are charged by free_multipliers() (multipliers_work()). The bound form's
+    product S^-1_FB beta - Uv_F' nu is what it does too: (k + nt) multiply-adds for each
+    free row (up to three rows more: gather_dot4() sums four rows a call, the last
+    repeated), 2 n to gather the bound inputs and walk the list, and PRIMAL_CALL_OPS per
+    call."""
     n, nt = named("n", m.n), named("nt", m.nt)
     factor = named("factor", chol_ops(k) - chol_ops(start) + chol_ops(m.nt))
-    products = named("products", either(bound_form, 2 * n * (k + nt), (k + nt) * (n - k) + n
+    fours = (n - k + 3) // 4
+    products = named("products", either(bound_form, 4 * fours * (k + nt + PRIMAL_CALL_OPS // 4)
+                                        + 2 * n, (k + nt) * (n - k) + n
                                         + PRIMAL_CALL_OPS * k * bound_runs))
-    loops = named("loops", (k * k - start * start) // 2
-                  + 2 * (nt * (tri_ops(k) - tri_ops(start)) + tri_ops(k)) + nt * nt * k // 2
-                  + 2 * tri_ops(m.nt) + 3 * nt * n + products)
+    loops = named("loops", (k * k - start * start) // 2 + nt * nt * k // 2
+                  + 2 * tri_ops(m.nt) + 3 * nt * n + products + PRIMAL_INPUT_OPS * n)
+    y_rows = named("y_rows", nt * (tri_ops(k) - tri_ops(start)))
     return ((PRIMAL_SIXTHS_PER_OP[0] * factor + PRIMAL_SIXTHS_PER_OP[1] * loops) // 6
-            + PRIMAL_CALL_UNITS + either(bound_form, multipliers_work(m, nw), 0))
+            + y_rows * FORWARD_UNITS_PER_OP[0] // FORWARD_UNITS_PER_OP[1]
+            + 2 * tri_work(k) + PRIMAL_CALL_UNITS)
 
 
 @formula()
@@ -297,7 +312,7 @@ def largest_unit(m, wcap: int, factor: int) -> int:
                independent_work(m, wcap, factor),
                sweep_work(m, m.m, factor) + correct_work(m, m.m) + 2 * scan_work(m),
                CHOL_UNITS_PER_OP[0] * chol_ops(wcap),
-               6 * (primal_work(m, m.n, m.n, 0, True) + 1), add_step_work(wcap))
+               6 * (primal_work(m, m.n, 0, True) + 1), add_step_work(wcap))
 
 
 def free_step_work(m, certified: bool = True) -> int:

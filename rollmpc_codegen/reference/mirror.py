@@ -21,6 +21,7 @@ PARTIAL_MODULES = {
     "controller/observers.c.j2": ("reference/controller.py",),
     "linalg/cholesky_blocks.c.j2": ("reference/linalg.py",),
     "solver/bounds.c.j2": ("features/runtime_bounds.py",),
+    "solver/gather.c.j2": ("reference/dot.py",),
     "solver/qp_solve.c.j2": ("reference/solver.py",),
     "solver/soft_rows.c.j2": ("reference/soft_rows.py", "features/soft_constraints.py"),
     "solver/violated_rows.c.j2": ("reference/rows.py",),
@@ -57,7 +58,10 @@ UNMIRRORED = {
     **{name: Unmirrored(_DOT, _KERNEL + "over the support of x, unrolled or a column at a "
                               "time") for name in (
         "packed_range_dot", "packed_range_dot2", "packed_range_dot4", "packed_gather",
-        "s_row_dot2", "s_row_dot4", "packed_columns_axpy", "sparse_rows_dot", "sym_product")},
+        "s_row_dot2", "s_row_dot4", "packed_columns_axpy", "sparse_rows_dot", "sym_product",
+        "gather_dot4")},
+    "gather_bound": Unmirrored(_ROLES, _BOOKKEEPING + "the bound inputs and their values "
+                               "gathered in ascending order"),
     **{name: Unmirrored(_CHOLESKY, _KERNEL + "by blocks of rows") for name in (
         "cholesky_row", "cholesky_block", "finish_four", "cholesky_block44", "cholesky_block4",
         "cholesky_column", "pair_columns", "pair_diagonal")},
@@ -75,7 +79,7 @@ UNMIRRORED = {
     "clear_flags": Unmirrored("reference/seeds.py.carry_factor",
                               _BOOKKEEPING + "the guess's membership flags cleared"),
     **{name: Unmirrored(_ORDER, _BOOKKEEPING + "the order of the primal factor's rows")
-       for name in ("in_form", "role_gen", "sort_by_generation", "primal_diff")},
+       for name in ("in_form", "role_gen", "place_tail", "primal_diff")},
     "primal_old_order": Unmirrored("reference/primal_rows.py.primal_deletes",
                                    _BOOKKEEPING + "the previous factor's rows in order"),
     **{name: Unmirrored(_ROLES, _BOOKKEEPING + "the inputs' roles in ws->input_role")

@@ -44,13 +44,13 @@ class PrimalPolishMixin(PrimalRowsMixin):
         start = first if intact else 0
         runs = int(np.count_nonzero(bound & ~np.concatenate(([False], bound[:-1]))))
         bound_form = rows.form == BOUND
-        cost = primal_work(md, nw, len(order), start, bound_form, runs)
+        cost = primal_work(md, len(order), start, bound_form, runs)
         later = 0 if bound_form else multipliers_work(md, nw)  # free_multipliers()
         deletes = []
         kept = len(old) - len(set(old) - set(order)) if old is not None else 0
         if intact and old is not None and first < kept:  # rows leave from inside the factor
             by_update, deletes = self.primal_deletes(old, set(order))
-            by_update += primal_work(md, nw, len(order), kept, bound_form, runs)
+            by_update += primal_work(md, len(order), kept, bound_form, runs)
             if by_update < cost:  # the rows below them kept, when that costs less
                 cost, start = by_update, kept
             else:

@@ -108,14 +108,14 @@ def test_blocked_plans_shift_block_by_block(tight_blocked):
 
 def test_tilt_limits_hold_through_the_time_limited_manoeuvre(build_root):
     """quad_attitude's nominal closed loop (float, default budget): its hardest samples stop
-    at TIME_LIMIT (121 of 1050), and with the shifted plan as their command roll and pitch
-    stay within the hard 30 deg (27.7 deg; with th0 they reached 53.5 deg)."""
+    at TIME_LIMIT (35 of 1050), and with the shifted plan as their command roll and pitch
+    stay within the hard 30 deg (with th0 they reached 53.5 deg)."""
     from rollmpc_codegen.sim.simulate import run_closed_loop
     from rollmpc_codegen.status import TIME_LIMIT
 
     built = Built(QUAD, "float", build_root)
     log = run_closed_loop(built.model.config, built.fresh_c())
-    assert np.count_nonzero(log.status == TIME_LIMIT) >= 50
+    assert np.count_nonzero(log.status == TIME_LIMIT) >= 20
     assert np.abs(log.y[:, :2]).max() <= 30.0 * (1 + 1e-4)
 
 

@@ -205,7 +205,7 @@ def test_a_row_that_leaves_mid_factor_is_deleted_by_an_update(uav_double):
     assert ref.factor_rows.head == order and list(ref._idx) == order
     runs = 2  # bound runs: 0..59 and 80
     assert ref.work == UNIT_CALL_WORK + primal_delete_work(19, 40, md.nt) + primal_work(
-        md, W.size, 39, 39, False, runs) < primal_work(md, W.size, 39, 19, False, runs)
+        md, 39, 39, False, runs) < primal_work(md, 39, 19, False, runs)
     k, tri = 39, _tri_offsets(39)
     L = np.zeros((k, k))
     for i in range(k):

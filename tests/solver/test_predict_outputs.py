@@ -69,8 +69,8 @@ def test_partial_prediction_is_bit_exact_with_the_reference(quad_float):
     bad, seen = lockstep_closed_loop(quad_float, 500)
     assert bad == []
     statuses = [s for s, _ in seen]
-    # 20 TIME_LIMIT and 480 OPTIMAL at the prediction's 3/5 charge
-    assert statuses.count(TIME_LIMIT) >= 10 and statuses.count(OPTIMAL) >= 400
+    # 7 TIME_LIMIT and 493 OPTIMAL with the bound form's product charged by what it does
+    assert statuses.count(TIME_LIMIT) >= 5 and statuses.count(OPTIMAL) >= 400
 
 
 @pytest.mark.parametrize("example", ["quad_attitude", "chain_of_masses"])
