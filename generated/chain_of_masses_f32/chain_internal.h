@@ -7,7 +7,7 @@
 
 #include <math.h>
 #include "chain.h"
-#if CHAIN_GENERATION != 0x28ebc9a2b048044
+#if CHAIN_GENERATION != 0x582d6e2eaea3cdc
 #error "chain_internal.h and chain_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
 #endif
 

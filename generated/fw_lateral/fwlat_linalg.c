@@ -12,7 +12,7 @@
  */
 #include <math.h>
 #include "fwlat_internal.h"
-#if FWLAT_GENERATION != 0x604fcbf2b5dc968
+#if FWLAT_GENERATION != 0x353de97a04df4e9
 #error "fwlat_linalg.c and fwlat_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
 #endif
 

@@ -28,7 +28,7 @@
  * stops the build unless it is of the same one: a regeneration interrupted between two
  * of its file moves leaves no mixed tree that compiles.
  */
-#define FWLAT_GENERATION 0xcf16dd0d495ed39
+#define FWLAT_GENERATION 0xeeb9b4052e9a423
 
 /* The one place where the precision is chosen. */
 #define FWLAT_PRECISION_DOUBLE 0

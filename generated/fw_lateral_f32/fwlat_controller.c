@@ -10,7 +10,7 @@
  */
 #include <math.h>
 #include "fwlat_internal.h"
-#if FWLAT_GENERATION != 0xcf16dd0d495ed39
+#if FWLAT_GENERATION != 0xeeb9b4052e9a423
 #error "fwlat_controller.c and fwlat_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
 #endif
 

@@ -7,7 +7,7 @@
 
 #include <math.h>
 #include "quadatt.h"
-#if QUADATT_GENERATION != 0xbefae4ca96dff38
+#if QUADATT_GENERATION != 0xc7453cc57bcd49f
 #error "quadatt_internal.h and quadatt_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
 #endif
 

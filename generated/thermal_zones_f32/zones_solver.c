@@ -25,7 +25,7 @@
  */
 #include <math.h>
 #include "zones_internal.h"
-#if ZONES_GENERATION != 0xe95245271da53fc
+#if ZONES_GENERATION != 0xa1244b37e5bdf95
 #error "zones_solver.c and zones_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
 #endif
 
@@ -227,14 +227,14 @@ static uint32_t trim_work(const zones_mode_data *md, int nw)
  * again (0: a new factor): its Cholesky at PRIMAL_SIXTHS_PER_OP[0], the nt forward solves
  * of Y's new rows at FORWARD_UNITS_PER_OP, the two solves of the right-hand side as
  * tri_work(), the terminal Schur complement and the products at PRIMAL_SIXTHS_PER_OP[1],
- * and PRIMAL_CALL_UNITS per call (the bookkeeping). The free form's product -S_FB d_B is
- * what it does: k (n - k) multiply-adds, nt (n - k) for V_B d_B, n for the point, and
- * PRIMAL_CALL_OPS per free row and run of bound inputs (`bound_runs`: sparse_rows_dot()
- * calls packed_range_dot() for each); its multipliers are charged by free_multipliers()
- * (multipliers_work()). The bound form's product S^-1_FB beta - Uv_F' nu is what it does
- * too: (k + nt) multiply-adds for each free row (up to three rows more: gather_dot4() sums
- * four rows a call, the last repeated), 2 n to gather the bound inputs and walk the list,
- * and PRIMAL_CALL_OPS per call.
+ * and PRIMAL_CALL_UNITS per call and PRIMAL_INPUT_OPS per input (the bookkeeping). The
+ * free form's product -S_FB d_B is what it does: k (n - k) multiply-adds, nt (n - k) for
+ * V_B d_B, n for the point, and PRIMAL_CALL_OPS per free row and run of bound inputs
+ * (`bound_runs`: sparse_rows_dot() calls packed_range_dot() for each); its multipliers are
+ * charged by free_multipliers() (multipliers_work()). The bound form's product S^-1_FB
+ * beta - Uv_F' nu is what it does too: (k + nt) multiply-adds for each free row (up to
+ * three rows more: gather_dot4() sums four rows a call, the last repeated), 2 n to gather
+ * the bound inputs and walk the list, and PRIMAL_CALL_OPS per call.
  */
 static uint32_t primal_work(const zones_mode_data *md, int k, int start, int bound_form,
     int bound_runs)
@@ -247,7 +247,7 @@ static uint32_t primal_work(const zones_mode_data *md, int k, int start, int bou
         4u * (uint32_t)k * (uint32_t)bound_runs;
     const uint32_t loops = ((uint32_t)k * (uint32_t)k - (uint32_t)start * (uint32_t)start) / 2u
         + nt * nt * (uint32_t)k / 2u + 2u * tri_ops(md->nt) + 3u * nt * n +
-        products;
+        products + 8u * n;
     const uint32_t y_rows = nt * (tri_ops(k) - tri_ops(start));
     return (2u * factor + 3u * loops) / 6u + y_rows * 2u / 5u + 2u * tri_work(k) + 200u;
 }
@@ -450,7 +450,8 @@ static void h_column(const zones_mode_data *md, const int16_t *wset, int nw, int
 }
 
 /* a run of bound inputs shorter than this is summed inline, not by a call; bound inputs
- * in runs shorter than this on average are summed by columns (sparse_rows_dot()) */
+ * in runs shorter than this on average are summed by columns (sparse_rows_dot(), the
+ * free form's product) */
 #define SHORT_RUN 4
 
 /*
@@ -701,39 +702,28 @@ static void packed_columns_axpy(const zones_real *mp, int j, int pair, const zon
 }
 
 /*
- * out[a] = (M x)_{rows[a]} for a < nrows, x zero outside a support given by the ascending
- * list[0..count): the support itself (complement = 0) or its complement in 0..n-1
- * (complement = 1). The support is walked once, run by run, each run added to every row:
- * to four or two rows at a time where the run lies in their stored parts; with by_columns
- * (the caller's choice where the runs are short: scattered bound inputs) a column or two
- * at a time down the rows instead, which adds each row's terms in the same order (the same
- * sums to the bit) without a call or a test per row and run.
+ * out[a] = (M x)_{rows[a]} for a < nrows, x zero outside the support given by the
+ * ascending list[0..count) (the free form's bound inputs). The support is walked once,
+ * run by run, each run added to every row: to four or two rows at a time where the run
+ * lies in their stored parts; with by_columns (the caller's choice where the runs are
+ * short: scattered bound inputs) a column or two at a time down the rows instead, which
+ * adds each row's terms in the same order (the same sums to the bit) without a call or a
+ * test per row and run.
  * Cost: nrows |support| multiply-adds.
  */
-static void sparse_rows_dot(const zones_real *mp, int n, const int16_t *rows, int nrows,
-    const zones_real *x, const int16_t *list, int count, int complement, int by_columns,
+static void sparse_rows_dot(const zones_real *mp, const int16_t *rows, int nrows,
+    const zones_real *x, const int16_t *list, int count, int by_columns,
     zones_real *out)
 {
-    int a, i = 0, lo = 0, hi;
+    int a, i = 0, lo, hi;
     for (a = 0; a < nrows; ++a) {
         out[a] = R_(0.0);
     }
-    for (;;) {
-        if (complement) { /* the gap before list[i] (or before n) */
-            if (i > count) {
-                return;
-            }
-            hi = (i < count) ? list[i] : n;
-            ++i;
-        } else { /* the run of consecutive entries from list[i] */
-            if (i >= count) {
-                return;
-            }
-            lo = list[i];
-            hi = lo + 1;
-            for (++i; i < count && list[i] == hi; ++i) {
-                ++hi;
-            }
+    while (i < count) { /* the run of consecutive entries from list[i] */
+        lo = list[i];
+        hi = lo + 1;
+        for (++i; i < count && list[i] == hi; ++i) {
+            ++hi;
         }
         for (; by_columns && lo < hi; lo += 2) {
             packed_columns_axpy(mp, lo, lo + 1 < hi, x, rows, nrows, out);
@@ -762,7 +752,6 @@ static void sparse_rows_dot(const zones_real *mp, int n, const int16_t *rows, in
                 ++a;
             }
         }
-        lo = hi + 1; /* the next gap starts after list[i - 1] */
     }
 }
 
@@ -1557,9 +1546,10 @@ static int role_gen(int role)
 
 /*
  * The tail rows (the inputs whose role has ROLE_TAIL) into ws->tmp[from..): by generation,
- * each generation in the head's order (descending inputs when down, else ascending): the
- * rows of each generation counted, then each input placed after those of the generations
- * before its own. Cost: 2 n flag reads, whatever the order the tail grew in.
+ * each generation in the head's order (descending inputs when down, else ascending), where
+ * the head's order alone does not give that: the rows of each generation counted, then
+ * each input placed after those of the generations before its own. Cost: 2 n flag reads,
+ * whatever the order the tail grew in.
  */
 static void place_tail(zones_work *ws, int n, int from, int down)
 {
@@ -1653,7 +1643,8 @@ static void primal_order(zones_work *ws, int n, int form, int update, int k, int
     int newest)
 {
     const int down = form == FORM_FREE, stride = down ? -1 : 1;
-    int i, h = down ? head - 1 : 0, rest = k;
+    int i, h = down ? head - 1 : 0, t = down ? k - 1 : head, rest = k;
+    int last_gen = down ? ROLE_GEN_MAX : 0, by_generation = 1; /* the tail as placed */
     for (i = 0; i < n; ++i) {
         const int role = ws->input_role[i], bound = role & ROLE_BOUND;
         if (!in_form(role, form)) {
@@ -1666,9 +1657,15 @@ static void primal_order(zones_work *ws, int n, int form, int update, int k, int
         } else {
             const int g = (role & ROLE_TAIL) ? role_gen(role) : newest + 1;
             ws->input_role[i] = (uint8_t)(bound | ROLE_TAIL | (g * ROLE_GEN_ONE));
+            ws->tmp[t] = (int16_t)i;
+            t += stride;
+            by_generation = by_generation && (down ? g <= last_gen : g >= last_gen);
+            last_gen = g;
         }
     }
-    place_tail(ws, n, head, down);
+    if (!by_generation) {
+        place_tail(ws, n, head, down);
+    }
     ws->primal_form = (int16_t)form;
     ws->primal_head = (int16_t)head;
 }
@@ -1681,19 +1678,30 @@ static void primal_order(zones_work *ws, int n, int form, int update, int k, int
 static int primal_old_order(zones_work *ws, int n)
 {
     const int down = ws->primal_form == FORM_FREE, stride = down ? -1 : 1;
-    int i, heads = 0, rows = 0, h;
+    int i, heads = 0, rows = 0, h, t, last_gen = down ? ROLE_GEN_MAX : 0, by_generation = 1;
     for (i = 0; i < n; ++i) {
         heads += (ws->input_role[i] & ROLE_HEAD) != 0;
         rows += (ws->input_role[i] & (ROLE_HEAD | ROLE_TAIL)) != 0;
     }
     h = down ? heads - 1 : 0;
+    t = down ? rows - 1 : heads;
     for (i = 0; i < n; ++i) {
-        if (ws->input_role[i] & ROLE_HEAD) {
+        const int role = ws->input_role[i];
+        if (role & ROLE_HEAD) {
             ws->tmp[h] = (int16_t)i;
             h += stride;
         }
+        if (role & ROLE_TAIL) {
+            const int g = role_gen(role);
+            ws->tmp[t] = (int16_t)i;
+            t += stride;
+            by_generation = by_generation && (down ? g <= last_gen : g >= last_gen);
+            last_gen = g;
+        }
     }
-    place_tail(ws, n, heads, down);
+    if (!by_generation) {
+        place_tail(ws, n, heads, down);
+    }
     return rows;
 }
 
@@ -1911,8 +1919,7 @@ static int primal_solve_free(zones_work *ws, const zones_mode_data *md, int k,
     const zones_real *l = ws->chol;
     int a;
     /* -S_FB d_B: dv is 0 on the free inputs here, so the sums run over B = tmp[k..n) */
-    sparse_rows_dot(md->S_p, md->n, ws->tmp, k, ws->dv, &ws->tmp[k], md->n - k, 0, by_columns,
-                    ws->rhs);
+    sparse_rows_dot(md->S_p, ws->tmp, k, ws->dv, &ws->tmp[k], md->n - k, by_columns, ws->rhs);
     for (a = 0; a < k; ++a) {
         ws->rhs[a] = -ws->rhs[a];
     }

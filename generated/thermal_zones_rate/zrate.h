@@ -18,7 +18,7 @@
 #include <stddef.h>
 #include <stdint.h>
 #include "zrate_config.h"
-#if ZRATE_GENERATION != 0xba08b6e334b7b60
+#if ZRATE_GENERATION != 0x1d0fb0be65bcb1f
 #error "zrate.h and zrate_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
 #endif
 

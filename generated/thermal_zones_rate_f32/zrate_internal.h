@@ -7,7 +7,7 @@
 
 #include <math.h>
 #include "zrate.h"
-#if ZRATE_GENERATION != 0xaf3e5d7b6d044ca
+#if ZRATE_GENERATION != 0x55db11d2cb852ae
 #error "zrate_internal.h and zrate_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
 #endif
 

@@ -12,7 +12,7 @@
  */
 #include <math.h>
 #include "zrate_internal.h"
-#if ZRATE_GENERATION != 0xaf3e5d7b6d044ca
+#if ZRATE_GENERATION != 0x55db11d2cb852ae
 #error "zrate_linalg.c and zrate_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
 #endif
 

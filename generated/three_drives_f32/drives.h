@@ -18,7 +18,7 @@
 #include <stddef.h>
 #include <stdint.h>
 #include "drives_config.h"
-#if DRIVES_GENERATION != 0xe9f5c873adcf96a
+#if DRIVES_GENERATION != 0x9d26f3bfc835852
 #error "drives.h and drives_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
 #endif
 

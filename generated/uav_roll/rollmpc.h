@@ -18,7 +18,7 @@
 #include <stddef.h>
 #include <stdint.h>
 #include "rollmpc_config.h"
-#if ROLLMPC_GENERATION != 0x9e8517342de36d4
+#if ROLLMPC_GENERATION != 0x1cfce92f4f5816d
 #error "rollmpc.h and rollmpc_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
 #endif
 

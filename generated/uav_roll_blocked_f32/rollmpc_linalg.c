@@ -12,7 +12,7 @@
  */
 #include <math.h>
 #include "rollmpc_internal.h"
-#if ROLLMPC_GENERATION != 0x3c2e33cc1214df5
+#if ROLLMPC_GENERATION != 0xf0e14da4b4a4ebe
 #error "rollmpc_linalg.c and rollmpc_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
 #endif
 

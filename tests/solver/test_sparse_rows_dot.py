@@ -1,9 +1,14 @@
-"""sparse_rows_dot(), the primal polish's product over the packed S or S^-1 restricted to the
-bound (or free) inputs, sums every row in increasing column order whichever way it walks
-the support: run by run along the rows, or a column or two at a time down the rows (what
-primal_solve() chooses when the runs of bound inputs are short: scattered saturations, as
-a multi-motor design's are). Both walks must give the reference's dense sequential sum to
-the bit (reference/dot.py), on any support.
+"""The primal polish's products over the packed S or S^-1 restricted to the bound inputs
+sum every row in increasing column order, however they walk the support:
+
+* sparse_rows_dot() (the free form's -S_FB d_B): run by run along the rows, or a column or
+  two at a time down the rows (what primal_solve() chooses when the runs of bound inputs
+  are short: scattered saturations, as a multi-motor design's are);
+* gather_bound() and gather_dot4() (the bound form's S^-1_FB beta): the bound inputs
+  gathered ascending, four free rows per pass, the last repeated past the end.
+
+Each must give the reference's dense sequential sum to the bit (reference/dot.py), on any
+support.
 """
 from __future__ import annotations
 
@@ -32,34 +37,69 @@ def sparse_rows_dot(request, tmp_path_factory):
         (out / name).write_text(text)
     (out / "harness.c").write_text(
         f'#include "{p}_solver.c"\n'
-        f"void harness_sparse_rows_dot(const {real} *mp, int n, const int16_t *rows, "
-        f"int nrows, const {real} *x, const int16_t *list, int count, int complement, "
-        f"int by_columns, {real} *out)\n{{\n    sparse_rows_dot(mp, n, rows, nrows, x, list, "
-        f"count, complement, by_columns, out);\n}}\n")
+        f"void harness_sparse_rows_dot(const {real} *mp, const int16_t *rows, int nrows, "
+        f"const {real} *x, const int16_t *list, int count, int by_columns, {real} *out)\n"
+        f"{{\n    sparse_rows_dot(mp, rows, nrows, x, list, count, by_columns, out);\n}}\n"
+        f"int harness_gather_bound(const uint8_t *role, int n, const {real} *x, "
+        f"int16_t *list, {real} *xs)\n"
+        f"{{\n    return gather_bound(role, n, x, list, xs);\n}}\n"
+        f"void harness_gather_dot4(const {real} *mp, const int16_t *rows, "
+        f"const int16_t *list, const {real} *xs, int count, int lo, int hi, {real} *acc)\n"
+        f"{{\n    gather_dot4(mp, rows, list, xs, count, lo, hi, acc);\n}}\n")
     sources = [out / "harness.c"] + [out / f"{p}_{m}.c" for m in ("data", "linalg",
                                                                   "controller")]
     lib_path = out / "libdot.so"
     subprocess.run([cc, "-O2", "-std=c99", "-fPIC", "-shared", "-ffp-contract=off",
                     f"-I{out}", *map(str, sources), "-lm", "-o", str(lib_path)], check=True)
     ffi = cffi.FFI()
-    ffi.cdef(f"void harness_sparse_rows_dot(const {real} *mp, int n, const int16_t *rows, "
-             f"int nrows, const {real} *x, const int16_t *list, int count, int complement, "
-             f"int by_columns, {real} *out);")
+    ffi.cdef(f"void harness_sparse_rows_dot(const {real} *mp, const int16_t *rows, "
+             f"int nrows, const {real} *x, const int16_t *list, int count, int by_columns, "
+             f"{real} *out);"
+             f"int harness_gather_bound(const uint8_t *role, int n, const {real} *x, "
+             f"int16_t *list, {real} *xs);"
+             f"void harness_gather_dot4(const {real} *mp, const int16_t *rows, "
+             f"const int16_t *list, const {real} *xs, int count, int lo, int hi, "
+             f"{real} *acc);")
     lib = ffi.dlopen(str(lib_path))
     dt = np.float64 if real == "double" else np.float32
+    buf = lambda a, t: ffi.cast(t, ffi.from_buffer(a))  # noqa: E731
 
-    def call(mp, n, rows, x, support_list, complement, by_columns):
+    def free_form(mp, rows, x, support_list, by_columns):
         rows16 = np.ascontiguousarray(rows, np.int16)
         list16 = np.ascontiguousarray(support_list, np.int16)
         res = np.full(rows16.size, np.nan, dt)
-        buf = lambda a, t: ffi.cast(t, ffi.from_buffer(a))  # noqa: E731
-        lib.harness_sparse_rows_dot(buf(mp, f"{real} *"), n, buf(rows16, "int16_t *"),
+        lib.harness_sparse_rows_dot(buf(mp, f"{real} *"), buf(rows16, "int16_t *"),
                                     rows16.size, buf(x, f"{real} *"),
-                                    buf(list16, "int16_t *"), list16.size, complement,
-                                    by_columns, buf(res, f"{real} *"))
+                                    buf(list16, "int16_t *"), list16.size, by_columns,
+                                    buf(res, f"{real} *"))
         return res
 
-    return call, dt
+    def bound_form(mp, bound, x):
+        """What primal_solve_bound() does: gather the bound inputs (ROLE_BOUND = 1), then
+        walk the free rows four at a time."""
+        n = bound.size
+        role = np.where(bound, 1, 0).astype(np.uint8)
+        blist, xs = np.zeros(n, np.int16), np.zeros(n, dt)
+        k = lib.harness_gather_bound(buf(role, "uint8_t *"), n, buf(x, f"{real} *"),
+                                     buf(blist, "int16_t *"), buf(xs, f"{real} *"))
+        assert list(blist[:k]) == list(np.flatnonzero(bound))
+        free = np.flatnonzero(~bound)
+        res, lo = np.full(free.size, np.nan, dt), 0
+        for i in range(0, free.size, 4):
+            take = min(4, free.size - i)
+            rows = np.ascontiguousarray(free[[i + min(b, take - 1) for b in range(4)]],
+                                        np.int16)
+            lo = int(np.searchsorted(blist[:k], rows[0]))
+            hi = int(np.searchsorted(blist[:k], rows[3]))
+            acc = np.full(4, np.nan, dt)
+            lib.harness_gather_dot4(buf(mp, f"{real} *"), buf(rows, "int16_t *"),
+                                    buf(blist, "int16_t *"), buf(xs, f"{real} *"), k, lo,
+                                    hi, buf(acc, f"{real} *"))
+            assert np.all(acc[take:] == acc[take - 1])  # the repeated row: the same sum
+            res[i:i + take] = acc[:take]
+        return res
+
+    return free_form, bound_form, dt
 
 
 def _supports(n, rng):
@@ -72,23 +112,33 @@ def _supports(n, rng):
     yield np.arange(n) == n // 2
 
 
-@pytest.mark.parametrize("by_columns", [1, 0], ids=["by_columns", "by_rows"])
-@pytest.mark.parametrize("complement", [1, 0], ids=["bound_form", "free_form"])
-def test_sparse_rows_dot_is_the_dense_sequential_sum(sparse_rows_dot, complement, by_columns):
-    call, dt = sparse_rows_dot
-    rng = np.random.default_rng(7)
-    n = 60
+def _matrix_and_x(dt, rng, n=60):
     G = rng.standard_normal((n, n))
     M = (G @ G.T / n + np.eye(n)).astype(dt)
     mp = np.concatenate([M[i, :i + 1] for i in range(n)])
-    x_full = rng.standard_normal(n).astype(dt)
+    return M, mp, rng.standard_normal(n).astype(dt)
+
+
+@pytest.mark.parametrize("by_columns", [1, 0], ids=["by_columns", "by_rows"])
+def test_free_form_product_is_the_dense_sequential_sum(sparse_rows_dot, by_columns):
+    free_form, _, dt = sparse_rows_dot
+    rng = np.random.default_rng(7)
+    M, mp, x_full = _matrix_and_x(dt, rng)
+    for bound in _supports(M.shape[0], rng):
+        x = np.where(bound, x_full, dt(0.0)).astype(dt)
+        rows = rng.permutation(np.flatnonzero(~bound))  # the free rows in a factor order
+        got = free_form(mp, rows, x, np.flatnonzero(bound), by_columns)
+        want = s_row_dot(M, rows, x)
+        assert got.tobytes() == want.tobytes(), f"bound inputs {np.flatnonzero(bound)}"
+
+
+@pytest.mark.parametrize("n", [60, 61, 62, 63])  # free rows a multiple of 4, or 1-3 over
+def test_bound_form_product_is_the_dense_sequential_sum(sparse_rows_dot, n):
+    _, bound_form, dt = sparse_rows_dot
+    rng = np.random.default_rng(n)
+    M, mp, x_full = _matrix_and_x(dt, rng, n)
     for bound in _supports(n, rng):
         x = np.where(bound, x_full, dt(0.0)).astype(dt)
-        if complement:  # the bound form: the free rows, support = the complement of F
-            rows = np.flatnonzero(~bound)
-            got = call(mp, n, rows, x, rows, 1, by_columns)
-        else:  # the free form: the free rows in a factor order, support = B itself
-            rows = rng.permutation(np.flatnonzero(~bound))
-            got = call(mp, n, rows, x, np.flatnonzero(bound), 0, by_columns)
-        want = s_row_dot(M, rows, x)
+        got = bound_form(mp, bound, x)
+        want = s_row_dot(M, np.flatnonzero(~bound), x)
         assert got.tobytes() == want.tobytes(), f"bound inputs {np.flatnonzero(bound)}"
