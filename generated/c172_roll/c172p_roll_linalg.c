@@ -12,7 +12,7 @@
  */
 #include <math.h>
 #include "c172p_roll_internal.h"
-#if C172P_ROLL_GENERATION != 0xe4d5495b336d176
+#if C172P_ROLL_GENERATION != 0x82f65a78976e5b9
 #error "c172p_roll_linalg.c and c172p_roll_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
 #endif
 

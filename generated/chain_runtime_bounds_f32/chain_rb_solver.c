@@ -25,7 +25,7 @@
  */
 #include <math.h>
 #include "chain_rb_internal.h"
-#if CHAIN_RB_GENERATION != 0x98fb621cc970634
+#if CHAIN_RB_GENERATION != 0x44db85bb79ecfa6
 #error "chain_rb_solver.c and chain_rb_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
 #endif
 
@@ -1671,7 +1671,8 @@ static void primal_order(chain_rb_work *ws, int n, int form, int update, int k, 
             ws->input_role[i] = (uint8_t)(bound | ROLE_HEAD);
         } else {
             const int g = (role & ROLE_TAIL) ? role_gen(role) : newest + 1;
-            ws->input_role[i] = (uint8_t)(bound | ROLE_TAIL | (g * ROLE_GEN_ONE));
+            const int tail_role = bound | ROLE_TAIL | (g * ROLE_GEN_ONE);
+            ws->input_role[i] = (uint8_t)tail_role;
             ws->tmp[t] = (int16_t)i;
             t += stride;
             by_generation = by_generation && (down ? g <= last_gen : g >= last_gen);

@@ -25,7 +25,7 @@
  */
 #include <math.h>
 #include "quadatt_internal.h"
-#if QUADATT_GENERATION != 0x222d580095919d0
+#if QUADATT_GENERATION != 0x1f4e0329231e068
 #error "quadatt_solver.c and quadatt_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
 #endif
 
@@ -1656,7 +1656,8 @@ static void primal_order(quadatt_work *ws, int n, int form, int update, int k, i
             ws->input_role[i] = (uint8_t)(bound | ROLE_HEAD);
         } else {
             const int g = (role & ROLE_TAIL) ? role_gen(role) : newest + 1;
-            ws->input_role[i] = (uint8_t)(bound | ROLE_TAIL | (g * ROLE_GEN_ONE));
+            const int tail_role = bound | ROLE_TAIL | (g * ROLE_GEN_ONE);
+            ws->input_role[i] = (uint8_t)tail_role;
             ws->tmp[t] = (int16_t)i;
             t += stride;
             by_generation = by_generation && (down ? g <= last_gen : g >= last_gen);

@@ -25,7 +25,7 @@
  */
 #include <math.h>
 #include "qtank_internal.h"
-#if QTANK_GENERATION != 0x6ba0b84a5f505f5
+#if QTANK_GENERATION != 0xaeb1b8ad4ecffe0
 #error "qtank_solver.c and qtank_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
 #endif
 
@@ -1656,7 +1656,8 @@ static void primal_order(qtank_work *ws, int n, int form, int update, int k, int
             ws->input_role[i] = (uint8_t)(bound | ROLE_HEAD);
         } else {
             const int g = (role & ROLE_TAIL) ? role_gen(role) : newest + 1;
-            ws->input_role[i] = (uint8_t)(bound | ROLE_TAIL | (g * ROLE_GEN_ONE));
+            const int tail_role = bound | ROLE_TAIL | (g * ROLE_GEN_ONE);
+            ws->input_role[i] = (uint8_t)tail_role;
             ws->tmp[t] = (int16_t)i;
             t += stride;
             by_generation = by_generation && (down ? g <= last_gen : g >= last_gen);

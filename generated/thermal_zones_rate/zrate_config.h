@@ -28,7 +28,7 @@
  * stops the build unless it is of the same one: a regeneration interrupted between two
  * of its file moves leaves no mixed tree that compiles.
  */
-#define ZRATE_GENERATION 0x1d0fb0be65bcb1f
+#define ZRATE_GENERATION 0x76aeb0610162716
 
 /* The one place where the precision is chosen. */
 #define ZRATE_PRECISION_DOUBLE 1

@@ -25,7 +25,7 @@
  */
 #include <math.h>
 #include "rollmpc_internal.h"
-#if ROLLMPC_GENERATION != 0xf0e14da4b4a4ebe
+#if ROLLMPC_GENERATION != 0xdb5ffe797a85b0f
 #error "rollmpc_solver.c and rollmpc_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
 #endif
 
@@ -1652,7 +1652,8 @@ static void primal_order(rollmpc_work *ws, int n, int form, int update, int k, i
             ws->input_role[i] = (uint8_t)(bound | ROLE_HEAD);
         } else {
             const int g = (role & ROLE_TAIL) ? role_gen(role) : newest + 1;
-            ws->input_role[i] = (uint8_t)(bound | ROLE_TAIL | (g * ROLE_GEN_ONE));
+            const int tail_role = bound | ROLE_TAIL | (g * ROLE_GEN_ONE);
+            ws->input_role[i] = (uint8_t)tail_role;
             ws->tmp[t] = (int16_t)i;
             t += stride;
             by_generation = by_generation && (down ? g <= last_gen : g >= last_gen);
