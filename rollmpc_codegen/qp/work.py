@@ -128,10 +128,10 @@ TRI_UNITS_PER_OP = (3, 5)
 FORWARD_UNITS_PER_OP = (2, 5)
 # primal_solve(), in sixths of a unit per operation (one division, so the C's
 # intermediates stay integers): its Cholesky at 2/6 (6.3 cycles; the kernel takes 5.3-6.2
-# from order 10), its solves for nt + 1 right-hand sides, Schur complement, gathers and
-# products at 3/6 (9.5). Fitted on whole steps with rollmpc report: the heavy steps of
-# quad_attitude run at <= 17.93 cycles per unit and uav_roll's at <= 13.11; (3/6, 2/6)
-# let quad_attitude's step 420 reach 22.31, all at 2/5 21.05.
+# from order 10), its Schur complement, gathers and products at 3/6 (9.5; gather_dot4()
+# runs at 7-8.5 cycles per multiply-add). Checked on whole steps with rollmpc report:
+# quad_attitude's counted steps run at <= 16.6 cycles per unit and uav_roll's at <= 13.6
+# (at 148a40f); (3/6, 2/6) let quad_attitude's step 420 reach 22.31, all at 2/5 21.05.
 PRIMAL_SIXTHS_PER_OP = (2, 3)  # (factor, loops)
 # each primal_solve() call, beside its operations: the O(n) bookkeeping of the inputs'
 # roles and the calls of the products per row and run of bound inputs. Without it the
