@@ -12,7 +12,7 @@
  */
 #include <math.h>
 #include "chain_rb_internal.h"
-#if CHAIN_RB_GENERATION != 0x44db85bb79ecfa6
+#if CHAIN_RB_GENERATION != 0x577a99ac93e0546
 #error "chain_rb_linalg.c and chain_rb_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
 #endif
 

@@ -7,7 +7,7 @@
 
 #include <math.h>
 #include "chain_soft.h"
-#if CHAIN_SOFT_GENERATION != 0xe4ba7304a4f7d49
+#if CHAIN_SOFT_GENERATION != 0x06f3e97619f621a
 #error "chain_soft_internal.h and chain_soft_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
 #endif
 

@@ -28,7 +28,7 @@
  * stops the build unless it is of the same one: a regeneration interrupted between two
  * of its file moves leaves no mixed tree that compiles.
  */
-#define QUADATT_GENERATION 0x1f4e0329231e068
+#define QUADATT_GENERATION 0xba789e86bd1728e
 
 /* The one place where the precision is chosen. */
 #define QUADATT_PRECISION_DOUBLE 1

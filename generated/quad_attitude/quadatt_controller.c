@@ -10,7 +10,7 @@
  */
 #include <math.h>
 #include "quadatt_internal.h"
-#if QUADATT_GENERATION != 0x1f4e0329231e068
+#if QUADATT_GENERATION != 0xba789e86bd1728e
 #error "quadatt_controller.c and quadatt_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
 #endif
 

@@ -28,7 +28,7 @@
  * stops the build unless it is of the same one: a regeneration interrupted between two
  * of its file moves leaves no mixed tree that compiles.
  */
-#define QTANK_GENERATION 0xaeb1b8ad4ecffe0
+#define QTANK_GENERATION 0x9ff3af3856312e4
 
 /* The one place where the precision is chosen. */
 #define QTANK_PRECISION_DOUBLE 1

@@ -25,7 +25,7 @@
  */
 #include <math.h>
 #include "zones_internal.h"
-#if ZONES_GENERATION != 0xe72dbbe34079034
+#if ZONES_GENERATION != 0x6817b25b96c7a40
 #error "zones_solver.c and zones_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
 #endif
 
@@ -226,15 +226,16 @@ static uint32_t trim_work(const zones_mode_data *md, int nw)
  * primal_solve() with a factor of order k whose rows (and Y's) from `start` are factored
  * again (0: a new factor): its Cholesky at PRIMAL_SIXTHS_PER_OP[0], the nt forward solves
  * of Y's new rows at FORWARD_UNITS_PER_OP, the two solves of the right-hand side as
- * tri_work(), the terminal Schur complement and the products at PRIMAL_SIXTHS_PER_OP[1],
- * and PRIMAL_CALL_UNITS per call and PRIMAL_INPUT_OPS per input (the bookkeeping). The
- * free form's product -S_FB d_B is what it does: k (n - k) multiply-adds, nt (n - k) for
- * V_B d_B, n for the point, and PRIMAL_CALL_OPS per free row and run of bound inputs
- * (`bound_runs`: sparse_rows_dot() calls packed_range_dot() for each); its multipliers are
- * charged by free_multipliers() (multipliers_work()). The bound form's product S^-1_FB
- * beta - Uv_F' nu is what it does too: (k + nt) multiply-adds for each free row (up to
- * three rows more: gather_dot4() sums four rows a call, the last repeated), 2 n to gather
- * the bound inputs and walk the list, and PRIMAL_CALL_OPS per call.
+ * tri_work(), the rows of A, the terminal Schur complement and its solves, the products
+ * and PRIMAL_INPUT_OPS per input (the passes over the inputs) at PRIMAL_SIXTHS_PER_OP[1],
+ * and PRIMAL_CALL_UNITS per call. The free form's product -S_FB d_B is what it does: k (n
+ * - k) multiply-adds, nt (n - k) for V_B d_B, n for the point, and PRIMAL_CALL_OPS per
+ * free row and run of bound inputs (`bound_runs`: sparse_rows_dot() calls
+ * packed_range_dot() for each); its multipliers are charged by free_multipliers()
+ * (multipliers_work()). The bound form's product S^-1_FB beta - Uv_F' nu is what it does
+ * too: (k + nt) multiply-adds for each free row (up to three rows more: gather_dot4() sums
+ * four rows a call, the last repeated), 2 n to gather the bound inputs and walk the list,
+ * and PRIMAL_CALL_OPS per call.
  */
 static uint32_t primal_work(const zones_mode_data *md, int k, int start, int bound_form,
     int bound_runs)
@@ -243,8 +244,9 @@ static uint32_t primal_work(const zones_mode_data *md, int k, int start, int bou
     const uint32_t nt = (uint32_t)md->nt;
     const uint32_t factor = chol_ops(k) - chol_ops(start) + chol_ops(md->nt);
     const uint32_t products = bound_form ? 4u * ((n - (uint32_t)k + 3u) / 4u) * ((uint32_t)k +
-        nt + 1u) + 2u * n : ((uint32_t)k + nt) * (n - (uint32_t)k) + n +
-        4u * (uint32_t)k * (uint32_t)bound_runs;
+        nt) + 4u * ((n - (uint32_t)k + 3u) / 4u) + 2u * n : ((uint32_t)k
+        + nt) * (n - (uint32_t)k) + n + 4u * (uint32_t)k *
+        (uint32_t)bound_runs;
     const uint32_t loops = ((uint32_t)k * (uint32_t)k - (uint32_t)start * (uint32_t)start) / 2u
         + nt * nt * (uint32_t)k / 2u + 2u * tri_ops(md->nt) + 3u * nt * n +
         products + 8u * n;
@@ -1770,7 +1772,7 @@ static int gather_bound(const uint8_t *role, int n, const zones_real *x, int16_t
  * acc[b] = sum_t M(rows[b], list[t]) xs[t] for b < 4, over the ascending list[0..count)
  * of entries other than the rows (ascending, a row repeated at the end: the same sum
  * again), `lo` of them below rows[0] and `hi` below rows[3]: row q holds M(q, j) for
- * j < q, column q (entry q of row j) the rest. Below every row the four rows are read
+ * j <= q, column q (entry q of row j) the rest. Below every row the four rows are read
  * along, above every row four entries of one row j; only the few entries among the rows
  * choose per row. Cost: 4 count multiply-adds.
  */
@@ -1813,6 +1815,36 @@ static void gather_dot4(const zones_real *mp, const int16_t *rows, const int16_t
     acc[1] = a1;
     acc[2] = a2;
     acc[3] = a3;
+}
+
+/*
+ * out[q] = (M x)_q for each q of the ascending rows[0..nrows), none of them in the list:
+ * x zero outside the ascending list[0..k), its values in xs. Four rows a call of
+ * gather_dot4(), the last repeated past the end; each call's list entries split where
+ * they pass its first and last row. Cost: 4 ceil(nrows / 4) k multiply-adds.
+ */
+static void gather_product(const zones_real *mp, const int16_t *list,
+    const zones_real *xs, int k, const int16_t *rows, int nrows, zones_real *out)
+{
+    int i, lo = 0;
+    for (i = 0; i < nrows; i += 4) {
+        const int take = (nrows - i < 4) ? nrows - i : 4;
+        int16_t group[4];
+        int b, hi;
+        zones_real d[4];
+        for (b = 0; b < 4; ++b) {
+            group[b] = rows[i + ((b < take) ? b : take - 1)];
+        }
+        for (; lo < k && list[lo] < group[0]; ++lo) {
+        }
+        for (hi = lo; hi < k && list[hi] < group[3]; ++hi) {
+        }
+        gather_dot4(mp, group, list, xs, k, lo, hi, d);
+        for (b = 0; b < take; ++b) {
+            out[group[b]] = d[b];
+        }
+        lo = hi;
+    }
 }
 
 /*
@@ -1994,13 +2026,14 @@ static void free_multipliers(zones_work *ws, const zones_mode_data *md, int nw)
  * Uv = V S^-1, T = (2P)^-1 + V S^-1 V' and L L' = (S^-1)_BB,
  *     beta = L'^-1 (y0 + Y nu),  y0 = L^-1 d_B,  (T - Y'Y) nu = Y'y0,
  *     d_F = S^-1_FB beta - Uv_F' nu,  z_k = -sign_k beta_k.
- * ws->tmp[0..k) holds B in factor order, ws->tmp[k..n) the free inputs.
+ * ws->tmp[0..k) holds B in factor order, ws->tmp[k..n) the free inputs; on return
+ * tmp[0..k) holds B ascending and rhs[0..k) their beta.
  */
 static int primal_solve_bound(zones_work *ws, const zones_mode_data *md, int nw)
 {
     const int n = md->n, nt = md->nt, k = nw;
     const zones_real *l = ws->chol;
-    int i, a, o, lo;
+    int i, a, o;
     for (a = 0; a < k; ++a) {
         ws->rhs[a] = ws->dv[ws->tmp[a]];
     }
@@ -2018,32 +2051,19 @@ static int primal_solve_bound(zones_work *ws, const zones_mode_data *md, int nw)
         const zones_real beta = ws->dv[md->row_q[r]];
         ws->z[i] = -by_sign(md, r, beta);
     }
-    /* d_F = S^-1_FB beta - Uv_F' nu, four free inputs (tmp[k..n), ascending) at a time:
-     * beta (in dv) is zero outside B, gathered ascending into tmp[0..k) and rhs[0..k) (the
-     * factor's order there is no longer needed: the next solve reads it from the roles) */
+    /* d_F = S^-1_FB beta - Uv_F' nu over the free inputs (tmp[k..n), ascending): beta (in
+     * dv) is zero outside B, gathered ascending into tmp[0..k) and rhs[0..k) (the factor's
+     * order there is no longer needed: the next solve reads it from the roles); the
+     * product lands in th on the free inputs, which the point overwrites */
     (void)gather_bound(ws->input_role, n, ws->dv, ws->tmp, ws->rhs);
-    for (i = k, lo = 0; i < n; i += 4) {
-        const int take = (n - i < 4) ? n - i : 4;
-        int16_t rows[4];
-        int b, hi;
-        zones_real d[4];
-        for (b = 0; b < 4; ++b) { /* the last row repeated past the end */
-            rows[b] = ws->tmp[i + ((b < take) ? b : take - 1)];
+    gather_product(md->Sinv_p, ws->tmp, ws->rhs, k, &ws->tmp[k], n - k, ws->th);
+    for (i = k; i < n; ++i) {
+        const int f = ws->tmp[i];
+        zones_real acc = ws->th[f];
+        for (o = 0; o < nt; ++o) {
+            acc -= md->Uv[o * n + f] * ws->nu[o];
         }
-        for (; lo < k && ws->tmp[lo] < rows[0]; ++lo) {
-        }
-        for (hi = lo; hi < k && ws->tmp[hi] < rows[3]; ++hi) {
-        }
-        gather_dot4(md->Sinv_p, rows, ws->tmp, ws->rhs, k, lo, hi, d);
-        for (b = 0; b < take; ++b) {
-            const int f = rows[b];
-            zones_real acc = d[b];
-            for (o = 0; o < nt; ++o) {
-                acc -= md->Uv[o * n + f] * ws->nu[o];
-            }
-            ws->th[f] = ws->th0[f] + acc;
-        }
-        lo = hi;
+        ws->th[f] = ws->th0[f] + acc;
     }
     return 0;
 }

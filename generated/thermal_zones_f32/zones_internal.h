@@ -7,7 +7,7 @@
 
 #include <math.h>
 #include "zones.h"
-#if ZONES_GENERATION != 0x1f953b2d829bb70
+#if ZONES_GENERATION != 0xb8ff284b7c45a01
 #error "zones_internal.h and zones_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
 #endif
 

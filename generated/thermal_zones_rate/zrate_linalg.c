@@ -12,7 +12,7 @@
  */
 #include <math.h>
 #include "zrate_internal.h"
-#if ZRATE_GENERATION != 0x76aeb0610162716
+#if ZRATE_GENERATION != 0xe04032bccb2952d
 #error "zrate_linalg.c and zrate_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
 #endif
 

@@ -12,7 +12,7 @@
  */
 #include <math.h>
 #include "drives_internal.h"
-#if DRIVES_GENERATION != 0xa620cb9963a7e8f
+#if DRIVES_GENERATION != 0x1373d1655dec18c
 #error "drives_linalg.c and drives_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
 #endif
 

@@ -10,7 +10,7 @@
  */
 #include <math.h>
 #include "rollmpc_internal.h"
-#if ROLLMPC_GENERATION != 0x91d86a030956d76
+#if ROLLMPC_GENERATION != 0x6d8377738c79bd3
 #error "rollmpc_controller.c and rollmpc_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
 #endif
 

@@ -133,15 +133,16 @@ FORWARD_UNITS_PER_OP = (2, 5)
 # quad_attitude's counted steps run at <= 16.6 cycles per unit and uav_roll's at <= 13.6
 # (at 148a40f); (3/6, 2/6) let quad_attitude's step 420 reach 22.31, all at 2/5 21.05.
 PRIMAL_SIXTHS_PER_OP = (2, 3)  # (factor, loops)
-# each primal_solve() call, beside its operations: the O(n) bookkeeping of the inputs'
-# roles and the calls of the products per row and run of bound inputs. Without it the
+# each primal_solve() call, beside its operations: its fixed bookkeeping and, in the free
+# form, the calls of the product per row and run of bound inputs. Without it the
 # heavy steps of the n = 40 examples ran at 21.7 (quadruple_tank) and 21.2 (thermal_zones)
 # cycles per unit (docs/solver.md, "Work budget").
 PRIMAL_CALL_UNITS = 200
-# and per input: the passes over the inputs' roles each call makes (mark_bound_inputs(),
-# primal_diff(), primal_order(), gather_bound(), the finish of every free input), 8-14
-# cycles each on the M4F; c172_roll's step 2911 (n = 100, three calls of 6-14 bound
-# inputs) spends about 85 cycles per input and call in them
+# and per input, in operations at 3/6 of a unit (4 units an input): the passes over the
+# inputs' roles each call makes (mark_bound_inputs(), primal_diff(), primal_order(),
+# gather_bound(), the finish of every free input; primal_old_order() and place_tail() when
+# they run), 8-14 cycles each on the M4F; c172_roll's step 2911 (n = 100, three calls of
+# 6-14 bound inputs) spends about 85 cycles per input and call in them
 PRIMAL_INPUT_OPS = 8
 # a call of packed_range_dot() in the free form's product, in operations at 3/6 of a unit
 # (2 units, ~40 cycles: its setup and the tail of its unrolled loop)
@@ -217,9 +218,9 @@ def primal_work(m, k: int, start: int = 0, bound_form: bool = True,
     """primal_solve() with a factor of order k whose rows (and Y's) from ``start`` are
     factored again (0: a new factor): its Cholesky at PRIMAL_SIXTHS_PER_OP[0], the nt
     forward solves of Y's new rows at FORWARD_UNITS_PER_OP, the two solves of the
-    right-hand side as tri_work(), the terminal Schur complement and the products at
-    PRIMAL_SIXTHS_PER_OP[1], and PRIMAL_CALL_UNITS per call and PRIMAL_INPUT_OPS per input
-    (the bookkeeping). The free
+    right-hand side as tri_work(), the rows of A, the terminal Schur complement and its
+    solves, the products and PRIMAL_INPUT_OPS per input (the passes over the inputs) at
+    PRIMAL_SIXTHS_PER_OP[1], and PRIMAL_CALL_UNITS per call. The free
     form's product -S_FB d_B is what it does: k (n - k) multiply-adds, nt (n - k) for
     V_B d_B, n for the point, and PRIMAL_CALL_OPS per free row and run of bound inputs
     (``bound_runs``: sparse_rows_dot() calls packed_range_dot() for each); its
@@ -231,8 +232,9 @@ def primal_work(m, k: int, start: int = 0, bound_form: bool = True,
     n, nt = named("n", m.n), named("nt", m.nt)
     factor = named("factor", chol_ops(k) - chol_ops(start) + chol_ops(m.nt))
     fours = (n - k + 3) // 4
-    products = named("products", either(bound_form, 4 * fours * (k + nt + PRIMAL_CALL_OPS // 4)
-                                        + 2 * n, (k + nt) * (n - k) + n
+    products = named("products", either(bound_form,
+                                        4 * fours * (k + nt) + PRIMAL_CALL_OPS * fours + 2 * n,
+                                        (k + nt) * (n - k) + n
                                         + PRIMAL_CALL_OPS * k * bound_runs))
     loops = named("loops", (k * k - start * start) // 2 + nt * nt * k // 2
                   + 2 * tri_ops(m.nt) + 3 * nt * n + products + PRIMAL_INPUT_OPS * n)

@@ -16,6 +16,6 @@ from .linalg import seqsum_rows
 def s_row_dot(M: np.ndarray, rows, x: np.ndarray) -> np.ndarray:
     """Mirror of ``s_row_dot``, ``sparse_rows_dot`` (either walk: along the rows by
     ``packed_range_dot``/``packed_range_dot2``, or down them by ``packed_columns_axpy``),
-    ``gather_dot4`` (over a gathered support list) and ``sym_product`` for each q in
-    ``rows``: sum_j M(q, j) x_j in increasing j, from 0."""
+    ``gather_dot4`` and ``gather_product`` (over a gathered support list) and
+    ``sym_product`` for each q in ``rows``: sum_j M(q, j) x_j in increasing j, from 0."""
     return seqsum_rows(M[np.asarray(rows, np.int64)] * x[None, :])

@@ -59,7 +59,7 @@ UNMIRRORED = {
                               "time") for name in (
         "packed_range_dot", "packed_range_dot2", "packed_range_dot4", "packed_gather",
         "s_row_dot2", "s_row_dot4", "packed_columns_axpy", "sparse_rows_dot", "sym_product",
-        "gather_dot4")},
+        "gather_dot4", "gather_product")},
     "gather_bound": Unmirrored(_ROLES, _BOOKKEEPING + "the bound inputs and their values "
                                "gathered in ascending order"),
     **{name: Unmirrored(_CHOLESKY, _KERNEL + "by blocks of rows") for name in (

@@ -4,8 +4,9 @@ sum every row in increasing column order, however they walk the support:
 * sparse_rows_dot() (the free form's -S_FB d_B): run by run along the rows, or a column or
   two at a time down the rows (what primal_solve() chooses when the runs of bound inputs
   are short: scattered saturations, as a multi-motor design's are);
-* gather_bound() and gather_dot4() (the bound form's S^-1_FB beta): the bound inputs
-  gathered ascending, four free rows per pass, the last repeated past the end.
+* gather_bound() and gather_product() (the bound form's S^-1_FB beta): the bound inputs
+  gathered ascending, four free rows per pass of gather_dot4(), the last repeated past
+  the end.
 
 Each must give the reference's dense sequential sum to the bit (reference/dot.py), on any
 support.
@@ -25,8 +26,9 @@ from conftest import ROOT, require_tool
 
 @pytest.fixture(scope="module", params=["double", "float"])
 def sparse_rows_dot(request, tmp_path_factory):
-    """(call, dtype): the generated solver's static sparse_rows_dot(), compiled into a
-    harness that includes P_solver.c."""
+    """(free_form, bound_form, dtype): the generated solver's static products, compiled
+    into a harness that includes P_solver.c: sparse_rows_dot(), and gather_bound() with
+    gather_product()."""
     from rollmpc_codegen.pipeline import load_model
 
     cc = require_tool("gcc", "apt-get install gcc")
@@ -43,9 +45,9 @@ def sparse_rows_dot(request, tmp_path_factory):
         f"int harness_gather_bound(const uint8_t *role, int n, const {real} *x, "
         f"int16_t *list, {real} *xs)\n"
         f"{{\n    return gather_bound(role, n, x, list, xs);\n}}\n"
-        f"void harness_gather_dot4(const {real} *mp, const int16_t *rows, "
-        f"const int16_t *list, const {real} *xs, int count, int lo, int hi, {real} *acc)\n"
-        f"{{\n    gather_dot4(mp, rows, list, xs, count, lo, hi, acc);\n}}\n")
+        f"void harness_gather_product(const {real} *mp, const int16_t *list, "
+        f"const {real} *xs, int k, const int16_t *rows, int nrows, {real} *out)\n"
+        f"{{\n    gather_product(mp, list, xs, k, rows, nrows, out);\n}}\n")
     sources = [out / "harness.c"] + [out / f"{p}_{m}.c" for m in ("data", "linalg",
                                                                   "controller")]
     lib_path = out / "libdot.so"
@@ -57,9 +59,8 @@ def sparse_rows_dot(request, tmp_path_factory):
              f"{real} *out);"
              f"int harness_gather_bound(const uint8_t *role, int n, const {real} *x, "
              f"int16_t *list, {real} *xs);"
-             f"void harness_gather_dot4(const {real} *mp, const int16_t *rows, "
-             f"const int16_t *list, const {real} *xs, int count, int lo, int hi, "
-             f"{real} *acc);")
+             f"void harness_gather_product(const {real} *mp, const int16_t *list, "
+             f"const {real} *xs, int k, const int16_t *rows, int nrows, {real} *out);")
     lib = ffi.dlopen(str(lib_path))
     dt = np.float64 if real == "double" else np.float32
     buf = lambda a, t: ffi.cast(t, ffi.from_buffer(a))  # noqa: E731
@@ -76,28 +77,20 @@ def sparse_rows_dot(request, tmp_path_factory):
 
     def bound_form(mp, bound, x):
         """What primal_solve_bound() does: gather the bound inputs (ROLE_BOUND = 1), then
-        walk the free rows four at a time."""
+        the product over them for every free row, by input."""
         n = bound.size
         role = np.where(bound, 1, 0).astype(np.uint8)
         blist, xs = np.zeros(n, np.int16), np.zeros(n, dt)
         k = lib.harness_gather_bound(buf(role, "uint8_t *"), n, buf(x, f"{real} *"),
                                      buf(blist, "int16_t *"), buf(xs, f"{real} *"))
         assert list(blist[:k]) == list(np.flatnonzero(bound))
-        free = np.flatnonzero(~bound)
-        res, lo = np.full(free.size, np.nan, dt), 0
-        for i in range(0, free.size, 4):
-            take = min(4, free.size - i)
-            rows = np.ascontiguousarray(free[[i + min(b, take - 1) for b in range(4)]],
-                                        np.int16)
-            lo = int(np.searchsorted(blist[:k], rows[0]))
-            hi = int(np.searchsorted(blist[:k], rows[3]))
-            acc = np.full(4, np.nan, dt)
-            lib.harness_gather_dot4(buf(mp, f"{real} *"), buf(rows, "int16_t *"),
-                                    buf(blist, "int16_t *"), buf(xs, f"{real} *"), k, lo,
-                                    hi, buf(acc, f"{real} *"))
-            assert np.all(acc[take:] == acc[take - 1])  # the repeated row: the same sum
-            res[i:i + take] = acc[:take]
-        return res
+        free = np.ascontiguousarray(np.flatnonzero(~bound), np.int16)
+        out = np.full(n, np.nan, dt)
+        lib.harness_gather_product(buf(mp, f"{real} *"), buf(blist, "int16_t *"),
+                                   buf(xs, f"{real} *"), k, buf(free, "int16_t *"), free.size,
+                                   buf(out, f"{real} *"))
+        assert np.all(np.isnan(out[bound]))  # only the free rows are written
+        return out[free]
 
     return free_form, bound_form, dt
 
