@@ -25,7 +25,7 @@
  */
 #include <math.h>
 #include "c172p_roll_internal.h"
-#if C172P_ROLL_GENERATION != 0xf98bf73c6532009
+#if C172P_ROLL_GENERATION != 0x180051bfe7103f7
 #error "c172p_roll_solver.c and c172p_roll_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
 #endif
 
@@ -1769,15 +1769,15 @@ static int gather_bound(const uint8_t *role, int n, const c172p_roll_real *x, in
 }
 
 /*
- * acc[b] = sum_t M(rows[b], list[t]) xs[t] for b < 4, over the ascending list[0..count)
- * of entries other than the rows (ascending, a row repeated at the end: the same sum
- * again), `lo` of them below rows[0] and `hi` below rows[3]: row q holds M(q, j) for
- * j <= q, column q (entry q of row j) the rest. Below every row the four rows are read
+ * out[rows[b]] = sum_t M(rows[b], list[t]) xs[t] for b < take (<= 4), over the ascending
+ * list[0..count) of entries other than the rows (ascending, the last repeated up to four:
+ * the same sum again), `lo` of them below rows[0] and `hi` below rows[3]: row q holds
+ * M(q, j) for j <= q, column q (entry q of row j) the rest. Below every row the four rows are read
  * along, above every row four entries of one row j; only the few entries among the rows
  * choose per row. Cost: 4 count multiply-adds.
  */
 static void gather_dot4(const c172p_roll_real *mp, const int16_t *rows, const int16_t *list,
-    const c172p_roll_real *xs, int count, int lo, int hi, c172p_roll_real *acc)
+    const c172p_roll_real *xs, int count, int lo, int hi, int take, c172p_roll_real *out)
 {
     const uint32_t q0 = (uint32_t)rows[0], q1 = (uint32_t)rows[1], q2 = (uint32_t)rows[2];
     const uint32_t q3 = (uint32_t)rows[3];
@@ -1811,10 +1811,16 @@ static void gather_dot4(const c172p_roll_real *mp, const int16_t *rows, const in
         a2 += row_j[q2] * x;
         a3 += row_j[q3] * x;
     }
-    acc[0] = a0;
-    acc[1] = a1;
-    acc[2] = a2;
-    acc[3] = a3;
+    out[q0] = a0; /* take >= 1 */
+    if (take > 1) {
+        out[q1] = a1;
+    }
+    if (take > 2) {
+        out[q2] = a2;
+    }
+    if (take > 3) {
+        out[q3] = a3;
+    }
 }
 
 /*
@@ -1831,7 +1837,6 @@ static void gather_product(const c172p_roll_real *mp, const int16_t *list,
         const int take = (nrows - i < 4) ? nrows - i : 4;
         int16_t group[4];
         int b, hi;
-        c172p_roll_real d[4];
         for (b = 0; b < 4; ++b) {
             group[b] = rows[i + ((b < take) ? b : take - 1)];
         }
@@ -1839,10 +1844,7 @@ static void gather_product(const c172p_roll_real *mp, const int16_t *list,
         }
         for (hi = lo; hi < k && list[hi] < group[3]; ++hi) {
         }
-        gather_dot4(mp, group, list, xs, k, lo, hi, d);
-        for (b = 0; b < take; ++b) {
-            out[group[b]] = d[b];
-        }
+        gather_dot4(mp, group, list, xs, k, lo, hi, take, out);
         lo = hi;
     }
 }

@@ -18,7 +18,7 @@
 #include <stddef.h>
 #include <stdint.h>
 #include "chain_config.h"
-#if CHAIN_GENERATION != 0x1f4094fa9bbb729
+#if CHAIN_GENERATION != 0xcf8f898dcda893c
 #error "chain.h and chain_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
 #endif
 

@@ -10,7 +10,7 @@
  */
 #include <math.h>
 #include "chain_internal.h"
-#if CHAIN_GENERATION != 0x1f4094fa9bbb729
+#if CHAIN_GENERATION != 0xcf8f898dcda893c
 #error "chain_controller.c and chain_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
 #endif
 

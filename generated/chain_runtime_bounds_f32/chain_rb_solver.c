@@ -25,7 +25,7 @@
  */
 #include <math.h>
 #include "chain_rb_internal.h"
-#if CHAIN_RB_GENERATION != 0x577a99ac93e0546
+#if CHAIN_RB_GENERATION != 0x7115f7dd876ff1c
 #error "chain_rb_solver.c and chain_rb_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
 #endif
 
@@ -1784,15 +1784,15 @@ static int gather_bound(const uint8_t *role, int n, const chain_rb_real *x, int1
 }
 
 /*
- * acc[b] = sum_t M(rows[b], list[t]) xs[t] for b < 4, over the ascending list[0..count)
- * of entries other than the rows (ascending, a row repeated at the end: the same sum
- * again), `lo` of them below rows[0] and `hi` below rows[3]: row q holds M(q, j) for
- * j <= q, column q (entry q of row j) the rest. Below every row the four rows are read
+ * out[rows[b]] = sum_t M(rows[b], list[t]) xs[t] for b < take (<= 4), over the ascending
+ * list[0..count) of entries other than the rows (ascending, the last repeated up to four:
+ * the same sum again), `lo` of them below rows[0] and `hi` below rows[3]: row q holds
+ * M(q, j) for j <= q, column q (entry q of row j) the rest. Below every row the four rows are read
  * along, above every row four entries of one row j; only the few entries among the rows
  * choose per row. Cost: 4 count multiply-adds.
  */
 static void gather_dot4(const chain_rb_real *mp, const int16_t *rows, const int16_t *list,
-    const chain_rb_real *xs, int count, int lo, int hi, chain_rb_real *acc)
+    const chain_rb_real *xs, int count, int lo, int hi, int take, chain_rb_real *out)
 {
     const uint32_t q0 = (uint32_t)rows[0], q1 = (uint32_t)rows[1], q2 = (uint32_t)rows[2];
     const uint32_t q3 = (uint32_t)rows[3];
@@ -1826,10 +1826,16 @@ static void gather_dot4(const chain_rb_real *mp, const int16_t *rows, const int1
         a2 += row_j[q2] * x;
         a3 += row_j[q3] * x;
     }
-    acc[0] = a0;
-    acc[1] = a1;
-    acc[2] = a2;
-    acc[3] = a3;
+    out[q0] = a0; /* take >= 1 */
+    if (take > 1) {
+        out[q1] = a1;
+    }
+    if (take > 2) {
+        out[q2] = a2;
+    }
+    if (take > 3) {
+        out[q3] = a3;
+    }
 }
 
 /*
@@ -1846,7 +1852,6 @@ static void gather_product(const chain_rb_real *mp, const int16_t *list,
         const int take = (nrows - i < 4) ? nrows - i : 4;
         int16_t group[4];
         int b, hi;
-        chain_rb_real d[4];
         for (b = 0; b < 4; ++b) {
             group[b] = rows[i + ((b < take) ? b : take - 1)];
         }
@@ -1854,10 +1859,7 @@ static void gather_product(const chain_rb_real *mp, const int16_t *list,
         }
         for (hi = lo; hi < k && list[hi] < group[3]; ++hi) {
         }
-        gather_dot4(mp, group, list, xs, k, lo, hi, d);
-        for (b = 0; b < take; ++b) {
-            out[group[b]] = d[b];
-        }
+        gather_dot4(mp, group, list, xs, k, lo, hi, take, out);
         lo = hi;
     }
 }

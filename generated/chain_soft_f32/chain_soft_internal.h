@@ -7,7 +7,7 @@
 
 #include <math.h>
 #include "chain_soft.h"
-#if CHAIN_SOFT_GENERATION != 0x4c8fcb1d460611b
+#if CHAIN_SOFT_GENERATION != 0x0090726a9c5afd1
 #error "chain_soft_internal.h and chain_soft_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
 #endif
 

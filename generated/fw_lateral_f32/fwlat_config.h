@@ -28,7 +28,7 @@
  * stops the build unless it is of the same one: a regeneration interrupted between two
  * of its file moves leaves no mixed tree that compiles.
  */
-#define FWLAT_GENERATION 0xa4f4b1fa79864a9
+#define FWLAT_GENERATION 0xbaa81778d56251c
 
 /* The one place where the precision is chosen. */
 #define FWLAT_PRECISION_DOUBLE 0

@@ -18,7 +18,7 @@
 #include <stddef.h>
 #include <stdint.h>
 #include "quadatt_config.h"
-#if QUADATT_GENERATION != 0xee8651940c8e9ad
+#if QUADATT_GENERATION != 0x08dcc55f98e9619
 #error "quadatt.h and quadatt_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
 #endif
 

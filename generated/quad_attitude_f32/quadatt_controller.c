@@ -10,7 +10,7 @@
  */
 #include <math.h>
 #include "quadatt_internal.h"
-#if QUADATT_GENERATION != 0xee8651940c8e9ad
+#if QUADATT_GENERATION != 0x08dcc55f98e9619
 #error "quadatt_controller.c and quadatt_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
 #endif
 

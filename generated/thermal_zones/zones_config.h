@@ -28,7 +28,7 @@
  * stops the build unless it is of the same one: a regeneration interrupted between two
  * of its file moves leaves no mixed tree that compiles.
  */
-#define ZONES_GENERATION 0x6817b25b96c7a40
+#define ZONES_GENERATION 0xe6010d18a2b0e1c
 
 /* The one place where the precision is chosen. */
 #define ZONES_PRECISION_DOUBLE 1

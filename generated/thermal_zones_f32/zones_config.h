@@ -28,7 +28,7 @@
  * stops the build unless it is of the same one: a regeneration interrupted between two
  * of its file moves leaves no mixed tree that compiles.
  */
-#define ZONES_GENERATION 0xb8ff284b7c45a01
+#define ZONES_GENERATION 0xe75ed2036a2906b
 
 /* The one place where the precision is chosen. */
 #define ZONES_PRECISION_DOUBLE 0

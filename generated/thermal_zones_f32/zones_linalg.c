@@ -12,7 +12,7 @@
  */
 #include <math.h>
 #include "zones_internal.h"
-#if ZONES_GENERATION != 0xb8ff284b7c45a01
+#if ZONES_GENERATION != 0xe75ed2036a2906b
 #error "zones_linalg.c and zones_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
 #endif
 

@@ -28,7 +28,7 @@
  * stops the build unless it is of the same one: a regeneration interrupted between two
  * of its file moves leaves no mixed tree that compiles.
  */
-#define ROLLMPC_GENERATION 0x9a57b00f287e4b2
+#define ROLLMPC_GENERATION 0xf6041279c8f8a60
 
 /* The one place where the precision is chosen. */
 #define ROLLMPC_PRECISION_DOUBLE 0
