@@ -12,7 +12,7 @@
  */
 #include <math.h>
 #include "chain_internal.h"
-#if CHAIN_GENERATION != 0xcf8f898dcda893c
+#if CHAIN_GENERATION != 0xf8efa468d39a752
 #error "chain_linalg.c and chain_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
 #endif
 

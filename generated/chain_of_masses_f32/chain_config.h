@@ -28,7 +28,7 @@
  * stops the build unless it is of the same one: a regeneration interrupted between two
  * of its file moves leaves no mixed tree that compiles.
  */
-#define CHAIN_GENERATION 0x0584c6302364559
+#define CHAIN_GENERATION 0xef7156eac8367aa
 
 /* The one place where the precision is chosen. */
 #define CHAIN_PRECISION_DOUBLE 0

@@ -28,7 +28,7 @@
  * stops the build unless it is of the same one: a regeneration interrupted between two
  * of its file moves leaves no mixed tree that compiles.
  */
-#define FWLAT_GENERATION 0xbaa81778d56251c
+#define FWLAT_GENERATION 0x63c8023a337fd2d
 
 /* The one place where the precision is chosen. */
 #define FWLAT_PRECISION_DOUBLE 0

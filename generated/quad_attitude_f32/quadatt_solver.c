@@ -25,7 +25,7 @@
  */
 #include <math.h>
 #include "quadatt_internal.h"
-#if QUADATT_GENERATION != 0x08dcc55f98e9619
+#if QUADATT_GENERATION != 0xe3040c4dc9ff8b2
 #error "quadatt_solver.c and quadatt_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
 #endif
 
@@ -1835,16 +1835,16 @@ static void gather_product(const quadatt_real *mp, const int16_t *list,
     int i, lo = 0;
     for (i = 0; i < nrows; i += 4) {
         const int take = (nrows - i < 4) ? nrows - i : 4;
-        int16_t group[4];
+        int16_t rows4[4];
         int b, hi;
         for (b = 0; b < 4; ++b) {
-            group[b] = rows[i + ((b < take) ? b : take - 1)];
+            rows4[b] = rows[i + ((b < take) ? b : take - 1)];
         }
-        for (; lo < k && list[lo] < group[0]; ++lo) {
+        for (; lo < k && list[lo] < rows4[0]; ++lo) {
         }
-        for (hi = lo; hi < k && list[hi] < group[3]; ++hi) {
+        for (hi = lo; hi < k && list[hi] < rows4[3]; ++hi) {
         }
-        gather_dot4(mp, group, list, xs, k, lo, hi, take, out);
+        gather_dot4(mp, rows4, list, xs, k, lo, hi, take, out);
         lo = hi;
     }
 }

@@ -28,7 +28,7 @@
  * stops the build unless it is of the same one: a regeneration interrupted between two
  * of its file moves leaves no mixed tree that compiles.
  */
-#define ZONES_GENERATION 0xe75ed2036a2906b
+#define ZONES_GENERATION 0xdb48c2e87792db9
 
 /* The one place where the precision is chosen. */
 #define ZONES_PRECISION_DOUBLE 0

@@ -25,7 +25,7 @@
  */
 #include <math.h>
 #include "zrate_internal.h"
-#if ZRATE_GENERATION != 0xb184f38f13df9c6
+#if ZRATE_GENERATION != 0xe6e31992dc5e1c1
 #error "zrate_solver.c and zrate_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
 #endif
 
@@ -1900,16 +1900,16 @@ static void gather_product(const zrate_real *mp, const int16_t *list,
     int i, lo = 0;
     for (i = 0; i < nrows; i += 4) {
         const int take = (nrows - i < 4) ? nrows - i : 4;
-        int16_t group[4];
+        int16_t rows4[4];
         int b, hi;
         for (b = 0; b < 4; ++b) {
-            group[b] = rows[i + ((b < take) ? b : take - 1)];
+            rows4[b] = rows[i + ((b < take) ? b : take - 1)];
         }
-        for (; lo < k && list[lo] < group[0]; ++lo) {
+        for (; lo < k && list[lo] < rows4[0]; ++lo) {
         }
-        for (hi = lo; hi < k && list[hi] < group[3]; ++hi) {
+        for (hi = lo; hi < k && list[hi] < rows4[3]; ++hi) {
         }
-        gather_dot4(mp, group, list, xs, k, lo, hi, take, out);
+        gather_dot4(mp, rows4, list, xs, k, lo, hi, take, out);
         lo = hi;
     }
 }
