@@ -25,7 +25,7 @@
  */
 #include <math.h>
 #include "quadatt_internal.h"
-#if QUADATT_GENERATION != 0xe3040c4dc9ff8b2
+#if QUADATT_GENERATION != 0x4e6263fd0e6abd1
 #error "quadatt_solver.c and quadatt_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
 #endif
 
@@ -1547,16 +1547,22 @@ static int role_gen(int role)
 }
 
 /*
- * The tail rows (the inputs whose role has ROLE_TAIL) into ws->tmp[from..): by generation,
- * each generation in the head's order (descending inputs when down, else ascending), where
- * the head's order alone does not give that: the rows of each generation counted, then
- * each input placed after those of the generations before its own. Cost: 2 n flag reads,
- * whatever the order the tail grew in.
+ * ws->tmp[from..to): the tail rows (the inputs whose role has ROLE_TAIL) in the head's
+ * order (descending inputs when down, else ascending); orders them by generation, each
+ * generation in that order. Where they are not already so, the rows of each generation
+ * are counted, then each input placed after those of the generations before its own.
+ * Cost: to - from role reads, and 2 n more where the order changes.
  */
-static void place_tail(quadatt_work *ws, int n, int from, int down)
+static void place_tail(quadatt_work *ws, int n, int from, int to, int down)
 {
     int16_t next[ROLE_GEN_MAX + 1]; /* the place of a generation's next row */
     int g, j, at = from;
+    for (j = from + 1; j < to && role_gen(ws->input_role[ws->tmp[j - 1]])
+             <= role_gen(ws->input_role[ws->tmp[j]]); ++j) {
+    }
+    if (j >= to) {
+        return; /* already by generation */
+    }
     for (g = 0; g <= ROLE_GEN_MAX; ++g) {
         next[g] = 0;
     }
@@ -1646,7 +1652,6 @@ static void primal_order(quadatt_work *ws, int n, int form, int update, int k, i
 {
     const int down = form == FORM_FREE, stride = down ? -1 : 1;
     int i, h = down ? head - 1 : 0, t = down ? k - 1 : head, rest = k;
-    int last_gen = down ? ROLE_GEN_MAX : 0, by_generation = 1; /* the tail as placed */
     for (i = 0; i < n; ++i) {
         const int role = ws->input_role[i], bound = role & ROLE_BOUND;
         if (!in_form(role, form)) {
@@ -1662,13 +1667,9 @@ static void primal_order(quadatt_work *ws, int n, int form, int update, int k, i
             ws->input_role[i] = (uint8_t)tail_role;
             ws->tmp[t] = (int16_t)i;
             t += stride;
-            by_generation = by_generation && (down ? g <= last_gen : g >= last_gen);
-            last_gen = g;
         }
     }
-    if (!by_generation) {
-        place_tail(ws, n, head, down);
-    }
+    place_tail(ws, n, head, k, down);
     ws->primal_form = (int16_t)form;
     ws->primal_head = (int16_t)head;
 }
@@ -1681,7 +1682,7 @@ static void primal_order(quadatt_work *ws, int n, int form, int update, int k, i
 static int primal_old_order(quadatt_work *ws, int n)
 {
     const int down = ws->primal_form == FORM_FREE, stride = down ? -1 : 1;
-    int i, heads = 0, rows = 0, h, t, last_gen = down ? ROLE_GEN_MAX : 0, by_generation = 1;
+    int i, heads = 0, rows = 0, h, t;
     for (i = 0; i < n; ++i) {
         heads += (ws->input_role[i] & ROLE_HEAD) != 0;
         rows += (ws->input_role[i] & (ROLE_HEAD | ROLE_TAIL)) != 0;
@@ -1695,16 +1696,11 @@ static int primal_old_order(quadatt_work *ws, int n)
             h += stride;
         }
         if (role & ROLE_TAIL) {
-            const int g = role_gen(role);
             ws->tmp[t] = (int16_t)i;
             t += stride;
-            by_generation = by_generation && (down ? g <= last_gen : g >= last_gen);
-            last_gen = g;
         }
     }
-    if (!by_generation) {
-        place_tail(ws, n, heads, down);
-    }
+    place_tail(ws, n, heads, rows, down);
     return rows;
 }
 
@@ -1772,9 +1768,9 @@ static int gather_bound(const uint8_t *role, int n, const quadatt_real *x, int16
  * out[rows[b]] = sum_t M(rows[b], list[t]) xs[t] for b < take (<= 4), over the ascending
  * list[0..count) of entries other than the rows (ascending, the last repeated up to four:
  * the same sum again), `lo` of them below rows[0] and `hi` below rows[3]: row q holds
- * M(q, j) for j <= q, column q (entry q of row j) the rest. Below every row the four rows are read
- * along, above every row four entries of one row j; only the few entries among the rows
- * choose per row. Cost: 4 count multiply-adds.
+ * M(q, j) for j <= q, column q (entry q of row j) the rest. Below every row the four rows
+ * are read along, above every row four entries of one row j; only the few entries among
+ * the rows choose per row. Cost: 4 count multiply-adds.
  */
 static void gather_dot4(const quadatt_real *mp, const int16_t *rows, const int16_t *list,
     const quadatt_real *xs, int count, int lo, int hi, int take, quadatt_real *out)

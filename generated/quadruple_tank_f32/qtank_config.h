@@ -28,7 +28,7 @@
  * stops the build unless it is of the same one: a regeneration interrupted between two
  * of its file moves leaves no mixed tree that compiles.
  */
-#define QTANK_GENERATION 0xbee56f0810a170c
+#define QTANK_GENERATION 0x658cdde2225299a
 
 /* The one place where the precision is chosen. */
 #define QTANK_PRECISION_DOUBLE 0

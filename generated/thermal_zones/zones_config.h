@@ -28,7 +28,7 @@
  * stops the build unless it is of the same one: a regeneration interrupted between two
  * of its file moves leaves no mixed tree that compiles.
  */
-#define ZONES_GENERATION 0xeeb7d3c182fd5b2
+#define ZONES_GENERATION 0xbeb56917b493437
 
 /* The one place where the precision is chosen. */
 #define ZONES_PRECISION_DOUBLE 1
