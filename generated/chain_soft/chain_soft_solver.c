@@ -25,7 +25,7 @@
  */
 #include <math.h>
 #include "chain_soft_internal.h"
-#if CHAIN_SOFT_GENERATION != 0x35d95cbc0e00149
+#if CHAIN_SOFT_GENERATION != 0x7210529a7733495
 #error "chain_soft_solver.c and chain_soft_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
 #endif
 
@@ -3689,7 +3689,9 @@ static int finish(chain_soft_work *ws, const chain_soft_mode_data *md, chain_sof
     ws->slack_max = R_(0.0); /* the slacks of the plan: 0 unless optimal */
     ws->slack_rows = 0;
     for (i = 0; status == CHAIN_SOFT_OPTIMAL && i < md->m; ++i) {
-        const chain_soft_real sl = multiplier_slack(md, i, lam[i]);
+        /* a slack needs lam > l1 >= 0: most rows have lam = 0, and their soft_of() calls
+         * were a fifth of fw_lateral's free step on the M4F */
+        const chain_soft_real sl = (lam[i] > R_(0.0)) ? multiplier_slack(md, i, lam[i]) : R_(0.0);
         if (sl > R_(0.0)) {
             ws->slack_max = (sl > ws->slack_max) ? sl : ws->slack_max;
             ++ws->slack_rows;

@@ -28,7 +28,7 @@
  * stops the build unless it is of the same one: a regeneration interrupted between two
  * of its file moves leaves no mixed tree that compiles.
  */
-#define QTANK_GENERATION 0xc5b18e68195dd27
+#define QTANK_GENERATION 0xca97e4c7506cbde
 
 /* The one place where the precision is chosen. */
 #define QTANK_PRECISION_DOUBLE 1

@@ -25,7 +25,7 @@
  */
 #include <math.h>
 #include "zrate_internal.h"
-#if ZRATE_GENERATION != 0x6e377cb40f4767a
+#if ZRATE_GENERATION != 0x9d8031660bc297c
 #error "zrate_solver.c and zrate_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
 #endif
 
@@ -1079,16 +1079,25 @@ static void predict_outputs(zrate_work *ws, const zrate_mode_data *md,
     }
 }
 
+/* Value at th of quantity q of a row without a prediction: an input, or a Δu row
+ * (U_d - U_(d-nu), or U_d in the first stage). inline: slacks() reads it for every such
+ * row, and the call cost fw_lateral's free step 9 k cycles on the M4F. */
+static inline zrate_real unpredicted_value(const zrate_mode_data *md,
+    const zrate_real *th, int q)
+{
+    const int d = q - (md->n + md->nyq);
+    if (d >= 0) {
+        return (d >= md->nu) ? th[d] - th[d - md->nu] : th[d];
+    }
+    return th[q];
+}
+
 /* Value of row r's quantity at th (yv must hold Gamma th). */
 static zrate_real row_value(const zrate_work *ws, const zrate_mode_data *md,
     const zrate_real *th, int r)
 {
     const int q = md->row_q[r];
-    const int d = q - (md->n + md->nyq);
-    if (d >= 0) { /* Δu row: U_d - U_(d-nu), or U_d in the first stage */
-        return (d >= md->nu) ? th[d] - th[d - md->nu] : th[d];
-    }
-    return (q < md->n) ? th[q] : ws->yv[q - md->n];
+    return (q >= md->n && q < md->n + md->nyq) ? ws->yv[q - md->n] : unpredicted_value(md, th, q);
 }
 
 /*
@@ -1167,7 +1176,7 @@ static int slacks(zrate_work *ws, const zrate_mode_data *md, const zrate_real *x
                 const zrate_real up = x[md->nx - md->nu + d];
                 g = (md->row_sign[r] > 0) ? g + up : g - up;
             }
-            v = row_value(ws, md, th0, r);
+            v = unpredicted_value(md, th0, q);
             const zrate_real k = (row_sign[r] > 0) ? g - v : g + v;
             K[r] = k;
             count += (k < R_(0.0));

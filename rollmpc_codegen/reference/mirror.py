@@ -72,6 +72,8 @@ UNMIRRORED = {
                                 _KERNEL + "two neighbouring columns in one pass"),
     "violated_kind": Unmirrored("reference/rows.py.violated_outside",
                                 _BOOKKEEPING + "the rows of one kind, through scan_rows"),
+    "unpredicted_value": Unmirrored("reference/rows.py.row_value",
+                                    _KERNEL + "row_value() of an input or Δu row, inline"),
     "soft_of": Unmirrored("reference/solver.py.__init__",
                           _BOOKKEEPING + "a row's (l1, w): the table soft_l1, soft_w"),
     "forget_row": Unmirrored("reference/polish_dual.py.remove_row",
