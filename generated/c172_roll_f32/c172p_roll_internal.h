@@ -7,7 +7,7 @@
 
 #include <math.h>
 #include "c172p_roll.h"
-#if C172P_ROLL_GENERATION != 0x7e04df7f001b608
+#if C172P_ROLL_GENERATION != 0xc3f866a5468bf92
 #error "c172p_roll_internal.h and c172p_roll_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
 #endif
 

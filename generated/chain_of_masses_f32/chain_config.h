@@ -28,7 +28,7 @@
  * stops the build unless it is of the same one: a regeneration interrupted between two
  * of its file moves leaves no mixed tree that compiles.
  */
-#define CHAIN_GENERATION 0x00c20e82cdd8702
+#define CHAIN_GENERATION 0xa01fc67b3c680b4
 
 /* The one place where the precision is chosen. */
 #define CHAIN_PRECISION_DOUBLE 0

@@ -25,7 +25,7 @@
  */
 #include <math.h>
 #include "qtank_internal.h"
-#if QTANK_GENERATION != 0xb807c0ea6a1d38e
+#if QTANK_GENERATION != 0xb33882103d2c382
 #error "qtank_solver.c and qtank_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
 #endif
 
