@@ -25,7 +25,7 @@
  */
 #include <math.h>
 #include "chain_internal.h"
-#if CHAIN_GENERATION != 0xf480020ccda9780
+#if CHAIN_GENERATION != 0x80e1f67a2c02a02
 #error "chain_solver.c and chain_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
 #endif
 
@@ -590,6 +590,22 @@ static void packed_gather(const chain_real *mp, int qa, int q0, int dir, int len
     }
     for (m = &mp[CHAIN_TRI(qa, q)]; t < len; ++t) { /* then row qa, backwards */
         out[t] = *m--;
+    }
+}
+
+/*
+ * out[t] = M(qa, list[t]) for t < len: entries of row qa at listed columns, for a stretch
+ * of short runs, where packed_gather()'s call per run and row would cost more than the
+ * copies. Cost: len copies and index reads.
+ */
+static void packed_gather_listed(const chain_real *mp, int qa, const int16_t *list,
+    int len, chain_real *out)
+{
+    const chain_real *row = &mp[CHAIN_TRI(qa, 0)];
+    int t;
+    for (t = 0; t < len; ++t) {
+        const int q = list[t];
+        out[t] = (q <= qa) ? row[q] : mp[CHAIN_TRI(q, qa)];
     }
 }
 
@@ -1846,6 +1862,27 @@ static void gather_product(const chain_real *mp, const int16_t *list,
 }
 
 /*
+ * The length of the run of consecutive inputs (ascending or descending: *dir = 1 or -1)
+ * at rows[c] of rows[0..k).
+ */
+static int input_run(const int16_t *rows, int c, int k, int *dir)
+{
+    const int q0 = rows[c];
+    int len = 1;
+    *dir = 1;
+    if (c + 1 < k && (rows[c + 1] == q0 + 1 || rows[c + 1] == q0 - 1)) {
+        *dir = rows[c + 1] - q0;
+        while (c + len < k && rows[c + len] == q0 + len * *dir) {
+            ++len;
+        }
+    }
+    return len;
+}
+
+/* Runs shorter than this are gathered by listed columns (packed_gather_listed()). */
+enum { GATHER_RUN_MIN = 4 };
+
+/*
  * Rows from..k-1 of the factor L (ws->chol) of S_FF (free form) or (S^-1)_BB (bound
  * form) in the order of ws->tmp, and the same rows of Y = L^-1 V_F' or L^-1 Uv_B'
  * (ws->ycol), the rows above being kept, when ws->chol_holds proves both intact (the dual
@@ -1859,18 +1896,22 @@ static int primal_factor(chain_work *ws, const chain_mode_data *md, int k, int f
     const chain_real *cols = bound ? md->Uv : md->V;
     chain_real *l = ws->chol;
     int a, c = 0, o, start = (ws->chol_holds == CHAIN_CHOL_PRIMAL) ? from : 0;
-    while (c < k) { /* A's rows start..k-1, by runs of consecutive inputs in the order */
-        const int q0 = ws->tmp[c];
-        int len = 1, dir = 1;
-        if (c + 1 < k && (ws->tmp[c + 1] == q0 + 1 || ws->tmp[c + 1] == q0 - 1)) {
-            dir = ws->tmp[c + 1] - q0;
-            while (c + len < k && ws->tmp[c + len] == q0 + len * dir) {
-                ++len;
+    while (c < k) { /* A's rows start..k-1: columns c..c+len-1 of each, up to its diagonal */
+        int dir, len = input_run(ws->tmp, c, k, &dir), run;
+        if (len >= GATHER_RUN_MIN) { /* a run of consecutive inputs: no index reads */
+            for (a = (start > c) ? start : c; a < k; ++a) {
+                packed_gather(packed, ws->tmp[a], ws->tmp[c], dir,
+                              (a - c + 1 < len) ? a - c + 1 : len, &l[CHAIN_TRI(a, c)]);
             }
-        }
-        for (a = (start > c) ? start : c; a < k; ++a) { /* columns c.. of row a, up to a */
-            packed_gather(packed, ws->tmp[a], q0, dir, (a - c + 1 < len) ? a - c + 1 : len,
-                          &l[CHAIN_TRI(a, c)]);
+        } else { /* a stretch of short runs (a tail by generation): by listed columns */
+            while (c + len < k && (run = input_run(ws->tmp, c + len, k, &dir)) < GATHER_RUN_MIN) {
+                len += run;
+            }
+            for (a = (start > c) ? start : c; a < k; ++a) {
+                packed_gather_listed(packed, ws->tmp[a], &ws->tmp[c],
+                                     (a - c + 1 < len) ? a - c + 1 : len,
+                                     &l[CHAIN_TRI(a, c)]);
+            }
         }
         c += len;
     }

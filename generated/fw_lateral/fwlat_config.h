@@ -28,7 +28,7 @@
  * stops the build unless it is of the same one: a regeneration interrupted between two
  * of its file moves leaves no mixed tree that compiles.
  */
-#define FWLAT_GENERATION 0xb2fb7af9e437807
+#define FWLAT_GENERATION 0x5ca128302bf049a
 
 /* The one place where the precision is chosen. */
 #define FWLAT_PRECISION_DOUBLE 1

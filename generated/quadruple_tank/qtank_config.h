@@ -28,7 +28,7 @@
  * stops the build unless it is of the same one: a regeneration interrupted between two
  * of its file moves leaves no mixed tree that compiles.
  */
-#define QTANK_GENERATION 0xcd787193a5f7b25
+#define QTANK_GENERATION 0x155f8fded15a525
 
 /* The one place where the precision is chosen. */
 #define QTANK_PRECISION_DOUBLE 1

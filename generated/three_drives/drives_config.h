@@ -28,7 +28,7 @@
  * stops the build unless it is of the same one: a regeneration interrupted between two
  * of its file moves leaves no mixed tree that compiles.
  */
-#define DRIVES_GENERATION 0x756fb7e2dbdff2b
+#define DRIVES_GENERATION 0x8bbad6b078f317f
 
 /* The one place where the precision is chosen. */
 #define DRIVES_PRECISION_DOUBLE 1

@@ -58,6 +58,7 @@ UNMIRRORED = {
     **{name: Unmirrored(_DOT, _KERNEL + "over the support of x, unrolled or a column at a "
                               "time") for name in (
         "packed_range_dot", "packed_range_dot2", "packed_range_dot4", "packed_gather",
+        "packed_gather_listed",
         "s_row_dot2", "s_row_dot4", "packed_columns_axpy", "sparse_rows_dot", "sym_product",
         "gather_dot4", "gather_product")},
     "gather_bound": Unmirrored(_ROLES, _BOOKKEEPING + "the bound inputs and their values "
@@ -82,6 +83,8 @@ UNMIRRORED = {
                               _BOOKKEEPING + "the guess's membership flags cleared"),
     **{name: Unmirrored(_ORDER, _BOOKKEEPING + "the order of the primal factor's rows")
        for name in ("in_form", "role_gen", "place_tail", "primal_diff")},
+    "input_run": Unmirrored("reference/polish_primal.py.primal_factor",
+                            _BOOKKEEPING + "the runs the factor's rows are gathered by"),
     "primal_old_order": Unmirrored("reference/primal_rows.py.primal_deletes",
                                    _BOOKKEEPING + "the previous factor's rows in order"),
     **{name: Unmirrored(_ROLES, _BOOKKEEPING + "the inputs' roles in ws->input_role")
