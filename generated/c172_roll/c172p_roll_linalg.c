@@ -12,7 +12,7 @@
  */
 #include <math.h>
 #include "c172p_roll_internal.h"
-#if C172P_ROLL_GENERATION != 0x6112ef7728b4555
+#if C172P_ROLL_GENERATION != 0x366bfb6a68c8e81
 #error "c172p_roll_linalg.c and c172p_roll_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
 #endif
 

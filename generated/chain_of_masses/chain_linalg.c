@@ -12,7 +12,7 @@
  */
 #include <math.h>
 #include "chain_internal.h"
-#if CHAIN_GENERATION != 0x80e1f67a2c02a02
+#if CHAIN_GENERATION != 0x7e48e82df926b1e
 #error "chain_linalg.c and chain_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
 #endif
 

@@ -25,7 +25,7 @@
  */
 #include <math.h>
 #include "chain_internal.h"
-#if CHAIN_GENERATION != 0x80e1f67a2c02a02
+#if CHAIN_GENERATION != 0x7e48e82df926b1e
 #error "chain_solver.c and chain_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
 #endif
 
@@ -63,12 +63,22 @@ static uint32_t predict_work(const chain_mode_data *md)
 }
 
 /*
+ * The most outputs_certified() charges: it reads th, the signal bounds and, when the
+ * largest bound does not clear every row at once, the rows up to the first it cannot clear
+ * (the ny output bounds of the last stage ride with th's n).
+ */
+static uint32_t certificate_work(const chain_mode_data *md)
+{
+    return (uint32_t)md->n + (uint32_t)md->m;
+}
+
+/*
  * A check of every row at a point (violated_outside(), most_violated()): the certificate,
  * the prediction it may need, and the rows.
  */
 static uint32_t scan_work(const chain_mode_data *md)
 {
-    return 3u * (uint32_t)md->m + (uint32_t)md->n + predict_work(md);
+    return 2u * (uint32_t)md->m + certificate_work(md) + predict_work(md);
 }
 
 /*
@@ -282,7 +292,7 @@ static uint32_t add_step_work(int nw)
  */
 static uint32_t final_check_work(const chain_mode_data *md)
 {
-    return (uint32_t)md->n + 2u * (uint32_t)md->m;
+    return certificate_work(md) + (uint32_t)md->m;
 }
 
 /*
@@ -1058,13 +1068,15 @@ static chain_real row_value(const chain_work *ws, const chain_mode_data *md,
 /*
  * 1 if no output row can be violated at th: |(Gamma th)_k| <= out_bound_k max|th| <= gamma_r
  * (out_bound carries the rounding margin), so the N^2/2 prediction can be skipped.
+ * Charged by what it reads: th, the signal bounds and the rows up to the first it cannot
+ * clear (certificate_work() is the most; the ny bounds of the last stage ride with th).
  */
 static int outputs_certified(chain_work *ws, const chain_mode_data *md,
     const chain_real *th)
 {
     chain_real thmax = R_(0.0), bmax = R_(0.0);
     int i, r;
-    ws->work += (uint32_t)md->n + (uint32_t)md->m;
+    ws->work += (uint32_t)md->n;
     for (i = 0; i < md->n; ++i) {
         const chain_real v = CHAIN_FABS(th[i]);
         thmax = (v > thmax) ? v : thmax;
@@ -1078,10 +1090,11 @@ static int outputs_certified(chain_work *ws, const chain_mode_data *md,
     for (r = 0; r < md->m; ++r) {
         const int q = md->row_q[r];
         if (q >= md->n && !(md->out_bound[q - md->n] * thmax <= ws->gam[r])) {
-            return 0;
+            break;
         }
     }
-    return 1;
+    ws->work += (uint32_t)((r < md->m) ? r + 1 : r);
+    return r >= md->m;
 }
 
 /* K = gamma - M th0 of the output rows (needs the N^2/2 prediction of th0). */

@@ -12,7 +12,7 @@
  */
 #include <math.h>
 #include "chain_rb_internal.h"
-#if CHAIN_RB_GENERATION != 0x4e21019387f7b19
+#if CHAIN_RB_GENERATION != 0x8bca5f2d7ac745c
 #error "chain_rb_linalg.c and chain_rb_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
 #endif
 

@@ -12,7 +12,7 @@
  */
 #include <math.h>
 #include "chain_soft_internal.h"
-#if CHAIN_SOFT_GENERATION != 0xa8942db89112f51
+#if CHAIN_SOFT_GENERATION != 0x9d8677ca35ab9ef
 #error "chain_soft_linalg.c and chain_soft_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
 #endif
 

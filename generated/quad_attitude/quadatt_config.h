@@ -28,7 +28,7 @@
  * stops the build unless it is of the same one: a regeneration interrupted between two
  * of its file moves leaves no mixed tree that compiles.
  */
-#define QUADATT_GENERATION 0x25aab1f09787e90
+#define QUADATT_GENERATION 0x068986f76d1caee
 
 /* The one place where the precision is chosen. */
 #define QUADATT_PRECISION_DOUBLE 1

@@ -28,7 +28,7 @@
  * stops the build unless it is of the same one: a regeneration interrupted between two
  * of its file moves leaves no mixed tree that compiles.
  */
-#define QUADATT_GENERATION 0x3f58cab4a1fc92b
+#define QUADATT_GENERATION 0x1a448fae894658a
 
 /* The one place where the precision is chosen. */
 #define QUADATT_PRECISION_DOUBLE 0

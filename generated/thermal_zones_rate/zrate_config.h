@@ -28,7 +28,7 @@
  * stops the build unless it is of the same one: a regeneration interrupted between two
  * of its file moves leaves no mixed tree that compiles.
  */
-#define ZRATE_GENERATION 0x2d54e4ded61d31e
+#define ZRATE_GENERATION 0x37874f877d88e2d
 
 /* The one place where the precision is chosen. */
 #define ZRATE_PRECISION_DOUBLE 1

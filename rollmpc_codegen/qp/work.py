@@ -70,19 +70,26 @@ def predict_work(m) -> int:
 
 
 @formula()
+def certificate_work(m) -> int:
+    """The most outputs_certified() charges: it reads th, the signal bounds and, when
+    the largest bound does not clear every row at once, the rows up to the first it cannot
+    clear (the ny output bounds of the last stage ride with th's n)."""
+    # (without the nzq a design with signal rows passed its budget by up to 52)
+    return m.n + m.nzq + m.m
+
+
+@formula()
 def scan_work(m) -> int:
     """A check of every row at a point (violated_outside(), most_violated()): the
     certificate, the prediction it may need, and the rows."""
-    # (the certificate, outputs_certified(), reads n values, m rows and the nzq signal
-    # bounds: without the nzq a design with signal rows passed its budget by up to 52)
-    return 3 * m.m + m.n + m.nzq + predict_work(m)
+    return 2 * m.m + certificate_work(m) + predict_work(m)
 
 
 @formula()
 def final_check_work(m) -> int:
     """What the dual active set still spends to accept its final working set at its
     scanned point without polish(): the output certificate and converged()."""
-    return m.n + 2 * m.m + m.nzq
+    return certificate_work(m) + m.m
 
 
 @formula(uint=("nin", "nout"))
@@ -303,8 +310,8 @@ def base_work(m, has_outputs: bool) -> int:
     signals' free response, the slacks K, the output certificate and prediction, and the
     final finish()."""
     last = m.n_yq // m.ny - 1
-    return (unconstrained_work(m, last, last, has_outputs) + free_response_work(m) + 4 * m.m
-            + m.n + m.nzq + predict_work(m) + finish_work(m))
+    return (unconstrained_work(m, last, last, has_outputs) + free_response_work(m) + 3 * m.m
+            + certificate_work(m) + predict_work(m) + finish_work(m))
 
 
 def largest_unit(m, wcap: int, factor: int) -> int:
@@ -320,11 +327,12 @@ def largest_unit(m, wcap: int, factor: int) -> int:
 def free_step_work(m, certified: bool = True) -> int:
     """What a solve charges when no bound is active and the reference is held over the
     horizon (the scenario between its steps): th0 in one run, the slacks, the output
-    certificate (with output rows) and, when that fails, the output prediction, then
-    finish().  The same step that footprint.py estimates in cycles: one figure in both
-    (docs/checks.md, "One figure per step"); base_work() is its worst case."""
+    certificate (with output rows: the largest bound clears every row at once) and, when
+    that fails, the output prediction, then finish().  The same step that footprint.py
+    estimates in cycles: one figure in both (docs/checks.md, "One figure per step");
+    base_work() is its worst case."""
     rows = m.has_output_rows
-    return (unconstrained_work(m, 0, 1, rows) + 2 * m.m + (m.n + m.m if rows else 0)
+    return (unconstrained_work(m, 0, 1, rows) + 2 * m.m + (m.n + m.nzq if rows else 0)
             + (0 if certified or not rows else m.m + predict_work(m)) + finish_work(m))
 
 

@@ -44,7 +44,6 @@ class RowsMixin:
     def outputs_certified(self, th, gam):
         """Mirror of outputs_certified(): can no output (or signal) row be violated at th?"""
         md = self.md
-        self.work += md.n + md.m + md.nzq
         a = np.abs(th)
         thmax = a[~np.isnan(a)].max(initial=self.zero)
         if md.has_signal_rows:
@@ -52,13 +51,18 @@ class RowsMixin:
             bmax = max(last.max(initial=self.zero), md.z_bound.max(initial=self.zero))
         else:
             bmax = md.out_bound[md.n_yq - md.ny:].max(initial=self.zero)
+        self.work += md.n + md.nzq  # what it reads: th and the signal bounds
         if bmax * thmax <= self.gam_out_min:
             return True
         out, sig = self.is_out(), md.signal_rows
-        if not np.all(md.out_bound[md.row_q[out] - md.n] * thmax <= gam[out]):
-            return False
-        z = md.row_q[sig] - SIGNAL.base(md.n, md.n_yq)
-        return bool(np.all(md.z_bound[z] * thmax <= gam[sig])) if md.has_signal_rows else True
+        fails = np.zeros(md.m, dtype=bool)  # the rows it cannot clear; it stops at the first
+        fails[out] = ~(md.out_bound[md.row_q[out] - md.n] * thmax <= gam[out])
+        if md.has_signal_rows:
+            z = md.row_q[sig] - SIGNAL.base(md.n, md.n_yq)
+            fails[sig] = ~(md.z_bound[z] * thmax <= gam[sig])
+        first = int(np.argmax(fails)) if fails.any() else md.m
+        self.work += min(first + 1, md.m)
+        return first == md.m
 
     def outputs_uncertified(self, th, gam):
         """Mirror of outputs_uncertified(): are there predicted rows the certificate cannot
