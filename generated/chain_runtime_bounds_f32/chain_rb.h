@@ -18,7 +18,7 @@
 #include <stddef.h>
 #include <stdint.h>
 #include "chain_rb_config.h"
-#if CHAIN_RB_GENERATION != 0x4a239a8b233e3c2
+#if CHAIN_RB_GENERATION != 0xb79e375ff639336
 #error "chain_rb.h and chain_rb_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
 #endif
 

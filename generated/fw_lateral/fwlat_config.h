@@ -28,7 +28,7 @@
  * stops the build unless it is of the same one: a regeneration interrupted between two
  * of its file moves leaves no mixed tree that compiles.
  */
-#define FWLAT_GENERATION 0x9fc526bd03b5845
+#define FWLAT_GENERATION 0xf2c9434723d84eb
 
 /* The one place where the precision is chosen. */
 #define FWLAT_PRECISION_DOUBLE 1

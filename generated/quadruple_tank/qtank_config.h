@@ -28,7 +28,7 @@
  * stops the build unless it is of the same one: a regeneration interrupted between two
  * of its file moves leaves no mixed tree that compiles.
  */
-#define QTANK_GENERATION 0x93506bcac904c76
+#define QTANK_GENERATION 0x6d9e0fc4048b6be
 
 /* The one place where the precision is chosen. */
 #define QTANK_PRECISION_DOUBLE 1

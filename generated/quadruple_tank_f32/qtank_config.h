@@ -28,7 +28,7 @@
  * stops the build unless it is of the same one: a regeneration interrupted between two
  * of its file moves leaves no mixed tree that compiles.
  */
-#define QTANK_GENERATION 0x03ac90ef4d70585
+#define QTANK_GENERATION 0x0010e59fb100da8
 
 /* The one place where the precision is chosen. */
 #define QTANK_PRECISION_DOUBLE 0

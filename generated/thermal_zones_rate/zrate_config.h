@@ -28,7 +28,7 @@
  * stops the build unless it is of the same one: a regeneration interrupted between two
  * of its file moves leaves no mixed tree that compiles.
  */
-#define ZRATE_GENERATION 0x37874f877d88e2d
+#define ZRATE_GENERATION 0x0af1d002b288729
 
 /* The one place where the precision is chosen. */
 #define ZRATE_PRECISION_DOUBLE 1

@@ -25,7 +25,7 @@
  */
 #include <math.h>
 #include "rollmpc_internal.h"
-#if ROLLMPC_GENERATION != 0x478f599efa5d3f9
+#if ROLLMPC_GENERATION != 0x28ca0409c7936b5
 #error "rollmpc_solver.c and rollmpc_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
 #endif
 
@@ -1064,14 +1064,17 @@ static rollmpc_real row_value(const rollmpc_work *ws, const rollmpc_mode_data *m
 /*
  * 1 if no output row can be violated at th: |(Gamma th)_k| <= out_bound_k max|th| <= gamma_r
  * (out_bound carries the rounding margin), so the N^2/2 prediction can be skipped.
- * Charged by what it reads: th, the signal bounds and the rows up to the first it cannot
- * clear (certificate_work() is the most; the ny bounds of the last stage ride with th).
+ * Charged by what it reads: th, the signal bounds and the predicted rows up to the first
+ * it cannot clear (certificate_work() is the most; the ny bounds of the last stage ride
+ * with th).
  */
 static int outputs_certified(rollmpc_work *ws, const rollmpc_mode_data *md,
     const rollmpc_real *th)
 {
+    const int16_t *rows = &md->scan_rows[md->m_box]; /* the predicted rows */
+    const int count = md->m - md->m_box;
     rollmpc_real thmax = R_(0.0), bmax = R_(0.0);
-    int i, r;
+    int i;
     ws->work += (uint32_t)md->n;
     for (i = 0; i < md->n; ++i) {
         const rollmpc_real v = ROLLMPC_FABS(th[i]);
@@ -1083,14 +1086,14 @@ static int outputs_certified(rollmpc_work *ws, const rollmpc_mode_data *md,
     if (bmax * thmax <= ws->gam_out_min) {
         return 1; /* the largest bound against the tightest output row */
     }
-    for (r = 0; r < md->m; ++r) {
-        const int q = md->row_q[r];
-        if (q >= md->n && !(md->out_bound[q - md->n] * thmax <= ws->gam[r])) {
+    for (i = 0; i < count; ++i) { /* the output and signal rows only, ascending */
+        const int r = rows[i], q = md->row_q[r];
+        if (!(md->out_bound[q - md->n] * thmax <= ws->gam[r])) {
             break;
         }
     }
-    ws->work += (uint32_t)((r < md->m) ? r + 1 : r);
-    return r >= md->m;
+    ws->work += (uint32_t)((i < count) ? i + 1 : i);
+    return i >= count;
 }
 
 /* K = gamma - M th0 of the output rows (needs the N^2/2 prediction of th0). */

@@ -60,9 +60,10 @@ class RowsMixin:
         if md.has_signal_rows:
             z = md.row_q[sig] - SIGNAL.base(md.n, md.n_yq)
             fails[sig] = ~(md.z_bound[z] * thmax <= gam[sig])
-        first = int(np.argmax(fails)) if fails.any() else md.m
-        self.work += min(first + 1, md.m)
-        return first == md.m
+        fails = fails[md.predicted_rows]  # it reads the predicted rows only, ascending
+        first = int(np.argmax(fails)) if fails.any() else fails.size
+        self.work += min(first + 1, fails.size)
+        return first == fails.size
 
     def outputs_uncertified(self, th, gam):
         """Mirror of outputs_uncertified(): are there predicted rows the certificate cannot
