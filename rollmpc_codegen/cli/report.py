@@ -5,6 +5,7 @@ as a short summary on stdout (with ``--flights``, a line per flight), or with
 from __future__ import annotations
 
 from ..config.errors import ConfigError
+from ..qp.work import STEP_FIXED_UNITS
 from .options import (add_build_dir, add_command, add_config, add_flights, add_outputs,
                       add_part,
                       add_perturbations,
@@ -128,7 +129,8 @@ def summary_text(rep: dict) -> str:
     cpw = rep.get("cycles_per_work_unit")
     if cpw and cpw["steps"]:
         flight = "" if cpw["flight_of_max"] is None else f"flight {cpw['flight_of_max']}, "
-        lines.append(f"  cycles per work unit on {cpw['steps']} counted steps: max {cpw['max']} "
+        lines.append(f"  cycles per work unit (each step over its work + the {STEP_FIXED_UNITS} "
+                     f"outside the solver) on {cpw['steps']} counted steps: max {cpw['max']} "
                      f"({flight}step {cpw['step_of_max']}), median {cpw['median']}; work budget "
                      f"{rep['work_budget']:,} units")
     counts = rep.get("statuses", {})

@@ -13,6 +13,7 @@ from pathlib import Path
 import numpy as np
 
 from .. import __version__
+from ..qp.work import STEP_FIXED_UNITS
 from ..sim.flight_plan import FlightPlan, by_kind
 from ..sim.metrics import longest_run, status_counts
 from .build import (CROSS_CC, build_target, core_of, image_sizes, target_cflags,
@@ -91,10 +92,13 @@ def cycles_by_mode(run: FlightRun, ctx: dict) -> dict:
 
 
 def cycles_per_work(runs) -> dict:
-    """Estimated cycles per work unit (qp/work.py) on the counted steps that solved a QP, over
-    every flight: its largest and median ratio, and the flight and step of the largest (the
-    calibration of the core's cycles per work unit, parts.py; docs/solver.md "Work budget")."""
-    ratios = {(f.flight.index, k): c.cycles / f.record.info[k]["work"]
+    """Cycles per work unit (qp/work.py) on the counted steps that solved a QP, over every
+    flight: its largest and median ratio, and the flight and step of the largest (the
+    calibration of the core's cycles per work unit, parts.py; docs/solver.md "Work budget").
+    A step's ratio is its cycles over its work plus STEP_FIXED_UNITS: the auto budget is
+    the share of Ts over the core's rate less those units, left for the step outside the
+    solver, so a step fits the share whenever its ratio is within the rate."""
+    ratios = {(f.flight.index, k): c.cycles / (f.record.info[k]["work"] + STEP_FIXED_UNITS)
               for f in runs for k, c in f.run.counts.items() if f.record.info[k]["work"] > 0}
     if not ratios:
         return {"max": None, "median": None, "flight_of_max": None, "step_of_max": None,
