@@ -39,8 +39,10 @@ class Core:
     emulator_cpu: str  # unicorn's CPU model (unicorn.arm_const.UC_CPU_ARM_<...>)
     cycle_model: str  # target/cycle_models.py MODELS
     cycle_band: str  # the error band of that model, as docs/target.md "Parts" argues it
-    # estimated cycles per work unit (qp/work.py) on the counted steps that spend most of
-    # their budget, with margin, per precision the FPU runs: the auto work budget's divisor
+    # cycles per work unit (qp/work.py), per precision the FPU runs: the largest ratio of a
+    # counted step's cycles to its work plus STEP_FIXED_UNITS over the examples, with
+    # margin (the current maxima: docs/target.md "Cycles per work unit"); the auto work
+    # budget's divisor
     work_unit_cycles: tuple[tuple[str, float], ...]
     code_bytes: int  # the text of every generated function at -O2: the flash allowance
 
