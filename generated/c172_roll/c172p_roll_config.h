@@ -28,7 +28,7 @@
  * stops the build unless it is of the same one: a regeneration interrupted between two
  * of its file moves leaves no mixed tree that compiles.
  */
-#define C172P_ROLL_GENERATION 0x8231780011c6529
+#define C172P_ROLL_GENERATION 0x46f2b869bff8b44
 
 /* The one place where the precision is chosen. */
 #define C172P_ROLL_PRECISION_DOUBLE 1

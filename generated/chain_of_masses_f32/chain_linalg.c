@@ -12,7 +12,7 @@
  */
 #include <math.h>
 #include "chain_internal.h"
-#if CHAIN_GENERATION != 0xfb9b09c3148ba70
+#if CHAIN_GENERATION != 0x8f5f29478ae36e1
 #error "chain_linalg.c and chain_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
 #endif
 

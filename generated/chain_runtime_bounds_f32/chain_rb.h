@@ -18,7 +18,7 @@
 #include <stddef.h>
 #include <stdint.h>
 #include "chain_rb_config.h"
-#if CHAIN_RB_GENERATION != 0xb79e375ff639336
+#if CHAIN_RB_GENERATION != 0x2437ee809a496ed
 #error "chain_rb.h and chain_rb_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
 #endif
 

@@ -7,7 +7,7 @@
 
 #include <math.h>
 #include "quadatt.h"
-#if QUADATT_GENERATION != 0x53b54689d72e190
+#if QUADATT_GENERATION != 0x8497c9a2b43f60d
 #error "quadatt_internal.h and quadatt_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
 #endif
 

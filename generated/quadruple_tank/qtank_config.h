@@ -28,7 +28,7 @@
  * stops the build unless it is of the same one: a regeneration interrupted between two
  * of its file moves leaves no mixed tree that compiles.
  */
-#define QTANK_GENERATION 0x6d9e0fc4048b6be
+#define QTANK_GENERATION 0x4256e56edfeca37
 
 /* The one place where the precision is chosen. */
 #define QTANK_PRECISION_DOUBLE 1

@@ -25,7 +25,7 @@
  */
 #include <math.h>
 #include "zrate_internal.h"
-#if ZRATE_GENERATION != 0x89b145fa90fcc4f
+#if ZRATE_GENERATION != 0x9639762b227511e
 #error "zrate_solver.c and zrate_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
 #endif
 
@@ -63,13 +63,21 @@ static uint32_t predict_work(const zrate_mode_data *md)
 }
 
 /*
- * The most outputs_certified() charges: it reads th, the signal bounds and, when the
- * largest bound does not clear every row at once, the rows up to the first it cannot clear
- * (the ny output bounds of the last stage ride with th's n).
+ * What outputs_certified() charges before it reads a row: th's n values (the ny output
+ * bounds of the last stage ride with them) and the nzq signal bounds.
+ */
+static uint32_t certificate_read_work(const zrate_mode_data *md)
+{
+    return (uint32_t)md->n;
+}
+
+/*
+ * The most outputs_certified() charges: certificate_read_work() and, when the largest
+ * bound does not clear every row at once, the rows up to the first it cannot clear.
  */
 static uint32_t certificate_work(const zrate_mode_data *md)
 {
-    return (uint32_t)md->n + (uint32_t)md->m;
+    return certificate_read_work(md) + (uint32_t)md->m;
 }
 
 /*
@@ -1140,7 +1148,7 @@ static int outputs_certified(zrate_work *ws, const zrate_mode_data *md,
     const int count = md->m - md->m_box;
     zrate_real thmax = R_(0.0), bmax = R_(0.0);
     int i;
-    ws->work += (uint32_t)md->n;
+    ws->work += certificate_read_work(md);
     for (i = 0; i < md->n; ++i) {
         const zrate_real v = ZRATE_FABS(th[i]);
         thmax = (v > thmax) ? v : thmax;

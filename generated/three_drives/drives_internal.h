@@ -7,7 +7,7 @@
 
 #include <math.h>
 #include "drives.h"
-#if DRIVES_GENERATION != 0xcee2d3380e1e997
+#if DRIVES_GENERATION != 0x8fc257f340c3f1e
 #error "drives_internal.h and drives_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
 #endif
 

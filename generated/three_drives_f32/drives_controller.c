@@ -10,7 +10,7 @@
  */
 #include <math.h>
 #include "drives_internal.h"
-#if DRIVES_GENERATION != 0x63bf8fd946b2d5c
+#if DRIVES_GENERATION != 0x360358ea7deba5b
 #error "drives_controller.c and drives_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
 #endif
 

@@ -12,7 +12,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..qp.rows import OUTPUT, RATE, SIGNAL
-from ..qp.work import predict_work
+from ..qp.work import certificate_read_work, predict_work
 from .signals import predicted_index
 
 
@@ -51,7 +51,7 @@ class RowsMixin:
             bmax = max(last.max(initial=self.zero), md.z_bound.max(initial=self.zero))
         else:
             bmax = md.out_bound[md.n_yq - md.ny:].max(initial=self.zero)
-        self.work += md.n + md.nzq  # what it reads: th and the signal bounds
+        self.work += certificate_read_work(md)  # what it reads: th and the signal bounds
         if bmax * thmax <= self.gam_out_min:
             return True
         out, sig = self.is_out(), md.signal_rows
