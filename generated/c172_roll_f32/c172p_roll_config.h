@@ -28,7 +28,7 @@
  * stops the build unless it is of the same one: a regeneration interrupted between two
  * of its file moves leaves no mixed tree that compiles.
  */
-#define C172P_ROLL_GENERATION 0xe0451f4b4131a8f
+#define C172P_ROLL_GENERATION 0x0cc5303e82a17ed
 
 /* The one place where the precision is chosen. */
 #define C172P_ROLL_PRECISION_DOUBLE 0

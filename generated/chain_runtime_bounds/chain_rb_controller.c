@@ -10,7 +10,7 @@
  */
 #include <math.h>
 #include "chain_rb_internal.h"
-#if CHAIN_RB_GENERATION != 0x483702afe1b39e5
+#if CHAIN_RB_GENERATION != 0x56dcf63e5c88a6b
 #error "chain_rb_controller.c and chain_rb_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
 #endif
 

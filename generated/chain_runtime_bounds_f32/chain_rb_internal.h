@@ -7,7 +7,7 @@
 
 #include <math.h>
 #include "chain_rb.h"
-#if CHAIN_RB_GENERATION != 0x2437ee809a496ed
+#if CHAIN_RB_GENERATION != 0xafdfb8318a1a8f3
 #error "chain_rb_internal.h and chain_rb_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
 #endif
 

@@ -10,7 +10,7 @@
  */
 #include <math.h>
 #include "chain_soft_internal.h"
-#if CHAIN_SOFT_GENERATION != 0x4ddc9eadb0951ca
+#if CHAIN_SOFT_GENERATION != 0x343b553282d96ab
 #error "chain_soft_controller.c and chain_soft_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
 #endif
 

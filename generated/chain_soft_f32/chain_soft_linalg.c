@@ -12,7 +12,7 @@
  */
 #include <math.h>
 #include "chain_soft_internal.h"
-#if CHAIN_SOFT_GENERATION != 0x4b1b7c51cb348e4
+#if CHAIN_SOFT_GENERATION != 0x051b83af8884904
 #error "chain_soft_linalg.c and chain_soft_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
 #endif
 

@@ -18,7 +18,7 @@
 #include <stddef.h>
 #include <stdint.h>
 #include "fwlat_config.h"
-#if FWLAT_GENERATION != 0x7a58e8c04ba878b
+#if FWLAT_GENERATION != 0x7bcbedcac0fb420
 #error "fwlat.h and fwlat_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
 #endif
 
@@ -109,8 +109,10 @@ typedef struct {
     fwlat_real nu[FWLAT_NT_MAX];     /**< Terminal multiplier step; scratch of correct(). */
     fwlat_real xn[FWLAT_NX_MAX];    /**< Observer: next state. */
     fwlat_real innov[FWLAT_N_OUTPUTS]; /**< Observer: innovation. */
-    int16_t run[FWLAT_HORIZON + 1];       /**< First stages of the runs of equal reference. */
-    int16_t set[FWLAT_M_MAX];              /**< Rows of the sweep set. */
+    union {                                       /**< Two index lists never live at once: */
+        int16_t run[FWLAT_HORIZON + 1];   /**< unconstrained(): first stages of the runs of equal reference; */
+        int16_t set[FWLAT_M_MAX];          /**< the sweeps, after it: rows of the sweep set. */
+    } lists;
     int16_t wset[FWLAT_WSET_MAX];          /**< Rows of the polish working set. */
     int16_t tmp[FWLAT_TMP_MAX];            /**< Scratch index list: rows joining the working set, the primal polish's inputs. */
     uint8_t in_set[FWLAT_M_MAX];           /**< Membership flags of the sweep set, or of the working
@@ -118,6 +120,8 @@ typedef struct {
     uint8_t input_role[FWLAT_N_MAX];       /**< Primal polish: input bound now, row of the factor. */
     int16_t primal_form;                          /**< Primal polish: form of the factor in chol (0: none). */
     int16_t primal_head;                          /**< Primal polish: rows of its last full factorisation. */
+    int16_t primal_k;                             /**< Primal polish: rows of the factor. */
+    int16_t primal_rows[FWLAT_N_MAX];      /**< Primal polish: the factor's rows (inputs), in order. */
     fwlat_real gam_out_min;                /**< Smallest right-hand side of an output row. */
     int out_slacks_ok;                            /**< K of the output rows is computed. */
     int chol_holds;                               /**< What chol holds: FWLAT_CHOL_NONE, _DUAL or _PRIMAL. */

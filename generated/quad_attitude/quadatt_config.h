@@ -28,7 +28,7 @@
  * stops the build unless it is of the same one: a regeneration interrupted between two
  * of its file moves leaves no mixed tree that compiles.
  */
-#define QUADATT_GENERATION 0x8497c9a2b43f60d
+#define QUADATT_GENERATION 0x4bd60d692d2c97d
 
 /* The one place where the precision is chosen. */
 #define QUADATT_PRECISION_DOUBLE 1

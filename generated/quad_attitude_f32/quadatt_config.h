@@ -28,7 +28,7 @@
  * stops the build unless it is of the same one: a regeneration interrupted between two
  * of its file moves leaves no mixed tree that compiles.
  */
-#define QUADATT_GENERATION 0xa52d1e43ca7d4c0
+#define QUADATT_GENERATION 0x298d5cd4e9fcaaf
 
 /* The one place where the precision is chosen. */
 #define QUADATT_PRECISION_DOUBLE 0

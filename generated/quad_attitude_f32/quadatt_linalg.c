@@ -12,7 +12,7 @@
  */
 #include <math.h>
 #include "quadatt_internal.h"
-#if QUADATT_GENERATION != 0xa52d1e43ca7d4c0
+#if QUADATT_GENERATION != 0x298d5cd4e9fcaaf
 #error "quadatt_linalg.c and quadatt_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
 #endif
 

@@ -18,7 +18,7 @@
 #include <stddef.h>
 #include <stdint.h>
 #include "qtank_config.h"
-#if QTANK_GENERATION != 0xce5270be34f41b2
+#if QTANK_GENERATION != 0x662751f7c42ac77
 #error "qtank.h and qtank_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
 #endif
 
@@ -105,8 +105,10 @@ typedef struct {
     qtank_real nu[QTANK_NT_MAX];     /**< Terminal multiplier step; scratch of correct(). */
     qtank_real xn[QTANK_NX_MAX];    /**< Observer: next state. */
     qtank_real innov[QTANK_N_OUTPUTS]; /**< Observer: innovation. */
-    int16_t run[QTANK_HORIZON + 1];       /**< First stages of the runs of equal reference. */
-    int16_t set[QTANK_M_MAX];              /**< Rows of the sweep set. */
+    union {                                       /**< Two index lists never live at once: */
+        int16_t run[QTANK_HORIZON + 1];   /**< unconstrained(): first stages of the runs of equal reference; */
+        int16_t set[QTANK_M_MAX];          /**< the sweeps, after it: rows of the sweep set. */
+    } lists;
     int16_t wset[QTANK_WSET_MAX];          /**< Rows of the polish working set. */
     int16_t tmp[QTANK_TMP_MAX];            /**< Scratch index list: rows joining the working set, the primal polish's inputs. */
     uint8_t in_set[QTANK_M_MAX];           /**< Membership flags of the sweep set, or of the working
@@ -114,6 +116,8 @@ typedef struct {
     uint8_t input_role[QTANK_N_MAX];       /**< Primal polish: input bound now, row of the factor. */
     int16_t primal_form;                          /**< Primal polish: form of the factor in chol (0: none). */
     int16_t primal_head;                          /**< Primal polish: rows of its last full factorisation. */
+    int16_t primal_k;                             /**< Primal polish: rows of the factor. */
+    int16_t primal_rows[QTANK_N_MAX];      /**< Primal polish: the factor's rows (inputs), in order. */
     qtank_real gam_out_min;                /**< Smallest right-hand side of an output row. */
     int out_slacks_ok;                            /**< K of the output rows is computed. */
     int chol_holds;                               /**< What chol holds: QTANK_CHOL_NONE, _DUAL or _PRIMAL. */

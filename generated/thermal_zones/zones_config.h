@@ -28,7 +28,7 @@
  * stops the build unless it is of the same one: a regeneration interrupted between two
  * of its file moves leaves no mixed tree that compiles.
  */
-#define ZONES_GENERATION 0x38f70095223e6f2
+#define ZONES_GENERATION 0x81a6276fa0b0124
 
 /* The one place where the precision is chosen. */
 #define ZONES_PRECISION_DOUBLE 1

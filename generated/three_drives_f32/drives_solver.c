@@ -25,7 +25,7 @@
  */
 #include <math.h>
 #include "drives_internal.h"
-#if DRIVES_GENERATION != 0x360358ea7deba5b
+#if DRIVES_GENERATION != 0x12b7a88ce8aae4c
 #error "drives_solver.c and drives_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
 #endif
 
@@ -873,8 +873,8 @@ static void matvec_rows(const drives_real *M, int rows, int nc, const drives_rea
 }
 
 /*
- * Runs of equal w over the stages 0..N-2: ws->run[0..count) are their first stages and
- * ws->run[count] = N-1. Returns count; *longest is the first longest run (-1 if none).
+ * Runs of equal w over the stages 0..N-2: ws->lists.run[0..count) are their first stages and
+ * ws->lists.run[count] = N-1. Returns count; *longest is the first longest run (-1 if none).
  */
 static int reference_runs(drives_work *ws, const drives_mode_data *md, int *longest)
 {
@@ -882,20 +882,20 @@ static int reference_runs(drives_work *ws, const drives_mode_data *md, int *long
     const drives_real *w = ws->yv;
     int k = 0, j, count = 0, best = -1, best_len = 0;
     if (last > 0) {
-        ws->run[count++] = 0;
+        ws->lists.run[count++] = 0;
     }
     while (k < (last - 1) * ny) { /* w_k of stage k / ny against the same output a stage later */
         if (w[k] < w[k + ny] || w[k] > w[k + ny]) {
             const int stage = k / ny + 1;
-            ws->run[count++] = (int16_t)stage;
+            ws->lists.run[count++] = (int16_t)stage;
             k = stage * ny; /* on to the next pair of stages */
         } else {
             ++k;
         }
     }
-    ws->run[count] = (int16_t)last;
+    ws->lists.run[count] = (int16_t)last;
     for (j = 0; j < count; ++j) {
-        const int len = ws->run[j + 1] - ws->run[j];
+        const int len = ws->lists.run[j + 1] - ws->lists.run[j];
         if (len > best_len) {
             best_len = len;
             best = j;
@@ -944,8 +944,9 @@ static void other_runs(drives_work *ws, const drives_mode_data *md, int a, int n
         drives_real acc = ws->th0[i], other = R_(0.0);
         for (j = 0; j < nruns; ++j) {
             if (j != longest) {
-                const drives_real sum = stage_sum(g, ws->run[j], ws->run[j + 1], ny);
-                acc += w[ws->run[j] * ny] * sum;
+                const drives_real sum = stage_sum(g, ws->lists.run[j], ws->lists.run[j + 1],
+                    ny);
+                acc += w[ws->lists.run[j] * ny] * sum;
                 other += sum;
             }
         }
@@ -978,11 +979,12 @@ static void unconstrained(drives_work *ws, const drives_mode_data *md,
         b = (b + 1 < ny) ? b + 1 : 0;
     }
     nruns = reference_runs(ws, md, &longest);
-    summed = last - ((longest >= 0) ? ws->run[longest + 1] - ws->run[longest] : 0);
+    summed = last - ((longest >= 0) ? ws->lists.run[longest + 1] - ws->lists.run[longest] : 0);
     matvec_rows(md->Kx, n, md->nx, x, ws->th0);
     for (a = 0; a < ny; ++a) {
         const drives_real w_last = ws->yv[last * ny + a];
-        const drives_real w_long = (longest >= 0) ? ws->yv[ws->run[longest] * ny + a] : R_(0.0);
+        const drives_real w_long = (longest >= 0)
+            ? ws->yv[ws->lists.run[longest] * ny + a] : R_(0.0);
         const drives_real *g = &md->EinvGt[last * ny + a]; /* g[i nyq]: the last stage */
         const drives_real *coef = &md->colsum[a * n]; /* one run: colsum - 0 = colsum */
         if (nruns > 1) {
@@ -1426,7 +1428,7 @@ static int build_set(drives_work *ws, const drives_mode_data *md)
     ws->work += (uint32_t)md->m;
     for (r = 0; r < md->m; ++r) {
         if (ws->in_set[r]) {
-            ws->set[count++] = (int16_t)r;
+            ws->lists.set[count++] = (int16_t)r;
         }
     }
     return count;
@@ -1444,10 +1446,10 @@ static drives_real sweep(drives_work *ws, const drives_mode_data *md,
     int jr, js;
     ws->work += sweep_work(md, count);
     for (jr = 0; jr < count; ++jr) {
-        const int r = ws->set[jr];
+        const int r = ws->lists.set[jr];
         drives_real acc = R_(0.0), t, wv, nl, d;
         for (js = 0; js < count; ++js) {
-            const int s = ws->set[js];
+            const int s = ws->lists.set[js];
             if (s != r && lam[s] > R_(0.0)) {
                 acc += h_rows(md, r, s) * lam[s];
             }
@@ -1539,11 +1541,14 @@ static int violated_outside(drives_work *ws, const drives_mode_data *md,
  *
  * ws->input_role[i] flags input i (ROLE_*) and, for a tail row, holds its generation:
  * 1 for the inputs that joined at the first update, one more at each update that appends
- * inputs. ws->primal_form and ws->primal_head (the head's rows) describe the factor of the
+ * inputs. ws->primal_rows[0..primal_k) are the factor's rows in order, the first
+ * ws->primal_head of them its head; with ws->primal_form they describe the factor of the
  * previous primal solve, of this QP or of the mode's last one (the matrices are the mode's:
  * a shifted working set keeps most of its inputs; primal_form = FORM_NONE when the last QP
- * was another mode's, see forget_factor()). The factor is intact while ws->chol_holds is
- * CHOL_PRIMAL: every other writer of ws->chol changes it.
+ * was another mode's, see forget_factor()). The order is kept, not derived again from the
+ * roles: an update keeps the previous rows that stay, in their order, and appends the
+ * inputs that join, so it reads the previous rows once and the inputs once. The factor is
+ * intact while ws->chol_holds is CHOL_PRIMAL: every other writer of ws->chol changes it.
  */
 enum { ROLE_BOUND = 1, ROLE_HEAD = 2, ROLE_TAIL = 4 }; /* bound now; in the head, tail */
 enum { ROLE_GEN_ONE = 8, ROLE_GEN_MAX = 31 }; /* a tail row's generation: role / 8 */
@@ -1583,169 +1588,91 @@ static int in_form(int role, int form)
 /* The generation of a tail row (0 for the others). */
 static int role_gen(int role)
 {
-    return role / ROLE_GEN_ONE;
+    return (int)((unsigned)role / ROLE_GEN_ONE); /* a shift: a role is never negative */
 }
 
 /*
- * ws->tmp[from..to): the tail rows (the inputs whose role has ROLE_TAIL) in the head's
- * order (descending inputs when down, else ascending); orders them by generation, each
- * generation in that order. Where they are not already so, the rows of each generation
- * are counted, then each input placed after those of the generations before its own.
- * Cost: to - from role reads, and 2 n more where the order changes.
+ * Compare the factor of the previous solve (form ws->primal_form, rows ws->primal_rows)
+ * with the nw bound inputs of n now: returns the order k of the updated factor (the
+ * inputs of that form), sets *from to the first row that changes (the first to leave, in
+ * the factor's order, or else the first to join, after every kept row), *head to the rows
+ * its head keeps, *newest to the last generation of the tail rows it keeps and *joined
+ * to the inputs that join. Cost: a role read per previous row.
  */
-static void place_tail(drives_work *ws, int n, int from, int to, int down)
+static int primal_diff(const drives_work *ws, int nw, int n, int *from, int *head,
+    int *newest, int *joined)
 {
-    int16_t next[ROLE_GEN_MAX + 1]; /* the place of a generation's next row */
-    int g, j, at = from;
-    for (j = from + 1; j < to && role_gen(ws->input_role[ws->tmp[j - 1]])
-             <= role_gen(ws->input_role[ws->tmp[j]]); ++j) {
-    }
-    if (j >= to) {
-        return; /* already by generation */
-    }
-    for (g = 0; g <= ROLE_GEN_MAX; ++g) {
-        next[g] = 0;
-    }
-    for (j = 0; j < n; ++j) {
-        if ((ws->input_role[j] & ROLE_TAIL) != 0) {
-            ++next[role_gen(ws->input_role[j])];
-        }
-    }
-    for (g = 0; g <= ROLE_GEN_MAX; ++g) {
-        const int rows = next[g];
-        next[g] = (int16_t)at;
-        at += rows;
-    }
-    for (j = 0; j < n; ++j) {
-        const int i = down ? n - 1 - j : j, role = ws->input_role[i];
-        if ((role & ROLE_TAIL) != 0) {
-            ws->tmp[next[role_gen(role)]++] = (int16_t)i;
-        }
-    }
-}
-
-/*
- * Compare the factor of the previous solve (form ws->primal_form) with the inputs of that
- * form now: returns the order k of the updated factor, sets *from to the first row that
- * changes (k when none does), *head to the rows its head keeps, *newest to the last
- * generation of the tail rows it keeps and *joined to the inputs that join. The head runs
- * in descending inputs in the free form, ascending in the bound form, the tail by
- * generation, each in the head's order (primal_order()): the first row to change is that
- * of the first input to leave, in that order, or else the first to join, after every
- * kept row. Inputs are read in ascending order: in the free form the first in the head's
- * order is the last met.
- */
-static int primal_diff(const drives_work *ws, int n, int *from, int *head, int *newest,
-    int *joined)
-{
-    const int form = ws->primal_form, down = form == FORM_FREE;
-    int i, k = 0, kept = 0, head_cut = -1, tail = 0, leave_gen = 0, leave_at = -1;
+    const int form = ws->primal_form, k_old = ws->primal_k, heads = ws->primal_head;
+    const int k = (form == FORM_BOUND) ? nw : n - nw;
+    int pos, kept = 0, leave = -1;
+    *head = 0;
     *newest = 0;
-    *joined = 0;
-    for (i = 0; i < n; ++i) {
-        const int role = ws->input_role[i], in = in_form(role, form), g = role_gen(role);
-        k += in;
-        if (role & ROLE_HEAD) {
-            head_cut = (!in && (down || head_cut < 0)) ? kept : head_cut; /* rows below */
-            kept += in;
-        } else if (!(role & ROLE_TAIL)) {
-            *joined += in;
-        } else if (in) {
-            ++tail;
+    for (pos = 0; pos < k_old; ++pos) {
+        const int role = ws->input_role[ws->primal_rows[pos]];
+        if (in_form(role, form)) {
+            const int g = role_gen(role); /* 0 in the head */
+            ++kept;
+            *head += pos < heads;
             *newest = (g > *newest) ? g : *newest;
         } else {
-            if (leave_at < 0 || g < leave_gen || (down && g == leave_gen)) {
-                leave_gen = g; /* the first tail row to leave, so far */
-                leave_at = i;
-            }
+            leave = (leave < 0) ? pos : leave;
         }
     }
-    *head = kept;
-    if (head_cut >= 0) {
-        *from = down ? kept - head_cut : head_cut;
-        return k;
-    }
-    *from = kept + tail;
-    if (leave_at >= 0) { /* the kept tail rows before it */
-        *from = kept;
-        for (i = 0; i < n; ++i) {
-            const int role = ws->input_role[i], g = role_gen(role);
-            *from += (role & ROLE_TAIL) && in_form(role, form)
-                && (g < leave_gen || (g == leave_gen && (down ? i > leave_at : i < leave_at)));
-        }
-    }
+    *from = (leave < 0) ? k_old : leave;
+    *joined = k - kept;
     return k;
 }
 
 /*
- * The rows of the factor in order into ws->tmp[0..k): the head (an update: the rows the
- * head keeps; a new factor: all k) in descending inputs in the free form and ascending in
- * the bound form: in an MPC plan the inputs that saturate come first along the horizon,
- * so the inputs next to the saturated ones, where the working set changes, come last.
- * Then (an update) the tail: the kept tail rows by generation, then the inputs that join
- * as generation newest + 1, each generation in the head's order. The other inputs follow
- * in ws->tmp[k..n), ascending. Sets the roles to match and ws->primal_form,
- * ws->primal_head.
+ * The rows of the factor in order into ws->tmp[0..k) and ws->primal_rows: a new factor
+ * (!update) has them all as its head, in descending inputs in the free form and ascending
+ * in the bound form: in an MPC plan the inputs that saturate come first along the
+ * horizon, so the inputs next to the saturated ones, where the working set changes, come
+ * last. An update keeps the previous rows that stay in their order (the head's rows that
+ * stay, then the tail's by generation, each generation in the head's order) and appends
+ * the inputs that join as generation newest + 1, in the head's order. The other inputs
+ * follow in ws->tmp[k..n), ascending. Sets the roles to match and ws->primal_form,
+ * ws->primal_head, ws->primal_k.
  */
 static void primal_order(drives_work *ws, int n, int form, int update, int k, int head,
     int newest)
 {
     const int down = form == FORM_FREE, stride = down ? -1 : 1;
-    int i, h = down ? head - 1 : 0, t = down ? k - 1 : head, rest = k;
+    const int join_role = update ? ROLE_TAIL | ((newest + 1) * ROLE_GEN_ONE) : ROLE_HEAD;
+    int i, kept = 0, rest = k, at;
+    if (update) {
+        for (i = 0; i < ws->primal_k; ++i) {
+            const int q = ws->primal_rows[i];
+            if (in_form(ws->input_role[q], form)) {
+                ws->tmp[kept++] = (int16_t)q;
+            }
+        }
+    }
+    at = down ? k - 1 : kept; /* the rows that join (all of a new factor's) */
     for (i = 0; i < n; ++i) {
         const int role = ws->input_role[i], bound = role & ROLE_BOUND;
         if (!in_form(role, form)) {
             ws->tmp[rest++] = (int16_t)i;
             ws->input_role[i] = (uint8_t)bound;
-        } else if (!update || (role & ROLE_HEAD)) {
-            ws->tmp[h] = (int16_t)i;
-            h += stride;
-            ws->input_role[i] = (uint8_t)(bound | ROLE_HEAD);
+        } else if (!update || (role & (ROLE_HEAD | ROLE_TAIL)) == 0) {
+            const int joined = bound | join_role;
+            ws->tmp[at] = (int16_t)i;
+            at += stride;
+            ws->input_role[i] = (uint8_t)joined;
         } else {
-            const int g = (role & ROLE_TAIL) ? role_gen(role) : newest + 1;
-            const int tail_role = bound | ROLE_TAIL | (g * ROLE_GEN_ONE);
-            ws->input_role[i] = (uint8_t)tail_role;
-            ws->tmp[t] = (int16_t)i;
-            t += stride;
+            /* a kept row: in its place from the previous order, its role unchanged */
         }
     }
-    place_tail(ws, n, head, k, down);
+    for (i = 0; i < k; ++i) {
+        ws->primal_rows[i] = ws->tmp[i];
+    }
     ws->primal_form = (int16_t)form;
     ws->primal_head = (int16_t)head;
+    ws->primal_k = (int16_t)k;
 }
 
 /*
- * The rows of the previous factor in their order into ws->tmp[0..k_old), from the roles
- * primal_order() left: the head, then the tail by generation, each in the head's order
- * (descending inputs in the free form). Returns k_old.
- */
-static int primal_old_order(drives_work *ws, int n)
-{
-    const int down = ws->primal_form == FORM_FREE, stride = down ? -1 : 1;
-    int i, heads = 0, rows = 0, h, t;
-    for (i = 0; i < n; ++i) {
-        heads += (ws->input_role[i] & ROLE_HEAD) != 0;
-        rows += (ws->input_role[i] & (ROLE_HEAD | ROLE_TAIL)) != 0;
-    }
-    h = down ? heads - 1 : 0;
-    t = down ? rows - 1 : heads;
-    for (i = 0; i < n; ++i) {
-        const int role = ws->input_role[i];
-        if (role & ROLE_HEAD) {
-            ws->tmp[h] = (int16_t)i;
-            h += stride;
-        }
-        if (role & ROLE_TAIL) {
-            ws->tmp[t] = (int16_t)i;
-            t += stride;
-        }
-    }
-    place_tail(ws, n, heads, rows, down);
-    return rows;
-}
-
-/*
- * The rows of the previous factor (order k_old, in ws->tmp) whose inputs left the form,
+ * The rows of the previous factor (order k_old, in ws->primal_rows) whose inputs left the form,
  * deleted from the last up by chol_delete(), Y's columns carried (apply), or only costed
  * (!apply). Returns their work.
  */
@@ -1756,7 +1683,7 @@ static uint32_t primal_deletes(drives_work *ws, const drives_mode_data *md, int 
     int pos, k = k_old;
     uint32_t work = 0u;
     for (pos = k_old - 1; pos >= 0; --pos) {
-        if (!in_form(ws->input_role[ws->tmp[pos]], form)) {
+        if (!in_form(ws->input_role[ws->primal_rows[pos]], form)) {
             work += primal_delete_work(pos, k, md->nt);
             if (apply) {
                 chol_delete(ws->chol, pos, k, ws->rhs, ws->ycol, md->nt);
@@ -2210,7 +2137,7 @@ static int primal_solve(drives_work *ws, const drives_mode_data *md, int nw,
      * or its tail has used up the generations (a new one starts them again) */
     if (ws->primal_form != FORM_NONE && ((ws->primal_form == FORM_FREE) ? nw > 0 : nw < n)) {
         int k_up, head_up;
-        k_up = primal_diff(ws, n, &from, &head_up, &newest, &joined);
+        k_up = primal_diff(ws, nw, n, &from, &head_up, &newest, &joined);
         update = newest < ROLE_GEN_MAX && (ws->primal_form == form
             || primal_cost(md, k_up, from) <= primal_cost(md, k, 0));
         if (update) {
@@ -2232,7 +2159,7 @@ static int primal_solve(drives_work *ws, const drives_mode_data *md, int nw,
         if (update && intact && from < k - joined) {
             /* rows leave from inside the kept factor: deleting them by updates keeps the
              * rows below them, when that costs less than factoring those again */
-            const int kept = k - joined, k_prev = primal_old_order(ws, n);
+            const int kept = k - joined, k_prev = ws->primal_k;
             const uint32_t by_update = primal_deletes(ws, md, k_prev, 0)
                 + primal_work(md, k, kept, bound_form, runs);
             if (by_update < cost) {
@@ -3723,8 +3650,8 @@ int drives_qp_solve(drives_work *ws, drives_real *lam, const drives_real *plan,
             status = DRIVES_INFEASIBLE;
             break;
         }
-        correct(ws, md, ws->set, count, lam, CORRECT_BY_ROW);
-        i = polish(ws, md, lam, seed_from_multipliers(ws, md, lam, ws->set, count), 0, 0,
+        correct(ws, md, ws->lists.set, count, lam, CORRECT_BY_ROW);
+        i = polish(ws, md, lam, seed_from_multipliers(ws, md, lam, ws->lists.set, count), 0, 0,
                    polish_iterations, active);
         if (i == 0) {
             status = DRIVES_OPTIMAL;
@@ -3740,9 +3667,9 @@ int drives_qp_solve(drives_work *ws, drives_real *lam, const drives_real *plan,
             ws->in_set[i] = 0;
         }
         for (i = 0; i < count; ++i) {
-            ws->in_set[ws->set[i]] = 1;
+            ws->in_set[ws->lists.set[i]] = 1;
         }
-        correct(ws, md, ws->set, count, lam, CORRECT_BY_ROW);
+        correct(ws, md, ws->lists.set, count, lam, CORRECT_BY_ROW);
         nviol = violated_outside(ws, md, ws->th, 0, ws->tmp, 0);
         if (DRIVES_SOLVER_REDUCED && nviol != 0) {
             /* every violated row joins: predict the outputs unless certified */

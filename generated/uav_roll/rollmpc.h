@@ -18,7 +18,7 @@
 #include <stddef.h>
 #include <stdint.h>
 #include "rollmpc_config.h"
-#if ROLLMPC_GENERATION != 0x53e8cc5c6ed5a9f
+#if ROLLMPC_GENERATION != 0xe31c6f7b08bfbcd
 #error "rollmpc.h and rollmpc_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
 #endif
 
@@ -105,8 +105,10 @@ typedef struct {
     rollmpc_real nu[ROLLMPC_NT_MAX];     /**< Terminal multiplier step; scratch of correct(). */
     rollmpc_real xn[ROLLMPC_NX_MAX];    /**< Observer: next state. */
     rollmpc_real innov[ROLLMPC_N_OUTPUTS]; /**< Observer: innovation. */
-    int16_t run[ROLLMPC_HORIZON + 1];       /**< First stages of the runs of equal reference. */
-    int16_t set[ROLLMPC_M_MAX];              /**< Rows of the sweep set. */
+    union {                                       /**< Two index lists never live at once: */
+        int16_t run[ROLLMPC_HORIZON + 1];   /**< unconstrained(): first stages of the runs of equal reference; */
+        int16_t set[ROLLMPC_M_MAX];          /**< the sweeps, after it: rows of the sweep set. */
+    } lists;
     int16_t wset[ROLLMPC_WSET_MAX];          /**< Rows of the polish working set. */
     int16_t tmp[ROLLMPC_TMP_MAX];            /**< Scratch index list: rows joining the working set, the primal polish's inputs. */
     uint8_t in_set[ROLLMPC_M_MAX];           /**< Membership flags of the sweep set, or of the working
@@ -114,6 +116,8 @@ typedef struct {
     uint8_t input_role[ROLLMPC_N_MAX];       /**< Primal polish: input bound now, row of the factor. */
     int16_t primal_form;                          /**< Primal polish: form of the factor in chol (0: none). */
     int16_t primal_head;                          /**< Primal polish: rows of its last full factorisation. */
+    int16_t primal_k;                             /**< Primal polish: rows of the factor. */
+    int16_t primal_rows[ROLLMPC_N_MAX];      /**< Primal polish: the factor's rows (inputs), in order. */
     rollmpc_real gam_out_min;                /**< Smallest right-hand side of an output row. */
     int out_slacks_ok;                            /**< K of the output rows is computed. */
     int chol_holds;                               /**< What chol holds: ROLLMPC_CHOL_NONE, _DUAL or _PRIMAL. */

@@ -115,6 +115,12 @@ DEVIATIONS = (
               "\"Do not modify a function parameter\": index parameters are rebased (a -= "
               "n) and working-set sizes updated in place in small static helpers; the "
               "caller's values are unaffected (pass by value)."),
+    Deviation("19.2", ".h", "advisory",
+              "\"The union keyword should not be used\": P_work's index lists run (the "
+              "reference's runs, read only while the unconstrained step is formed) and set "
+              "(the sweep set, written after it) share one union of int16_t arrays: the "
+              "same type, never live at once, so nothing is read as another type; it keeps "
+              "the instance of a long horizon inside a 32 KiB RAM."),
     Deviation("20.10", "_config.h", "advisory",
               "\"No # or ## operators\": R_(x) pastes the f suffix onto literals in the "
               "float build (x##f), the only way to keep one template for both precisions "

@@ -188,8 +188,8 @@ def struct_bytes(cfg: ControllerConfig, sizes: tuple[ModeSizes, ...],
     if cfg.runtime_bounds:  # the live bounds of every mode, and the solver's copy
         live = max(s.nsig_live for s in sizes)
         reals += (k + 1) * 2 * (top["nu"] + ny + (max(live, 1) if top["nzq"] else 0))
-    # run, set, wset, tmp, and plan_mode and plan_age
-    int16s = cfg.horizon + 1 + m + lengths["wset"] + lengths["tmp"] + 2
+    # run and set (one union), wset, tmp, the primal factor's rows, plan_mode and plan_age
+    int16s = max(cfg.horizon + 1, m) + lengths["wset"] + lengths["tmp"] + n + 2
     bytes_ = m + n + (m if features_of(cfg)["has_soft_rows"] else 0)
     return reals * real + int16s * 2 + bytes_
 

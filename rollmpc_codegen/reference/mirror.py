@@ -82,11 +82,9 @@ UNMIRRORED = {
     "clear_flags": Unmirrored("reference/seeds.py.carry_factor",
                               _BOOKKEEPING + "the guess's membership flags cleared"),
     **{name: Unmirrored(_ORDER, _BOOKKEEPING + "the order of the primal factor's rows")
-       for name in ("in_form", "role_gen", "place_tail", "primal_diff")},
+       for name in ("in_form", "role_gen", "primal_diff")},
     "input_run": Unmirrored("reference/polish_primal.py.primal_factor",
                             _BOOKKEEPING + "the runs the factor's rows are gathered by"),
-    "primal_old_order": Unmirrored("reference/primal_rows.py.primal_deletes",
-                                   _BOOKKEEPING + "the previous factor's rows in order"),
     **{name: Unmirrored(_ROLES, _BOOKKEEPING + "the inputs' roles in ws->input_role")
        for name in ("role_word", "set_role_word", "mark_bound_inputs")},
 }

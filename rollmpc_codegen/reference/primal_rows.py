@@ -86,9 +86,9 @@ class PrimalRowsMixin:
         return head, FactorRows(form, head, [], []), 0, None
 
     def primal_deletes(self, old, member):
-        """Mirror of primal_old_order() and primal_deletes(): the work of deleting the rows of
-        the previous factor (order ``old``) whose inputs are not in ``member``, and their
-        (position, order) from the last up."""
+        """Mirror of primal_deletes(): the work of deleting the rows of the previous factor
+        (order ``old``, the C's ws->primal_rows) whose inputs are not in ``member``, and
+        their (position, order) from the last up."""
         k, work, deletes = len(old), 0, []
         for pos in range(len(old) - 1, -1, -1):
             if old[pos] not in member:

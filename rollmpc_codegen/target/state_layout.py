@@ -40,6 +40,7 @@ def _struct_body(header: str, closing: str) -> str:
 def _member_names(body: str) -> list[str]:
     body = re.sub(r"/\*.*?\*/", "", body, flags=re.S)
     body = body[body.index("{") + 1:]
+    body = re.sub(r"union\s*\{[^{}]*\}", "", body)  # a union is one member, by its name
     return re.findall(r"(\w+)\s*(?:\[[^\]]*\]\s*)*;", body)
 
 
