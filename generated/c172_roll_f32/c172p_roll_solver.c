@@ -25,7 +25,7 @@
  */
 #include <math.h>
 #include "c172p_roll_internal.h"
-#if C172P_ROLL_GENERATION != 0x0cc5303e82a17ed
+#if C172P_ROLL_GENERATION != 0xf8af4bead6679a8
 #error "c172p_roll_solver.c and c172p_roll_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
 #endif
 
@@ -120,10 +120,17 @@ static uint32_t sweep_work(const c172p_roll_mode_data *md, int count)
     return (uint32_t)count * (uint32_t)count * hq_work(md) + 8u * (uint32_t)count;
 }
 
-/* finish() and the slacks of the plan: always paid, so every check reserves it. */
+/*
+ * finish(): the finite check and clamp of the plan, the multipliers cleared after a failed
+ * sample and, in a mode with soft rows, the plan's slacks; always paid, so every check
+ * reserves it.
+ */
 static uint32_t finish_work(const c172p_roll_mode_data *md)
 {
-    return 2u * (uint32_t)md->n + 2u * (uint32_t)md->m;
+    const uint32_t soft = (((0u < (uint32_t)md->n + 1u) ? 0u : (uint32_t)md->n + 1u >
+        (uint32_t)md->n) ? (0u < (uint32_t)md->n + 1u) ? 0u : (uint32_t)md->n
+        + 1u : (uint32_t)md->n) - (uint32_t)md->n;
+    return 2u * (uint32_t)md->n + (uint32_t)md->m / 2u + soft * (uint32_t)md->m;
 }
 
 /*

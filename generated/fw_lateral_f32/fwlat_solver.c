@@ -25,7 +25,7 @@
  */
 #include <math.h>
 #include "fwlat_internal.h"
-#if FWLAT_GENERATION != 0x9bfe6de25433742
+#if FWLAT_GENERATION != 0xde1726b8bdced53
 #error "fwlat_solver.c and fwlat_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
 #endif
 
@@ -120,10 +120,18 @@ static uint32_t sweep_work(const fwlat_mode_data *md, int count)
     return (uint32_t)count * (uint32_t)count * hq_work(md) + 8u * (uint32_t)count;
 }
 
-/* finish() and the slacks of the plan: always paid, so every check reserves it. */
+/*
+ * finish(): the finite check and clamp of the plan, the multipliers cleared after a failed
+ * sample and, in a mode with soft rows, the plan's slacks; always paid, so every check
+ * reserves it.
+ */
 static uint32_t finish_work(const fwlat_mode_data *md)
 {
-    return 2u * (uint32_t)md->n + 2u * (uint32_t)md->m;
+    const uint32_t soft = ((((uint32_t)md->w_cap < (uint32_t)md->n + 1u) ? (uint32_t)md->w_cap
+        : (uint32_t)md->n + 1u > (uint32_t)md->n) ? ((uint32_t)md->w_cap <
+        (uint32_t)md->n + 1u) ? (uint32_t)md->w_cap : (uint32_t)md->n + 1u :
+        (uint32_t)md->n) - (uint32_t)md->n;
+    return 2u * (uint32_t)md->n + (uint32_t)md->m / 2u + soft * (uint32_t)md->m;
 }
 
 /*
@@ -3761,9 +3769,9 @@ static int finish(fwlat_work *ws, const fwlat_mode_data *md, fwlat_real *lam,
             lam[i] = R_(0.0); /* no sticky warm start after a failed sample */
         }
     }
-    ws->slack_max = R_(0.0); /* the slacks of the plan: 0 unless optimal */
+    ws->slack_max = R_(0.0); /* the slacks of the plan: 0 unless optimal, or all hard */
     ws->slack_rows = 0;
-    for (i = 0; status == FWLAT_OPTIMAL && i < md->m; ++i) {
+    for (i = 0; status == FWLAT_OPTIMAL && md->w_cap > md->n && i < md->m; ++i) {
         const fwlat_real sl = multiplier_slack(md, i, lam[i]);
         if (sl > R_(0.0)) {
             ws->slack_max = (sl > ws->slack_max) ? sl : ws->slack_max;

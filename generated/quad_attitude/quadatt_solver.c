@@ -25,7 +25,7 @@
  */
 #include <math.h>
 #include "quadatt_internal.h"
-#if QUADATT_GENERATION != 0x4bd60d692d2c97d
+#if QUADATT_GENERATION != 0x98882ee903eacd1
 #error "quadatt_solver.c and quadatt_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
 #endif
 
@@ -120,10 +120,17 @@ static uint32_t sweep_work(const quadatt_mode_data *md, int count)
     return (uint32_t)count * (uint32_t)count * hq_work(md) + 8u * (uint32_t)count;
 }
 
-/* finish() and the slacks of the plan: always paid, so every check reserves it. */
+/*
+ * finish(): the finite check and clamp of the plan, the multipliers cleared after a failed
+ * sample and, in a mode with soft rows, the plan's slacks; always paid, so every check
+ * reserves it.
+ */
 static uint32_t finish_work(const quadatt_mode_data *md)
 {
-    return 2u * (uint32_t)md->n + 2u * (uint32_t)md->m;
+    const uint32_t soft = (((0u < (uint32_t)md->n + 1u) ? 0u : (uint32_t)md->n + 1u >
+        (uint32_t)md->n) ? (0u < (uint32_t)md->n + 1u) ? 0u : (uint32_t)md->n
+        + 1u : (uint32_t)md->n) - (uint32_t)md->n;
+    return 2u * (uint32_t)md->n + (uint32_t)md->m / 2u + soft * (uint32_t)md->m;
 }
 
 /*

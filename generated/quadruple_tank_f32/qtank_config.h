@@ -28,7 +28,7 @@
  * stops the build unless it is of the same one: a regeneration interrupted between two
  * of its file moves leaves no mixed tree that compiles.
  */
-#define QTANK_GENERATION 0x662751f7c42ac77
+#define QTANK_GENERATION 0x770672790a6c7e3
 
 /* The one place where the precision is chosen. */
 #define QTANK_PRECISION_DOUBLE 0

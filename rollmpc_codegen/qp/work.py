@@ -126,8 +126,15 @@ def sweep_work(m, count: int, factor: int) -> int:
 
 @formula()
 def finish_work(m) -> int:
-    """finish() and the slacks of the plan: always paid, so every check reserves it."""
-    return 2 * m.n + 2 * m.m
+    """finish(): the finite check and clamp of the plan, the multipliers cleared after a
+    failed sample and, in a mode with soft rows, the plan's slacks; always paid, so every
+    check reserves it."""
+    # (on the emulated M4F the check and clamp take about 25 cycles an input, a cleared
+    # multiplier 3 and a row's slack about 18: fw_lateral's finish() 9.4 k cycles at n = 80,
+    # m = 400; 2n + 2m before, 4.4 cycles a unit on pmsm_speed's stopped samples)
+    # soft: 1 when the mode has soft rows, w_cap > n (unsigned; 0 where w_cap is absent)
+    soft = named("soft", larger(smaller(m.w_cap, m.n + 1), m.n) - m.n)
+    return 2 * m.n + m.m // 2 + soft * m.m
 # The dense kernels of linalg.c run faster per operation than a unit (H reads, row scans:
 # ~14 cycles): on the emulated M4F (float, -O2, orders 10-80) a Cholesky takes 5.3-6.2
 # cycles per chol_ops() operation (7.4 at order 5), a forward solve 6.9-7.1 and a back

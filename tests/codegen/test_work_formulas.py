@@ -21,6 +21,7 @@ TREES = [("fw_lateral", "fwlat"), ("thermal_zones_rate", "zrate"),
          ("tests/data/constraints/quad_rates.yaml", "quadrates")]
 SIZES = ("n", "m", "nyq", "ny", "nu", "nx", "nt", "ny_pred")
 SIGNAL_SIZES = ("nzq", "z_pred_ops")
+SOFT_SIZES = ("w_cap",)  # a member only where a mode has soft rows (has_soft_rows)
 
 
 def _cases(count: int, seed: int) -> list[tuple[dict, dict]]:
@@ -33,7 +34,8 @@ def _cases(count: int, seed: int) -> list[tuple[dict, dict]]:
         sizes = {"n": n, "m": rng.randint(1, 400), "nyq": ny * stages, "ny": ny, "nu": nu,
                  "nx": rng.randint(1, 12), "nt": rng.randint(0, 6),
                  "ny_pred": rng.randint(0, ny), "nzq": rng.randint(0, 200),
-                 "z_pred_ops": rng.randint(0, 20000)}
+                 "z_pred_ops": rng.randint(0, 20000),
+                 "w_cap": n + rng.choice((0, rng.randint(1, 40)))}  # n: no soft row
         order = rng.randint(1, 120)
         k = rng.randint(0, order - 1)
         kp = rng.randint(0, n)  # a primal factor's order: at most n
@@ -54,11 +56,12 @@ def _args(name: str, args: dict, kp: int) -> list[tuple[str, int]]:
     return [(p, args[p]) for p, _ in params]
 
 
-def _harness(prefix: str, names: list[str], cases, signals: bool) -> str:
+def _harness(prefix: str, names: list[str], cases, signals: bool, soft: bool) -> str:
     lines = [f'#include "{prefix}_solver.c"', '#include <stdio.h>', "int main(void)", "{",
              f"    {prefix}_mode_data md;"]
     for sizes, args, kp in cases:
-        lines += [f"    md.{s} = {sizes[s]};" for s in SIZES + (SIGNAL_SIZES if signals else ())]
+        lines += [f"    md.{s} = {sizes[s]};" for s in SIZES + (SIGNAL_SIZES if signals else ())
+                  + (SOFT_SIZES if soft else ())]
         for name in names:
             call_args = (["&md"] if FORMULAS[name].params[0][1] == "md" else []) + [
                 f"{v}u" if dict(FORMULAS[name].params)[p] == "uint" else str(v)
@@ -67,11 +70,15 @@ def _harness(prefix: str, names: list[str], cases, signals: bool) -> str:
     return "\n".join(lines + ["    return 0;", "}", ""])
 
 
-def _python(name: str, sizes: dict, args: dict, kp: int, factor: int, signals: bool) -> int:
-    """The Python formula; a tree without signal rows has no signal sizes (0)."""
+def _python(name: str, sizes: dict, args: dict, kp: int, factor: int, signals: bool,
+            soft: bool) -> int:
+    """The Python formula; a tree without signal rows has no signal sizes (0), one without
+    soft rows no soft pairs (w_cap = n)."""
     m = SimpleNamespace(**{("n_yq" if s == "nyq" else s): v for s, v in sizes.items()})
     if not signals:
         m.nzq = m.z_pred_ops = 0
+    if not soft:
+        m.w_cap = m.n
     f = getattr(work, name)
     positional = ([m] if FORMULAS[name].params[0][1] == "md" else []) + [
         v for _, v in _args(name, args, kp)]
@@ -91,15 +98,17 @@ def test_c_work_functions_compute_the_python_formulas(tmp_path, tree, prefix):
     text = (src / f"{prefix}_solver.c").read_text()
     names = [n for n in FORMULAS if f"static uint32_t {n}(" in text]
     assert len(names) == len(FORMULAS)  # these trees render every formula
-    factor = json.loads((src / f"{prefix}_context.json").read_text())["solver"]["hq_work_factor"]
+    context = json.loads((src / f"{prefix}_context.json").read_text())
+    factor, soft = context["solver"]["hq_work_factor"], bool(context.get("has_soft_rows"))
     cases = _cases(60, seed=len(tree))
-    (tmp_path / "h.c").write_text(_harness(prefix, names, cases, signals))
+    (tmp_path / "h.c").write_text(_harness(prefix, names, cases, signals, soft))
     exe = tmp_path / "h"
     subprocess.run([gcc, "-O1", "-w", f"-I{src}", str(tmp_path / "h.c"),
                     str(src / f"{prefix}_linalg.c"), "-lm", "-o", str(exe)], check=True)
     got = [int(v) for v in subprocess.run([str(exe)], capture_output=True, text=True,
                                           check=True).stdout.split()]
-    want = [_python(name, s, a, kp, factor, signals) for s, a, kp in cases for name in names]
+    want = [_python(name, s, a, kp, factor, signals, soft) for s, a, kp in cases
+            for name in names]
     assert all(v < 2**32 for v in want)
     bad = [(i // len(names), names[i % len(names)], g, w)
            for i, (g, w) in enumerate(zip(got, want)) if g != w]

@@ -135,8 +135,8 @@ def test_an_undetectable_kalman_model_names_its_direction():
 
 # --------------------------------------------------------------------------- item 3: sizes
 PREDICTION = ("rollmpc: predicted on a Cortex-M4F (FPv4-SP) at 72 MHz (float build): flash "
-              "67.5 of 128 KiB, RAM 10.1 of 32 KiB, a step without active bounds about 16,000 "
-              "of the 7,200,000 cycles of a sample and 1,450 of the solver's 179,865 work "
+              "67.5 of 128 KiB, RAM 10.1 of 32 KiB, a step without active bounds about 15,000 "
+              "of the 7,200,000 cycles of a sample and 1,150 of the solver's 179,865 work "
               "units (an estimate; active bounds cost more)")
 FORCE = "; --force-size generates it anyway"
 TOO_LARGE = [
@@ -151,11 +151,11 @@ TOO_LARGE = [
                  "rows), above target.ram_kib = 8" + FORCE, id="ram"),
     pytest.param({"target": {"cpu_mhz": 0.1}},  # 10,000 cycles in 0.1 s
                  "horizon: too large for the target: the float build would take about "
-                 "16,000 cycles (1,450 work units) for a step without active bounds (an "
+                 "15,000 cycles (1,150 work units) for a step without active bounds (an "
                  "estimate; modes[0]: n = 50 variables, m = 200 rows), above the 10,000 of "
                  "one sample (sample_time 0.1 s at target.cpu_mhz = 0.1); what fits: horizon "
-                 "<= 27; or control_horizon: 12; or target.cpu_mhz >= 0.158; or sample_time "
-                 ">= 0.158" + FORCE,
+                 "<= 28; or control_horizon: 15; or target.cpu_mhz >= 0.154; or sample_time "
+                 ">= 0.154" + FORCE,
                  id="cycles"),
     pytest.param({"horizon": 600, "target": None},
                  "horizon: too large for the target: the float build needs about 3,613 KiB "
