@@ -7,7 +7,7 @@
 
 #include <math.h>
 #include "c172p_roll.h"
-#if C172P_ROLL_GENERATION != 0xfa6e45efd77da59
+#if C172P_ROLL_GENERATION != 0x5295988a0b8e5b6
 #error "c172p_roll_internal.h and c172p_roll_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
 #endif
 

@@ -28,7 +28,7 @@
  * stops the build unless it is of the same one: a regeneration interrupted between two
  * of its file moves leaves no mixed tree that compiles.
  */
-#define FWLAT_GENERATION 0xf11e80dfcd8ffc0
+#define FWLAT_GENERATION 0xd240a3c186d274a
 
 /* The one place where the precision is chosen. */
 #define FWLAT_PRECISION_DOUBLE 1

@@ -25,7 +25,7 @@
  */
 #include <math.h>
 #include "fwlat_internal.h"
-#if FWLAT_GENERATION != 0xf11e80dfcd8ffc0
+#if FWLAT_GENERATION != 0xd240a3c186d274a
 #error "fwlat_solver.c and fwlat_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
 #endif
 
@@ -1938,6 +1938,24 @@ static int box_only(const fwlat_work *ws, const fwlat_mode_data *md, int nw)
 }
 
 /*
+ * The length of the run of consecutive inputs (ascending or descending: *dir = 1 or -1)
+ * at rows[c] of rows[0..k).
+ */
+static int input_run(const int16_t *rows, int c, int k, int *dir)
+{
+    const int q0 = rows[c];
+    int len = 1;
+    *dir = 1;
+    if (c + 1 < k && (rows[c + 1] == q0 + 1 || rows[c + 1] == q0 - 1)) {
+        *dir = rows[c + 1] - q0;
+        while (c + len < k && rows[c + len] == q0 + len * *dir) {
+            ++len;
+        }
+    }
+    return len;
+}
+
+/*
  * The bound form's d_F needs (S^-1 beta)_f for every free input f, with beta zero outside
  * the k bound inputs. The bound inputs are gathered once, ascending, with their beta; each
  * four free rows then walk that short list, four sums per list entry read, with no
@@ -2043,24 +2061,6 @@ static void gather_product(const fwlat_real *mp, const int16_t *list,
         gather_dot4(mp, rows4, list, xs, k, lo, hi, take, out);
         lo = hi;
     }
-}
-
-/*
- * The length of the run of consecutive inputs (ascending or descending: *dir = 1 or -1)
- * at rows[c] of rows[0..k).
- */
-static int input_run(const int16_t *rows, int c, int k, int *dir)
-{
-    const int q0 = rows[c];
-    int len = 1;
-    *dir = 1;
-    if (c + 1 < k && (rows[c + 1] == q0 + 1 || rows[c + 1] == q0 - 1)) {
-        *dir = rows[c + 1] - q0;
-        while (c + len < k && rows[c + len] == q0 + len * *dir) {
-            ++len;
-        }
-    }
-    return len;
 }
 
 /* Runs shorter than this are gathered by listed columns (packed_gather_listed()). */

@@ -28,7 +28,7 @@
  * stops the build unless it is of the same one: a regeneration interrupted between two
  * of its file moves leaves no mixed tree that compiles.
  */
-#define QUADATT_GENERATION 0x23229ea6914d3e6
+#define QUADATT_GENERATION 0x88cec1341b94bae
 
 /* The one place where the precision is chosen. */
 #define QUADATT_PRECISION_DOUBLE 0

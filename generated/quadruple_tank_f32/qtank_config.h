@@ -28,7 +28,7 @@
  * stops the build unless it is of the same one: a regeneration interrupted between two
  * of its file moves leaves no mixed tree that compiles.
  */
-#define QTANK_GENERATION 0x770672790a6c7e3
+#define QTANK_GENERATION 0x25fdefe8173126b
 
 /* The one place where the precision is chosen. */
 #define QTANK_PRECISION_DOUBLE 0
