@@ -7,7 +7,7 @@
 
 #include <math.h>
 #include "c172p_roll.h"
-#if C172P_ROLL_GENERATION != 0x5295988a0b8e5b6
+#if C172P_ROLL_GENERATION != 0xdd0bb146b0d2e07
 #error "c172p_roll_internal.h and c172p_roll_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
 #endif
 

@@ -18,7 +18,7 @@
 #include <stddef.h>
 #include <stdint.h>
 #include "c172p_roll_config.h"
-#if C172P_ROLL_GENERATION != 0x82358616b9a4db2
+#if C172P_ROLL_GENERATION != 0x1d6b50eb9f9e6e9
 #error "c172p_roll.h and c172p_roll_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
 #endif
 

@@ -18,7 +18,7 @@
 #include <stddef.h>
 #include <stdint.h>
 #include "chain_config.h"
-#if CHAIN_GENERATION != 0x6f3c28a9fd5936d
+#if CHAIN_GENERATION != 0x398895e8d26b7de
 #error "chain.h and chain_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
 #endif
 

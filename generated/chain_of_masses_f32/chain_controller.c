@@ -10,7 +10,7 @@
  */
 #include <math.h>
 #include "chain_internal.h"
-#if CHAIN_GENERATION != 0x425b1ab5b167e11
+#if CHAIN_GENERATION != 0x647443297c2971a
 #error "chain_controller.c and chain_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
 #endif
 

@@ -18,7 +18,7 @@
 #include <stddef.h>
 #include <stdint.h>
 #include "chain_rb_config.h"
-#if CHAIN_RB_GENERATION != 0x910ded9f1b06b35
+#if CHAIN_RB_GENERATION != 0x0d1e96d0ea317cb
 #error "chain_rb.h and chain_rb_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
 #endif
 

@@ -12,7 +12,7 @@
  */
 #include <math.h>
 #include "chain_rb_internal.h"
-#if CHAIN_RB_GENERATION != 0x910ded9f1b06b35
+#if CHAIN_RB_GENERATION != 0x0d1e96d0ea317cb
 #error "chain_rb_linalg.c and chain_rb_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
 #endif
 

@@ -10,7 +10,7 @@
  */
 #include <math.h>
 #include "chain_rb_internal.h"
-#if CHAIN_RB_GENERATION != 0x21a8e01f06152a7
+#if CHAIN_RB_GENERATION != 0x474cca90b24b299
 #error "chain_rb_controller.c and chain_rb_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
 #endif
 

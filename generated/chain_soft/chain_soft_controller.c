@@ -10,7 +10,7 @@
  */
 #include <math.h>
 #include "chain_soft_internal.h"
-#if CHAIN_SOFT_GENERATION != 0x0ff938a9a7bb415
+#if CHAIN_SOFT_GENERATION != 0x3be83a80511f92b
 #error "chain_soft_controller.c and chain_soft_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
 #endif
 

@@ -10,7 +10,7 @@
  */
 #include <math.h>
 #include "chain_soft_internal.h"
-#if CHAIN_SOFT_GENERATION != 0x64a4de82fb01328
+#if CHAIN_SOFT_GENERATION != 0xbfefa456d764778
 #error "chain_soft_controller.c and chain_soft_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
 #endif
 

@@ -25,7 +25,7 @@
  */
 #include <math.h>
 #include "chain_soft_internal.h"
-#if CHAIN_SOFT_GENERATION != 0x64a4de82fb01328
+#if CHAIN_SOFT_GENERATION != 0xbfefa456d764778
 #error "chain_soft_solver.c and chain_soft_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
 #endif
 
@@ -121,17 +121,25 @@ static uint32_t sweep_work(const chain_soft_mode_data *md, int count)
 }
 
 /*
+ * 1 in a mode with soft rows (its working set holds their slack rows: w_cap > n), else 0
+ * (w_cap is absent, 0, in a build without soft rows).
+ */
+static uint32_t soft_mode(const chain_soft_mode_data *md)
+{
+    return ((((uint32_t)md->w_cap < (uint32_t)md->n + 1u) ? (uint32_t)md->w_cap :
+        (uint32_t)md->n + 1u > (uint32_t)md->n) ? ((uint32_t)md->w_cap < (uint32_t)md->n +
+        1u) ? (uint32_t)md->w_cap : (uint32_t)md->n + 1u : (uint32_t)md->n) -
+        (uint32_t)md->n;
+}
+
+/*
  * finish(): the finite check and clamp of the plan, the multipliers cleared after a failed
  * sample and, in a mode with soft rows, the plan's slacks; always paid, so every check
  * reserves it.
  */
 static uint32_t finish_work(const chain_soft_mode_data *md)
 {
-    const uint32_t soft = ((((uint32_t)md->w_cap < (uint32_t)md->n + 1u) ? (uint32_t)md->w_cap
-        : (uint32_t)md->n + 1u > (uint32_t)md->n) ? ((uint32_t)md->w_cap <
-        (uint32_t)md->n + 1u) ? (uint32_t)md->w_cap : (uint32_t)md->n + 1u :
-        (uint32_t)md->n) - (uint32_t)md->n;
-    return 2u * (uint32_t)md->n + (uint32_t)md->m / 2u + soft * (uint32_t)md->m;
+    return 2u * (uint32_t)md->n + (uint32_t)md->m / 2u + soft_mode(md) * (uint32_t)md->m;
 }
 
 /*
@@ -3697,11 +3705,13 @@ static int finish(chain_soft_work *ws, const chain_soft_mode_data *md, chain_sof
     }
     ws->slack_max = R_(0.0); /* the slacks of the plan: 0 unless optimal, or all hard */
     ws->slack_rows = 0;
-    for (i = 0; status == CHAIN_SOFT_OPTIMAL && md->w_cap > md->n && i < md->m; ++i) {
-        const chain_soft_real sl = multiplier_slack(md, i, lam[i]);
-        if (sl > R_(0.0)) {
-            ws->slack_max = (sl > ws->slack_max) ? sl : ws->slack_max;
-            ++ws->slack_rows;
+    if (status == CHAIN_SOFT_OPTIMAL && soft_mode(md) != 0u) {
+        for (i = 0; i < md->m; ++i) {
+            const chain_soft_real sl = multiplier_slack(md, i, lam[i]);
+            if (sl > R_(0.0)) {
+                ws->slack_max = (sl > ws->slack_max) ? sl : ws->slack_max;
+                ++ws->slack_rows;
+            }
         }
     }
     return status;

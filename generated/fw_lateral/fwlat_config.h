@@ -28,7 +28,7 @@
  * stops the build unless it is of the same one: a regeneration interrupted between two
  * of its file moves leaves no mixed tree that compiles.
  */
-#define FWLAT_GENERATION 0xd240a3c186d274a
+#define FWLAT_GENERATION 0x1413153fc41fc15
 
 /* The one place where the precision is chosen. */
 #define FWLAT_PRECISION_DOUBLE 1

@@ -12,7 +12,7 @@
  */
 #include <math.h>
 #include "fwlat_internal.h"
-#if FWLAT_GENERATION != 0xd240a3c186d274a
+#if FWLAT_GENERATION != 0x1413153fc41fc15
 #error "fwlat_linalg.c and fwlat_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
 #endif
 

@@ -28,7 +28,7 @@
  * stops the build unless it is of the same one: a regeneration interrupted between two
  * of its file moves leaves no mixed tree that compiles.
  */
-#define FWLAT_GENERATION 0x6b435e0a9450886
+#define FWLAT_GENERATION 0xd594b3415a246c7
 
 /* The one place where the precision is chosen. */
 #define FWLAT_PRECISION_DOUBLE 0

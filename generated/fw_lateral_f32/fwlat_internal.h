@@ -7,7 +7,7 @@
 
 #include <math.h>
 #include "fwlat.h"
-#if FWLAT_GENERATION != 0x6b435e0a9450886
+#if FWLAT_GENERATION != 0xd594b3415a246c7
 #error "fwlat_internal.h and fwlat_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
 #endif
 

@@ -12,7 +12,7 @@
  */
 #include <math.h>
 #include "fwlat_internal.h"
-#if FWLAT_GENERATION != 0x6b435e0a9450886
+#if FWLAT_GENERATION != 0xd594b3415a246c7
 #error "fwlat_linalg.c and fwlat_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
 #endif
 

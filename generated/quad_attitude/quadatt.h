@@ -18,7 +18,7 @@
 #include <stddef.h>
 #include <stdint.h>
 #include "quadatt_config.h"
-#if QUADATT_GENERATION != 0xa5a3dc2fb700ee1
+#if QUADATT_GENERATION != 0xf90953e01afe223
 #error "quadatt.h and quadatt_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
 #endif
 

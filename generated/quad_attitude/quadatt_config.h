@@ -28,7 +28,7 @@
  * stops the build unless it is of the same one: a regeneration interrupted between two
  * of its file moves leaves no mixed tree that compiles.
  */
-#define QUADATT_GENERATION 0xa5a3dc2fb700ee1
+#define QUADATT_GENERATION 0xf90953e01afe223
 
 /* The one place where the precision is chosen. */
 #define QUADATT_PRECISION_DOUBLE 1

@@ -10,7 +10,7 @@
  */
 #include <math.h>
 #include "quadatt_internal.h"
-#if QUADATT_GENERATION != 0xa5a3dc2fb700ee1
+#if QUADATT_GENERATION != 0xf90953e01afe223
 #error "quadatt_controller.c and quadatt_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
 #endif
 

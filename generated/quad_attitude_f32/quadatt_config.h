@@ -28,7 +28,7 @@
  * stops the build unless it is of the same one: a regeneration interrupted between two
  * of its file moves leaves no mixed tree that compiles.
  */
-#define QUADATT_GENERATION 0x88cec1341b94bae
+#define QUADATT_GENERATION 0x0de5cde63d20b5f
 
 /* The one place where the precision is chosen. */
 #define QUADATT_PRECISION_DOUBLE 0

@@ -12,7 +12,7 @@
  */
 #include <math.h>
 #include "quadatt_internal.h"
-#if QUADATT_GENERATION != 0x88cec1341b94bae
+#if QUADATT_GENERATION != 0x0de5cde63d20b5f
 #error "quadatt_linalg.c and quadatt_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
 #endif
 

@@ -18,7 +18,7 @@
 #include <stddef.h>
 #include <stdint.h>
 #include "qtank_config.h"
-#if QTANK_GENERATION != 0xc81695b45e5a1c8
+#if QTANK_GENERATION != 0x045fa914e59c544
 #error "qtank.h and qtank_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
 #endif
 

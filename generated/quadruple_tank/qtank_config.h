@@ -28,7 +28,7 @@
  * stops the build unless it is of the same one: a regeneration interrupted between two
  * of its file moves leaves no mixed tree that compiles.
  */
-#define QTANK_GENERATION 0xc81695b45e5a1c8
+#define QTANK_GENERATION 0x045fa914e59c544
 
 /* The one place where the precision is chosen. */
 #define QTANK_PRECISION_DOUBLE 1

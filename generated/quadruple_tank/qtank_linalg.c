@@ -12,7 +12,7 @@
  */
 #include <math.h>
 #include "qtank_internal.h"
-#if QTANK_GENERATION != 0xc81695b45e5a1c8
+#if QTANK_GENERATION != 0x045fa914e59c544
 #error "qtank_linalg.c and qtank_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
 #endif
 

@@ -18,7 +18,7 @@
 #include <stddef.h>
 #include <stdint.h>
 #include "qtank_config.h"
-#if QTANK_GENERATION != 0x25fdefe8173126b
+#if QTANK_GENERATION != 0x075c372de1cdefe
 #error "qtank.h and qtank_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
 #endif
 

@@ -28,7 +28,7 @@
  * stops the build unless it is of the same one: a regeneration interrupted between two
  * of its file moves leaves no mixed tree that compiles.
  */
-#define QTANK_GENERATION 0x25fdefe8173126b
+#define QTANK_GENERATION 0x075c372de1cdefe
 
 /* The one place where the precision is chosen. */
 #define QTANK_PRECISION_DOUBLE 0

@@ -7,7 +7,7 @@
 
 #include <math.h>
 #include "qtank.h"
-#if QTANK_GENERATION != 0x25fdefe8173126b
+#if QTANK_GENERATION != 0x075c372de1cdefe
 #error "qtank_internal.h and qtank_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
 #endif
 

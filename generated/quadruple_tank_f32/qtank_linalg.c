@@ -12,7 +12,7 @@
  */
 #include <math.h>
 #include "qtank_internal.h"
-#if QTANK_GENERATION != 0x25fdefe8173126b
+#if QTANK_GENERATION != 0x075c372de1cdefe
 #error "qtank_linalg.c and qtank_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
 #endif
 

@@ -28,7 +28,7 @@
  * stops the build unless it is of the same one: a regeneration interrupted between two
  * of its file moves leaves no mixed tree that compiles.
  */
-#define ZONES_GENERATION 0x9fe5b381d67b918
+#define ZONES_GENERATION 0x9ef3dc700599430
 
 /* The one place where the precision is chosen. */
 #define ZONES_PRECISION_DOUBLE 1

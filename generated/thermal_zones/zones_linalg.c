@@ -12,7 +12,7 @@
  */
 #include <math.h>
 #include "zones_internal.h"
-#if ZONES_GENERATION != 0x9fe5b381d67b918
+#if ZONES_GENERATION != 0x9ef3dc700599430
 #error "zones_linalg.c and zones_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
 #endif
 

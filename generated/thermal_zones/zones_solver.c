@@ -25,7 +25,7 @@
  */
 #include <math.h>
 #include "zones_internal.h"
-#if ZONES_GENERATION != 0x9fe5b381d67b918
+#if ZONES_GENERATION != 0x9ef3dc700599430
 #error "zones_solver.c and zones_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
 #endif
 
@@ -121,16 +121,24 @@ static uint32_t sweep_work(const zones_mode_data *md, int count)
 }
 
 /*
+ * 1 in a mode with soft rows (its working set holds their slack rows: w_cap > n), else 0
+ * (w_cap is absent, 0, in a build without soft rows).
+ */
+static uint32_t soft_mode(const zones_mode_data *md)
+{
+    return (((0u < (uint32_t)md->n + 1u) ? 0u : (uint32_t)md->n + 1u > (uint32_t)md->n) ? (0u <
+        (uint32_t)md->n + 1u) ? 0u : (uint32_t)md->n + 1u : (uint32_t)md->n) -
+        (uint32_t)md->n;
+}
+
+/*
  * finish(): the finite check and clamp of the plan, the multipliers cleared after a failed
  * sample and, in a mode with soft rows, the plan's slacks; always paid, so every check
  * reserves it.
  */
 static uint32_t finish_work(const zones_mode_data *md)
 {
-    const uint32_t soft = (((0u < (uint32_t)md->n + 1u) ? 0u : (uint32_t)md->n + 1u >
-        (uint32_t)md->n) ? (0u < (uint32_t)md->n + 1u) ? 0u : (uint32_t)md->n
-        + 1u : (uint32_t)md->n) - (uint32_t)md->n;
-    return 2u * (uint32_t)md->n + (uint32_t)md->m / 2u + soft * (uint32_t)md->m;
+    return 2u * (uint32_t)md->n + (uint32_t)md->m / 2u + soft_mode(md) * (uint32_t)md->m;
 }
 
 /*

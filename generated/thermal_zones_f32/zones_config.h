@@ -28,7 +28,7 @@
  * stops the build unless it is of the same one: a regeneration interrupted between two
  * of its file moves leaves no mixed tree that compiles.
  */
-#define ZONES_GENERATION 0x59649b7785121c6
+#define ZONES_GENERATION 0x10af544ec9b90b0
 
 /* The one place where the precision is chosen. */
 #define ZONES_PRECISION_DOUBLE 0

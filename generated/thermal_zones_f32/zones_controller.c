@@ -10,7 +10,7 @@
  */
 #include <math.h>
 #include "zones_internal.h"
-#if ZONES_GENERATION != 0x59649b7785121c6
+#if ZONES_GENERATION != 0x10af544ec9b90b0
 #error "zones_controller.c and zones_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
 #endif
 

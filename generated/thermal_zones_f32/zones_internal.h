@@ -7,7 +7,7 @@
 
 #include <math.h>
 #include "zones.h"
-#if ZONES_GENERATION != 0x59649b7785121c6
+#if ZONES_GENERATION != 0x10af544ec9b90b0
 #error "zones_internal.h and zones_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
 #endif
 

@@ -10,7 +10,7 @@
  */
 #include <math.h>
 #include "zrate_internal.h"
-#if ZRATE_GENERATION != 0x3d2ea7d1c3fcbba
+#if ZRATE_GENERATION != 0x2ea14fcd4b6baec
 #error "zrate_controller.c and zrate_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
 #endif
 

@@ -28,7 +28,7 @@
  * stops the build unless it is of the same one: a regeneration interrupted between two
  * of its file moves leaves no mixed tree that compiles.
  */
-#define ZRATE_GENERATION 0x89b252ec05b656f
+#define ZRATE_GENERATION 0xf71d3ce504f008f
 
 /* The one place where the precision is chosen. */
 #define ZRATE_PRECISION_DOUBLE 0

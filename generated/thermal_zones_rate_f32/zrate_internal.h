@@ -7,7 +7,7 @@
 
 #include <math.h>
 #include "zrate.h"
-#if ZRATE_GENERATION != 0x89b252ec05b656f
+#if ZRATE_GENERATION != 0xf71d3ce504f008f
 #error "zrate_internal.h and zrate_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
 #endif
 

@@ -12,7 +12,7 @@
  */
 #include <math.h>
 #include "zrate_internal.h"
-#if ZRATE_GENERATION != 0x89b252ec05b656f
+#if ZRATE_GENERATION != 0xf71d3ce504f008f
 #error "zrate_linalg.c and zrate_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
 #endif
 

@@ -12,7 +12,7 @@
  */
 #include <math.h>
 #include "drives_internal.h"
-#if DRIVES_GENERATION != 0x34fb4e8b3adda7e
+#if DRIVES_GENERATION != 0xe2393845aeb793a
 #error "drives_linalg.c and drives_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
 #endif
 

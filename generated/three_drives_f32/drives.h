@@ -18,7 +18,7 @@
 #include <stddef.h>
 #include <stdint.h>
 #include "drives_config.h"
-#if DRIVES_GENERATION != 0x84d6e3b1d02fb61
+#if DRIVES_GENERATION != 0x0dee47a3fbc1639
 #error "drives.h and drives_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
 #endif
 

@@ -28,7 +28,7 @@
  * stops the build unless it is of the same one: a regeneration interrupted between two
  * of its file moves leaves no mixed tree that compiles.
  */
-#define DRIVES_GENERATION 0x84d6e3b1d02fb61
+#define DRIVES_GENERATION 0x0dee47a3fbc1639
 
 /* The one place where the precision is chosen. */
 #define DRIVES_PRECISION_DOUBLE 0

@@ -12,7 +12,7 @@
  */
 #include <math.h>
 #include "drives_internal.h"
-#if DRIVES_GENERATION != 0x84d6e3b1d02fb61
+#if DRIVES_GENERATION != 0x0dee47a3fbc1639
 #error "drives_linalg.c and drives_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
 #endif
 

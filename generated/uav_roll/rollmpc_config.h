@@ -28,7 +28,7 @@
  * stops the build unless it is of the same one: a regeneration interrupted between two
  * of its file moves leaves no mixed tree that compiles.
  */
-#define ROLLMPC_GENERATION 0xb3136c7395c5dce
+#define ROLLMPC_GENERATION 0x812c05ccab70e27
 
 /* The one place where the precision is chosen. */
 #define ROLLMPC_PRECISION_DOUBLE 1

@@ -10,7 +10,7 @@
  */
 #include <math.h>
 #include "rollmpc_internal.h"
-#if ROLLMPC_GENERATION != 0xb3136c7395c5dce
+#if ROLLMPC_GENERATION != 0x812c05ccab70e27
 #error "rollmpc_controller.c and rollmpc_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
 #endif
 

@@ -12,7 +12,7 @@
  */
 #include <math.h>
 #include "rollmpc_internal.h"
-#if ROLLMPC_GENERATION != 0xc3722a6e490bf63
+#if ROLLMPC_GENERATION != 0x7fff7b8e801a310
 #error "rollmpc_linalg.c and rollmpc_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
 #endif
 

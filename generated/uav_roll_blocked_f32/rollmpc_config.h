@@ -28,7 +28,7 @@
  * stops the build unless it is of the same one: a regeneration interrupted between two
  * of its file moves leaves no mixed tree that compiles.
  */
-#define ROLLMPC_GENERATION 0x1e9556f16267414
+#define ROLLMPC_GENERATION 0x89b0a5d3ae90a7f
 
 /* The one place where the precision is chosen. */
 #define ROLLMPC_PRECISION_DOUBLE 0

@@ -28,7 +28,7 @@
  * stops the build unless it is of the same one: a regeneration interrupted between two
  * of its file moves leaves no mixed tree that compiles.
  */
-#define ROLLMPC_GENERATION 0xe0d90038db5bae2
+#define ROLLMPC_GENERATION 0x0fec288c58f7f3c
 
 /* The one place where the precision is chosen. */
 #define ROLLMPC_PRECISION_DOUBLE 0

@@ -7,7 +7,7 @@
 
 #include <math.h>
 #include "rollmpc.h"
-#if ROLLMPC_GENERATION != 0xe0d90038db5bae2
+#if ROLLMPC_GENERATION != 0x0fec288c58f7f3c
 #error "rollmpc_internal.h and rollmpc_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
 #endif
 

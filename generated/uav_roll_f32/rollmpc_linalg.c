@@ -12,7 +12,7 @@
  */
 #include <math.h>
 #include "rollmpc_internal.h"
-#if ROLLMPC_GENERATION != 0xe0d90038db5bae2
+#if ROLLMPC_GENERATION != 0x0fec288c58f7f3c
 #error "rollmpc_linalg.c and rollmpc_config.h are of different generations (an interrupted regeneration?): regenerate the whole directory"
 #endif
 

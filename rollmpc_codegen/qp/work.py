@@ -125,6 +125,13 @@ def sweep_work(m, count: int, factor: int) -> int:
 
 
 @formula()
+def soft_mode(m) -> int:
+    """1 in a mode with soft rows (its working set holds their slack rows: w_cap > n), else
+    0 (w_cap is absent, 0, in a build without soft rows)."""
+    return larger(smaller(m.w_cap, m.n + 1), m.n) - m.n
+
+
+@formula()
 def finish_work(m) -> int:
     """finish(): the finite check and clamp of the plan, the multipliers cleared after a
     failed sample and, in a mode with soft rows, the plan's slacks; always paid, so every
@@ -132,9 +139,7 @@ def finish_work(m) -> int:
     # (on the emulated M4F the check and clamp take about 25 cycles an input, a cleared
     # multiplier 3 and a row's slack about 18: fw_lateral's finish() 9.4 k cycles at n = 80,
     # m = 400; 2n + 2m before, 4.4 cycles a unit on pmsm_speed's stopped samples)
-    # soft: 1 when the mode has soft rows, w_cap > n (unsigned; 0 where w_cap is absent)
-    soft = named("soft", larger(smaller(m.w_cap, m.n + 1), m.n) - m.n)
-    return 2 * m.n + m.m // 2 + soft * m.m
+    return 2 * m.n + m.m // 2 + soft_mode(m) * m.m
 # The dense kernels of linalg.c run faster per operation than a unit (H reads, row scans:
 # ~14 cycles): on the emulated M4F (float, -O2, orders 10-80) a Cholesky takes 5.3-6.2
 # cycles per chol_ops() operation (7.4 at order 5), a forward solve 6.9-7.1 and a back
@@ -345,7 +350,8 @@ def free_step_work(m, certified: bool = True) -> int:
     estimates in cycles: one figure in both (docs/checks.md, "One figure per step");
     base_work() is its worst case."""
     rows = m.has_output_rows
-    return (unconstrained_work(m, 0, 1, rows) + 2 * m.m + (certificate_read_work(m) if rows else 0)
+    return (unconstrained_work(m, 0, 1, rows) + 2 * m.m
+            + (certificate_read_work(m) if rows else 0)
             + (0 if certified or not rows else m.m + predict_work(m)) + finish_work(m))
 
 
